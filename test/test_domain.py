@@ -1,0 +1,113 @@
+"""Tests for wallbot_sim.domain (per-run ROS_DOMAIN_ID claims)."""
+import os
+import random
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, claim_domain_id,
+                                isolated_ros_env)
+
+
+def test_concurrent_claims_get_distinct_ids(tmp_path):
+    # Same starting point for every claim: each must still skip held ids.
+    claims = [claim_domain_id(tmp_path, rng=random.Random(0)) for _ in range(10)]
+    try:
+        ids = [c.domain_id for c in claims]
+        assert len(set(ids)) == len(ids)
+        assert all(MIN_DOMAIN_ID <= i <= MAX_DOMAIN_ID for i in ids)
+    finally:
+        for c in claims:
+            c.release()
+
+
+def test_claim_held_by_other_process_is_skipped(tmp_path):
+    code = ('import sys, random\n'
+            'from wallbot_sim.domain import claim_domain_id\n'
+            'c = claim_domain_id(sys.argv[1], rng=random.Random(0))\n'
+            'print(c.domain_id, flush=True)\n'
+            'sys.stdin.read()\n')
+    repo = str(Path(__file__).resolve().parents[1])
+    env = dict(os.environ, PYTHONPATH=repo + os.pathsep + os.environ.get('PYTHONPATH', ''))
+    child = subprocess.Popen([sys.executable, '-c', code, str(tmp_path)], env=env,
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        child_id = int(child.stdout.readline())
+        with claim_domain_id(tmp_path, rng=random.Random(0)) as mine:
+            assert mine.domain_id != child_id
+    finally:
+        child.stdin.close()
+        child.wait(timeout=10)
+    # the child's lock died with it: its id is free again
+    with claim_domain_id(tmp_path, rng=random.Random(0)) as again:
+        assert again.domain_id == child_id
+
+
+def test_release_frees_the_id(tmp_path):
+    with claim_domain_id(tmp_path, rng=random.Random(3)) as claim:
+        first = claim.domain_id
+        assert claim.held
+    assert not claim.held
+    claim.release()  # idempotent
+    second = claim_domain_id(tmp_path, rng=random.Random(3))
+    try:
+        assert second.domain_id == first
+    finally:
+        second.release()
+
+
+def test_all_ids_taken_raises(tmp_path):
+    claims = [claim_domain_id(tmp_path) for _ in range(MAX_DOMAIN_ID - MIN_DOMAIN_ID + 1)]
+    try:
+        assert len({c.domain_id for c in claims}) == len(claims)
+        with pytest.raises(RuntimeError):
+            claim_domain_id(tmp_path)
+    finally:
+        for c in claims:
+            c.release()
+
+
+def test_isolated_env_sets_both_variables():
+    env = isolated_ros_env(42, base={'PATH': '/bin', 'ROS_DOMAIN_ID': '7'})
+    assert env == {'PATH': '/bin', 'ROS_DOMAIN_ID': '42',
+                   'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    full = isolated_ros_env(5)
+    assert full['ROS_DOMAIN_ID'] == '5' and full['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
+    assert full['PATH'] == os.environ['PATH']
+    with pytest.raises(ValueError):
+        isolated_ros_env(0)
+
+
+def test_session_fixture_exported_domain(ros_domain):
+    assert ros_domain.held
+    assert os.environ['ROS_DOMAIN_ID'] == str(ros_domain.domain_id)
+    assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
+
+
+def test_process_runner_inherits_env_and_kills(process_runner, ros_domain):
+    proc = process_runner.start(
+        [sys.executable, '-c',
+         'import os, time; print(os.environ["ROS_DOMAIN_ID"], flush=True); time.sleep(60)'],
+        name='sleeper')
+    deadline = time.monotonic() + 10
+    while not process_runner.output('sleeper').strip() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert process_runner.output('sleeper').strip() == str(ros_domain.domain_id)
+    assert process_runner.stop(proc) is not None
+    assert proc.poll() is not None
+
+
+def test_process_runner_sigkills_a_child_ignoring_sigterm(process_runner):
+    process_runner.stop_timeout = 0.5
+    proc = process_runner.start(
+        [sys.executable, '-c',
+         'import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); '
+         'print("ready", flush=True); time.sleep(60)'],
+        name='stubborn')
+    deadline = time.monotonic() + 10
+    while 'ready' not in process_runner.output('stubborn') and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert process_runner.stop(proc) == -9

@@ -1,0 +1,110 @@
+"""DDS isolation: give each concurrent run on this machine its own ROS_DOMAIN_ID.
+
+A run claims a domain id by holding an exclusive ``fcntl.flock`` on
+``<lock_dir>/<id>.lock``; the kernel drops the lock when the holder releases it
+or dies, so stale claims never block. Pure stdlib (no ROS import).
+
+    with claim_domain_id() as claim:
+        env = isolated_ros_env(claim.domain_id)
+        subprocess.run(cmd, env=env)
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+import tempfile
+from pathlib import Path
+from typing import IO, Mapping
+
+MIN_DOMAIN_ID = 1
+MAX_DOMAIN_ID = 101  # inclusive; ids above 101 collide with ephemeral ports on Linux
+DEFAULT_LOCK_DIR = Path(tempfile.gettempdir()) / 'wallbot_sim_domains'
+
+
+class DomainClaim:
+    """An exclusively held ROS_DOMAIN_ID; release() (or leaving ``with``) frees it."""
+
+    def __init__(self, domain_id: int, lock_file: IO[str], lock_path: Path) -> None:
+        self.domain_id = domain_id
+        self.lock_path = lock_path
+        self._lock_file: IO[str] | None = lock_file
+
+    @property
+    def held(self) -> bool:
+        """True until release() is called."""
+        return self._lock_file is not None
+
+    def release(self) -> None:
+        """Drop the lock so another run may claim this id. Idempotent."""
+        if self._lock_file is None:
+            return
+        try:
+            fcntl.flock(self._lock_file, fcntl.LOCK_UN)
+        finally:
+            self._lock_file.close()
+            self._lock_file = None
+
+    def env(self, base: Mapping[str, str] | None = None) -> dict[str, str]:
+        """Shortcut for ``isolated_ros_env(self.domain_id, base)``."""
+        return isolated_ros_env(self.domain_id, base)
+
+    def __enter__(self) -> 'DomainClaim':
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    def __del__(self) -> None:
+        try:
+            self.release()
+        except Exception:
+            pass
+
+    def __repr__(self) -> str:
+        return f'DomainClaim(domain_id={self.domain_id}, held={self.held})'
+
+
+def claim_domain_id(lock_dir: Path | str | None = None,
+                    rng: random.Random | None = None) -> DomainClaim:
+    """Claim a ROS_DOMAIN_ID in 1..101 that no other live claim on this machine holds.
+
+    Ids are tried in order starting from a random one, so concurrent runs spread
+    out. Raises RuntimeError if every id is taken.
+    """
+    lock_dir = Path(lock_dir) if lock_dir is not None else DEFAULT_LOCK_DIR
+    lock_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        os.chmod(lock_dir, 0o1777)  # shared between users, like /tmp
+    except OSError:
+        pass
+    ids = list(range(MIN_DOMAIN_ID, MAX_DOMAIN_ID + 1))
+    start = (rng or random.SystemRandom()).randrange(len(ids))
+    for domain_id in ids[start:] + ids[:start]:
+        path = lock_dir / f'{domain_id}.lock'
+        try:
+            f = open(path, 'a+')
+        except OSError:
+            continue  # e.g. owned by another user without write permission
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            continue
+        f.seek(0)
+        f.truncate()
+        f.write(f'{os.getpid()}\n')
+        f.flush()
+        return DomainClaim(domain_id, f, path)
+    raise RuntimeError(f'no free ROS_DOMAIN_ID in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID} '
+                       f'(all locks in {lock_dir} are held)')
+
+
+def isolated_ros_env(domain_id: int, base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Copy of ``base`` (default os.environ) with ROS_DOMAIN_ID set and discovery limited to localhost."""
+    if not MIN_DOMAIN_ID <= int(domain_id) <= MAX_DOMAIN_ID:
+        raise ValueError(f'domain id {domain_id} outside {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID}')
+    env = dict(os.environ if base is None else base)
+    env['ROS_DOMAIN_ID'] = str(int(domain_id))
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    return env
