@@ -62,6 +62,7 @@ setup(
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'test': ['pytest', 'mcap', 'colcon-common-extensions'],
     },
+    # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
     tests_require=['pytest'],
     zip_safe=False,
     maintainer='wallbot_sim maintainers',
