@@ -1,0 +1,12 @@
+"""Constraint modules: each contributes its rows A_k qdd = b_k; the solver stacks them."""
+
+from wallbot_sim.model.constraints.base import BaumgarteGains, ConstraintModule, VelocityConstraint
+from wallbot_sim.model.constraints.belt import SynchronousBelt
+from wallbot_sim.model.constraints.non_lateral import NonLateral
+from wallbot_sim.model.constraints.nonslip import Nonslip
+from wallbot_sim.model.constraints.trajectory import TangentHeadingTask, TrajectoryTask, wrap_angle
+
+__all__ = [
+    'BaumgarteGains', 'ConstraintModule', 'NonLateral', 'Nonslip', 'SynchronousBelt',
+    'TangentHeadingTask', 'TrajectoryTask', 'VelocityConstraint', 'wrap_angle',
+]

@@ -1,0 +1,56 @@
+"""What a constraint module is: rows A_k(q, qd, t) qdd = b_k(q, qd, t)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from wallbot_sim.model.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class BaumgarteGains:
+    """Baumgarte stabilization gains alpha and beta (1/s)."""
+
+    alpha: float = 5.0
+    beta: float = 5.0
+
+    def __post_init__(self) -> None:
+        for name in ('alpha', 'beta'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+                raise ParameterError(f'baumgarte_{name} must be a finite number > 0, got {value!r}')
+
+    @property
+    def velocity_gain(self) -> float:
+        """gam = 2 alpha, the gain on velocity-level violations."""
+        return 2.0 * self.alpha
+
+
+@runtime_checkable
+class ConstraintModule(Protocol):
+    """One constraint of the robot: its rows of A qdd = b at a state."""
+
+    name: str
+
+    def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A_k (k x 7) and b_k (k,) at time t and state (q, qd)."""
+        ...
+
+
+@runtime_checkable
+class VelocityConstraint(Protocol):
+    """A constraint on velocities, A_v(q) qd = 0 (nonholonomic or a belt)."""
+
+    name: str
+
+    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        """A_v (k x 7) such that the constraint is A_v qd = 0."""
+        ...
+
+    def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """A_v qd: how far the velocities are from satisfying the constraint."""
+        ...

@@ -1,0 +1,37 @@
+"""Nonslip: every wheel rolls on the wall, h_i = r pd_i - v_long + s_i thd = 0."""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from wallbot_sim.model.constraints.base import BaumgarteGains
+
+
+class Nonslip:
+    """One row per wheel: [-cos th, -sin th, s_i, r at column 3+i], b = thd v_lat - gam h_i."""
+
+    name = 'nonslip'
+
+    def __init__(self, wheel_radius: float, lateral_offsets: Sequence[float], gains: BaumgarteGains) -> None:
+        self.gains = gains
+        self._template = np.zeros((4, 7))
+        self._template[:, 2] = lateral_offsets
+        self._template[:, 3:] = wheel_radius * np.eye(4)
+
+    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        rows = self._template.copy()
+        rows[:, 0] = -math.cos(q[2])
+        rows[:, 1] = -math.sin(q[2])
+        return rows
+
+    def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return self.velocity_rows(q) @ qd
+
+    def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rows = self.velocity_rows(q)
+        slip = rows @ qd
+        v_lat = -math.sin(q[2]) * qd[0] + math.cos(q[2]) * qd[1]
+        return rows, qd[2] * v_lat - self.gains.velocity_gain * slip

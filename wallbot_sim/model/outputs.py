@@ -1,0 +1,71 @@
+"""Derived outputs of MODEL.md section 7: chassis wrench, wheel torques, drive forces."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from wallbot_sim.model.trajectories import ReferenceSample
+
+
+@dataclass(frozen=True)
+class DriveForces:
+    """Longitudinal traction of each side and the lateral force at the centre (N)."""
+
+    left: float
+    right: float
+    lateral: float
+
+
+def drive_forces(theta: float, chassis_wrench: np.ndarray, half_track: float) -> DriveForces:
+    """Solve [F_X, F_Y, M_Z] = G [F_L, F_R, F_lat] (paper eqs. 69-72) in closed form.
+
+    G's rows give F_L + F_R = the longitudinal force, F_lat = the lateral force and
+    b (F_R - F_L) = M_Z.
+    """
+    fx, fy, mz = chassis_wrench
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    longitudinal = cos_t * fx + sin_t * fy
+    differential = mz / half_track
+    return DriveForces(0.5 * (longitudinal - differential), 0.5 * (longitudinal + differential),
+                       -sin_t * fx + cos_t * fy)
+
+
+@dataclass(frozen=True)
+class StepOutputs:
+    """Everything the simulation reports at one instant."""
+
+    t: float
+    q: np.ndarray
+    qd: np.ndarray
+    acceleration: np.ndarray
+    constraint_force: np.ndarray
+    residual: float
+    motor_torque: tuple[float, float]
+    drive: DriveForces
+    reference: ReferenceSample | None
+
+    @property
+    def chassis_wrench(self) -> np.ndarray:
+        """(F_X, F_Y, M_Z): the constraint wrench on the chassis, wall frame."""
+        return self.constraint_force[:3]
+
+    @property
+    def wheel_constraint_torques(self) -> np.ndarray:
+        """Q_c[3:7]: the constraint torque on each wheel's spin."""
+        return self.constraint_force[3:]
+
+    @property
+    def wheel_torques(self) -> np.ndarray:
+        """Total torque on each wheel: constraint torque plus its share of the motor torque."""
+        tau_left, tau_right = self.motor_torque
+        return self.constraint_force[3:] + 0.5 * np.array([tau_left, tau_left, tau_right, tau_right])
+
+    @property
+    def tracking_error(self) -> float:
+        """Distance of the centre from the reference point (m); NaN without a reference."""
+        if self.reference is None:
+            return math.nan
+        return math.hypot(self.q[0] - self.reference.position[0], self.q[1] - self.reference.position[1])

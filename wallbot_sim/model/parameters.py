@@ -1,0 +1,85 @@
+"""Robot parameters (MODEL.md section 2) and their validation."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Mapping
+
+from wallbot_sim.model.errors import ParameterError
+
+_POSITIVE = (
+    'body_mass', 'wheel_mass', 'body_yaw_inertia', 'wheel_yaw_inertia', 'wheel_spin_inertia',
+    'wheel_radius', 'half_wheelbase', 'half_track', 'com_height', 'wall_friction', 'gravity',
+    'adsorption_safety', 'velocity_epsilon', 'baumgarte_alpha', 'baumgarte_beta',
+)
+_NON_NEGATIVE = ('rolling_resistance',)
+
+
+@dataclass(frozen=True)
+class RobotParameters:
+    """Physical parameters of the robot; names are the keys of ``config/robot.yaml``."""
+
+    body_mass: float = 8.0
+    wheel_mass: float = 0.25
+    body_yaw_inertia: float = 0.10
+    wheel_yaw_inertia: float = 1.0e-4
+    wheel_spin_inertia: float = 2.0e-4
+    wheel_radius: float = 0.04
+    half_wheelbase: float = 0.10
+    half_track: float = 0.12
+    com_offset: tuple[float, float] = (0.0, 0.0)
+    com_height: float = 0.05
+    wall_friction: float = 0.7
+    rolling_resistance: float = 0.03
+    gravity: float = 9.81
+    adsorption_safety: float = 1.5
+    velocity_epsilon: float = 1.0e-3
+    baumgarte_alpha: float = 5.0
+    baumgarte_beta: float = 5.0
+
+    def __post_init__(self) -> None:
+        for name in _POSITIVE + _NON_NEGATIVE:
+            value = _as_float(name, getattr(self, name))
+            if name in _POSITIVE and not value > 0.0:
+                raise ParameterError(f'{name} must be > 0, got {value!r}')
+            if name in _NON_NEGATIVE and not value >= 0.0:
+                raise ParameterError(f'{name} must be >= 0, got {value!r}')
+            object.__setattr__(self, name, value)
+        offset = self.com_offset
+        if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
+            raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')
+        object.__setattr__(
+            self, 'com_offset', (_as_float('com_offset', offset[0]), _as_float('com_offset', offset[1])))
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> RobotParameters:
+        """Build from a mapping (a parsed YAML file); every field is required, no key is unknown."""
+        if not isinstance(values, Mapping):
+            raise ParameterError(f'robot parameters must be a mapping of names to values, got {values!r}')
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ParameterError(f'unknown robot parameter {unknown[0]!r} (known: {", ".join(sorted(known))})')
+        missing = sorted(known - set(values))
+        if missing:
+            raise ParameterError(f'missing robot parameter {missing[0]!r}')
+        return cls(**values)
+
+    def replace(self, **changes: Any) -> RobotParameters:
+        """A copy with some values changed (validated like any other)."""
+        return RobotParameters(**{**asdict(self), **changes})
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain mapping of every parameter, com_offset as a list."""
+        values = asdict(self)
+        values['com_offset'] = list(self.com_offset)
+        return values
+
+
+def _as_float(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ParameterError(f'{name} must be a number, got {value!r}')
+    if not math.isfinite(value):
+        raise ParameterError(f'{name} must be finite, got {value!r}')
+    return float(value)

@@ -1,0 +1,143 @@
+"""The unconstrained robot: chassis plus four omni-directional wheels (MODEL.md sections 3 and 4).
+
+Generalized coordinates q = [x, y, th, p1, p2, p3, p4]: the geometric centre in the wall frame,
+the heading, and the spin angles of the left-front, left-rear, right-front and right-rear wheels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from wallbot_sim.model.parameters import RobotParameters
+
+DOF = 7
+WHEEL_NAMES = ('left_front', 'left_rear', 'right_front', 'right_rear')
+
+
+@dataclass(frozen=True)
+class Adsorption:
+    """Adsorption analysis: what keeps the robot on the wall standing still."""
+
+    total_mass: float
+    """m_t = m_b + 4 m_w (kg)."""
+    sliding_limit: float
+    """m_t g / mu: the force below which the robot slides down (N)."""
+    tipping_limit: float
+    """m_t g h / min(a, b): the force below which it peels off about the lowest wheel line (N)."""
+    minimum_force: float
+    """F_min, the larger of the two limits (N)."""
+    applied_force: float
+    """F_ad = k_ad F_min (N)."""
+
+    @property
+    def normal_force_per_wheel(self) -> float:
+        """N = F_ad / 4: each wheel's press on the wall (N)."""
+        return self.applied_force / 4.0
+
+    @property
+    def margin(self) -> float:
+        """F_ad / F_min, the safety factor actually applied."""
+        return self.applied_force / self.minimum_force
+
+
+def adsorption_analysis(params: RobotParameters) -> Adsorption:
+    """F_min = max(m_t g / mu, m_t g h / min(a, b)) and F_ad = k_ad F_min."""
+    total_mass = params.body_mass + 4.0 * params.wheel_mass
+    weight = total_mass * params.gravity
+    sliding = weight / params.wall_friction
+    tipping = weight * params.com_height / min(params.half_wheelbase, params.half_track)
+    minimum = max(sliding, tipping)
+    return Adsorption(total_mass, sliding, tipping, minimum, params.adsorption_safety * minimum)
+
+
+class Robot:
+    """Mass matrix M(q) and generalized applied force Q(q, qd, tau) of the unconstrained robot."""
+
+    def __init__(self, params: RobotParameters) -> None:
+        self.params = params
+        self.adsorption = adsorption_analysis(params)
+        a, b = params.half_wheelbase, params.half_track
+        self.wheel_offsets = np.array([[a, b], [-a, b], [a, -b], [-a, -b]])
+        """d_i: axle centres in the body frame, rows in wheel order."""
+        self.lateral_offsets = self.wheel_offsets[:, 1].copy()
+        """s_i = d_i,y: +b for the left wheels, -b for the right."""
+        self.total_mass = self.adsorption.total_mass
+        c = np.asarray(params.com_offset)
+        self.first_moment = params.body_mass * c
+        """s = m_b c, the body's first mass moment about the centre."""
+        self.yaw_inertia = (params.body_yaw_inertia + params.body_mass * float(c @ c)
+                            + 4.0 * params.wheel_yaw_inertia
+                            + params.wheel_mass * float(np.sum(self.wheel_offsets ** 2)))
+        """J_t about the geometric centre."""
+        self._resistance_gain = params.rolling_resistance * self.adsorption.normal_force_per_wheel
+        self._perpendicular_offsets = [(-dy, dx) for dx, dy in self.wheel_offsets.tolist()]
+
+    def offset_moment_arm(self, theta: float) -> tuple[float, float]:
+        """u(th) = R(th) S s, the coupling between heading and translation."""
+        sx, sy = self.first_moment
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        return (-cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx)
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q): chassis block [[m_t, 0, u_x], [0, m_t, u_y], [u_x, u_y, J_t]], then J_w I_4."""
+        ux, uy = self.offset_moment_arm(q[2])
+        m, j, jw = self.total_mass, self.yaw_inertia, self.params.wheel_spin_inertia
+        return np.array([
+            [m, 0.0, ux, 0.0, 0.0, 0.0, 0.0],
+            [0.0, m, uy, 0.0, 0.0, 0.0, 0.0],
+            [ux, uy, j, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, jw, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, jw, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, jw, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, jw],
+        ])
+
+    def mass_matrix_inverse(self, q: np.ndarray) -> np.ndarray:
+        """M(q)^-1 in closed form (block inverse through the Schur complement of m_t I_2)."""
+        ux, uy = self.offset_moment_arm(q[2])
+        m = self.total_mass
+        schur = self.yaw_inertia - (ux * ux + uy * uy) / m
+        wx, wy = ux / m, uy / m
+        inv_schur = 1.0 / schur
+        inv_m = 1.0 / m
+        jw = 1.0 / self.params.wheel_spin_inertia
+        return np.array([
+            [inv_m + wx * wx * inv_schur, wx * wy * inv_schur, -wx * inv_schur, 0.0, 0.0, 0.0, 0.0],
+            [wx * wy * inv_schur, inv_m + wy * wy * inv_schur, -wy * inv_schur, 0.0, 0.0, 0.0, 0.0],
+            [-wx * inv_schur, -wy * inv_schur, inv_schur, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, jw, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, jw, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, jw, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, jw],
+        ])
+
+    def applied_force(self, q: np.ndarray, qd: np.ndarray,
+                      motor_torque: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+        """Q: offset-CoM centripetal term, gravity, rolling resistance and motor torques."""
+        theta = q[2]
+        xd, yd, thd = qd[0], qd[1], qd[2]
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        sx, sy = self.first_moment
+        ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
+        thd2 = thd * thd
+        fx = thd2 * (cos_t * sx - sin_t * sy)
+        fy = thd2 * (sin_t * sx + cos_t * sy) - self.total_mass * self.params.gravity
+        mz = -self.params.gravity * uy
+        gain, eps2 = self._resistance_gain, self.params.velocity_epsilon ** 2
+        for px, py in self._perpendicular_offsets:
+            arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py  # R S d_i
+            vx, vy = xd + thd * arm_x, yd + thd * arm_y
+            scale = -gain / math.sqrt(vx * vx + vy * vy + eps2)
+            fx += scale * vx
+            fy += scale * vy
+            mz += scale * (arm_x * vx + arm_y * vy)
+        tau_left, tau_right = 0.5 * motor_torque[0], 0.5 * motor_torque[1]
+        return np.array([fx, fy, mz, tau_left, tau_left, tau_right, tau_right])
+
+    def rolling_spin_rates(self, theta: float, velocity: tuple[float, float], yaw_rate: float) -> np.ndarray:
+        """pd_i = (v_long - s_i thd) / r: the spin rates at which every wheel rolls without slip."""
+        v_long = math.cos(theta) * velocity[0] + math.sin(theta) * velocity[1]
+        return (v_long - self.lateral_offsets * yaw_rate) / self.params.wheel_radius

@@ -1,0 +1,87 @@
+"""The paper's scenarios (MODEL.md section 8): a reference, a duration and an initial state."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.robot import DOF, Robot
+from wallbot_sim.model.trajectories import Circle, FigureEight, Reference, tangent_heading
+
+SHAPES = ('circle', 'figure8')
+
+
+@dataclass(frozen=True)
+class InitialPose:
+    """Where the robot starts; at rest, or moving with the reference at t = 0."""
+
+    x: float
+    y: float
+    theta: float
+    at_rest: bool
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A named run of the paper."""
+
+    name: str
+    reference: Reference
+    duration: float
+    initial: InitialPose
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> Scenario:
+        """From a parsed scenario file (see config/circle.yaml)."""
+        try:
+            name = str(values['name'])
+            reference = make_reference(values['reference'])
+            duration = _number(values, 'duration')
+            pose = values['initial_state']
+            initial = InitialPose(_number(pose, 'x'), _number(pose, 'y'), _number(pose, 'theta'),
+                                  bool(pose.get('at_rest', True)))
+        except KeyError as missing:
+            raise ParameterError(f'scenario is missing {missing.args[0]!r}') from None
+        except (TypeError, AttributeError):
+            raise ParameterError('scenario must be a mapping with name, reference, duration and initial_state') from None
+        if not duration > 0.0:
+            raise ParameterError(f'scenario duration must be > 0, got {duration!r}')
+        return cls(name, reference, duration, initial)
+
+    def initial_state(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """(q0, qd0): spins at 0, spin rates at their rolling values (so every constraint holds)."""
+        pose = self.initial
+        q0 = np.array([pose.x, pose.y, pose.theta, 0.0, 0.0, 0.0, 0.0])
+        qd0 = np.zeros(DOF)
+        if not pose.at_rest:
+            sample = self.reference.sample(0.0)
+            heading = tangent_heading(sample)
+            qd0[:2] = sample.velocity
+            qd0[2] = heading.rate if heading is not None else 0.0
+            qd0[3:] = robot.rolling_spin_rates(pose.theta, sample.velocity, qd0[2])
+        return q0, qd0
+
+
+def make_reference(values: Mapping[str, Any]) -> Reference:
+    """A circle or figure-8 from its parameters (shape, radius or amplitude, period, center)."""
+    shape = values.get('shape')
+    center = values.get('center', (0.0, 0.0))
+    if not (isinstance(center, (list, tuple)) and len(center) == 2):
+        raise ParameterError(f'reference center must be a pair [x, y], got {center!r}')
+    center = (float(center[0]), float(center[1]))
+    if shape == 'circle':
+        return Circle(_number(values, 'radius'), _number(values, 'period'), center)
+    if shape == 'figure8':
+        return FigureEight(_number(values, 'amplitude'), _number(values, 'period'), center)
+    raise ParameterError(f'unknown reference shape {shape!r} (use {" or ".join(SHAPES)})')
+
+
+def _number(values: Mapping[str, Any], key: str) -> float:
+    value = values[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ParameterError(f'{key} must be a finite number, got {value!r}')
+    return float(value)
