@@ -1,0 +1,75 @@
+"""Topic names, message types and QoS of the wallbot graph: the one place that knows them.
+
+Names without a leading slash are relative: they resolve in the node's namespace
+(``/wallbot`` by default), so ``--ros-args -r __ns:=/robot2`` runs a second robot.
+Types are standard common_interfaces messages, written as rosbag2 type names.
+This module imports no ROS package, so bag tools can use it without an install.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+NAMESPACE = '/wallbot'
+"""Default namespace of every node."""
+
+
+class Durability(Enum):
+    """Durability of a topic's QoS."""
+
+    VOLATILE = 'volatile'
+    TRANSIENT_LOCAL = 'transient_local'
+
+
+@dataclass(frozen=True)
+class Topic:
+    """A topic of the graph: name (relative unless it starts with /), type, QoS."""
+
+    name: str
+    type: str
+    durability: Durability = Durability.VOLATILE
+    depth: int = 1000
+    """History depth (KEEP_LAST, RELIABLE)."""
+
+    def resolve(self, namespace: str = NAMESPACE) -> str:
+        """The absolute topic name in ``namespace``."""
+        if self.name.startswith('/'):
+            return self.name
+        return f'{namespace.rstrip("/")}/{self.name}'
+
+
+ODOM = Topic('odom', 'nav_msgs/msg/Odometry')
+WHEEL_STATES = Topic('wheel_states', 'sensor_msgs/msg/JointState')
+CONSTRAINT_WRENCH = Topic('constraint_wrench', 'geometry_msgs/msg/WrenchStamped')
+DRIVE_FORCES = Topic('drive_forces', 'sensor_msgs/msg/JointState')
+DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
+CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
+WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray', depth=10)
+REFERENCE = Topic('reference', 'nav_msgs/msg/Odometry', depth=100)
+REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiDOFJointTrajectory',
+                             Durability.TRANSIENT_LOCAL, depth=1)
+REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
+CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
+
+RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, REFERENCE, REFERENCE_TRAJECTORY,
+            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
+"""Topics a run records, in this order."""
+
+WALL_FRAME = 'wall'
+BASE_FRAME = 'base_link'
+WHEEL_JOINTS = ('wheel_left_front', 'wheel_left_rear', 'wheel_right_front', 'wheel_right_rear')
+DRIVE_JOINTS = ('drive_left', 'drive_right', 'lateral')
+
+NODE_DYNAMICS = 'dynamics'
+NODE_TRAJECTORY = 'trajectory'
+NODE_CONSTRAINT_CONFIG = 'constraint_config'
+NODE_RECORDER = 'recorder'
+
+
+def by_name(name: str) -> Topic:
+    """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
+    for topic in RECORDED + (WHEEL_TORQUE_CMD,):
+        if name in (topic.name, topic.resolve()) or name.rsplit('/', 1)[-1] == topic.name.lstrip('/'):
+            return topic
+    raise KeyError(name)
