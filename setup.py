@@ -5,7 +5,7 @@ The same setup.py serves three install paths:
 * ``colcon build`` (ROS): executables go to ``lib/wallbot_sim`` (setup.cfg) and
   config/launch/package.xml go to ``share/wallbot_sim`` via ``data_files``.
 * ``pip install .``: config/*.yaml is additionally copied into the wheel as
-  package data (``wallbot_sim/config``) so ``wallbot_sim.paths`` finds it
+  package data (``wallbot_sim/_data/config``) so ``wallbot_sim.paths`` finds it
   without an ament index.
 * ``pip install -e .``: the package runs from the source tree and
   ``wallbot_sim.paths`` uses ``<repo>/config`` directly (no stale copies).
@@ -27,13 +27,16 @@ def _rel_glob(pattern: str) -> list:
 
 
 class BuildPyWithConfig(build_py):
-    """build_py that also ships config/*.yaml as package data wallbot_sim/config."""
+    """build_py that also ships config/*.yaml as package data in wallbot_sim/_data/config.
+
+    Not wallbot_sim/config: that name belongs to the wallbot_sim.config module.
+    """
 
     def run(self):
         super().run()
         if getattr(self, 'editable_mode', False):
             return  # editable installs read <repo>/config directly
-        target = os.path.join(self.build_lib, package_name, 'config')
+        target = os.path.join(self.build_lib, package_name, '_data', 'config')
         os.makedirs(target, exist_ok=True)
         for src in _rel_glob('config/*.yaml'):
             shutil.copy2(os.path.join(HERE, src), target)

@@ -112,7 +112,7 @@ def test_installed_copy_finds_config_in_ament_share(colcon_ws):
 def test_installed_copy_without_ament_uses_package_data(colcon_ws):
     # same layout as a plain `pip install .`: config shipped inside the package
     found = _installed_config_dir(colcon_ws, source_setup=False)
-    assert found.parent.name == 'wallbot_sim' and found.parent.parent.name == 'site-packages'
+    assert found.parts[-4:] == ('site-packages', 'wallbot_sim', '_data', 'config'), found
     assert (found / 'robot.yaml').is_file()
 
 

@@ -9,7 +9,7 @@ Lookup order of :func:`config_dir` (first directory holding ``robot.yaml`` wins)
    the ament share so edits to the checkout are never shadowed by stale copies.
 3. ``<ament share>/wallbot_sim/config`` if ``ament_index_python`` is importable
    and the package is in the ament index (``colcon build`` + ``source install/setup.bash``).
-4. ``wallbot_sim/config`` package data (``pip install .``).
+4. ``wallbot_sim/_data/config`` package data (``pip install .``).
 """
 from __future__ import annotations
 
@@ -45,8 +45,8 @@ def _ament_share_config() -> Path | None:
 
 
 def _package_data_config() -> Path | None:
-    """``wallbot_sim/config`` shipped as package data by ``pip install .``."""
-    cfg = _PKG_DIR / 'config'
+    """``wallbot_sim/_data/config`` shipped as package data by ``pip install .``."""
+    cfg = _PKG_DIR / '_data' / 'config'
     return cfg if (cfg / _MARKER).is_file() else None
 
 
