@@ -74,6 +74,13 @@ class Robot:
         """J_t about the geometric centre."""
         self._resistance_gain = params.rolling_resistance * self.adsorption.normal_force_per_wheel
         self._perpendicular_offsets = [(-dy, dx) for dx, dy in self.wheel_offsets.tolist()]
+        self._centred = not self.first_moment.any()
+        """With the CoM at the centre, M is constant (and so is its inverse)."""
+        chassis = [self.total_mass, self.total_mass, self.yaw_inertia]
+        self._mass_centred = np.diag(chassis + [params.wheel_spin_inertia] * 4)
+        self._inverse_centred = np.diag([1.0 / d for d in chassis] + [1.0 / params.wheel_spin_inertia] * 4)
+        self._mass_centred.flags.writeable = False
+        self._inverse_centred.flags.writeable = False
 
     def offset_moment_arm(self, theta: float) -> tuple[float, float]:
         """u(th) = R(th) S s, the coupling between heading and translation."""
@@ -83,36 +90,27 @@ class Robot:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M(q): chassis block [[m_t, 0, u_x], [0, m_t, u_y], [u_x, u_y, J_t]], then J_w I_4."""
+        if self._centred:
+            return self._mass_centred
         ux, uy = self.offset_moment_arm(q[2])
-        m, j, jw = self.total_mass, self.yaw_inertia, self.params.wheel_spin_inertia
-        return np.array([
-            [m, 0.0, ux, 0.0, 0.0, 0.0, 0.0],
-            [0.0, m, uy, 0.0, 0.0, 0.0, 0.0],
-            [ux, uy, j, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, jw, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, jw, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 0.0, jw, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, jw],
-        ])
+        mass = self._mass_centred.copy()
+        mass[0, 2] = mass[2, 0] = ux
+        mass[1, 2] = mass[2, 1] = uy
+        return mass
 
     def mass_matrix_inverse(self, q: np.ndarray) -> np.ndarray:
         """M(q)^-1 in closed form (block inverse through the Schur complement of m_t I_2)."""
+        if self._centred:
+            return self._inverse_centred
         ux, uy = self.offset_moment_arm(q[2])
         m = self.total_mass
-        schur = self.yaw_inertia - (ux * ux + uy * uy) / m
+        inv_schur = 1.0 / (self.yaw_inertia - (ux * ux + uy * uy) / m)
         wx, wy = ux / m, uy / m
-        inv_schur = 1.0 / schur
-        inv_m = 1.0 / m
-        jw = 1.0 / self.params.wheel_spin_inertia
-        return np.array([
-            [inv_m + wx * wx * inv_schur, wx * wy * inv_schur, -wx * inv_schur, 0.0, 0.0, 0.0, 0.0],
-            [wx * wy * inv_schur, inv_m + wy * wy * inv_schur, -wy * inv_schur, 0.0, 0.0, 0.0, 0.0],
-            [-wx * inv_schur, -wy * inv_schur, inv_schur, 0.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, jw, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, jw, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 0.0, jw, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, jw],
-        ])
+        inverse = self._inverse_centred.copy()
+        inverse[:3, :3] = [[1.0 / m + wx * wx * inv_schur, wx * wy * inv_schur, -wx * inv_schur],
+                           [wx * wy * inv_schur, 1.0 / m + wy * wy * inv_schur, -wy * inv_schur],
+                           [-wx * inv_schur, -wy * inv_schur, inv_schur]]
+        return inverse
 
     def applied_force(self, q: np.ndarray, qd: np.ndarray,
                       motor_torque: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:

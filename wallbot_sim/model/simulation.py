@@ -14,7 +14,7 @@ from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.outputs import StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
-from wallbot_sim.model.solver import ConstrainedMotion, solve_with_inverse
+from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_inverse
 from wallbot_sim.model.trajectories import Reference
 
 DEFAULT_STEP = 1e-3
@@ -135,18 +135,21 @@ class Simulation:
     # --- dynamics ------------------------------------------------------------------------
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
         """The constrained motion at (t, q, qd) with the held motor torques."""
-        robot = self.robot
-        force = robot.applied_force(q, qd, self.motor_torque)
-        if self._modules:
-            parts = [module.rows(t, q, qd) for module in self._modules]
-            rows = np.concatenate([part[0] for part in parts])
-            rhs = np.concatenate([part[1] for part in parts])
-        else:
-            rows, rhs = np.empty((0, DOF)), np.empty(0)
-        return solve_with_inverse(robot.mass_matrix(q), robot.mass_matrix_inverse(q), force, rows, rhs)
+        force, rows, rhs = self._problem(t, q, qd)
+        return solve_with_inverse(self.robot.mass_matrix(q), self.robot.mass_matrix_inverse(q), force, rows, rhs)
+
+    def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q and the stacked rows A, b of the active modules."""
+        force = self.robot.applied_force(q, qd, self.motor_torque)
+        if not self._modules:
+            return force, np.empty((0, DOF)), np.empty(0)
+        parts = [module.rows(t, q, qd) for module in self._modules]
+        return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
 
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
-        return np.concatenate((y[DOF:], self.solve(t, y[:DOF], y[DOF:]).acceleration))
+        q, qd = y[:DOF], y[DOF:]
+        force, rows, rhs = self._problem(t, q, qd)
+        return np.concatenate((qd, constrained_acceleration(self.robot.mass_matrix_inverse(q), force, rows, rhs)))
 
     def outputs(self) -> StepOutputs:
         """The outputs at the current state (computed once; the next step reuses the solve)."""

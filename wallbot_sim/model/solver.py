@@ -11,9 +11,11 @@ inconsistent set and ignore redundant rows.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg.lapack import dsyevd as _symmetric_eigen
 
 _RELATIVE_EIGEN_CUTOFF = 1e-12
 """Eigenvalues of A M^-1 A^T below this fraction of the largest are treated as zero.
@@ -48,18 +50,26 @@ def solve(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray
 def solve_with_inverse(mass: np.ndarray, mass_inverse: np.ndarray, force: np.ndarray,
                        rows: np.ndarray, rhs: np.ndarray) -> ConstrainedMotion:
     """The same qdd for a positive definite M whose inverse is known."""
+    return _motion(mass, force, rows, rhs, constrained_acceleration(mass_inverse, force, rows, rhs))
+
+
+def constrained_acceleration(mass_inverse: np.ndarray, force: np.ndarray, rows: np.ndarray,
+                             rhs: np.ndarray) -> np.ndarray:
+    """qdd = a + M^-1 A^T (A M^-1 A^T)+ (b - A a) alone: what an integrator needs."""
     free = mass_inverse @ force
     if rows.shape[0] == 0:
-        return ConstrainedMotion(free, np.zeros_like(force), 0.0)
+        return free
     weighted = mass_inverse @ rows.T
-    eigenvalues, eigenvectors = np.linalg.eigh(rows @ weighted)
+    eigenvalues, eigenvectors, info = _symmetric_eigen(rows @ weighted)
+    if info != 0:
+        raise np.linalg.LinAlgError(f'eigen-decomposition of A M^-1 A^T failed (LAPACK info {info})')
     keep = eigenvalues > _RELATIVE_EIGEN_CUTOFF * eigenvalues[-1]
     basis = eigenvectors[:, keep]
-    multipliers = basis @ ((basis.T @ (rhs - rows @ free)) / eigenvalues[keep])
-    return _motion(mass, force, rows, rhs, free + weighted @ multipliers)
+    return free + weighted @ (basis @ ((basis.T @ (rhs - rows @ free)) / eigenvalues[keep]))
 
 
 def _motion(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
             acceleration: np.ndarray) -> ConstrainedMotion:
-    residual = float(np.linalg.norm(rows @ acceleration - rhs)) if rows.shape[0] else 0.0
+    misfit = rows @ acceleration - rhs
+    residual = math.sqrt(float(misfit @ misfit))
     return ConstrainedMotion(acceleration, mass @ acceleration - force, residual)
