@@ -165,8 +165,9 @@ class Simulation:
 
     def step(self) -> None:
         """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite."""
-        k1 = np.concatenate((self._y[DOF:], self.outputs().acceleration))
-        y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
+        with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
+            k1 = np.concatenate((self._y[DOF:], self.outputs().acceleration))
+            y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
         if not np.all(np.isfinite(y)):
             raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
         self.steps += 1

@@ -1,0 +1,82 @@
+"""``wallbot-sim simulate``: the CSV contract and its error paths."""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+
+import pytest
+
+from wallbot_sim.cli.simulate import CSV_COLUMNS
+
+HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
+          'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual')
+
+
+def simulate(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+def read_csv(path):
+    with open(path, newline='') as stream:
+        rows = list(csv.reader(stream))
+    return rows[0], [[float(v) for v in row] for row in rows[1:]]
+
+
+def test_csv_has_the_contract_header_and_one_row_per_step(tmp_path):
+    out = tmp_path / 'circle.csv'
+    result = simulate('--scenario', 'circle', '--constraints', 'belt,non_lateral,nonslip',
+                      '--duration', '0.5', '--csv', str(out))
+    assert result.returncode == 0, result.stderr
+    assert ','.join(CSV_COLUMNS) == HEADER
+    header, rows = read_csv(out)
+    assert ','.join(header) == HEADER
+    assert len(rows) == 501
+    assert [row[0] for row in rows[:3]] == pytest.approx([0.0, 0.001, 0.002])
+    col = {name: i for i, name in enumerate(header)}
+    for row in rows:
+        assert row[col['err']] == pytest.approx(math.hypot(row[col['x']] - row[col['ref_x']],
+                                                           row[col['y']] - row[col['ref_y']]), abs=1e-12)
+        # drive forces reproduce the chassis wrench through G (MODEL.md section 7)
+        th = row[col['theta']]
+        fl, fr, flat = row[col['F_left']], row[col['F_right']], row[col['F_lateral']]
+        assert math.cos(th) * (fl + fr) - math.sin(th) * flat == pytest.approx(row[col['Fx']], abs=1e-9)
+        assert math.sin(th) * (fl + fr) + math.cos(th) * flat == pytest.approx(row[col['Fy']], abs=1e-9)
+        assert 0.12 * (fr - fl) == pytest.approx(row[col['Mz']], abs=1e-9)
+    assert rows[0][col['x']] == 0.8 and rows[0][col['ref_x']] == 1.0
+    assert 'real-time factor' in result.stderr
+
+
+@pytest.mark.parametrize('scenario', ['circle', 'figure8'])
+@pytest.mark.parametrize('constraints, heading', [
+    ('none', None), ('belt', None), ('belt,non_lateral', None), ('belt,non_lateral,nonslip', None),
+    ('belt,non_lateral', '--no-tangent-heading'), ('belt,non_lateral,nonslip', '--no-tangent-heading')])
+def test_every_paper_scenario_runs(tmp_path, scenario, constraints, heading):
+    out = tmp_path / 'run.csv'
+    args = ['--scenario', scenario, '--constraints', constraints, '--duration', '0.2', '--csv', str(out), '--quiet']
+    result = simulate(*args, *([heading] if heading else []))
+    assert result.returncode == 0, result.stderr
+    _, rows = read_csv(out)
+    assert len(rows) == 201 and all(math.isfinite(v) for v in rows[-1])
+
+
+@pytest.mark.parametrize('args, message', [
+    (['--scenario', 'square', '--csv', 'x.csv'], "unknown scenario 'square'"),
+    (['--constraints', 'belt,sideways', '--csv', 'x.csv'], "unknown constraint 'sideways'"),
+    (['--duration', '-1', '--csv', 'x.csv'], '--duration must be a positive number'),
+    (['--duration', 'nan', '--csv', 'x.csv'], '--duration must be a positive number'),
+    (['--dt', '0', '--csv', 'x.csv'], '--dt must be in'),
+    (['--duration', 'abc', '--csv', 'x.csv'], "invalid float value: 'abc'"),
+    ([], 'nothing to write'),
+    (['--csv', '/nonexistent-dir/x.csv', '--duration', '0.01'], 'cannot write /nonexistent-dir/x.csv'),
+])
+def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
+    result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', *args],
+                            capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert 'Traceback' not in result.stderr

@@ -1,0 +1,75 @@
+"""Robot parameters are validated on load: every bad value is an error naming its key."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import yaml
+
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import ParameterError, RobotParameters
+from wallbot_sim.paths import robot_yaml
+
+
+def defaults() -> dict:
+    return yaml.safe_load(robot_yaml().read_text())
+
+
+def test_config_file_holds_model_md_defaults():
+    assert load_robot_parameters() == RobotParameters()
+
+
+@pytest.mark.parametrize('key, value, words', [
+    ('body_mass', -1.0, 'body_mass must be > 0'),
+    ('wheel_radius', 0.0, 'wheel_radius must be > 0'),
+    ('wheel_spin_inertia', math.nan, 'wheel_spin_inertia must be finite'),
+    ('gravity', math.inf, 'gravity must be finite'),
+    ('half_track', 'wide', 'half_track must be a number'),
+    ('wall_friction', True, 'wall_friction must be a number'),
+    ('rolling_resistance', -0.01, 'rolling_resistance must be >= 0'),
+    ('com_offset', [0.1], 'com_offset must be a pair'),
+    ('com_offset', ['a', 0.0], 'com_offset must be a number'),
+])
+def test_bad_values_are_refused_with_their_name(key, value, words):
+    values = defaults()
+    values[key] = value
+    with pytest.raises(ParameterError, match=words):
+        RobotParameters.from_mapping(values)
+
+
+def test_unknown_and_missing_keys_are_refused():
+    values = defaults()
+    values['body_mas'] = 8.0
+    with pytest.raises(ParameterError, match="unknown robot parameter 'body_mas'"):
+        RobotParameters.from_mapping(values)
+    values = defaults()
+    del values['gravity']
+    with pytest.raises(ParameterError, match="missing robot parameter 'gravity'"):
+        RobotParameters.from_mapping(values)
+
+
+def test_a_bad_file_names_the_file_and_the_key(tmp_path):
+    values = defaults()
+    values['wheel_mass'] = -0.25
+    path = tmp_path / 'robot.yaml'
+    path.write_text(yaml.safe_dump(values))
+    with pytest.raises(ParameterError, match=r'robot\.yaml: wheel_mass must be > 0'):
+        load_robot_parameters(path)
+    path.write_text('body_mass: [unclosed')
+    with pytest.raises(ParameterError, match='not valid YAML'):
+        load_robot_parameters(path)
+    with pytest.raises(ParameterError, match='cannot read'):
+        load_robot_parameters(tmp_path / 'missing.yaml')
+
+
+def test_scenarios_load_and_bad_ones_are_refused(tmp_path):
+    assert load_scenario('circle').duration == 20.0
+    assert load_scenario('figure8').duration == 30.0
+    with pytest.raises(ParameterError, match="unknown scenario 'square'"):
+        load_scenario('square')
+    path = tmp_path / 'bad.yaml'
+    path.write_text(yaml.safe_dump({'name': 'x', 'reference': {'shape': 'circle', 'radius': -1, 'period': 5},
+                                    'duration': 3, 'initial_state': {'x': 0, 'y': 0, 'theta': 0}}))
+    with pytest.raises(ParameterError, match='radius must be a finite number > 0'):
+        load_scenario(path)
