@@ -1,0 +1,66 @@
+"""Steps per second of the model core, against a straightforward section-6 solver in the same process.
+
+For each scenario and constraint set, the same simulation is stepped with
+  * the core (Udwadia-Kalaba form with the closed-form M^-1, one small eigen-decomposition), and
+  * a straightforward Udwadia-Phohomsiri evaluation: two numpy.linalg.pinv per evaluation, no
+    structure exploited (wallbot_sim.model.solve),
+and the ratio is printed. Both must end in the same state (a check that the comparison is fair).
+
+    python bench/bench_core.py [--seconds 2.0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+import numpy as np
+
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import ConstraintSelection, Robot, Simulation, solve
+from wallbot_sim.model.robot import DOF
+
+SETS = ('none', 'belt', 'belt,non_lateral', 'belt,non_lateral,nonslip')
+
+
+class StraightforwardSimulation(Simulation):
+    """The same model, each RK4 stage solved by the general two-pinv formula."""
+
+    def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
+        q, qd = y[:DOF], y[DOF:]
+        force, rows, rhs = self._problem(t, q, qd)
+        return np.concatenate((qd, solve(self.robot.mass_matrix(q), force, rows, rhs).acceleration))
+
+
+def steps_per_second(simulation: Simulation, steps: int) -> float:
+    started = time.perf_counter()
+    for _ in range(steps):
+        simulation.step()
+    return steps / (time.perf_counter() - started)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--seconds', type=float, default=2.0, help='simulated seconds per measurement')
+    args = parser.parse_args()
+    steps = round(args.seconds / 1e-3)
+    robot = Robot(load_robot_parameters())
+    print(f'# {platform.processor() or platform.machine()}, Python {platform.python_version()}, '
+          f'numpy {np.__version__}; {steps} steps of 1 ms per measurement, single thread')
+    print(f'{"scenario":9s} {"constraint set":48s} {"core steps/s":>12s} {"pinv steps/s":>12s} {"ratio":>6s} {"x real time":>11s}')
+    for name in ('circle', 'figure8'):
+        scenario = load_scenario(name)
+        q0, qd0 = scenario.initial_state(robot)
+        for constraints in SETS:
+            selection = ConstraintSelection.parse(constraints)
+            core = Simulation(robot, scenario.reference, selection, q0, qd0)
+            plain = StraightforwardSimulation(robot, scenario.reference, selection, q0, qd0)
+            fast, slow = steps_per_second(core, steps), steps_per_second(plain, steps)
+            if not np.allclose(core.q, plain.q, rtol=1e-9, atol=1e-9):
+                raise SystemExit(f'{name} {constraints}: the two solvers disagree: {core.q} vs {plain.q}')
+            print(f'{name:9s} {selection.label():48s} {fast:12.0f} {slow:12.0f} {fast / slow:6.2f} {fast / 1000:11.1f}')
+
+
+if __name__ == '__main__':
+    main()
