@@ -1,0 +1,13 @@
+"""Errors of the bag tools: each carries a one-line message for the user."""
+
+
+class BagError(Exception):
+    """A bag cannot be read, written or repaired (message is one line, names the path)."""
+
+
+class NotABagError(BagError):
+    """The path is missing or holds no rosbag2 bag."""
+
+
+class UnknownTopicError(BagError):
+    """A topic asked for is not in the bag (or not a graph topic)."""

@@ -1,0 +1,129 @@
+"""Streaming rosbag2 writer: MCAP storage, version 9 metadata, definitions and offered QoS embedded.
+
+A thin layer over ``rosbags.rosbag2.Writer`` that adds what a recorder needs:
+
+* bounded memory and bounded loss on a crash: rosbags keeps one pending MCAP chunk in memory
+  (closed at 1 MiB); :meth:`BagWriter.write` and :meth:`BagWriter.flush_if_due` also close it and
+  flush the file at least every ``flush_period`` seconds, so a SIGKILL loses at most that much
+  (``wallbot-sim bag reindex`` then rebuilds the index and metadata from the chunks on disk);
+* one-line :class:`BagError` for every way opening can fail (exists, not writable, ...).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+from wallbot_msgs_py import bagio, topics
+from wallbot_sim.bag.errors import BagError
+
+FLUSH_PERIOD = 0.5
+"""Seconds of messages a crash may lose at most (pending chunk + file buffer)."""
+
+
+def check_output_dir(path: Path) -> Path:
+    """``path`` if a new bag can be created there; an existing empty directory is accepted."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir() or any(path.iterdir()):
+            raise BagError(f'{path} exists already (a bag is never overwritten): choose a new directory')
+        if not os.access(path, os.W_OK | os.X_OK):
+            raise BagError(f'cannot write to {path}: permission denied')
+        return path
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise BagError(f'cannot create {path}: {parent} is not a directory')
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise BagError(f'cannot create {path}: {parent} is not writable')
+    return path
+
+
+class BagWriter:
+    """A new rosbag2 bag (MCAP, version 9) at ``path``, written as messages arrive."""
+
+    def __init__(self, path: Path | str, flush_period: float = FLUSH_PERIOD) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.rosbag2.errors import WriterError
+
+        self.path = check_output_dir(Path(path))
+        if self.path.exists():
+            self.path.rmdir()  # empty: rosbags wants to create it itself
+        self.flush_period = flush_period
+        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        try:
+            self._writer.open()
+        except (WriterError, OSError) as error:
+            raise BagError(f'cannot create bag {self.path}: {error}') from None
+        self._connections: dict[str, Any] = {}
+        self._last_flush = time.monotonic()
+        self.count = 0
+
+    # --- topics ----------------------------------------------------------------------------
+    def add_topic(self, name: str, msgtype: str, qos: Sequence[Any] | None = None) -> Any:
+        """Register ``name`` (absolute) with its type and offered QoS (rosbags ``Qos`` list)."""
+        if name in self._connections:
+            return self._connections[name]
+        store = bagio.typestore()
+        if msgtype not in store.fielddefs:
+            raise BagError(f'message type {msgtype} of {name} is not a ROS 2 Jazzy type known to rosbags')
+        connection = self._writer.add_connection(name, msgtype, typestore=store, serialization_format='cdr',
+                                                 offered_qos_profiles=list(qos or ()))
+        self._connections[name] = connection
+        return connection
+
+    def add_graph_topic(self, topic: topics.Topic, namespace: str = topics.NAMESPACE,
+                        qos: Sequence[Any] | None = None) -> Any:
+        """Register a topic of the graph with its type and its offered QoS from topics.py."""
+        return self.add_topic(topic.resolve(namespace), topic.type, qos or bagio.offered_qos(topic))
+
+    def connection(self, name: str) -> Any | None:
+        """The connection of topic ``name`` if registered."""
+        return self._connections.get(name)
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """A key/value in the metadata's custom_data."""
+        self._writer.set_custom_data(key, str(value))
+
+    # --- messages --------------------------------------------------------------------------
+    def write(self, connection: Any, timestamp_ns: int, data: bytes | memoryview) -> None:
+        """Append serialized ``data`` (CDR, as received) with its receive time in ns."""
+        self._writer.write(connection, int(timestamp_ns), data)
+        self.count += 1
+        self.flush_if_due()
+
+    def flush_if_due(self) -> None:
+        """Flush if the last flush is older than ``flush_period`` (call it from a timer when idle)."""
+        if time.monotonic() - self._last_flush >= self.flush_period:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the pending chunk and push the file buffer to the OS (survives a SIGKILL)."""
+        storage = self._writer.storage
+        self._last_flush = time.monotonic()
+        if storage is None:
+            return
+        if storage.chunk.msgs:  # rosbags' McapWriter: a chunk with messages pending
+            storage.close_chunk()
+        storage.bio.flush()
+
+    def close(self) -> None:
+        """Write the MCAP summary and metadata.yaml. Idempotent."""
+        if self._writer.storage is not None:
+            try:
+                self._writer.close()
+            except OSError as error:
+                raise BagError(f'cannot finish bag {self.path}: {error}') from None
+
+    @property
+    def closed(self) -> bool:
+        return self._writer.storage is None
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,53 @@
+"""``wallbot-sim info BAG``: duration, topics with types and counts, message rates, storage, size."""
+
+from __future__ import annotations
+
+import argparse
+from datetime import datetime, timezone
+
+from wallbot_sim.cli.errors import CliError
+
+HELP = 'show what a recorded bag holds: duration, topics, types, counts, rates, storage, size'
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('bag', metavar='BAG', help='rosbag2 bag directory')
+
+
+def _size(n: int) -> str:
+    for unit in ('B', 'KiB', 'MiB', 'GiB'):
+        if n < 1024 or unit == 'GiB':
+            return f'{n:.1f} {unit}' if unit != 'B' else f'{n} B'
+        n /= 1024
+    return f'{n} B'
+
+
+def format_info(bag) -> str:
+    """The text ``info`` prints for a BagInfo."""
+    start = datetime.fromtimestamp(bag.start_ns * 1e-9, tz=timezone.utc).isoformat(timespec='milliseconds')
+    lines = [f'Bag:       {bag.path}',
+             f'Storage:   {bag.storage} (rosbag2 metadata version {bag.version}), files: {", ".join(bag.files)}',
+             f'Size:      {_size(bag.size_bytes)}',
+             f'Duration:  {bag.duration:.3f} s',
+             f'Start:     {start} ({bag.start_ns // 10**9}.{bag.start_ns % 10**9:09d} s)',
+             f'Messages:  {bag.message_count}',
+             'Topics:']
+    width = max((len(t.name) for t in bag.topics), default=0)
+    twidth = max((len(t.type) for t in bag.topics), default=0)
+    for topic in bag.topics:
+        rate = f'{(topic.count - 1) / bag.duration:9.1f} Hz' if bag.duration > 0 and topic.count > 1 else '        - Hz'
+        qos = topic.offered_qos[0] if topic.offered_qos else None
+        qos_text = (f'{qos.reliability.name.lower()}, {qos.durability.name.lower()}, depth {qos.depth}'
+                    if qos is not None else 'no offered QoS')
+        lines.append(f'  {topic.name:<{width}}  {topic.type:<{twidth}}  {topic.count:8d} msgs  {rate}  [{qos_text}]')
+    return '\n'.join(lines)
+
+
+def main(args: argparse.Namespace) -> int:
+    from wallbot_sim.bag import BagError
+    from wallbot_sim.bag.reader import info
+    try:
+        print(format_info(info(args.bag)))
+    except BagError as error:
+        raise CliError(str(error)) from None
+    return 0

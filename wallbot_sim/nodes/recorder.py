@@ -1,0 +1,181 @@
+"""``recorder_node`` (node ``/wallbot/recorder``): the graph's topics into a rosbag2 MCAP bag.
+
+Parameters
+  output (string, required): bag directory to create (must not exist, or be empty).
+  topics (string[], default: topics.RECORDED): topic names, relative ones resolve in the namespace.
+
+Design (see docs/bags.md):
+* raw subscriptions: the CDR bytes are written as they came, never decoded on the hot path;
+* every subscription is RELIABLE with KEEP_ALL history (depth from topics.py as the resource hint),
+  transient-local topics are subscribed transient-local so their latched sample is recorded.
+  KEEP_ALL is what makes it lossless at real-time factor 0: a reader whose history is full stops
+  acknowledging, so the publisher's ``wait_for_all_acked`` back-pressure holds the simulation
+  instead of the DDS history overwriting unread samples;
+* the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
+  arrives, else the profile of topics.py;
+* SIGINT/SIGTERM: stop taking new work, drain what DDS already delivered, close the bag
+  (metadata.yaml + MCAP summary), exit 0. The writer flushes a closed chunk at least every 0.5 s,
+  so after a SIGKILL ``wallbot-sim bag reindex`` recovers all but the last half second.
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+from wallbot_msgs_py import bagio, topics
+
+NODE_NAME = topics.NODE_RECORDER
+DRAIN_QUIET = 0.3
+"""Seconds without a new message that end the drain at shutdown."""
+DRAIN_LIMIT = 5.0
+"""Longest drain at shutdown (s)."""
+
+
+def message_class(type_name: str) -> Any:
+    """The rclpy message class of a rosbag2 type name like ``nav_msgs/msg/Odometry``."""
+    package, kind, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.{kind}'), name)
+
+
+def subscription_qos(topic: topics.Topic) -> Any:
+    """RELIABLE, KEEP_ALL (lossless, with back-pressure), the topic's durability."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if topic.durability is topics.Durability.TRANSIENT_LOCAL
+                  else DurabilityPolicy.VOLATILE)
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=topic.depth,
+                      reliability=ReliabilityPolicy.RELIABLE, durability=durability)
+
+
+def graph_topics(names: Sequence[str]) -> list[topics.Topic]:
+    """The graph topics called ``names``; ValueError naming an unknown one."""
+    found = []
+    for name in names:
+        try:
+            found.append(topics.by_name(name))
+        except KeyError:
+            known = ', '.join(t.name for t in topics.RECORDED)
+            raise ValueError(f'unknown topic {name!r} (recordable: {known})') from None
+    return found
+
+
+def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
+    from rclpy.node import Node
+
+    class Recorder(Node):
+        """Raw subscriptions writing into ``writer``."""
+
+        def __init__(self) -> None:
+            super().__init__(NODE_NAME, namespace=topics.NAMESPACE)
+            self.writer = writer
+            self.received = 0
+            self._subscriptions_by_name = {}
+            for topic in recorded:
+                name = self.resolve_topic_name(topic.name)
+                self._subscriptions_by_name[name] = self.create_subscription(
+                    message_class(topic.type), name,
+                    lambda data, topic=topic, name=name: self._on_message(topic, name, data),
+                    subscription_qos(topic), raw=True)
+            self.create_timer(0.2, writer.flush_if_due)
+            self.get_logger().info(f'recording {len(recorded)} topics to {writer.path}')
+
+        def _on_message(self, topic: topics.Topic, name: str, data: bytes) -> None:
+            connection = self.writer.connection(name)
+            if connection is None:
+                connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
+            self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+            self.received += 1
+
+        def _offered_qos(self, topic: topics.Topic, name: str) -> list[Any]:
+            from rosbags.interfaces import QosHistory
+            try:
+                profiles = [bagio.qos_from_rclpy(info.qos_profile)
+                            for info in self.get_publishers_info_by_topic(name)]
+            except Exception:  # graph query failed: fall back to the interface layer's profile
+                profiles = []
+            # discovery does not carry history/depth: take them from the interface layer
+            return [p._replace(history=QosHistory.KEEP_LAST, depth=topic.depth)
+                    if p.history in (QosHistory.UNKNOWN, QosHistory.SYSTEM_DEFAULT) else p
+                    for p in profiles] or bagio.offered_qos(topic)
+
+    return Recorder()
+
+
+def _executor() -> Any:
+    try:
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    except ImportError:  # older rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        return SingleThreadedExecutor()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    from wallbot_sim.bag.errors import BagError
+    from wallbot_sim.bag.writer import BagWriter
+
+    argv = list(sys.argv if argv is None else argv)
+    stop = {'signal': None}
+
+    def request_stop(signum: int, _frame: Any) -> None:
+        stop['signal'] = signum
+
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    signal.signal(signal.SIGINT, request_stop)
+    signal.signal(signal.SIGTERM, request_stop)
+    writer = node = executor = None
+    try:
+        from rclpy.node import Node
+        params = Node('_recorder_params', namespace=topics.NAMESPACE, start_parameter_services=False,
+                      automatically_declare_parameters_from_overrides=True)
+        output = params.get_parameter_or('output', None).value if params.has_parameter('output') else None
+        names = (list(params.get_parameter('topics').value) if params.has_parameter('topics')
+                 else [t.name for t in topics.RECORDED])
+        params.destroy_node()
+        if not output:
+            print('recorder_node: error: parameter output (bag directory) is required: '
+                  '--ros-args -p output:=DIR', file=sys.stderr)
+            return 2
+        try:
+            recorded = graph_topics(names)
+        except ValueError as error:
+            print(f'recorder_node: error: {error}', file=sys.stderr)
+            return 2
+        try:
+            writer = BagWriter(Path(output))
+        except BagError as error:
+            print(f'recorder_node: error: {error}', file=sys.stderr)
+            return 2
+        writer.set_custom_data('wallbot.recorder', 'recorder_node')
+        node = _make_node(writer, recorded)
+        executor = _executor()
+        executor.add_node(node)
+        while stop['signal'] is None and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        # drain what DDS delivered before the stop
+        deadline, quiet_since, seen = time.monotonic() + DRAIN_LIMIT, time.monotonic(), node.received
+        while time.monotonic() < deadline and time.monotonic() - quiet_since < DRAIN_QUIET and rclpy.ok():
+            executor.spin_once(timeout_sec=0.05)
+            if node.received != seen:
+                seen, quiet_since = node.received, time.monotonic()
+        node.get_logger().info(f'stopping: {node.received} messages recorded to {writer.path}')
+        return 0
+    finally:
+        if writer is not None:
+            writer.close()
+        if executor is not None:
+            executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())
