@@ -1,0 +1,163 @@
+"""One loader for a run: a recorded bag or a ``simulate`` CSV, as the same arrays.
+
+Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
+matched by header stamp (NaN where a stamp has no message); the reference is interpolated at those
+stamps (exact when the trajectory node stamps at the same instants); the residual comes from
+``/diagnostics`` (a key containing "residual"), NaN where absent.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from wallbot_msgs_py import bagio, topics
+
+COLUMNS = ('t', 'x', 'y', 'theta', 'vx', 'vy', 'omega', 'ref_x', 'ref_y', 'err',
+           'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral', 'residual')
+
+
+class RunDataError(Exception):
+    """The path is neither a readable bag nor a simulate CSV (one-line message)."""
+
+
+@dataclass
+class RunData:
+    """Time series of one run (SI units, wall frame)."""
+
+    label: str
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    omega: np.ndarray
+    phi: np.ndarray
+    """(N, 4) wheel spin angles, order of topics.WHEEL_JOINTS."""
+    dphi: np.ndarray
+    tau: np.ndarray
+    ref_x: np.ndarray
+    ref_y: np.ndarray
+    err: np.ndarray
+    Fx: np.ndarray
+    Fy: np.ndarray
+    Mz: np.ndarray
+    F_left: np.ndarray
+    F_right: np.ndarray
+    F_lateral: np.ndarray
+    residual: np.ndarray
+    path_x: np.ndarray = field(default_factory=lambda: np.empty(0))
+    path_y: np.ndarray = field(default_factory=lambda: np.empty(0))
+    """The full reference path if recorded (reference_path), else empty."""
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def load_run(path: Path | str, label: str | None = None) -> RunData:
+    """A bag directory (or its .mcap) or a simulate CSV; RunDataError / BagError otherwise."""
+    path = Path(path)
+    label = label or (path.stem if path.is_file() else path.name)
+    if not path.exists():
+        raise RunDataError(f'{path} does not exist')
+    if path.is_file() and path.suffix.lower() == '.csv':
+        return _load_csv(path, label)
+    return _load_bag(path, label)
+
+
+def _load_csv(path: Path, label: str) -> RunData:
+    from wallbot_sim.cli.simulate import CSV_COLUMNS
+    try:
+        with open(path, newline='', encoding='utf-8') as stream:
+            reader = csv.reader(stream)
+            header = next(reader, None)
+            if header is None or list(header) != list(CSV_COLUMNS):
+                raise RunDataError(f'{path} is not a wallbot-sim simulate CSV (header differs)')
+            rows = np.array([[float(v) for v in row] for row in reader if row], dtype=float)
+    except OSError as error:
+        raise RunDataError(f'cannot read {path}: {error.strerror}') from None
+    except ValueError:
+        raise RunDataError(f'{path} has a non-numeric value') from None
+    if rows.size == 0:
+        raise RunDataError(f'{path} has no data rows')
+    col = {name: rows[:, i] for i, name in enumerate(CSV_COLUMNS)}
+    return RunData(label, col['t'], col['x'], col['y'], col['theta'], col['vx'], col['vy'], col['omega'],
+                   np.column_stack([col[f'phi{i}'] for i in range(1, 5)]),
+                   np.column_stack([col[f'dphi{i}'] for i in range(1, 5)]),
+                   np.column_stack([col[f'tau{i}'] for i in range(1, 5)]),
+                   col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
+                   col['F_left'], col['F_right'], col['F_lateral'], col['residual'])
+
+
+def _stamp_ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _load_bag(path: Path, label: str) -> RunData:
+    from wallbot_sim.bag.reader import info, messages
+
+    bag = info(path)
+    by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics}
+    want = {leaf: by_leaf.get(leaf) for leaf in ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces',
+                                                 'reference', 'reference_path', 'diagnostics')}
+    if want['odom'] is None:
+        raise RunDataError(f'{path} has no odom topic: not a wallbot run')
+    names = {v: k for k, v in want.items() if v is not None}
+    odom, wheels, wrench, drive, ref, diag = {}, {}, {}, {}, {}, {}
+    path_xy: tuple[list[float], list[float]] = ([], [])
+    for raw in messages(path, list(names)):
+        leaf = names[raw.topic]
+        msg = bagio.deserialize(raw.data, raw.type)
+        if leaf == 'odom':
+            odom[_stamp_ns(msg.header.stamp)] = bagio.odom_row(msg)
+        elif leaf == 'wheel_states':
+            wheels[_stamp_ns(msg.header.stamp)] = (bagio.joint_row(msg, topics.WHEEL_JOINTS, 'position')
+                                                   + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'velocity')
+                                                   + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'effort'))
+        elif leaf == 'constraint_wrench':
+            wrench[_stamp_ns(msg.header.stamp)] = bagio.wrench_row(msg)[1:]
+        elif leaf == 'drive_forces':
+            drive[_stamp_ns(msg.header.stamp)] = bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort')
+        elif leaf == 'reference':
+            ref[_stamp_ns(msg.header.stamp)] = bagio.reference_row(msg)[1:]
+        elif leaf == 'reference_path':
+            path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
+        elif leaf == 'diagnostics':
+            for key, value in bagio.diagnostic_values(msg).items():
+                if 'residual' in key.lower():
+                    try:
+                        diag[_stamp_ns(msg.header.stamp)] = float(value)
+                    except ValueError:
+                        pass
+    if not odom:
+        raise RunDataError(f'{path} has no odometry messages')
+    stamps = sorted(odom)
+    o = np.array([odom[s] for s in stamps], dtype=float)
+    t = o[:, 0]
+
+    def matched(table: dict, width: int) -> np.ndarray:
+        nan = (math.nan,) * width
+        return np.array([table.get(s, nan) for s in stamps], dtype=float).reshape(len(stamps), width)
+
+    w = matched(wheels, 12)
+    c = matched(wrench, 3)
+    d = matched(drive, 3)
+    if ref:
+        rs = sorted(ref)
+        rt = np.array(rs, dtype=float) * 1e-9
+        rxy = np.array([ref[s] for s in rs], dtype=float)
+        exact = matched(ref, 2)
+        ref_x = np.where(np.isnan(exact[:, 0]), np.interp(t, rt, rxy[:, 0]), exact[:, 0])
+        ref_y = np.where(np.isnan(exact[:, 1]), np.interp(t, rt, rxy[:, 1]), exact[:, 1])
+    else:
+        ref_x = ref_y = np.full(len(t), math.nan)
+    err = np.hypot(o[:, 1] - ref_x, o[:, 2] - ref_y)
+    residual = matched({k: (v,) for k, v in diag.items()}, 1)[:, 0]
+    return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
+                   w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, err, c[:, 0], c[:, 1], c[:, 2],
+                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]))

@@ -1,0 +1,170 @@
+"""The paper's figures as PNG (matplotlib, Agg backend), for one run or several overlaid.
+
+| file | paper figures |
+|---|---|
+| path.png | 6, 14, 22: reference vs actual path of the centre |
+| position.png | 4, 20: x(t), y(t) against the reference |
+| tracking_error.png | 7, 15, 23 |
+| attitude.png | 5, 10, 13, 21: attitude angle theta(t) |
+| wheel_tracks.png | 8, 11, 16, 24: tracks of the four wheel axle centres |
+| constraint_forces.png | 9, 12, 17, 25: F_X, F_Y and M_Z |
+| drive_forces.png | 18, 19, 26, 27: left and right drive (traction) forces, and the lateral force |
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from wallbot_msgs_py import topics
+from wallbot_sim.plots.data import RunData
+
+FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'constraint_forces', 'drive_forces')
+"""Base names of the PNG files written, in this order."""
+
+WHEEL_OFFSETS = {  # body-frame axle centres in units of (a, b): x forward, y to the left
+    'wheel_left_front': (1, 1), 'wheel_left_rear': (-1, 1),
+    'wheel_right_front': (1, -1), 'wheel_right_rear': (-1, -1)}
+
+
+class PlotError(Exception):
+    """Output directory unusable (one-line message)."""
+
+
+def wheel_tracks(run: RunData, half_wheelbase: float, half_track: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Wall-frame axle-centre positions of each wheel: centre + R(theta) (+-a, +-b)."""
+    c, s = np.cos(run.theta), np.sin(run.theta)
+    tracks = {}
+    for name in topics.WHEEL_JOINTS:
+        fx, fy = WHEEL_OFFSETS[name]
+        bx, by = fx * half_wheelbase, fy * half_track
+        tracks[name] = (run.x + c * bx - s * by, run.y + s * bx + c * by)
+    return tracks
+
+
+def _prepare_out(out_dir: Path) -> Path:
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise PlotError(f'cannot create output directory {out_dir}: {error.strerror}') from None
+    if not out_dir.is_dir() or not os.access(out_dir, os.W_OK | os.X_OK):
+        raise PlotError(f'output directory {out_dir} is not writable')
+    return out_dir
+
+
+def write_figures(runs: Sequence[RunData], out_dir: Path | str, half_wheelbase: float | None = None,
+                  half_track: float | None = None) -> list[Path]:
+    """Write the figure set for ``runs`` (overlaid when several) into ``out_dir``; return the files."""
+    import matplotlib
+    matplotlib.use('Agg', force=True)
+    import matplotlib.pyplot as plt
+
+    if half_wheelbase is None or half_track is None:
+        from wallbot_sim.config import load_robot_parameters
+        params = load_robot_parameters()
+        half_wheelbase = params.half_wheelbase if half_wheelbase is None else half_wheelbase
+        half_track = params.half_track if half_track is None else half_track
+    out = _prepare_out(Path(out_dir))
+    many = len(runs) > 1
+    title_suffix = '' if many else f' ({runs[0].label})'
+    written: list[Path] = []
+
+    def label(run: RunData, what: str = '') -> str:
+        return f'{run.label}{": " + what if what else ""}' if many else (what or run.label)
+
+    def save(fig, name: str) -> None:
+        fig.tight_layout()
+        target = out / f'{name}.png'
+        try:
+            fig.savefig(target, dpi=110)
+        except OSError as error:
+            raise PlotError(f'cannot write {target}: {error.strerror}') from None
+        finally:
+            plt.close(fig)
+        written.append(target)
+
+    first = runs[0]
+    # path
+    fig, ax = plt.subplots(figsize=(6.4, 6.0))
+    if len(first.path_x):
+        ax.plot(first.path_x, first.path_y, 'k--', lw=1.2, label='reference path')
+    else:
+        ax.plot(first.ref_x, first.ref_y, 'k--', lw=1.2, label='reference path')
+    for run in runs:
+        ax.plot(run.x, run.y, lw=1.4, label=label(run, 'actual path'))
+    ax.plot(first.x[:1], first.y[:1], 'o', color='tab:green', label='start')
+    ax.set(xlabel='x (m)', ylabel='y (m)', title='Path of the centre: reference vs actual' + title_suffix)
+    ax.set_aspect('equal', adjustable='datalim')
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize='small')
+    save(fig, 'path')
+    # position
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
+    for ax, coord, refc, name in ((axes[0], 'x', 'ref_x', 'x'), (axes[1], 'y', 'ref_y', 'y')):
+        ax.plot(first.t, getattr(first, refc), 'k--', lw=1.2, label=f'reference {name}_d(t)')
+        for run in runs:
+            ax.plot(run.t, getattr(run, coord), lw=1.3, label=label(run, f'actual {name}(t)'))
+        ax.set(ylabel=f'{name} (m)')
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc='best', fontsize='small')
+    axes[0].set_title('Position of the centre against the reference' + title_suffix)
+    axes[1].set_xlabel('time (s)')
+    save(fig, 'position')
+    # tracking error
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for run in runs:
+        ax.plot(run.t, run.err, lw=1.3, label=label(run, 'tracking error'))
+    ax.set(xlabel='time (s)', ylabel='tracking error |p - p_d| (m)', title='Tracking error' + title_suffix)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize='small')
+    save(fig, 'tracking_error')
+    # attitude
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for run in runs:
+        ax.plot(run.t, np.unwrap(run.theta), lw=1.3, label=label(run, 'attitude angle theta'))
+    ax.set(xlabel='time (s)', ylabel='attitude angle theta (rad)', title='Attitude angle' + title_suffix)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize='small')
+    save(fig, 'attitude')
+    # wheel tracks
+    fig, ax = plt.subplots(figsize=(6.4, 6.0))
+    styles = ('-', '--', '-.', ':')
+    for k, run in enumerate(runs):
+        for name, (wx, wy) in wheel_tracks(run, half_wheelbase, half_track).items():
+            pretty = name.replace('wheel_', '').replace('_', ' ')
+            ax.plot(wx, wy, styles[k % len(styles)], lw=1.0, label=label(run, f'{pretty} wheel'))
+    ax.set(xlabel='x (m)', ylabel='y (m)', title='Tracks of the four wheels' + title_suffix)
+    ax.set_aspect('equal', adjustable='datalim')
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc='best', fontsize='x-small', ncol=2 if many else 1)
+    save(fig, 'wheel_tracks')
+    # constraint forces and torque
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
+    for run in runs:
+        axes[0].plot(run.t, run.Fx, lw=1.2, label=label(run, 'F_X'))
+        axes[0].plot(run.t, run.Fy, lw=1.2, label=label(run, 'F_Y'))
+        axes[1].plot(run.t, run.Mz, lw=1.2, label=label(run, 'M_Z'))
+    axes[0].set(ylabel='constraint force (N)', title='Constraint forces and torque on the chassis' + title_suffix)
+    axes[1].set(xlabel='time (s)', ylabel='constraint torque M_Z (N m)')
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc='best', fontsize='small')
+    save(fig, 'constraint_forces')
+    # drive forces
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+    for run in runs:
+        axes[0].plot(run.t, run.F_left, lw=1.2, label=label(run, 'left drive force F_L'))
+        axes[1].plot(run.t, run.F_right, lw=1.2, label=label(run, 'right drive force F_R'))
+        axes[2].plot(run.t, run.F_lateral, lw=1.2, label=label(run, 'lateral force F_lat'))
+    axes[0].set(ylabel='F_L (N)', title='Drive forces' + title_suffix)
+    axes[1].set(ylabel='F_R (N)')
+    axes[2].set(xlabel='time (s)', ylabel='F_lat (N)')
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc='best', fontsize='small')
+    save(fig, 'drive_forces')
+    return written
