@@ -1,0 +1,151 @@
+"""``wallbot-sim play BAG [--rate R] [--loop] [--topics ...] [--clock]``: republish a recorded run.
+
+The stored CDR bytes are published as they are (rclpy publishers accept serialized bytes), at the
+recorded receive times scaled by ``--rate``, with each topic's QoS taken from the bag's offered
+QoS (reliability, durability; depth from the bag, or the interface layer when not recorded).
+Every half history depth a topic's publisher waits until its readers have acknowledged, so a
+replay faster than a subscriber can take is slowed down instead of losing messages.
+``--clock`` publishes /clock with the bag's time (at most ``--clock-rate`` Hz), so nodes with
+``use_sim_time`` follow the replay.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from typing import Any
+
+from wallbot_msgs_py import topics as graph
+from wallbot_sim.cli.errors import CliError
+
+HELP = 'publish a recorded bag again with its recorded timing (serialized bytes as stored)'
+
+
+def _positive_rate(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'rate must be a number, got {text!r}') from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f'rate must be a positive number, got {text}')
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('bag', metavar='BAG', help='rosbag2 bag directory')
+    parser.add_argument('--rate', type=_positive_rate, default=1.0, help='playback speed factor (> 0, default 1)')
+    parser.add_argument('--loop', action='store_true', help='start again at the end, until interrupted')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
+    parser.add_argument('--clock', action='store_true', help='publish /clock with the bag time')
+    parser.add_argument('--clock-rate', type=_positive_rate, default=100.0, help='/clock rate in Hz (default 100)')
+    parser.add_argument('--delay', type=float, default=1.0,
+                        help='seconds to wait after creating the publishers, for discovery (default 1)')
+    parser.add_argument('--quiet', action='store_true', help='no progress line')
+
+
+def publisher_qos(offered: tuple[Any, ...], topic_name: str) -> Any:
+    """rclpy QoS for republishing: the recorded offer (reliability, durability, depth)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    try:
+        fallback = graph.by_name(topic_name)
+    except KeyError:
+        fallback = None
+    depth = fallback.depth if fallback is not None else 1000
+    reliability, durability = ReliabilityPolicy.RELIABLE, DurabilityPolicy.VOLATILE
+    if fallback is not None and fallback.durability is graph.Durability.TRANSIENT_LOCAL:
+        durability = DurabilityPolicy.TRANSIENT_LOCAL
+    if offered:
+        qos = offered[0]
+        if qos.reliability.name == 'BEST_EFFORT':
+            reliability = ReliabilityPolicy.BEST_EFFORT
+        if qos.durability.name == 'TRANSIENT_LOCAL':
+            durability = DurabilityPolicy.TRANSIENT_LOCAL
+        elif qos.durability.name == 'VOLATILE':
+            durability = DurabilityPolicy.VOLATILE
+        if qos.history.name == 'KEEP_LAST' and qos.depth > 0:
+            depth = qos.depth
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=reliability, durability=durability)
+
+
+def main(args: argparse.Namespace) -> int:
+    from wallbot_sim.bag import BagError
+    from wallbot_sim.bag.reader import info, messages, resolve_topics
+
+    if not (math.isfinite(args.delay) and args.delay >= 0):
+        raise CliError(f'--delay must be >= 0 seconds, got {args.delay}')
+    try:
+        bag = info(args.bag)
+        names = resolve_topics(bag, args.topics)
+    except BagError as error:
+        raise CliError(str(error)) from None
+    if args.clock:
+        names = [n for n in names if n != graph.CLOCK.name]  # /clock comes from the replay itself
+    if not names:
+        raise CliError(f'{args.bag}: nothing to play')
+
+    from wallbot_sim.bag.flow_control import install_fast_heartbeat
+    install_fast_heartbeat()  # so the final wait_for_all_acked does not wait a 3 s heartbeat
+
+    import rclpy
+    from rclpy.duration import Duration
+    from rclpy.signals import SignalHandlerOptions
+
+    from wallbot_sim.nodes.recorder import message_class
+
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        node = rclpy.create_node('player', namespace=graph.NAMESPACE, start_parameter_services=False)
+        publishers = {}
+        for name in names:
+            topic = bag.topic(name)
+            try:
+                publishers[name] = node.create_publisher(message_class(topic.type), name,
+                                                         publisher_qos(topic.offered_qos, name))
+            except (ImportError, AttributeError, ValueError):
+                raise CliError(f'{name}: message type {topic.type} is not installed') from None
+        clock_pub = None
+        if args.clock:
+            from rclpy.qos import QoSProfile
+            from rosgraph_msgs.msg import Clock
+            clock_pub = node.create_publisher(Clock, graph.CLOCK.name, QoSProfile(depth=graph.CLOCK.depth))
+            clock_msg = Clock()
+        time.sleep(args.delay)
+        total = 0
+        sent = {name: 0 for name in names}
+        windows = {name: max(1, publishers[name].qos_profile.depth // 2) for name in names}
+        while True:
+            wall0, bag0, last_clock = time.monotonic(), None, -math.inf
+            try:
+                for raw in messages(bag.path, names):
+                    if bag0 is None:
+                        bag0 = raw.timestamp
+                    due = wall0 + (raw.timestamp - bag0) * 1e-9 / args.rate
+                    delay = due - time.monotonic()
+                    if delay > 0:
+                        time.sleep(delay)
+                    if clock_pub is not None and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
+                        clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(raw.timestamp, 1_000_000_000)
+                        clock_pub.publish(clock_msg)
+                        last_clock = time.monotonic()
+                    publisher = publishers[raw.topic]
+                    publisher.publish(raw.data)
+                    total += 1
+                    sent[raw.topic] += 1
+                    if sent[raw.topic] % windows[raw.topic] == 0:  # back-pressure: never overrun a reader
+                        publisher.wait_for_all_acked(Duration(seconds=1.0))
+            except BagError as error:
+                raise CliError(str(error)) from None
+            if not args.loop:
+                break
+        for publisher in publishers.values():
+            publisher.wait_for_all_acked(Duration(seconds=2.0))
+        if not args.quiet:
+            print(f'played {total} messages on {len(publishers)} topics from {bag.path}', file=sys.stderr)
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
