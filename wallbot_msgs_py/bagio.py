@@ -107,3 +107,90 @@ def diagnostic_values(msg: Any) -> dict[str, str]:
         for item in status.values:
             values[item.key] = item.value
     return values
+
+
+# --- encoding without ROS (``simulate --bag``) -------------------------------------------------
+# The field layout mirrors the decoders above and the dynamics/trajectory nodes' conversions:
+# odometry pose in the wall frame, twist in base_link; JointState in WHEEL_JOINTS / DRIVE_JOINTS order.
+
+def _types() -> Any:
+    return typestore().types
+
+
+def stamp(t: float) -> Any:
+    """builtin_interfaces/Time of t seconds (rounded to the ns)."""
+    sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+    return _types()['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec)
+
+
+def header(t: float, frame: str) -> Any:
+    return _types()['std_msgs/msg/Header'](stamp=stamp(t), frame_id=frame)
+
+
+def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
+    return _types()['geometry_msgs/msg/Vector3'](x=float(x), y=float(y), z=float(z))
+
+
+def odometry(t: float, x: float, y: float, theta: float, vx: float, vy: float, omega: float,
+             frame: str = topics.WALL_FRAME, child: str = topics.BASE_FRAME, twist_in_child: bool = True) -> Any:
+    """nav_msgs/Odometry: pose in ``frame``; twist rotated into ``child`` unless twist_in_child is False."""
+    import numpy as np
+    types = _types()
+    if twist_in_child:
+        c, s = math.cos(theta), math.sin(theta)
+        vx, vy = c * vx + s * vy, -s * vx + c * vy
+    pose = types['geometry_msgs/msg/Pose'](
+        position=types['geometry_msgs/msg/Point'](x=float(x), y=float(y), z=0.0),
+        orientation=types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=math.sin(theta / 2.0), w=math.cos(theta / 2.0)))
+    twist = types['geometry_msgs/msg/Twist'](linear=_vector(vx, vy), angular=_vector(0.0, 0.0, omega))
+    zeros = np.zeros(36, dtype=np.float64)
+    return types['nav_msgs/msg/Odometry'](
+        header=header(t, frame), child_frame_id=child,
+        pose=types['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=zeros),
+        twist=types['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=zeros.copy()))
+
+
+def joint_state(t: float, names: tuple[str, ...], position=(), velocity=(), effort=(), frame: str = '') -> Any:
+    import numpy as np
+    return _types()['sensor_msgs/msg/JointState'](
+        header=header(t, frame), name=list(names), position=np.asarray(position, dtype=np.float64),
+        velocity=np.asarray(velocity, dtype=np.float64), effort=np.asarray(effort, dtype=np.float64))
+
+
+def wrench_stamped(t: float, fx: float, fy: float, mz: float, frame: str = topics.WALL_FRAME) -> Any:
+    types = _types()
+    return types['geometry_msgs/msg/WrenchStamped'](
+        header=header(t, frame), wrench=types['geometry_msgs/msg/Wrench'](force=_vector(fx, fy), torque=_vector(0, 0, mz)))
+
+
+def clock(t: float) -> Any:
+    return _types()['rosgraph_msgs/msg/Clock'](clock=stamp(t))
+
+
+def path(t: float, points: list[tuple[float, float, float]], frame: str = topics.WALL_FRAME) -> Any:
+    """nav_msgs/Path of (t, x, y) points."""
+    types = _types()
+    identity = types['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0)
+    poses = [types['geometry_msgs/msg/PoseStamped'](
+        header=header(tp, frame), pose=types['geometry_msgs/msg/Pose'](
+            position=types['geometry_msgs/msg/Point'](x=float(px), y=float(py), z=0.0), orientation=identity))
+        for tp, px, py in points]
+    return types['nav_msgs/msg/Path'](header=header(t, frame), poses=poses)
+
+
+def diagnostic_status(name: str, message: str, values: dict[str, str], level: int = 0,
+                      hardware_id: str = 'wallbot') -> Any:
+    types = _types()
+    return types['diagnostic_msgs/msg/DiagnosticStatus'](
+        level=int(level), name=name, message=message,
+        hardware_id=hardware_id,
+        values=[types['diagnostic_msgs/msg/KeyValue'](key=str(k), value=str(v)) for k, v in values.items()])
+
+
+def diagnostic_array(t: float, statuses: list[Any]) -> Any:
+    return _types()['diagnostic_msgs/msg/DiagnosticArray'](header=header(t, ''), status=statuses)
+
+
+def serialize(msg: Any, msgtype: str) -> bytes:
+    """CDR bytes of a typestore message."""
+    return bytes(typestore().serialize_cdr(msg, msgtype))

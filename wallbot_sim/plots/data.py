@@ -3,7 +3,8 @@
 Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
 matched by header stamp (NaN where a stamp has no message); the reference is interpolated at those
 stamps (exact when the trajectory node stamps at the same instants); the residual comes from
-``/diagnostics`` (a key containing "residual"), NaN where absent.
+``/diagnostics`` (key ``max_residual``, the maximum since the previous diagnostics, else a key
+containing "residual"), NaN where absent.
 """
 
 from __future__ import annotations
@@ -16,12 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from wallbot_msgs_py import bagio, topics
+from wallbot_sim.bag.errors import BagError
 
 COLUMNS = ('t', 'x', 'y', 'theta', 'vx', 'vy', 'omega', 'ref_x', 'ref_y', 'err',
            'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral', 'residual')
 
 
-class RunDataError(Exception):
+class RunDataError(BagError):
     """The path is neither a readable bag nor a simulate CSV (one-line message)."""
 
 
@@ -128,12 +130,13 @@ def _load_bag(path: Path, label: str) -> RunData:
         elif leaf == 'reference_path':
             path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
         elif leaf == 'diagnostics':
-            for key, value in bagio.diagnostic_values(msg).items():
-                if 'residual' in key.lower():
-                    try:
-                        diag[_stamp_ns(msg.header.stamp)] = float(value)
-                    except ValueError:
-                        pass
+            values = bagio.diagnostic_values(msg)
+            keys = [k for k in values if k.lower() == 'max_residual'] or [k for k in values if 'residual' in k.lower()]
+            for key in keys[:1]:  # the period's maximum if published, else the instantaneous value
+                try:
+                    diag[_stamp_ns(msg.header.stamp)] = float(values[key])
+                except ValueError:
+                    pass
     if not odom:
         raise RunDataError(f'{path} has no odometry messages')
     stamps = sorted(odom)

@@ -1,0 +1,82 @@
+"""What a finished run says: the numbers ``wallbot-sim run`` prints, and its plots.
+
+    from wallbot_sim.bag.summary import summarize, format_summary, write_plots
+    summary = summarize(bag_dir)            # RunSummary (BagError / RunDataError if unreadable)
+    print(format_summary(summary))
+    files = write_plots(bag_dir, out_dir)   # the seven PNGs of wallbot_sim.plots.FIGURES
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """Peaks are of absolute values over the whole run; NaN when the bag lacks the topic."""
+
+    path: Path
+    duration: float
+    """Simulation time covered by odometry (s)."""
+    odom_count: int
+    final_tracking_error: float
+    peak_tracking_error: float
+    peak_tracking_error_after_5s: float
+    peak_constraint_force_x: float
+    peak_constraint_force_y: float
+    peak_constraint_torque_z: float
+    peak_drive_force_left: float
+    peak_drive_force_right: float
+    peak_lateral_force: float
+    max_residual: float
+
+    def as_dict(self) -> dict:
+        data = asdict(self)
+        data['path'] = str(self.path)
+        return data
+
+
+def _peak(values: np.ndarray) -> float:
+    finite = np.abs(values[np.isfinite(values)])
+    return float(finite.max()) if finite.size else math.nan
+
+
+def summarize(path: Path | str) -> RunSummary:
+    """Summary of a bag (or simulate CSV) at ``path``."""
+    from wallbot_sim.plots.data import load_run
+    run = load_run(Path(path))
+    err = run.err
+    late = err[run.t >= run.t[0] + 5.0]
+    finite_err = err[np.isfinite(err)]
+    return RunSummary(
+        Path(path), float(run.t[-1] - run.t[0]), len(run.t),
+        float(finite_err[-1]) if finite_err.size else math.nan, _peak(err), _peak(late),
+        _peak(run.Fx), _peak(run.Fy), _peak(run.Mz), _peak(run.F_left), _peak(run.F_right), _peak(run.F_lateral),
+        _peak(run.residual))
+
+
+def format_summary(summary: RunSummary) -> str:
+    """Lines for the terminal."""
+    s = summary
+    return '\n'.join([
+        f'run:                 {s.path} ({s.duration:.3f} s, {s.odom_count} odometry messages)',
+        f'tracking error:      final {s.final_tracking_error:.3e} m, peak {s.peak_tracking_error:.3e} m'
+        f', peak after 5 s {s.peak_tracking_error_after_5s:.3e} m',
+        f'constraint wrench:   peak |F_X| {s.peak_constraint_force_x:.3f} N, |F_Y| {s.peak_constraint_force_y:.3f} N, '
+        f'|M_Z| {s.peak_constraint_torque_z:.4f} N m',
+        f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '
+        f'|F_lat| {s.peak_lateral_force:.3f} N',
+        f'constraint residual: max {s.max_residual:.3e}',
+    ])
+
+
+def write_plots(path: Path | str, out_dir: Path | str | None = None) -> list[Path]:
+    """The figure set of the run at ``path`` into ``out_dir`` (default ``<bag>/plots``)."""
+    from wallbot_sim.plots import load_run, write_figures
+    path = Path(path)
+    out = Path(out_dir) if out_dir is not None else (path / 'plots' if path.is_dir() else path.with_name(path.stem + '_plots'))
+    return write_figures([load_run(path)], out)
