@@ -1,0 +1,126 @@
+"""Bags without ROS: headless `simulate --bag`, read back with the `mcap` package's reader (not the
+writer's code path) and rosbags' CDR decoder; writer errors; reindex of a cut recording."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from wallbot_msgs_py import bagio, topics
+from wallbot_sim.bag import BagError
+from wallbot_sim.bag.reader import info
+from wallbot_sim.bag.reindex import reindex
+from wallbot_sim.bag.writer import BagWriter
+from wallbot_sim.cli.main import main as cli
+
+mcap_reader = pytest.importorskip('mcap.reader')
+
+
+def _simulate(tmp_path: Path, duration: float = 1.0, constraints: str = 'none') -> tuple[Path, Path]:
+    bag, table = tmp_path / 'run', tmp_path / 'run.csv'
+    assert cli(['simulate', '--scenario', 'circle', '--constraints', constraints, '--duration', str(duration),
+                '--bag', str(bag), '--csv', str(table), '--quiet']) == 0
+    return bag, table
+
+
+def _mcap_messages(bag: Path, topic: str):
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        reader = mcap_reader.make_reader(stream)
+        for schema, _channel, message in reader.iter_messages(topics=[topic]):
+            yield message, bagio.deserialize(message.data, schema.name)
+
+
+def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
+    bag, table = _simulate(tmp_path, duration=1.0, constraints='belt')
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['version'] == 9 and meta['storage_identifier'] == 'mcap'
+    names = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
+    assert set(names) == {t.resolve() for t in topics.RECORDED} - {topics.REFERENCE_TRAJECTORY.resolve()}
+    path_qos = names['/wallbot/reference_path']['topic_metadata']['offered_qos_profiles'][0]
+    assert path_qos['durability'] == 'transient_local' and path_qos['reliability'] == 'reliable'
+
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        summary = mcap_reader.make_reader(stream).get_summary()
+    for channel in summary.channels.values():
+        schema = summary.schemas[channel.schema_id]
+        assert schema.encoding == 'ros2msg' and len(schema.data) > 0  # definitions embedded
+        assert channel.message_encoding == 'cdr' and 'offered_qos_profiles' in channel.metadata
+
+    odom = [msg for _, msg in _mcap_messages(bag, '/wallbot/odom')]
+    assert len(odom) == 1001
+    stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in odom])
+    assert np.all(np.diff(stamps) == 1_000_000)
+    with open(table, newline='') as stream:
+        rows = list(csv.DictReader(stream))
+    got = np.array([bagio.odom_row(m)[1:4] for m in odom])
+    want = np.array([[float(r['x']), float(r['y']), float(r['theta'])] for r in rows])
+    assert np.max(np.abs(got - want)) < 1e-12
+    wrench = [bagio.wrench_row(m)[1:] for _, m in _mcap_messages(bag, '/wallbot/constraint_wrench')]
+    assert np.max(np.abs(np.array(wrench) - np.array([[float(r['Fx']), float(r['Fy']), float(r['Mz'])]
+                                                      for r in rows]))) < 1e-12
+
+
+def test_summary_of_the_headless_circle(tmp_path):
+    from wallbot_sim.bag.summary import format_summary, summarize
+    bag, _ = _simulate(tmp_path, duration=1.0)
+    summary = summarize(bag)
+    assert summary.odom_count == 1001 and summary.duration == pytest.approx(1.0)
+    assert summary.peak_tracking_error == pytest.approx(0.2, abs=1e-6)  # starts 0.2 m off the circle
+    assert summary.peak_constraint_force_y > 0 and summary.max_residual < 1e-6
+    assert 'tracking error' in format_summary(summary)
+
+
+def test_writer_refuses_existing_or_unwritable_targets(tmp_path):
+    (tmp_path / 'full').mkdir()
+    (tmp_path / 'full' / 'x').write_text('x')
+    with pytest.raises(BagError, match='exists already'):
+        BagWriter(tmp_path / 'full')
+    blocker = tmp_path / 'file'
+    blocker.write_text('x')
+    with pytest.raises(BagError, match='not a directory'):
+        BagWriter(blocker / 'bag')
+    (tmp_path / 'empty').mkdir()
+    with BagWriter(tmp_path / 'empty') as writer:  # an empty directory is fine
+        writer.add_graph_topic(topics.CLOCK)
+    assert info(tmp_path / 'empty').message_count == 0
+
+
+def test_reindex_recovers_a_recording_cut_mid_chunk(tmp_path):
+    bag = tmp_path / 'cut'
+    writer = BagWriter(bag, flush_period=1e9)
+    odom = writer.add_graph_topic(topics.ODOM)
+    for i in range(3000):
+        msg = bagio.odometry(i * 1e-3, float(i), 0.0, 0.0, 0.0, 0.0, 0.0)
+        writer.write(odom, i * 1_000_000, bagio.serialize(msg, topics.ODOM.type))
+        if i in (999, 1999):
+            writer.flush()
+    writer._writer.storage.bio.flush()
+    # what a SIGKILL leaves: the file as flushed so far, cut inside the record after the 2nd flush
+    data = next(bag.glob('*.mcap')).read_bytes()
+    writer._writer.abort()
+    shutil.rmtree(bag)
+    bag.mkdir()
+    (bag / 'cut.mcap').write_bytes(data + b'\x06\xff\xff\x00\x00\x00\x00\x00\x00partial')
+    with pytest.raises(BagError, match='reindex'):
+        info(bag)
+    report = reindex(bag)
+    assert report.messages == 2000 and report.truncated
+    assert info(bag).topic('/wallbot/odom').count == 2000
+    xs = [m.pose.pose.position.x for _, m in _mcap_messages(bag, '/wallbot/odom')]
+    assert xs == [float(i) for i in range(2000)]
+
+
+def test_reindex_rebuilds_missing_metadata_of_a_complete_bag(tmp_path):
+    bag, _ = _simulate(tmp_path, duration=0.2)
+    before = info(bag)
+    (bag / 'metadata.yaml').unlink()
+    report = reindex(bag)
+    after = info(bag)
+    assert not report.truncated and after.message_count == before.message_count
+    assert [(t.name, t.count) for t in sorted(after.topics, key=lambda t: t.name)] == \
+        [(t.name, t.count) for t in sorted(before.topics, key=lambda t: t.name)]

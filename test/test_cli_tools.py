@@ -1,0 +1,90 @@
+"""info / plot / compare / bag reindex / play argument errors: output, files, one-line errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from wallbot_sim.cli.main import main as cli
+from wallbot_sim.plots import FIGURES
+
+
+@pytest.fixture(scope='module')
+def runs(tmp_path_factory) -> dict[str, Path]:
+    base = tmp_path_factory.mktemp('runs')
+    out = {}
+    for name, constraints in (('traj', 'none'), ('belt', 'belt')):
+        bag, table = base / name, base / f'{name}.csv'
+        assert cli(['simulate', '--scenario', 'circle', '--constraints', constraints, '--duration', '0.5',
+                    '--bag', str(bag), '--csv', str(table), '--quiet']) == 0
+        out[name], out[f'{name}_csv'] = bag, table
+    return out
+
+
+def wallbot(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *map(str, args)],
+                          capture_output=True, text=True, timeout=120)
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
+    assert result.returncode != 0
+    assert 'Traceback' not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+def test_info_lists_topics_types_counts_rates(runs):
+    result = wallbot('info', runs['traj'])
+    assert result.returncode == 0, result.stderr
+    assert 'mcap' in result.stdout and 'Duration:  0.500 s' in result.stdout
+    assert '/wallbot/odom' in result.stdout and 'nav_msgs/msg/Odometry' in result.stdout
+    assert '501 msgs' in result.stdout and '1000.0 Hz' in result.stdout
+
+
+@pytest.mark.parametrize('source', ['traj', 'traj_csv'])
+def test_plot_writes_the_figure_set(runs, tmp_path, source):
+    out = tmp_path / 'plots'
+    assert cli(['plot', str(runs[source]), '--out', str(out)]) == 0
+    files = sorted(out.glob('*.png'))
+    assert [f.stem for f in files] == sorted(FIGURES) and len(files) == 7
+    assert all(f.stat().st_size > 10_000 for f in files)
+
+
+def test_compare_overlays_runs(runs, tmp_path):
+    out = tmp_path / 'cmp'
+    assert cli(['compare', str(runs['traj']), str(runs['belt_csv']), '--out', str(out),
+                '--labels', 'trajectory,belt']) == 0
+    assert len(list(out.glob('*.png'))) == len(FIGURES)
+
+
+def test_bad_inputs_get_one_line_errors(runs, tmp_path):
+    not_a_bag = tmp_path / 'nobag'
+    not_a_bag.mkdir()
+    blocker = tmp_path / 'file'
+    blocker.write_text('x')
+    assert_one_line_error(wallbot('info', tmp_path / 'missing'), 'does not exist')
+    assert_one_line_error(wallbot('info', not_a_bag), 'not a rosbag2 bag')
+    assert_one_line_error(wallbot('plot', blocker), 'not a rosbag2 bag')
+    assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'rate must be a positive number')
+    assert_one_line_error(wallbot('play', runs['traj'], '--topics', 'no_such_topic'), 'no_such_topic')
+    assert_one_line_error(wallbot('play', tmp_path / 'missing'), 'does not exist')
+    assert_one_line_error(wallbot('plot', runs['traj'], '--out', blocker / 'sub'), 'output directory')
+    assert_one_line_error(wallbot('simulate', '--duration', '0.1', '--bag', runs['traj']), 'exists already')
+    assert_one_line_error(wallbot('bag', 'reindex', not_a_bag), 'no .mcap')
+    assert_one_line_error(wallbot('compare', runs['traj']), 'at least two')
+
+
+def test_missing_metadata_points_at_reindex_and_reindex_repairs(runs, tmp_path):
+    import shutil
+    bag = tmp_path / 'copy'
+    shutil.copytree(runs['traj'], bag)
+    (bag / 'metadata.yaml').unlink()
+    assert_one_line_error(wallbot('info', bag), 'bag reindex')
+    result = wallbot('bag', 'reindex', bag)
+    assert result.returncode == 0, result.stderr
+    assert wallbot('info', bag).returncode == 0

@@ -1,0 +1,156 @@
+"""recorder_node and play against small synthetic ROS processes (isolated domain, process_runner).
+
+* SIGTERM / SIGINT: the bag is complete (metadata, summary) and holds every message.
+* SIGKILL: `bag reindex` repairs it with at most the last second lost.
+* play: a subscriber receives every recorded odometry message, in order.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip('rclpy')
+mcap_reader = pytest.importorskip('mcap.reader')
+
+from wallbot_msgs_py import bagio  # noqa: E402
+from wallbot_sim.bag.reader import info  # noqa: E402
+from wallbot_sim.bag.reindex import reindex  # noqa: E402
+from wallbot_sim.cli.main import main as cli  # noqa: E402
+
+PUBLISHER = r'''
+import sys, time
+from wallbot_sim.bag.flow_control import install_fast_heartbeat
+install_fast_heartbeat()
+import rclpy
+from rclpy.duration import Duration
+from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy
+from nav_msgs.msg import Odometry, Path
+count, period = int(sys.argv[1]), float(sys.argv[2])
+rclpy.init()
+node = rclpy.create_node('synthetic', namespace='/wallbot')
+odom = node.create_publisher(Odometry, 'odom', QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+latched = node.create_publisher(Path, 'reference_path', QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+latched.publish(Path())
+deadline = time.monotonic() + 20
+while node.count_subscribers('odom') == 0 and time.monotonic() < deadline:
+    time.sleep(0.05)
+print('matched', flush=True)
+msg = Odometry()
+start = time.monotonic()
+for i in range(count):
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(i * 1_000_000, 1_000_000_000)
+    msg.pose.pose.position.x = float(i)
+    odom.publish(msg)
+    if i % 200 == 199:
+        odom.wait_for_all_acked(Duration(seconds=5))  # back-pressure, as the dynamics node does
+    if period:
+        time.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
+odom.wait_for_all_acked(Duration(seconds=5))
+print('published', count, flush=True)
+time.sleep(float(sys.argv[3]) if len(sys.argv) > 3 else 0)
+'''
+
+SUBSCRIBER = r'''
+import sys, time
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
+from nav_msgs.msg import Odometry
+rclpy.init()
+node = rclpy.create_node('counter')
+xs = []
+node.create_subscription(Odometry, '/wallbot/odom',
+                         lambda m: xs.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
+                         QoSProfile(depth=1000, history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE))
+print('ready', flush=True)
+expected, deadline = int(sys.argv[1]), time.monotonic() + float(sys.argv[2])
+while len(xs) < expected and time.monotonic() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print('received', len(xs), 'in_order', xs == [i * 1_000_000 for i in range(len(xs))], flush=True)
+'''
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f'timed out waiting for {what}')
+
+
+def odom_xs(bag: Path) -> list[float]:
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        reader = mcap_reader.make_reader(stream)
+        return [bagio.deserialize(m.data, s.name).pose.pose.position.x
+                for s, _c, m in reader.iter_messages(topics=['/wallbot/odom'])]
+
+
+def start_recorder(process_runner, bag: Path, name: str = 'recorder'):
+    return process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                 '-p', f'output:={bag}'], name)
+
+
+def start_publisher(process_runner, tmp_path: Path, count: int, period: float, linger: float = 0.0):
+    script = tmp_path / 'publisher.py'
+    script.write_text(PUBLISHER)
+    return process_runner.start([sys.executable, str(script), str(count), str(period), str(linger)], 'publisher')
+
+
+@pytest.mark.parametrize('stop_signal', [signal.SIGTERM, signal.SIGINT])
+def test_signal_closes_a_complete_bag_with_every_message(process_runner, tmp_path, stop_signal):
+    bag = tmp_path / 'bag'
+    recorder = start_recorder(process_runner, bag)
+    publisher = start_publisher(process_runner, tmp_path, 3000, 0.0)  # as fast as it goes
+    assert publisher.wait(timeout=60) == 0, process_runner.output('publisher')
+    recorder.send_signal(stop_signal)
+    assert recorder.wait(timeout=20) == 0, process_runner.output('recorder')
+    meta = info(bag)
+    assert meta.topic('/wallbot/odom').count == 3000
+    assert meta.topic('/wallbot/reference_path').count == 1  # transient-local, recorded
+    assert odom_xs(bag) == [float(i) for i in range(3000)]
+
+
+def test_sigkill_then_reindex_loses_at_most_a_second(process_runner, tmp_path):
+    bag = tmp_path / 'bag'
+    recorder = start_recorder(process_runner, bag)
+    start_publisher(process_runner, tmp_path, 6000, 0.001)  # 1 kHz for 6 s
+    wait_for(lambda: 'matched' in process_runner.output('publisher'), 30, 'publisher to match')
+    time.sleep(2.5)
+    recorder.send_signal(signal.SIGKILL)
+    killed_at = time.time_ns()
+    recorder.wait(timeout=10)
+    assert not (bag / 'metadata.yaml').exists()
+    report = reindex(bag)
+    assert report.messages > 0
+    meta = info(bag)
+    last = meta.start_ns + meta.duration_ns
+    assert (killed_at - last) * 1e-9 <= 1.0
+    xs = odom_xs(bag)
+    assert xs == [float(i) for i in range(len(xs))]  # nothing missing before the cut
+
+
+def test_unknown_topic_parameter_is_refused(process_runner, tmp_path):
+    proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                 '-p', f'output:={tmp_path / "bag"}', '-p', 'topics:=[odom, nope]'], 'rec')
+    assert proc.wait(timeout=30) == 2
+    assert 'unknown topic' in process_runner.output('rec') and 'Traceback' not in process_runner.output('rec')
+
+
+def test_play_republishes_every_message(process_runner, tmp_path):
+    bag = tmp_path / 'run'
+    assert cli(['simulate', '--scenario', 'circle', '--duration', '1.0', '--bag', str(bag), '--quiet']) == 0
+    script = tmp_path / 'subscriber.py'
+    script.write_text(SUBSCRIBER)
+    subscriber = process_runner.start([sys.executable, str(script), '1001', '40'], 'subscriber')
+    wait_for(lambda: 'ready' in process_runner.output('subscriber'), 30, 'subscriber')
+    player = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(bag),
+                                   '--rate', '4', '--delay', '2', '--clock'], 'play')
+    assert player.wait(timeout=60) == 0, process_runner.output('play')
+    assert subscriber.wait(timeout=60) == 0
+    assert 'received 1001 in_order True' in process_runner.output('subscriber'), process_runner.output('subscriber')
