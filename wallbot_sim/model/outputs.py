@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -31,6 +32,20 @@ def drive_forces(theta: float, chassis_wrench: np.ndarray, half_track: float) ->
     differential = mz / half_track
     return DriveForces(0.5 * (longitudinal - differential), 0.5 * (longitudinal + differential),
                        -sin_t * fx + cos_t * fy)
+
+
+def side_motor_torques(drive: DriveForces, wheel_torques: Sequence[float], wheel_radius: float) -> tuple[float, float]:
+    """(tau_L, tau_R): what each side's motor delivers, or would have to deliver.
+
+    A side's traction F_side comes from its wheels rolling on the wall, so its motor supplies
+    r F_side plus the torque that spins the side's wheels (the total torque on each wheel:
+    constraint torque, and the motor's share when driven). In a tracking run (no motors) this is
+    the torque motors would need to replace the trajectory task; in a driven run it gives back
+    the applied torques.
+    """
+    front_left, rear_left, front_right, rear_right = wheel_torques
+    return (wheel_radius * drive.left + front_left + rear_left,
+            wheel_radius * drive.right + front_right + rear_right)
 
 
 @dataclass(frozen=True)

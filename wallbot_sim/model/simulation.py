@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -42,7 +42,8 @@ class Simulation:
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
                  q0: np.ndarray, qd0: np.ndarray, dt: float = DEFAULT_STEP, t0: float = 0.0,
-                 gains: BaumgarteGains | None = None) -> None:
+                 gains: BaumgarteGains | None = None, extra_modules: Sequence[ConstraintModule] = ()) -> None:
+        """``extra_modules``: constraint modules of your own, active beside the selected ones."""
         if not (math.isfinite(dt) and dt > 0.0):
             raise ParameterError(f'time step must be a finite number > 0, got {dt!r}')
         self.robot = robot
@@ -50,7 +51,8 @@ class Simulation:
         self.gains = gains or BaumgarteGains(robot.params.baumgarte_alpha, robot.params.baumgarte_beta)
         self._reference = reference
         self._selection = selection
-        self._modules = build_modules(selection, robot, reference, self.gains)
+        self._extra_modules = list(extra_modules)
+        self._modules = self._build(selection, reference, self.gains)
         self._initial = (t0, _state_vector(q0, qd0))
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         self.steps = 0
@@ -101,7 +103,7 @@ class Simulation:
     def set_reference(self, reference: Reference | None) -> None:
         """A new reference for the trajectory and heading tasks, from the next step on."""
         self._reference = reference
-        self._modules = build_modules(self._selection, self.robot, reference, self.gains)
+        self._modules = self._build(self._selection, reference, self.gains)
         self._cached = None
 
     def set_constraints(self, selection: ConstraintSelection, gains: BaumgarteGains | None = None) -> SwitchReport:
@@ -111,7 +113,7 @@ class Simulation:
         impulsive, mass-weighted projection qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd.
         """
         previous = self._selection
-        new_modules = build_modules(selection, self.robot, self._reference, gains or self.gains)
+        new_modules = self._build(selection, self._reference, gains or self.gains)
         added = set(selection.active_names()) - set(previous.active_names())
         velocity_rows = [m.velocity_rows(self._y[:DOF]) for m in new_modules
                          if m.name in added and isinstance(m, VelocityConstraint)]
@@ -132,19 +134,17 @@ class Simulation:
         self._cached = None
         return SwitchReport(previous, selection, before, after)
 
+    def _build(self, selection: ConstraintSelection, reference: Reference | None,
+               gains: BaumgarteGains) -> list[ConstraintModule]:
+        return build_modules(selection, self.robot, reference, gains) + self._extra_modules
+
     # --- dynamics ------------------------------------------------------------------------
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
         """The constrained motion at (t, q, qd) with the held motor torques."""
-        force, rows, rhs = self._problem(t, q, qd)
-        return solve_with_inverse(self.robot.mass_matrix(q), self.robot.mass_matrix_inverse(q), force, rows, rhs)
+        return constrained_motion(self.robot, self._modules, t, q, qd, self.motor_torque)
 
     def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Q and the stacked rows A, b of the active modules."""
-        force = self.robot.applied_force(q, qd, self.motor_torque)
-        if not self._modules:
-            return force, np.empty((0, DOF)), np.empty(0)
-        parts = [module.rows(t, q, qd) for module in self._modules]
-        return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
+        return stack_problem(self.robot, self._modules, t, q, qd, self.motor_torque)
 
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:DOF], y[DOF:]
@@ -185,6 +185,23 @@ class Simulation:
         if on_step is not None:
             on_step(self.outputs())
         return self.outputs()
+
+
+def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,
+                  motor_torque: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Q and the rows A, b of ``modules`` stacked in order, at (t, q, qd)."""
+    force = robot.applied_force(q, qd, motor_torque)
+    if not modules:
+        return force, np.empty((0, DOF)), np.empty(0)
+    parts = [module.rows(t, q, qd) for module in modules]
+    return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
+
+
+def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray,
+                       qd: np.ndarray, motor_torque: tuple[float, float] = (0.0, 0.0)) -> ConstrainedMotion:
+    """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
+    force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
+    return solve_with_inverse(robot.mass_matrix(q), robot.mass_matrix_inverse(q), force, rows, rhs)
 
 
 def _state_vector(q: np.ndarray, qd: np.ndarray) -> np.ndarray:

@@ -206,3 +206,31 @@ def _quintic(x: float, h: float, p0: float, v0: float, a0: float,
             v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5))),
             2.0 * c2 + x * (6.0 * c3 + x * (12.0 * c4 + x * 20.0 * c5)),
             6.0 * c3 + x * (24.0 * c4 + x * 60.0 * c5))
+
+
+class Plan(NamedTuple):
+    """A reference sampled on a time grid: what the trajectory node publishes as its plan."""
+
+    times: list[float]
+    positions: list[Vec2]
+    velocities: list[Vec2]
+    accelerations: list[Vec2]
+
+
+def sample_plan(reference: Reference, start: float, end: float, sample_dt: float) -> Plan:
+    """Sample ``reference`` at the grid times k * sample_dt covering [start, end].
+
+    The grid is anchored at t = 0, not at ``start``: k runs from floor(start / sample_dt) to
+    ceil(end / sample_dt) (at least two samples), so two plans of the same reference that
+    overlap share their sample points exactly, and a SampledReference built from either gives
+    bit-identical values there. That is what makes replanning ahead invisible to the dynamics.
+    """
+    _positive('sample_dt', sample_dt)
+    if not (math.isfinite(start) and math.isfinite(end) and end >= start >= 0.0):
+        raise ParameterError(f'a plan needs finite times 0 <= start <= end, got [{start!r}, {end!r}]')
+    first = math.floor(start / sample_dt + 1e-9)
+    last = max(math.ceil(end / sample_dt - 1e-9), first + 1)
+    times = [k * sample_dt for k in range(first, last + 1)]
+    samples = [reference.sample(t) for t in times]
+    return Plan(times, [s.position for s in samples], [s.velocity for s in samples],
+                [s.acceleration for s in samples])

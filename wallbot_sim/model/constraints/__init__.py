@@ -2,11 +2,12 @@
 
 from wallbot_sim.model.constraints.base import BaumgarteGains, ConstraintModule, VelocityConstraint
 from wallbot_sim.model.constraints.belt import SynchronousBelt
+from wallbot_sim.model.constraints.look_ahead import LookAheadPointTask
 from wallbot_sim.model.constraints.non_lateral import NonLateral
 from wallbot_sim.model.constraints.nonslip import Nonslip
 from wallbot_sim.model.constraints.trajectory import TangentHeadingTask, TrajectoryTask, wrap_angle
 
 __all__ = [
-    'BaumgarteGains', 'ConstraintModule', 'NonLateral', 'Nonslip', 'SynchronousBelt',
+    'BaumgarteGains', 'ConstraintModule', 'LookAheadPointTask', 'NonLateral', 'Nonslip', 'SynchronousBelt',
     'TangentHeadingTask', 'TrajectoryTask', 'VelocityConstraint', 'wrap_angle',
 ]

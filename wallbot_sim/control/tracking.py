@@ -1,0 +1,97 @@
+"""A tracking controller for the driven robot: model-based feed-forward plus feedback.
+
+Feed-forward is the model's inverse dynamics. The controller's own copy of the robot (its
+parameters may differ from the simulator's) is given the structural constraints (belt,
+non-lateral, nonslip) and a look-ahead point task; the Udwadia-Phohomsiri solution at the
+measured state yields the constraint wrench that task needs, which MODEL.md section 7 maps to
+side drive forces F_L, F_R and motor torques tau = r F + the torque on the side's wheels.
+The task's Baumgarte terms are a PD feedback on the point's error; an integral term on the
+centre's error (integrated only within ``integral_zone`` of the path) removes the steady error
+that wrong parameters leave, such as a wrong mass under gravity.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from wallbot_sim.model import BaumgarteGains, ConstraintSelection, DriveForces, ParameterError, Reference, Robot
+from wallbot_sim.model.constraint_set import build_modules
+from wallbot_sim.model.constraints import LookAheadPointTask
+from wallbot_sim.model.outputs import drive_forces, side_motor_torques
+from wallbot_sim.model.simulation import constrained_motion
+
+DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
+"""The constraints of the driven robot: belts, no side slip, wheels rolling on the wall."""
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """Feedback of the tracking controller."""
+
+    alpha: float = 10.0
+    """Velocity gain of the look-ahead task, 2 alpha (1/s)."""
+    beta: float = 10.0
+    """Position gain of the look-ahead task, beta^2 (1/s^2)."""
+    look_ahead: float = 0.05
+    """Distance of the steered point ahead of the centre (m)."""
+    integral: float = 50.0
+    """Integral gain (1/s^3): force -integral m_t (integral of the centre's error)."""
+    integral_zone: float = 0.05
+    """The error is integrated only while the centre is this close to its reference (m)."""
+
+    def __post_init__(self) -> None:
+        for name in ('alpha', 'beta', 'look_ahead', 'integral_zone'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ParameterError(f'{name} must be a finite number > 0, got {value!r}')
+        if not (math.isfinite(self.integral) and self.integral >= 0.0):
+            raise ParameterError(f'integral must be a finite number >= 0, got {self.integral!r}')
+
+
+@dataclass(frozen=True)
+class MotorCommand:
+    """One controller output."""
+
+    tau_left: float
+    tau_right: float
+    drive: DriveForces
+    """Side drive forces the command stands for (N)."""
+    tracking_error: float
+    """Distance of the centre from its reference (m)."""
+
+
+class TrackingController:
+    """Motor torques that make a driven robot follow a reference with its centre."""
+
+    def __init__(self, robot: Robot, reference: Reference | None = None,
+                 gains: ControllerGains | None = None) -> None:
+        self.robot = robot
+        self.gains = gains or ControllerGains()
+        self.reference = reference
+        self._error_integral = np.zeros(2)
+
+    def reset(self) -> None:
+        """Forget the integrated error."""
+        self._error_integral = np.zeros(2)
+
+    def update(self, t: float, q: np.ndarray, qd: np.ndarray, dt: float) -> MotorCommand:
+        """The torques to hold for the next ``dt`` seconds, from the state measured at t."""
+        if self.reference is None:
+            raise ParameterError('the controller has no reference yet')
+        gains = self.gains
+        task = LookAheadPointTask(self.reference, BaumgarteGains(gains.alpha, gains.beta), gains.look_ahead)
+        modules = build_modules(DRIVEN, self.robot, None, BaumgarteGains(gains.alpha, gains.beta)) + [task]
+        motion = constrained_motion(self.robot, modules, t, q, qd)
+        error = q[:2] - np.asarray(self.reference.sample(t).position)
+        distance = math.hypot(error[0], error[1])
+        if distance < gains.integral_zone:
+            self._error_integral += error * dt
+        wrench = motion.constraint_force[:3].copy()
+        wrench[:2] -= gains.integral * self.robot.total_mass * self._error_integral
+        params = self.robot.params
+        drive = drive_forces(q[2], wrench, params.half_track)
+        tau_left, tau_right = side_motor_torques(drive, motion.constraint_force[3:], params.wheel_radius)
+        return MotorCommand(tau_left, tau_right, drive, distance)
