@@ -124,3 +124,21 @@ def test_reindex_rebuilds_missing_metadata_of_a_complete_bag(tmp_path):
     assert not report.truncated and after.message_count == before.message_count
     assert [(t.name, t.count) for t in sorted(after.topics, key=lambda t: t.name)] == \
         [(t.name, t.count) for t in sorted(before.topics, key=lambda t: t.name)]
+
+
+def test_ros_conversions_and_portable_encoders_agree(tmp_path, monkeypatch):
+    """simulate --bag through the nodes' conversions (rclpy) and through bagio give the same run."""
+    pytest.importorskip('rclpy')
+    import wallbot_sim.bag.headless as headless
+    if headless._ros_conversions() is None:
+        pytest.skip('wallbot_msgs_py.conversions not importable')
+    from wallbot_sim.plots import load_run
+    ros_bag = tmp_path / 'ros'
+    assert cli(['simulate', '--scenario', 'figure8', '--duration', '0.3', '--bag', str(ros_bag), '--quiet']) == 0
+    monkeypatch.setattr(headless, '_ros_conversions', lambda: None)
+    portable = tmp_path / 'portable'
+    assert cli(['simulate', '--scenario', 'figure8', '--duration', '0.3', '--bag', str(portable), '--quiet']) == 0
+    a, b = load_run(ros_bag), load_run(portable)
+    for name in ('x', 'y', 'theta', 'vx', 'vy', 'omega', 'phi', 'dphi', 'tau', 'ref_x', 'ref_y',
+                 'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral'):
+        assert np.nanmax(np.abs(getattr(a, name) - getattr(b, name))) < 1e-12, name

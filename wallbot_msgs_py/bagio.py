@@ -57,8 +57,20 @@ def qos_from_rclpy(profile: Any) -> Any:
 
 
 def deserialize(data: bytes | memoryview, msgtype: str) -> Any:
-    """A CDR message decoded with the Jazzy typestore."""
-    return typestore().deserialize_cdr(bytes(data), msgtype)
+    """A CDR message decoded with the Jazzy typestore.
+
+    Tolerates trailing bytes: rclpy/Fast-CDR serialization (what the recorder stores) may end a
+    message with up to 8 bytes of padding, which rosbags' ``deserialize_cdr`` rejects as a size
+    mismatch (seen on sensor_msgs/JointState with empty sequences).
+    """
+    raw = bytes(data)
+    store = typestore()
+    if len(raw) < 4 or raw[:2] not in (b'\x00\x00', b'\x00\x01'):
+        raise ValueError(f'{msgtype}: not CDR (bad encapsulation header)')
+    msgdef = store.get_msgdef(msgtype)
+    decode = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    message, _end = decode(raw[4:], 0, msgdef.cls, store)
+    return message
 
 
 def decode_stamp(stamp: Any) -> float:

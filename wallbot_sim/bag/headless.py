@@ -1,7 +1,9 @@
 """``simulate --bag``: the graph's recorded topics written straight from the model, no middleware.
 
-The messages are the dynamics and trajectory nodes' (same topics, types, frames, field layout;
-the encoders are in wallbot_msgs_py.bagio), so the loader, plots, ``play`` and ``summary`` treat
+The per-step messages are built by ``wallbot_msgs_py.conversions`` (the dynamics node's own
+``StepMessages`` and reference conversion) and serialized by rclpy when ROS is installed, so they
+are byte for byte what the node publishes; without ROS the ROS-free encoders of
+``wallbot_msgs_py.bagio`` (same topics, types, frames and field layout) are used. Either way the loader, plots, ``play`` and ``summary`` treat
 this bag like one recorded from ``run``. Differences, by design: the receive timestamps are the
 simulation time (ns since 0) rather than the recorder's clock, and ``/diagnostics`` is written at
 DIAGNOSTICS_RATE Hz with ``max_residual``, the largest residual since the previous one.
@@ -34,6 +36,10 @@ class HeadlessBagWriter:
                                 topics.REFERENCE, topics.REFERENCE_PATH, topics.CONSTRAINTS, topics.CLOCK,
                                 topics.DIAGNOSTICS)}
         self._latched_done = False
+        self._ros = _ros_conversions()
+        if self._ros is not None:
+            conversions, _serialize = self._ros
+            self._step = conversions.StepMessages()
 
     @classmethod
     def open(cls, path: Path, simulation: Simulation) -> HeadlessBagWriter:
@@ -42,6 +48,9 @@ class HeadlessBagWriter:
         writer.set_custom_data('wallbot.recorder', 'simulate --bag (headless)')
         writer.set_custom_data('wallbot.constraints', simulation.selection.label())
         return cls(writer, simulation)
+
+    def _put_raw(self, topic: topics.Topic, t: float, data: bytes) -> None:
+        self.writer.write(self._conn[topic.name], int(round(t * 1e9)), data)
 
     def _put(self, topic: topics.Topic, t: float, msg: object) -> None:
         self.writer.write(self._conn[topic.name], int(round(t * 1e9)), bagio.serialize(msg, topic.type))
@@ -67,22 +76,40 @@ class HeadlessBagWriter:
         t = out.t
         if not self._latched_done:
             self._latched(t)
+        if self._ros is not None:
+            self._write_ros(out)
+        else:
+            self._write_portable(out)
+        self._diagnostics(out)
+
+    def _write_ros(self, out: StepOutputs) -> None:
+        conversions, serialize = self._ros
+        t = out.t
+        for topic, msg in self._step.update(out):
+            self._put_raw(topic, t, serialize(msg))
+        if out.reference is not None:
+            self._put_raw(topics.REFERENCE, t, serialize(conversions.reference_odometry_message(out.reference, t)))
+
+    def _write_portable(self, out: StepOutputs) -> None:
+        t = out.t
         q, qd = out.q, out.qd
         self._put(topics.CLOCK, t, bagio.clock(t))
         self._put(topics.ODOM, t, bagio.odometry(t, q[0], q[1], q[2], qd[0], qd[1], qd[2]))
-        self._put(topics.WHEEL_STATES, t, bagio.joint_state(t, topics.WHEEL_JOINTS, q[3:7], qd[3:7], out.wheel_torques,
-                                                            frame=topics.BASE_FRAME))
+        self._put(topics.WHEEL_STATES, t, bagio.joint_state(t, topics.WHEEL_JOINTS, q[3:7], qd[3:7], out.wheel_torques))
         fx, fy, mz = out.chassis_wrench
         self._put(topics.CONSTRAINT_WRENCH, t, bagio.wrench_stamped(t, fx, fy, mz))
         self._put(topics.DRIVE_FORCES, t, bagio.joint_state(
-            t, topics.DRIVE_JOINTS, effort=(out.drive.left, out.drive.right, out.drive.lateral), frame=topics.BASE_FRAME))
+            t, topics.DRIVE_JOINTS, effort=(out.drive.left, out.drive.right, out.drive.lateral)))
         if out.reference is not None:
             sample = out.reference
             heading = tangent_heading(sample)
             theta = heading.angle if heading is not None else 0.0
             rate = heading.rate if heading is not None else 0.0
             self._put(topics.REFERENCE, t, bagio.odometry(t, *sample.position, theta, *sample.velocity, rate,
-                                                          child=topics.WALL_FRAME, twist_in_child=False))
+                                                          child='reference'))
+
+    def _diagnostics(self, out: StepOutputs) -> None:
+        t = out.t
         self._max_residual = max(self._max_residual, out.residual)
         if t >= self._next_diagnostics - 1e-12:
             self._next_diagnostics = t + 1.0 / DIAGNOSTICS_RATE
@@ -94,3 +121,15 @@ class HeadlessBagWriter:
 
     def close(self) -> None:
         self.writer.close()
+
+
+def _ros_conversions():
+    """(conversions module, rclpy serialize_message), or None without a ROS install."""
+    try:
+        from rclpy.serialization import serialize_message
+
+        from wallbot_msgs_py import conversions
+        conversions.StepMessages, conversions.reference_odometry_message  # noqa: B018 (API check)
+    except Exception:  # no ROS, or conversions not there yet: the ROS-free encoders
+        return None
+    return conversions, serialize_message
