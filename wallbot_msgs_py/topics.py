@@ -51,6 +51,10 @@ REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiD
                              Durability.TRANSIENT_LOCAL, depth=1)
 REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
 CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
+RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
+"""Published by a recorder: the newest /clock stamp up to which it has taken every message.
+At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
+steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, REFERENCE, REFERENCE_TRAJECTORY,
             REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
@@ -58,6 +62,8 @@ RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, REFERENCE, REFE
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'
+REFERENCE_FRAME = 'reference'
+"""Child frame of the ``reference`` odometry: at the reference point, along the path."""
 WHEEL_JOINTS = ('wheel_left_front', 'wheel_left_rear', 'wheel_right_front', 'wheel_right_rear')
 DRIVE_JOINTS = ('drive_left', 'drive_right', 'lateral')
 
