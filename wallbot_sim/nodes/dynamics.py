@@ -1,0 +1,463 @@
+"""dynamics_node: the constrained model integrated with RK4, owning simulation time and /clock.
+
+Threads. The stepping runs in a dedicated loop thread; the executor (main thread) only
+receives messages, service calls and parameter sets and hands them to the loop as events,
+which the loop applies at the next step boundary. No physics runs in a callback.
+
+Determinism. The loop does not integrate until it has a constraint set (``constraints``)
+and, while the trajectory task is on, a plan (``reference_trajectory``) covering the next
+step; both are transient-local. It never steps past the end of a plan that ends moving
+(it waits for the next plan instead), so the state sequence does not depend on pacing,
+CPU load or message timing: the same configuration gives the same states at any
+``real_time_factor``.
+
+Pacing. At factor f > 0 the step reaching simulation time k*dt is computed ahead and
+published when due, at wall time anchor + k*dt/f (one anchor per run segment, re-anchored
+after a pause, a wait or a factor change, so lateness never accumulates into drift);
+lateness = publish time - due time is measured and reported in /diagnostics.
+
+Back-pressure (lossless recording at factor 0). DDS acknowledgements are not enough: a
+reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
+application has taken it, so a recorder slower than the simulation still loses samples
+(measured: ``wait_for_all_acked`` every 200 steps returned within 4 ms while a slow
+subscriber lost 70 % of the samples), and acknowledgements may wait for Fast DDS's
+heartbeat period (up to 3 s per wait measured). So the recorder reports its progress
+instead: it publishes on ``record_progress`` (rosgraph_msgs/Clock, relative to the
+namespace) the newest /clock stamp up to which it has taken every message. At factor 0,
+while at least one publisher exists on that topic, the loop never runs more than
+``backpressure_window`` steps (default 200, well below the recorded topics' depth of 1000)
+ahead of the reported progress; without a recorder it runs free.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import sys
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool, Trigger
+from trajectory_msgs.msg import MultiDOFJointTrajectory
+
+from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+
+LATE_LIMIT = 2e-3
+"""A step published more than this after its due time counts as late (s)."""
+THROTTLE = 1.0
+"""Seconds between repeated warnings of one kind."""
+MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
+                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
+                 topics.CLOCK: ClockMsg}
+
+
+@dataclass
+class Window:
+    """Loop statistics since the last diagnostics message."""
+
+    started: float = field(default_factory=time.perf_counter)
+    sim_start: float | None = None
+    steps: int = 0
+    step_time_sum: float = 0.0
+    step_time_max: float = 0.0
+    lateness_max: float = 0.0
+    late: int = 0
+
+
+@dataclass
+class Plan:
+    """A received plan: its reference and the span it covers."""
+
+    reference: SampledReference
+    start: float
+    end: float
+    final: bool
+
+    def covers(self, t0: float, t1: float) -> bool:
+        return self.start <= t0 + 1e-9 and (self.final or t1 <= self.end + 1e-9)
+
+
+class DynamicsNode(Node):
+    """The simulation loop and its ROS interface."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(topics.NODE_DYNAMICS, namespace=topics.NAMESPACE, **kwargs)
+        p = {
+            'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset'),
+            'initial_y': declare(self, 'initial_y', 0.0, 'initial Y of the centre (m); applies at start and reset'),
+            'initial_theta': declare(self, 'initial_theta', 0.0, 'initial heading (rad); applies at start and reset'),
+            'robot_file': declare(self, 'robot_file', '', 'robot parameter YAML; empty = installed config/robot.yaml',
+                                  read_only=True),
+            'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
+                               low=1, high=100000),
+            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps', low=1, high=1000000),
+            'real_time_factor': declare(self, 'real_time_factor', 1.0,
+                                        'simulation seconds per wall second; 0 = as fast as possible',
+                                        low=0.0, high=1e6),
+            'command_timeout': declare(self, 'command_timeout', 0.5,
+                                       'seconds of simulation time a wheel_torque_cmd is held (> 0)'),
+            'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
+                                        'largest accepted |torque| per side in wheel_torque_cmd (N m, > 0)'),
+            'stop_at': declare(self, 'stop_at', 0.0, 'pause when simulation time reaches this (s); 0 = never',
+                               low=0.0, high=1e9),
+            'backpressure_window': declare(self, 'backpressure_window', 200,
+                                           'at factor 0, max steps ahead of a recorder\'s record_progress',
+                                           low=1, high=1000000),
+        }
+        reasons = self._check(p)
+        if reasons:
+            raise ValueError('; '.join(reasons))
+        self.params = p
+        self.robot = Robot(load_robot_parameters(p['robot_file'] or None))
+        sys.setswitchinterval(5e-4)  # executor callbacks yield the GIL to the loop within 0.5 ms
+
+        self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
+                            for topic, kind in MESSAGE_TYPES.items()}
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
+                                                     qos_profile(topics.DIAGNOSTICS))
+        self.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, self._on_constraints,
+                                 qos_profile(topics.CONSTRAINTS))
+        self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
+                                 qos_profile(topics.REFERENCE_TRAJECTORY))
+        self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
+                                 qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
+                                 qos_profile(topics.RECORD_PROGRESS))
+        self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        self.create_timer(1.0, self._publish_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+        # loop state: written by the loop thread only (events carry everything else)
+        self.events: queue.SimpleQueue = queue.SimpleQueue()
+        self.sim: Simulation | None = None
+        self.plan: Plan | None = None
+        self.selection = self.gains = None
+        self.pending_constraints = None
+        self.paused = self.diverged = False
+        self.status = 'waiting for constraints'
+        self.command: tuple[tuple[float, float], float] | None = None
+        self.command_expired = False
+        self.progress_ns: int | None = None
+        self.recorder_present = False
+        self.recorder_checked = 0.0
+        self.last_outputs = None
+        self.window = Window()
+        self.messages = conversions.StepMessages()
+        self.anchor: tuple[float, int] | None = None
+        self.stopping = threading.Event()
+        self.wake = threading.Event()
+        self.loop_thread = threading.Thread(target=self._loop, name='simulation', daemon=True)
+        self.loop_thread.start()
+
+    # --- executor side: callbacks only queue events ---------------------------------------
+    def _on_constraints(self, msg: DiagnosticStatus) -> None:
+        try:
+            self._post('constraints', conversions.constraints_from_message(msg))
+        except ValueError as error:
+            self.get_logger().error(f'ignoring constraints message: {error}')
+
+    def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
+        try:
+            plan = conversions.plan_from_trajectory(msg)
+            reference = SampledReference(*plan)
+        except (ValueError, ModelError) as error:
+            self.get_logger().error(f'ignoring reference_trajectory: {error}')
+            return
+        self._post('plan', Plan(reference, plan.times[0], plan.times[-1], conversions.plan_is_final(plan)))
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        try:
+            self._post('command', conversions.parse_torque_command(msg, self.params['max_wheel_torque']))
+        except ValueError as error:
+            self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
+
+    def _on_progress(self, msg: ClockMsg) -> None:
+        self.progress_ns = conversions.stamp_nanoseconds(msg.clock)
+
+    def _on_reset(self, _request, response):
+        self._post('reset', None)
+        response.success, response.message = True, 'reset to the initial state at t = 0 at the next step boundary'
+        return response
+
+    def _on_pause(self, request, response):
+        self._post('pause', bool(request.data))
+        response.success = True
+        response.message = 'paused' if request.data else 'running'
+        return response
+
+    @staticmethod
+    def _check(values: dict) -> list[str]:
+        reasons = []
+        for name in ('initial_x', 'initial_y', 'initial_theta'):
+            if name in values:
+                reasons.append(check_number(name, values[name]))
+        for name in ('command_timeout', 'max_wheel_torque'):
+            if name in values:
+                reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
+        for name in ('real_time_factor', 'stop_at'):
+            if name in values:
+                reasons.append(check_number(name, values[name], minimum=0.0))
+        return [r for r in reasons if r]
+
+    def _on_set(self, parameters):
+        return parameter_result(self._check(param_dict(parameters)))
+
+    def _after_set(self, parameters) -> None:
+        changes = {k: v for k, v in param_dict(parameters).items() if k in self.params}
+        if changes:
+            self.params = {**self.params, **changes}
+            self._post('params', changes)
+
+    def _post(self, kind: str, payload) -> None:
+        self.events.put((kind, payload))
+        self.wake.set()
+
+    # --- loop side ---------------------------------------------------------------------------
+    def _loop(self) -> None:
+        try:
+            while not self.stopping.is_set():
+                self._apply_events()
+                if not self._ready():
+                    self.anchor = None
+                    self.wake.wait(0.005)
+                    self.wake.clear()
+                    continue
+                if self.params['real_time_factor'] == 0.0 and self._held_back():
+                    self.wake.wait(0.0005)
+                    self.wake.clear()
+                    continue
+                self._step()
+        except Exception:  # noqa: BLE001 - a loop crash must be visible, not a silent thread death
+            if self.stopping.is_set() or not self.context.ok():
+                return  # shutting down (Ctrl-C, SIGTERM): publishers are gone, nothing to report
+            self.get_logger().fatal('simulation loop failed:\n' + traceback.format_exc())
+            self.status, self.diverged = 'internal error', True
+
+    def _apply_events(self) -> None:
+        while True:
+            try:
+                kind, payload = self.events.get_nowait()
+            except queue.Empty:
+                return
+            if kind == 'constraints':
+                self.pending_constraints = payload
+            elif kind == 'plan':
+                self.plan = payload
+                if self.sim is not None:
+                    self.sim.set_reference(payload.reference)
+            elif kind == 'command':
+                self.command = (payload, self.sim.t if self.sim is not None else 0.0)
+                self.command_expired = False
+            elif kind == 'reset':
+                self._reset()
+            elif kind == 'pause':
+                self.paused = payload
+                self.get_logger().info('paused' if payload else 'resumed')
+            elif kind == 'params':
+                self._apply_params(payload)
+        # not reached
+
+    def _apply_params(self, changes: dict) -> None:
+        if 'rate_hz' in changes and self.sim is not None:
+            self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+        self.anchor = None
+        self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
+        reference = self.plan.reference if self.plan is not None else None
+        sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / self.params['rate_hz'],
+                         t0=t0, gains=self.gains)
+        sim.set_motor_torque(*torque)
+        return sim
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        return np.array([p['initial_x'], p['initial_y'], p['initial_theta'], 0, 0, 0, 0], dtype=float), np.zeros(DOF)
+
+    def _reset(self) -> None:
+        self.command, self.diverged = None, False
+        if self.sim is not None:
+            self.sim = self._simulation(*self._initial_state(), 0.0)
+            self.get_logger().info('reset to the initial state at t = 0')
+            self._publish(self.sim.outputs())
+        self.anchor = None
+
+    def _ready(self) -> bool:
+        """Apply a pending constraint set if possible; say whether the next step may run."""
+        if self.pending_constraints is not None:
+            selection, gains = self.pending_constraints
+            if selection.trajectory and self.plan is None:
+                self.status = 'waiting for reference_trajectory'
+                if self.sim is None:
+                    return False
+            else:
+                self.pending_constraints = None
+                self._switch(selection, gains)
+        if self.sim is None:
+            return False
+        if self.paused or self.diverged:
+            self.status = 'diverged' if self.diverged else 'paused'
+            return False
+        sim = self.sim
+        stop_at = self.params['stop_at']
+        if stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt:
+            self.status = f'stopped at t = {sim.t:.3f} s (stop_at)'
+            return False
+        if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
+            self.status = f'waiting for a reference_trajectory covering t = {sim.t:.3f} s'
+            return False
+        self.status = 'running'
+        return True
+
+    def _switch(self, selection, gains) -> None:
+        if self.sim is None:
+            self.selection, self.gains = selection, gains
+            self.sim = self._simulation(*self._initial_state(), 0.0)
+            self.get_logger().info(f'starting with constraints {selection.label()}')
+            self._publish(self.sim.outputs())
+            return
+        report = self.sim.set_constraints(selection, gains)
+        self.selection, self.gains = selection, gains
+        self.get_logger().info(
+            f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
+            f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+
+    def _held_back(self) -> bool:
+        """At factor 0: whether a recorder's progress is more than the window behind."""
+        now = time.monotonic()
+        if now - self.recorder_checked > 0.2:
+            self.recorder_checked = now
+            self.recorder_present = self.count_publishers(self.progress_topic) > 0
+        if not self.recorder_present:
+            return False
+        window = self.params['backpressure_window'] * self.sim.dt
+        progress = -math.inf if self.progress_ns is None else self.progress_ns * 1e-9
+        return self.sim.t - progress > window
+
+    def _motor_torque(self) -> tuple[float, float]:
+        sim = self.sim
+        if sim.selection.trajectory or self.command is None:
+            return (0.0, 0.0)
+        torque, since = self.command
+        if sim.t - since > self.params['command_timeout'] + 1e-12:
+            if not self.command_expired:
+                self.command_expired = True
+                self.get_logger().warning(
+                    f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time: zero torque',
+                    throttle_duration_sec=THROTTLE)
+            return (0.0, 0.0)
+        return torque
+
+    def _step(self) -> None:
+        sim = self.sim
+        torque = self._motor_torque()
+        if torque != sim.motor_torque:
+            sim.set_motor_torque(*torque)
+        began = time.perf_counter()
+        try:
+            sim.step()
+            out = sim.outputs()
+            if not (math.isfinite(float(np.sum(out.constraint_force))) and math.isfinite(out.residual)):
+                raise DivergedError(f'constraint force is no longer finite at t = {sim.t:.3f} s')
+        except DivergedError as error:
+            self.diverged = True
+            self.status = 'diverged'
+            self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
+            return
+        step_time = time.perf_counter() - began
+        window = self.window
+        window.steps += 1
+        window.step_time_sum += step_time
+        window.step_time_max = max(window.step_time_max, step_time)
+        publish = sim.steps % self.params['publish_every'] == 0
+        if publish:
+            pairs = self.messages.update(out)
+        self._pace(sim.steps, sim.dt)
+        if publish:
+            for topic, msg in pairs:
+                self.publishers_[topic].publish(msg)
+        self.last_outputs = out
+
+    def _pace(self, step: int, dt: float) -> None:
+        factor = self.params['real_time_factor']
+        if factor <= 0.0:
+            return
+        if self.anchor is None:
+            self.anchor = (time.perf_counter(), step - 1)
+        anchor_wall, anchor_step = self.anchor
+        due = anchor_wall + (step - anchor_step) * dt / factor
+        while True:
+            remaining = due - time.perf_counter()
+            if remaining <= 0.0 or self.stopping.is_set():
+                break
+            time.sleep(min(remaining, 0.05))
+        lateness = time.perf_counter() - due
+        window = self.window
+        window.lateness_max = max(window.lateness_max, lateness)
+        if lateness > LATE_LIMIT:
+            window.late += 1
+
+    def _publish(self, out) -> None:
+        """Publish the messages of the current state (start, reset)."""
+        self.last_outputs = out
+        for topic, msg in self.messages.update(out):
+            self.publishers_[topic].publish(msg)
+
+    # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        window, self.window = self.window, Window()
+        sim, out = self.sim, self.last_outputs
+        elapsed = max(time.perf_counter() - window.started, 1e-9)
+        t = sim.t if sim is not None else 0.0
+        rate = window.steps / elapsed
+        dt = sim.dt if sim is not None else 1.0 / self.params['rate_hz']
+        level = 'error' if self.diverged else ('ok' if self.status in ('running', 'paused')
+                                                or self.status.startswith('stopped') else 'warn')
+        adsorption = self.robot.adsorption
+        values = [
+            ('status', self.status), ('simulation time', t), ('achieved rate (Hz)', rate),
+            ('real-time factor', rate * dt), ('real-time factor target', float(self.params['real_time_factor'])),
+            ('step time mean (ms)', 1e3 * window.step_time_sum / max(window.steps, 1)),
+            ('step time max (ms)', 1e3 * window.step_time_max),
+            ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
+            ('constraint residual', float(out.residual) if out is not None else math.nan),
+            ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
+            ('adsorption force (N)', float(adsorption.applied_force)),
+            ('adsorption minimum (N)', float(adsorption.minimum_force)),
+            ('adsorption margin', float(adsorption.margin)),
+        ]
+        status = conversions.diagnostic_status(f'{self.get_fully_qualified_name()}: simulation', level,
+                                               self.status, values)
+        self.diagnostics_pub.publish(conversions.diagnostics_message(t, [status]))
+
+    def close(self) -> None:
+        """Stop the loop thread (called by main on shutdown)."""
+        self.stopping.set()
+        self.wake.set()
+        self.loop_thread.join(timeout=2.0)
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run(DynamicsNode, args))
+
+
+if __name__ == '__main__':
+    main()
