@@ -180,10 +180,13 @@ class SampledReference:
         return self.times[-1]
 
     def sample(self, t: float) -> ReferenceSample:
-        if t <= self.times[0] or t >= self.times[-1]:
-            px, py = self._samples[0 if t <= self.times[0] else -1][:2]
+        # The sample points themselves belong to the interpolated span: at exactly the first or
+        # last sample time the reference moves with that sample's velocity (a plan that starts
+        # at the current time, or the step that ends at a plan's last sample, must see it).
+        if t < self.times[0] or t > self.times[-1]:
+            px, py = self._samples[0 if t < self.times[0] else -1][:2]
             return ReferenceSample((px, py), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
-        k = bisect.bisect_right(self.times, t) - 1
+        k = min(bisect.bisect_right(self.times, t) - 1, len(self.times) - 2)
         h = self.times[k + 1] - self.times[k]
         x = t - self.times[k]
         p0x, p0y, v0x, v0y, a0x, a0y = self._samples[k]
