@@ -11,6 +11,9 @@ Design (see docs/bags.md):
   KEEP_ALL is what makes it lossless at real-time factor 0: a reader whose history is full stops
   acknowledging, so the publisher's ``wait_for_all_acked`` back-pressure holds the simulation
   instead of the DDS history overwriting unread samples;
+* record_progress (rosgraph_msgs/Clock): the newest /clock stamp written, every PROGRESS_EVERY
+  clock messages and from a 50 ms timer; at real-time factor 0 the dynamics node stays within its
+  backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
 * SIGINT/SIGTERM: stop taking new work, drain what DDS already delivered, close the bag
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import importlib
 import signal
+import struct
 import sys
 import time
 from pathlib import Path
@@ -30,6 +34,8 @@ from typing import Any, Sequence
 from wallbot_msgs_py import bagio, topics
 
 NODE_NAME = topics.NODE_RECORDER
+PROGRESS_EVERY = 20
+"""Publish record_progress every this many /clock messages (and from a 50 ms timer)."""
 DRAIN_QUIET = 0.3
 """Seconds without a new message that end the drain at shutdown."""
 DRAIN_LIMIT = 5.0
@@ -81,6 +87,20 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
                     lambda data, topic=topic, name=name: self._on_message(topic, name, data),
                     subscription_qos(topic), raw=True)
             self.create_timer(0.2, writer.flush_if_due)
+            # back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock
+            # stamp up to which every message has been written
+            self.progress_ns: int | None = None
+            self._progress_sent: int | None = None
+            self._clocks = 0
+            self._progress_pub = None
+            if any(t.name == topics.CLOCK.name for t in recorded):
+                from rosgraph_msgs.msg import Clock
+
+                from wallbot_msgs_py.qos import qos_profile
+                self._clock_msg = Clock()
+                self._progress_pub = self.create_publisher(Clock, topics.RECORD_PROGRESS.name,
+                                                           qos_profile(topics.RECORD_PROGRESS))
+                self.create_timer(0.05, self._publish_progress)
             self.get_logger().info(f'recording {len(recorded)} topics to {writer.path}')
 
         def _on_message(self, topic: topics.Topic, name: str, data: bytes) -> None:
@@ -89,6 +109,19 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
             self.writer.write(connection, self.get_clock().now().nanoseconds, data)
             self.received += 1
+            if topic.name == topics.CLOCK.name and self._progress_pub is not None and len(data) >= 12:
+                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
+                self.progress_ns = sec * 1_000_000_000 + nanosec
+                self._clocks += 1
+                if self._clocks % PROGRESS_EVERY == 0:
+                    self._publish_progress()
+
+        def _publish_progress(self) -> None:
+            if self.progress_ns is None or self.progress_ns == self._progress_sent:
+                return
+            self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(self.progress_ns, 1_000_000_000)
+            self._progress_pub.publish(self._clock_msg)
+            self._progress_sent = self.progress_ns
 
         def _offered_qos(self, topic: topics.Topic, name: str) -> list[Any]:
             from rosbags.interfaces import QosHistory

@@ -1,8 +1,9 @@
 """One loader for a run: a recorded bag or a ``simulate`` CSV, as the same arrays.
 
 Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
-matched by header stamp (NaN where a stamp has no message); the reference is interpolated at those
-stamps (exact when the trajectory node stamps at the same instants); the residual comes from
+matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
+recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
+present, else the ``reference`` topic (exact stamps, or linear interpolation between them); the residual comes from
 ``/diagnostics`` (key ``max_residual``, the maximum since the previous diagnostics, else a key
 containing "residual"), NaN where absent.
 """
@@ -100,17 +101,31 @@ def _stamp_ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
+def _plan_reference(plan: dict):
+    """The SampledReference of the recorded plan samples, or None."""
+    if len(plan) < 2:
+        return None
+    from wallbot_sim.model import SampledReference
+    times = sorted(plan)
+    try:
+        return SampledReference([k * 1e-9 for k in times], [plan[k][0] for k in times],
+                                [plan[k][1] for k in times], [plan[k][2] for k in times])
+    except Exception:
+        return None
+
+
 def _load_bag(path: Path, label: str) -> RunData:
     from wallbot_sim.bag.reader import info, messages
 
     bag = info(path)
     by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics}
     want = {leaf: by_leaf.get(leaf) for leaf in ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces',
-                                                 'reference', 'reference_path', 'diagnostics')}
+                                                 'reference', 'reference_path', 'reference_trajectory',
+                                                 'diagnostics')}
     if want['odom'] is None:
         raise RunDataError(f'{path} has no odom topic: not a wallbot run')
     names = {v: k for k, v in want.items() if v is not None}
-    odom, wheels, wrench, drive, ref, diag = {}, {}, {}, {}, {}, {}
+    odom, wheels, wrench, drive, ref, diag, plan = {}, {}, {}, {}, {}, {}, {}
     path_xy: tuple[list[float], list[float]] = ([], [])
     for raw in messages(path, list(names)):
         leaf = names[raw.topic]
@@ -127,6 +142,12 @@ def _load_bag(path: Path, label: str) -> RunData:
             drive[_stamp_ns(msg.header.stamp)] = bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort')
         elif leaf == 'reference':
             ref[_stamp_ns(msg.header.stamp)] = bagio.reference_row(msg)[1:]
+        elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
+            start = _stamp_ns(msg.header.stamp)
+            for point in msg.points:
+                if point.transforms and point.velocities and point.accelerations:
+                    p, v, a = point.transforms[0].translation, point.velocities[0].linear, point.accelerations[0].linear
+                    plan[start + _stamp_ns(point.time_from_start)] = ((p.x, p.y), (v.x, v.y), (a.x, a.y))
         elif leaf == 'reference_path':
             path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
         elif leaf == 'diagnostics':
@@ -150,7 +171,11 @@ def _load_bag(path: Path, label: str) -> RunData:
     w = matched(wheels, 12)
     c = matched(wrench, 3)
     d = matched(drive, 3)
-    if ref:
+    plan_reference = _plan_reference(plan)
+    if plan_reference is not None:  # what the dynamics node followed: the plan, quintic Hermite
+        samples = [plan_reference.sample(ti).position for ti in t]
+        ref_x, ref_y = (np.array(c, dtype=float) for c in zip(*samples))
+    elif ref:
         rs = sorted(ref)
         rt = np.array(rs, dtype=float) * 1e-9
         rxy = np.array([ref[s] for s in rs], dtype=float)
