@@ -1,0 +1,392 @@
+"""The node graph as separate processes over DDS (isolated domain from conftest).
+
+Every node runs as a real process started through ``process_runner``; the test talks to it
+with rclpy like the ROS tools do (``ros2 param set`` = the SetParameters service,
+``ros2 topic echo`` = a subscription).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from nav_msgs.msg import Odometry, Path  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_srvs.srv import SetBool, Trigger  # noqa: E402
+from trajectory_msgs.msg import MultiDOFJointTrajectory  # noqa: E402
+
+from wallbot_msgs_py import conversions, topics  # noqa: E402
+from wallbot_msgs_py.qos import qos_profile  # noqa: E402
+from wallbot_sim.config import load_robot_parameters  # noqa: E402
+from wallbot_sim.model import Circle, ConstraintSelection, Robot, Simulation  # noqa: E402
+from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
+
+NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
+         'constraint_config': 'wallbot_sim.nodes.constraint_config'}
+MS = 1_000_000
+
+
+def ns(msg) -> int:
+    return conversions.stamp_nanoseconds(msg.header.stamp)
+
+
+class Graph:
+    """Starts node processes and observes them through an in-process rclpy node."""
+
+    def __init__(self, runner, namespace: str = topics.NAMESPACE) -> None:
+        self.runner, self.namespace = runner, namespace
+        self.procs = {}
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node('graph_test', context=self.context)
+        self.lock = threading.Lock()
+        self.received: dict[str, list] = {}
+        for topic, kind in ((topics.ODOM, Odometry), (topics.WHEEL_STATES, JointState),
+                            (topics.DIAGNOSTICS, DiagnosticArray), (topics.CONSTRAINTS, DiagnosticStatus),
+                            (topics.REFERENCE_TRAJECTORY, MultiDOFJointTrajectory),
+                            (topics.REFERENCE_PATH, Path), (topics.REFERENCE, Odometry)):
+            self.received[topic.name] = []
+            self.node.create_subscription(kind, topic.resolve(namespace), self._keeper(topic.name),
+                                          qos_profile(topic))
+        self.torque_pub = self.node.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.resolve(namespace),
+                                                     qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.spinner = threading.Thread(target=self._spin, daemon=True)
+        self.spinner.start()
+
+    def _keeper(self, name):
+        def keep(msg):
+            with self.lock:
+                self.received[name].append(msg)
+        return keep
+
+    def _spin(self):
+        while self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.05)
+            except Exception:  # noqa: BLE001 - shutting down
+                return
+
+    def start(self, name: str, *params: str, remap: str | None = None):
+        args = [sys.executable, '-m', NODES[name], '--ros-args']
+        for param in params:
+            args += ['-p', param]
+        if remap:
+            args += ['-r', remap]
+        self.procs[name] = self.runner.start(args, name)
+        return self.procs[name]
+
+    def messages(self, name: str) -> list:
+        with self.lock:
+            return list(self.received[name])
+
+    def clear(self, name: str) -> None:
+        with self.lock:
+            self.received[name].clear()
+
+    def wait_for(self, predicate, timeout: float = 10.0, what: str = 'condition'):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            value = predicate()
+            if value:
+                return value
+            for name, proc in self.procs.items():
+                if proc.poll() is not None:
+                    pytest.fail(f'{name} exited with {proc.returncode}:\n{self.runner.output(name)}')
+            time.sleep(0.02)
+        logs = '\n'.join(f'--- {n}\n{self.runner.output(n)[-3000:]}' for n in self.procs)
+        pytest.fail(f'timed out waiting for {what}\n{logs}')
+
+    def last_stamp(self) -> int:
+        odom = self.messages(topics.ODOM.name)
+        return ns(odom[-1]) if odom else -1
+
+    def wait_sim_time(self, t: float, timeout: float = 10.0):
+        self.wait_for(lambda: self.last_stamp() >= round(t * 1e9), timeout, f'simulation time {t} s')
+
+    def call(self, kind, name: str, request, timeout: float = 5.0):
+        client = self.node.create_client(kind, name)
+        try:
+            assert client.wait_for_service(timeout_sec=timeout), f'service {name} not available'
+            future = client.call_async(request)
+            self.wait_for(future.done, timeout, f'response of {name}')
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def set_parameters(self, node: str, **values):
+        """Through the SetParameters service, like ``ros2 param set``; the per-parameter results."""
+        request = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                                    for k, v in values.items()])
+        return self.call(SetParameters, f'{self.namespace}/{node}/set_parameters', request).results
+
+    def get_parameters(self, node: str, *names: str):
+        response = self.call(GetParameters, f'{self.namespace}/{node}/get_parameters',
+                             GetParameters.Request(names=list(names)))
+        return [parameter_value_to_python(v) for v in response.values]
+
+    def close(self):
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self.spinner.join(timeout=2.0)
+
+
+@pytest.fixture
+def graph(process_runner):
+    g = Graph(process_runner)
+    try:
+        yield g
+    finally:
+        g.close()
+
+
+def start_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),
+                trajectory: tuple[str, ...] | None = ()):
+    """Start the nodes; constraint_config last, once this test's subscriptions see the dynamics node.
+
+    The dynamics node integrates nothing before it has a constraint set, and DDS discovery
+    between freshly started processes can take a few seconds, so waiting for the match first
+    lets the test see the run from t = 0.
+    """
+    if trajectory is not None:
+        graph.start('trajectory', *trajectory)
+    proc = graph.start('dynamics', *dynamics)
+    odom = topics.ODOM.resolve(graph.namespace)
+    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
+    time.sleep(0.3)
+    graph.start('constraint_config', *constraints)
+    return proc
+
+
+def start_tracking_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),
+                         trajectory: tuple[str, ...] = ()):
+    return start_graph(graph, *dynamics, constraints=constraints, trajectory=trajectory)
+
+
+def final_state(graph: Graph, t: float):
+    """Pose, twist and wheel state published at simulation time t."""
+    stamp = round(t * 1e9)
+    graph.wait_for(lambda: any(ns(m) == stamp for m in graph.messages(topics.WHEEL_STATES.name)), 20,
+                   f'wheel_states at {t} s')
+    odom = next(m for m in graph.messages(topics.ODOM.name) if ns(m) == stamp)
+    wheels = next(m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) == stamp)
+    p, tw = odom.pose.pose, odom.twist.twist
+    return ([p.position.x, p.position.y, p.orientation.z, p.orientation.w, tw.linear.x, tw.linear.y, tw.angular.z]
+            + list(wheels.position) + list(wheels.velocity))
+
+
+# --- tests --------------------------------------------------------------------------------------
+def test_topics_types_and_1khz_odometry(graph):
+    dynamics = start_tracking_graph(graph, constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'))
+    graph.wait_sim_time(0.2)
+    wall_start, sim_start = time.monotonic(), graph.last_stamp()
+    time.sleep(1.5)
+    wall, sim = time.monotonic() - wall_start, (graph.last_stamp() - sim_start) * 1e-9
+    assert 0.7 < sim / wall < 1.3, f'real-time factor 1 ran at {sim / wall:.2f}'
+
+    odom = graph.messages(topics.ODOM.name)
+    stamps = np.array([ns(m) for m in odom])
+    assert stamps[0] == 0 and len(stamps) > 1500
+    assert np.all(np.diff(stamps) == MS), 'odometry stamps must be consecutive, 1 ms apart'
+    assert odom[0].header.frame_id == 'wall' and odom[0].child_frame_id == 'base_link'
+
+    names = dict(graph.node.get_topic_names_and_types())
+    expected = {'/wallbot/odom': 'nav_msgs/msg/Odometry', '/wallbot/wheel_states': 'sensor_msgs/msg/JointState',
+                '/wallbot/constraint_wrench': 'geometry_msgs/msg/WrenchStamped',
+                '/wallbot/drive_forces': 'sensor_msgs/msg/JointState', '/clock': 'rosgraph_msgs/msg/Clock',
+                '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
+                '/wallbot/reference': 'nav_msgs/msg/Odometry', '/wallbot/reference_path': 'nav_msgs/msg/Path',
+                '/wallbot/reference_trajectory': 'trajectory_msgs/msg/MultiDOFJointTrajectory',
+                '/wallbot/constraints': 'diagnostic_msgs/msg/DiagnosticStatus',
+                '/wallbot/wheel_torque_cmd': 'std_msgs/msg/Float64MultiArray'}
+    for name, kind in expected.items():
+        assert names.get(name) == [kind], f'{name}: {names.get(name)}'
+    graph.wait_for(lambda: {'/wallbot/dynamics', '/wallbot/trajectory', '/wallbot/constraint_config'}
+                   <= set(graph.node.get_fully_qualified_node_names()), 10, 'node names')
+
+    wheels = graph.messages(topics.WHEEL_STATES.name)[-1]
+    assert list(wheels.name) == list(topics.WHEEL_JOINTS)
+    assert graph.messages(topics.REFERENCE_PATH.name) and graph.messages(topics.REFERENCE_TRAJECTORY.name)
+    assert graph.messages(topics.CONSTRAINTS.name)[-1].message == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
+    graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 20, 5, 'reference poses')
+    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 3, 'diagnostics')
+    values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+    assert values['active constraints'] == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
+    assert float(values['achieved rate (Hz)']) > 500 and 'adsorption margin' in values
+    assert graph.runner.stop(dynamics) == 0, 'SIGTERM must end the node cleanly'
+    assert 'Traceback' not in graph.runner.output('dynamics')
+
+
+def test_set_parameters_switches_constraints_mid_run(graph):
+    """A driven robot (th = 0) slides down the wall, i.e. sideways; enabling non_lateral stops that at once."""
+    start_graph(graph, constraints=('trajectory_task:=false', 'belt:=true'), trajectory=None)
+    graph.wait_sim_time(0.3)
+    sliding = graph.messages(topics.ODOM.name)[-1].twist.twist.linear.y
+    assert sliding < -2.0, 'without non_lateral gravity pulls the robot sideways (down the wall)'
+
+    results = graph.set_parameters('constraint_config', non_lateral=True)
+    assert results[0].successful
+    switched_by = graph.last_stamp()
+    graph.wait_for(lambda: 'constraints belt -> belt+non_lateral' in graph.runner.output('dynamics'), 5,
+                   'switch log')
+    graph.wait_sim_time(switched_by * 1e-9 + 0.5)
+    after = [m for m in graph.messages(topics.ODOM.name) if ns(m) > switched_by + 200 * MS]
+    assert len(after) > 200
+    assert max(abs(m.twist.twist.linear.y) for m in after) < 1e-9, 'non_lateral must stop sideways motion'
+    log = graph.runner.output('dynamics')
+    assert 'velocity violation' in log and 'after projection' in log
+    assert graph.messages(topics.CONSTRAINTS.name)[-1].message == 'belt+non_lateral'
+
+
+def test_invalid_parameters_are_refused_and_the_nodes_keep_running(graph):
+    start_tracking_graph(graph)
+    graph.wait_sim_time(0.3)
+    for node, values in [('dynamics', {'real_time_factor': -1.0}), ('dynamics', {'rate_hz': 0}),
+                         ('dynamics', {'command_timeout': math.nan}), ('dynamics', {'max_wheel_torque': 0.0}),
+                         ('dynamics', {'initial_x': math.inf}), ('dynamics', {'publish_every': 'often'}),
+                         ('dynamics', {'robot_file': '/nonexistent.yaml'}),
+                         ('trajectory', {'shape': 'square'}), ('trajectory', {'radius': -1.0}),
+                         ('trajectory', {'period': 0.0}), ('constraint_config', {'baumgarte_alpha': 0.0}),
+                         ('constraint_config', {'belt': 'yes'})]:
+        result = graph.set_parameters(node, **values)[0]
+        assert not result.successful, f'{node} accepted {values}'
+        assert result.reason, f'{node} refused {values} without a reason'
+    assert graph.get_parameters('dynamics', 'real_time_factor', 'rate_hz') == [1.0, 1000]
+    assert graph.get_parameters('trajectory', 'shape') == ['circle']
+    before = graph.last_stamp()
+    graph.wait_sim_time(before * 1e-9 + 0.3)
+    assert np.all(np.diff([ns(m) for m in graph.messages(topics.ODOM.name)]) == MS)
+
+
+def test_pause_and_reset(graph):
+    start_tracking_graph(graph, 'initial_x:=0.7')
+    graph.wait_sim_time(0.5)
+    assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=True)).success
+    time.sleep(0.2)
+    held = graph.last_stamp()
+    time.sleep(0.5)
+    assert graph.last_stamp() == held, 'a paused simulation must not advance'
+    graph.wait_for(lambda: any(s.message == 'paused' for a in graph.messages(topics.DIAGNOSTICS.name)
+                               for s in a.status), 3, 'paused diagnostics')
+    assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=False)).success
+    graph.wait_sim_time(held * 1e-9 + 0.2)
+
+    graph.clear(topics.ODOM.name)
+    assert graph.call(Trigger, '/wallbot/dynamics/reset', Trigger.Request()).success
+    first = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 0], 5, 'reset')[0]
+    assert (first.pose.pose.position.x, first.pose.pose.position.y, first.twist.twist.linear.x) == (0.7, 0.0, 0.0)
+    graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 300 * MS], 5,
+                   'time running again from 0 after the reset')
+
+
+def test_driven_mode_rejects_malformed_commands_and_times_out(graph):
+    start_graph(graph, 'max_wheel_torque:=1.0', 'command_timeout:=0.3', constraints=('trajectory_task:=false',),
+                trajectory=None)  # driven: no trajectory node needed
+    graph.wait_sim_time(0.1)
+    for data in ([0.1], [0.1, 0.1, 0.1], [math.nan, 0.0], [0.0, math.inf], [2.0, 0.0]):
+        graph.torque_pub.publish(Float64MultiArray(data=data))
+    graph.wait_for(lambda: graph.runner.output('dynamics').count('rejected: wheel_torque_cmd') >= 1, 5,
+                   'rejection warning')
+    t_check = graph.last_stamp() * 1e-9 + 0.2
+    graph.wait_sim_time(t_check)
+    # nothing was integrated: the state is the free robot's without any torque
+    robot = Robot(load_robot_parameters())
+    free = Simulation(robot, None, ConstraintSelection(False), np.array([0.8, 0, 0, 0, 0, 0, 0.0]), np.zeros(7))
+    steps = round(t_check * 1000)
+    for _ in range(steps):
+        free.step()
+    got = final_state(graph, steps * 1e-3)
+    assert got[0] == pytest.approx(free.q[0], abs=1e-12) and got[1] == pytest.approx(free.q[1], abs=1e-12)
+    assert got[-4:] == [0.0] * 4, 'wheels must not spin without a valid command'
+
+    graph.torque_pub.publish(Float64MultiArray(data=[0.02, -0.02]))
+    spinning = graph.wait_for(lambda: [m for m in graph.messages(topics.WHEEL_STATES.name)
+                                       if m.velocity[0] > 0.0], 5, 'wheels driven by the command')[0]
+    assert spinning.velocity[2] < 0.0 and spinning.effort[0] == pytest.approx(0.01, abs=1e-12)
+    # held for command_timeout (0.3 s of simulation time), then zero torque and a warning
+    graph.wait_sim_time(ns(spinning) * 1e-9 + 0.5)
+    driven = [m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) >= ns(spinning)]
+    with_torque = [m for m in driven if m.effort[0] != 0.0]
+    duration = (ns(with_torque[-1]) - ns(with_torque[0])) * 1e-9
+    assert 0.28 <= duration <= 0.31, f'command held for {duration} s'
+    assert driven[-1].effort[0] == 0.0 and driven[-1].velocity[0] == pytest.approx(50.0 * 0.3, rel=0.05)
+    assert 'no wheel_torque_cmd for 0.3 s' in graph.runner.output('dynamics')
+
+
+def test_diverging_state_pauses_with_an_error_and_never_publishes_nan(graph):
+    start_graph(graph, 'max_wheel_torque:=1e308', constraints=('trajectory_task:=false',), trajectory=None)
+    graph.wait_sim_time(0.05)
+    graph.torque_pub.publish(Float64MultiArray(data=[1e308, 1e308]))
+    graph.wait_for(lambda: 'simulation paused' in graph.runner.output('dynamics'), 10, 'divergence')
+    graph.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR for a in graph.messages(topics.DIAGNOSTICS.name)
+                               for s in a.status), 3, 'ERROR diagnostics')
+    for msg in graph.messages(topics.WHEEL_STATES.name):
+        assert all(math.isfinite(v) for v in (*msg.position, *msg.velocity, *msg.effort))
+    for msg in graph.messages(topics.ODOM.name):
+        assert all(math.isfinite(v) for v in (msg.pose.pose.position.x, msg.pose.pose.position.y,
+                                                  msg.twist.twist.linear.x, msg.twist.twist.angular.z))
+    held = graph.last_stamp()
+    time.sleep(0.3)
+    assert graph.last_stamp() == held, 'a diverged simulation is paused'
+    graph.clear(topics.ODOM.name)
+    assert graph.call(Trigger, '/wallbot/dynamics/reset', Trigger.Request()).success
+    graph.wait_for(lambda: graph.last_stamp() >= 100 * MS, 5, 'running again after reset')
+
+
+def run_to(graph: Graph, factor: str, t_end: float):
+    start_tracking_graph(graph, f'real_time_factor:={factor}', f'stop_at:={t_end}',
+                         constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'),
+                         trajectory=('shape:=figure8', 'period:=6.0', 'horizon:=0.6'))
+    return final_state(graph, t_end)
+
+
+def test_same_final_state_at_real_time_factor_1_and_0(process_runner):
+    """Replans every 0.3 s (horizon 0.6 s), so this also shows replanning never changes the motion."""
+    states = {}
+    for factor in ('1.0', '0.0'):
+        graph = Graph(process_runner)
+        try:
+            states[factor] = run_to(graph, factor, 1.2)
+            assert graph.runner.output('trajectory').count('plan figure8') >= 3
+        finally:
+            graph.close()
+            process_runner.stop_all()
+    assert states['1.0'] == states['0.0']  # bit for bit
+    # and both equal the model run through one plan
+    robot = Robot(load_robot_parameters())
+    from wallbot_sim.model import FigureEight
+    reference = conversions.sampled_reference(sample_plan(FigureEight(1.0, 6.0), 0.0, 2.0, 0.01))
+    sim = Simulation(robot, reference, ConstraintSelection(True, True, True, True),
+                     np.array([0.8, 0, 0, 0, 0, 0, 0.0]), np.zeros(7))
+    for _ in range(1200):
+        sim.step()
+    out = conversions.odometry_message(sim.outputs())
+    assert states['0.0'][:2] == [out.pose.pose.position.x, out.pose.pose.position.y]
+
+
+def test_namespace_remap_runs_a_second_robot(process_runner):
+    graph = Graph(process_runner, namespace='/robot2')
+    try:
+        graph.start('constraint_config', 'trajectory_task:=false', remap='__ns:=/robot2')
+        graph.start('dynamics', remap='__ns:=/robot2')
+        graph.wait_sim_time(0.1)
+        assert '/robot2/dynamics' in graph.node.get_fully_qualified_node_names()
+        names = dict(graph.node.get_topic_names_and_types())
+        assert '/robot2/odom' in names and '/wallbot/odom' not in names and '/clock' in names
+        assert graph.call(SetBool, '/robot2/dynamics/pause', SetBool.Request(data=True)).success
+    finally:
+        graph.close()
