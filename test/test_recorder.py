@@ -150,7 +150,8 @@ def test_play_republishes_every_message(process_runner, tmp_path):
     subscriber = process_runner.start([sys.executable, str(script), '1001', '40'], 'subscriber')
     wait_for(lambda: 'ready' in process_runner.output('subscriber'), 30, 'subscriber')
     player = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(bag),
-                                   '--rate', '4', '--delay', '2', '--clock'], 'play')
+                                   '--rate', '4', '--topics', 'odom', '--wait-subscribers', '30',
+                                   '--delay', '0.5', '--clock'], 'play')
     assert player.wait(timeout=60) == 0, process_runner.output('play')
     assert subscriber.wait(timeout=60) == 0
     assert 'received 1001 in_order True' in process_runner.output('subscriber'), process_runner.output('subscriber')

@@ -42,6 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--clock-rate', type=_positive_rate, default=100.0, help='/clock rate in Hz (default 100)')
     parser.add_argument('--delay', type=float, default=1.0,
                         help='seconds to wait after creating the publishers, for discovery (default 1)')
+    parser.add_argument('--wait-subscribers', type=float, default=0.0, metavar='S',
+                        help='wait up to S seconds until every played topic has a subscriber (default: don\'t)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
 
 
@@ -112,6 +114,15 @@ def main(args: argparse.Namespace) -> int:
             from rosgraph_msgs.msg import Clock
             clock_pub = node.create_publisher(Clock, graph.CLOCK.name, QoSProfile(depth=graph.CLOCK.depth))
             clock_msg = Clock()
+        if not (math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0):
+            raise CliError(f'--wait-subscribers must be >= 0 seconds, got {args.wait_subscribers}')
+        deadline = time.monotonic() + args.wait_subscribers
+        while args.wait_subscribers and time.monotonic() < deadline and \
+                not all(p.get_subscription_count() > 0 for p in publishers.values()):
+            time.sleep(0.05)
+        if args.wait_subscribers and not all(p.get_subscription_count() > 0 for p in publishers.values()):
+            missing = [n for n, p in publishers.items() if p.get_subscription_count() == 0]
+            raise CliError(f'no subscriber on {", ".join(missing)} after {args.wait_subscribers:g} s')
         time.sleep(args.delay)
         total = 0
         sent = {name: 0 for name in names}
