@@ -31,6 +31,7 @@ ahead of the reported progress; without a recorder it runs free.
 
 from __future__ import annotations
 
+import gc
 import math
 import queue
 import sys
@@ -164,6 +165,10 @@ class DynamicsNode(Node):
         self.anchor: tuple[float, int] | None = None
         self.stopping = threading.Event()
         self.wake = threading.Event()
+        # Everything allocated so far (rclpy, numpy, the model) lives for the whole run: move it
+        # out of the collector's reach, so a full collection never stalls a step for milliseconds.
+        gc.collect()
+        gc.freeze()
         self.loop_thread = threading.Thread(target=self._loop, name='simulation', daemon=True)
         self.loop_thread.start()
 

@@ -13,7 +13,6 @@ jumps back (``~/reset`` of the dynamics) replans from there.
 
 from __future__ import annotations
 
-import math
 import sys
 
 from nav_msgs.msg import Odometry, Path
@@ -82,7 +81,7 @@ class TrajectoryNode(Node):
             'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s, > 0)'),
             'publish_rate_hz': declare(self, 'publish_rate_hz', 100.0,
                                        'rate of the reference pose in simulation time (Hz, > 0)'),
-            'sample_dt': declare(self, 'sample_dt', 0.01, 'plan sample spacing (s, in (0, 0.1])'),
+            'sample_dt': declare(self, 'sample_dt', 0.05, 'plan sample spacing (s, in (0, 0.1])'),
             'horizon': declare(self, 'horizon', 10.0,
                                'seconds a plan covers when duration is 0 (renewed at half-way)'),
         }
