@@ -30,7 +30,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory  # noqa: E402
 from wallbot_msgs_py import conversions, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
-from wallbot_sim.model import Circle, ConstraintSelection, Robot, Simulation  # noqa: E402
+from wallbot_sim.model import ConstraintSelection, FigureEight, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
@@ -350,7 +350,7 @@ def test_diverging_state_pauses_with_an_error_and_never_publishes_nan(graph):
 def run_to(graph: Graph, factor: str, t_end: float):
     start_tracking_graph(graph, f'real_time_factor:={factor}', f'stop_at:={t_end}',
                          constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'),
-                         trajectory=('shape:=figure8', 'period:=6.0', 'horizon:=0.6'))
+                         trajectory=('shape:=figure8', 'period:=6.0', 'horizon:=0.6', 'sample_dt:=0.02'))
     return final_state(graph, t_end)
 
 
@@ -368,8 +368,7 @@ def test_same_final_state_at_real_time_factor_1_and_0(process_runner):
     assert states['1.0'] == states['0.0']  # bit for bit
     # and both equal the model run through one plan
     robot = Robot(load_robot_parameters())
-    from wallbot_sim.model import FigureEight
-    reference = conversions.sampled_reference(sample_plan(FigureEight(1.0, 6.0), 0.0, 2.0, 0.01))
+    reference = conversions.sampled_reference(sample_plan(FigureEight(1.0, 6.0), 0.0, 2.0, 0.02))
     sim = Simulation(robot, reference, ConstraintSelection(True, True, True, True),
                      np.array([0.8, 0, 0, 0, 0, 0, 0.0]), np.zeros(7))
     for _ in range(1200):
