@@ -39,6 +39,9 @@ def test_mass_matrix_gives_the_kinetic_energy_of_every_body(seed):
         assert np.all(np.linalg.eigvalsh(mass) > 0)
         assert 0.5 * qd @ mass @ qd == pytest.approx(kinetic_energy(params, q, qd), rel=1e-12)
         assert np.allclose(robot.mass_matrix_inverse(q) @ mass, np.eye(7), atol=1e-10)
+        factor = robot.mass_inverse_factor(q)
+        assert np.allclose(factor @ factor.T @ mass, np.eye(7), atol=1e-10)
+        assert np.allclose(factor, np.tril(factor))
 
 
 def lagrange_force(params, robot, q, qd, h=1e-6):

@@ -9,7 +9,7 @@ import pytest
 
 from model_helpers import is_consistent, kkt_acceleration, random_parameters, udwadia_kalaba_acceleration
 from wallbot_sim.model import (
-    BaumgarteGains, Circle, FigureEight, Robot, SmoothStop, solve, solve_with_inverse)
+    BaumgarteGains, Circle, FigureEight, Robot, SmoothStop, solve, solve_with_factor)
 from wallbot_sim.model.constraints import (
     NonLateral, Nonslip, SynchronousBelt, TangentHeadingTask, TrajectoryTask)
 
@@ -65,7 +65,7 @@ def test_solver_matches_kkt_and_udwadia_kalaba_on_consistent_sets(names):
         reference = kkt_acceleration(mass, force, rows, rhs)
         assert relative_error(udwadia_kalaba_acceleration(mass, force, rows, rhs), reference) < 1e-9
         general = solve(mass, force, rows, rhs)
-        fast = solve_with_inverse(mass, robot.mass_matrix_inverse(q), force, rows, rhs)
+        fast = solve_with_factor(mass, robot.mass_inverse_factor(q), force, rows, rhs)
         for motion in (general, fast):
             assert relative_error(motion.acceleration, reference) < 1e-9
             assert relative_error(motion.constraint_force, mass @ reference - force) < 1e-9
@@ -83,7 +83,7 @@ def test_inconsistent_sets_get_the_same_least_squares_compromise(names):
         assert not is_consistent(rows, rhs)
         mass = robot.mass_matrix(q)
         general = solve(mass, force, rows, rhs)
-        fast = solve_with_inverse(mass, robot.mass_matrix_inverse(q), force, rows, rhs)
+        fast = solve_with_factor(mass, robot.mass_inverse_factor(q), force, rows, rhs)
         assert relative_error(fast.acceleration, general.acceleration) < 1e-9
         # the compromise satisfies the constraints in the least-squares sense: A qdd = A A+ b
         assert np.allclose(rows @ general.acceleration, rows @ np.linalg.pinv(rows) @ rhs, atol=1e-9)
@@ -99,7 +99,7 @@ def test_no_constraint_is_the_free_robot():
     empty_rows, empty_rhs = np.empty((0, 7)), np.empty(0)
     mass = robot.mass_matrix(q)
     for motion in (solve(mass, force, empty_rows, empty_rhs),
-                   solve_with_inverse(mass, robot.mass_matrix_inverse(q), force, empty_rows, empty_rhs)):
+                   solve_with_factor(mass, robot.mass_inverse_factor(q), force, empty_rows, empty_rhs)):
         assert relative_error(motion.acceleration, np.linalg.solve(mass, force)) < 1e-12
         assert np.allclose(motion.constraint_force, 0.0, atol=1e-12)
 

@@ -8,7 +8,7 @@ from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import DOF, WHEEL_NAMES, Adsorption, Robot, adsorption_analysis
 from wallbot_sim.model.scenario import Scenario, make_reference
 from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError, Simulation, SwitchReport
-from wallbot_sim.model.solver import ConstrainedMotion, solve, solve_with_inverse
+from wallbot_sim.model.solver import ConstrainedMotion, solve, solve_with_factor
 from wallbot_sim.model.trajectories import (
     Circle, FigureEight, Reference, ReferenceSample, SampledReference, SmoothStop, tangent_heading)
 
@@ -18,5 +18,5 @@ __all__ = [
     'ModelError', 'ParameterError', 'Reference', 'ReferenceSample', 'Robot', 'RobotParameters',
     'SampledReference', 'Scenario', 'Simulation', 'SmoothStop', 'StepOutputs', 'SwitchReport',
     'adsorption_analysis', 'build_modules', 'drive_forces', 'make_reference', 'solve',
-    'solve_with_inverse', 'tangent_heading',
+    'solve_with_factor', 'tangent_heading',
 ]

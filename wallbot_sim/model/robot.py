@@ -79,8 +79,9 @@ class Robot:
         chassis = [self.total_mass, self.total_mass, self.yaw_inertia]
         self._mass_centred = np.diag(chassis + [params.wheel_spin_inertia] * 4)
         self._inverse_centred = np.diag([1.0 / d for d in chassis] + [1.0 / params.wheel_spin_inertia] * 4)
-        self._mass_centred.flags.writeable = False
-        self._inverse_centred.flags.writeable = False
+        self._inverse_factor_centred = np.sqrt(self._inverse_centred)
+        for constant in (self._mass_centred, self._inverse_centred, self._inverse_factor_centred):
+            constant.flags.writeable = False
 
     def offset_moment_arm(self, theta: float) -> tuple[float, float]:
         """u(th) = R(th) S s, the coupling between heading and translation."""
@@ -111,6 +112,20 @@ class Robot:
                            [wx * wy * inv_schur, 1.0 / m + wy * wy * inv_schur, -wy * inv_schur],
                            [-wx * inv_schur, -wy * inv_schur, inv_schur]]
         return inverse
+
+    def mass_inverse_factor(self, q: np.ndarray) -> np.ndarray:
+        """W, lower triangular, with W W^T = M(q)^-1 (the Cholesky factor of the inverse)."""
+        if self._centred:
+            return self._inverse_factor_centred
+        c = self.mass_matrix_inverse(q)
+        l00 = math.sqrt(c[0, 0])
+        l10 = c[1, 0] / l00
+        l11 = math.sqrt(c[1, 1] - l10 * l10)
+        l20 = c[2, 0] / l00
+        l21 = (c[2, 1] - l20 * l10) / l11
+        factor = self._inverse_factor_centred.copy()
+        factor[:3, :3] = [[l00, 0.0, 0.0], [l10, l11, 0.0], [l20, l21, math.sqrt(c[2, 2] - l20 * l20 - l21 * l21)]]
+        return factor
 
     def applied_force(self, q: np.ndarray, qd: np.ndarray,
                       motor_torque: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:

@@ -14,8 +14,8 @@ from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.outputs import StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
-from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_inverse
-from wallbot_sim.model.trajectories import Reference
+from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
+from wallbot_sim.model.trajectories import LastSample, Reference
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
@@ -136,7 +136,8 @@ class Simulation:
 
     def _build(self, selection: ConstraintSelection, reference: Reference | None,
                gains: BaumgarteGains) -> list[ConstraintModule]:
-        return build_modules(selection, self.robot, reference, gains) + self._extra_modules
+        shared = LastSample(reference) if reference is not None else None
+        return build_modules(selection, self.robot, shared, gains) + self._extra_modules
 
     # --- dynamics ------------------------------------------------------------------------
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
@@ -149,7 +150,7 @@ class Simulation:
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:DOF], y[DOF:]
         force, rows, rhs = self._problem(t, q, qd)
-        return np.concatenate((qd, constrained_acceleration(self.robot.mass_matrix_inverse(q), force, rows, rhs)))
+        return np.concatenate((qd, constrained_acceleration(self.robot.mass_inverse_factor(q), force, rows, rhs)))
 
     def outputs(self) -> StepOutputs:
         """The outputs at the current state (computed once; the next step reuses the solve)."""
@@ -201,7 +202,7 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
                        qd: np.ndarray, motor_torque: tuple[float, float] = (0.0, 0.0)) -> ConstrainedMotion:
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
     force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
-    return solve_with_inverse(robot.mass_matrix(q), robot.mass_matrix_inverse(q), force, rows, rhs)
+    return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
 
 
 def _state_vector(q: np.ndarray, qd: np.ndarray) -> np.ndarray:

@@ -4,9 +4,9 @@
 
 ``solve`` uses the general form, valid for a singular M. When M is positive definite the
 same qdd is the Udwadia-Kalaba form qdd = a + M^-1 A^T (A M^-1 A^T)+ (b - A a), a = M^-1 Q,
-which needs one small symmetric eigen-decomposition instead of two pseudo-inverses:
-``solve_with_inverse`` takes that route. Both give the least-squares compromise on an
-inconsistent set and ignore redundant rows.
+which needs one small least-squares solve instead of two pseudo-inverses:
+``solve_with_factor`` and ``constrained_acceleration`` take that route. Both give the
+least-squares compromise on an inconsistent set and ignore redundant rows.
 """
 
 from __future__ import annotations
@@ -15,14 +15,17 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dsyevd as _symmetric_eigen
+from scipy.linalg.lapack import dgelsd as _least_squares
+from scipy.linalg.lapack import dgelsd_lwork as _least_squares_lwork
 
-_RELATIVE_EIGEN_CUTOFF = 1e-12
-"""Eigenvalues of A M^-1 A^T below this fraction of the largest are treated as zero.
+_RELATIVE_CUTOFF = 1e-10
+"""Singular values of A M^-1/2 below this fraction of the largest count as zero (redundant rows).
 
-A M^-1 A^T = B B^T with B = A M^-1/2, so its eigenvalues are squared singular values of B:
-round-off puts the zero ones near 1e-16 of the largest, far below this cut.
+Exactly redundant rows leave singular values at round-off, ~1e-16 of the largest; the robot's
+independent rows stay far above the cut.
 """
+_lwork: dict[int, tuple[int, int]] = {}
+"""LAPACK workspace sizes of dgelsd by row count (n = 7 columns)."""
 
 
 class ConstrainedMotion(NamedTuple):
@@ -47,25 +50,34 @@ def solve(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray
     return _motion(mass, force, rows, rhs, acceleration)
 
 
-def solve_with_inverse(mass: np.ndarray, mass_inverse: np.ndarray, force: np.ndarray,
-                       rows: np.ndarray, rhs: np.ndarray) -> ConstrainedMotion:
-    """The same qdd for a positive definite M whose inverse is known."""
-    return _motion(mass, force, rows, rhs, constrained_acceleration(mass_inverse, force, rows, rhs))
+def solve_with_factor(mass: np.ndarray, inverse_factor: np.ndarray, force: np.ndarray,
+                      rows: np.ndarray, rhs: np.ndarray) -> ConstrainedMotion:
+    """The same qdd for a positive definite M, given W with W W^T = M^-1."""
+    return _motion(mass, force, rows, rhs, constrained_acceleration(inverse_factor, force, rows, rhs))
 
 
-def constrained_acceleration(mass_inverse: np.ndarray, force: np.ndarray, rows: np.ndarray,
+def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows: np.ndarray,
                              rhs: np.ndarray) -> np.ndarray:
-    """qdd = a + M^-1 A^T (A M^-1 A^T)+ (b - A a) alone: what an integrator needs."""
-    free = mass_inverse @ force
-    if rows.shape[0] == 0:
+    """qdd alone (what an integrator needs), given any W with W W^T = M^-1.
+
+    With B = A W, qdd = a + W B+ (b - A a): the Udwadia-Kalaba form, whose M^-1/2 may be any
+    such factor since qdd - a is the M-norm-smallest least-squares solution either way.
+    B+ (b - A a) is the minimum-norm least-squares solution of one small LAPACK call (dgelsd).
+    """
+    free = inverse_factor @ (inverse_factor.T @ force)
+    count, size = rows.shape
+    if count == 0:
         return free
-    weighted = mass_inverse @ rows.T
-    eigenvalues, eigenvectors, info = _symmetric_eigen(rows @ weighted)
+    misfit = rhs - rows @ free
+    if count < size:
+        misfit = np.concatenate((misfit, np.zeros(size - count)))
+    work = _lwork.get(count)
+    if work is None:
+        work = _lwork[count] = tuple(int(w) for w in _least_squares_lwork(count, size, 1, -1)[:2])
+    solution, _, _, info = _least_squares(rows @ inverse_factor, misfit, work[0], work[1], _RELATIVE_CUTOFF)
     if info != 0:
-        raise np.linalg.LinAlgError(f'eigen-decomposition of A M^-1 A^T failed (LAPACK info {info})')
-    keep = eigenvalues > _RELATIVE_EIGEN_CUTOFF * eigenvalues[-1]
-    basis = eigenvectors[:, keep]
-    return free + weighted @ (basis @ ((basis.T @ (rhs - rows @ free)) / eigenvalues[keep]))
+        raise np.linalg.LinAlgError(f'least-squares solve of A M^-1/2 failed (LAPACK info {info})')
+    return free + inverse_factor @ solution[:size]
 
 
 def _motion(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray,

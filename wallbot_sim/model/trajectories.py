@@ -44,6 +44,20 @@ class Reference(Protocol):
         ...
 
 
+class LastSample:
+    """A reference that keeps its latest sample: tasks evaluated at one instant share it."""
+
+    def __init__(self, reference: Reference) -> None:
+        self.reference = reference
+        self._time: float | None = None
+        self._sample: ReferenceSample | None = None
+
+    def sample(self, t: float) -> ReferenceSample:
+        if t != self._time:
+            self._time, self._sample = t, self.reference.sample(t)
+        return self._sample
+
+
 def tangent_heading(sample: ReferenceSample) -> Heading | None:
     """th_d = atan2(yd, xd), its rate (xd ydd - yd xdd)/|v|^2 and that rate's derivative.
 
