@@ -182,8 +182,10 @@ def final_state(graph: Graph, t: float):
     stamp = round(t * 1e9)
     graph.wait_for(lambda: any(ns(m) == stamp for m in graph.messages(topics.WHEEL_STATES.name)), 20,
                    f'wheel_states at {t} s')
-    odom = next(m for m in graph.messages(topics.ODOM.name) if ns(m) == stamp)
-    wheels = next(m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) == stamp)
+    odom = [m for m in graph.messages(topics.ODOM.name) if ns(m) == stamp]
+    wheels = [m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) == stamp]
+    assert len(odom) == len(wheels) == 1, f'{len(odom)} odometry messages stamped {t} s: a second publisher?'
+    odom, wheels = odom[0], wheels[0]
     p, tw = odom.pose.pose, odom.twist.twist
     return ([p.position.x, p.position.y, p.orientation.z, p.orientation.w, tw.linear.x, tw.linear.y, tw.angular.z]
             + list(wheels.position) + list(wheels.velocity))
@@ -383,7 +385,8 @@ def test_namespace_remap_runs_a_second_robot(process_runner):
         graph.start('constraint_config', 'trajectory_task:=false', remap='__ns:=/robot2')
         graph.start('dynamics', remap='__ns:=/robot2')
         graph.wait_sim_time(0.1)
-        assert '/robot2/dynamics' in graph.node.get_fully_qualified_node_names()
+        graph.wait_for(lambda: '/robot2/dynamics' in graph.node.get_fully_qualified_node_names(), 10,
+                       'node /robot2/dynamics')
         names = dict(graph.node.get_topic_names_and_types())
         assert '/robot2/odom' in names and '/wallbot/odom' not in names and '/clock' in names
         assert graph.call(SetBool, '/robot2/dynamics/pause', SetBool.Request(data=True)).success

@@ -56,6 +56,7 @@ from wallbot_msgs_py import conversions, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
 LATE_LIMIT = 2e-3
@@ -90,7 +91,13 @@ class Plan:
     final: bool
 
     def covers(self, t0: float, t1: float) -> bool:
-        return self.start <= t0 + 1e-9 and (self.final or t1 <= self.end + 1e-9)
+        """Whether a step from t0 to t1 may use this plan.
+
+        A plan that ends moving must extend strictly past t1: at its last sample time the
+        quintic is evaluated at the segment's far end, which equals the sample only to
+        rounding, while the next plan evaluates it exactly; the step waits for that plan.
+        """
+        return self.start <= t0 + 1e-9 and (self.final or t1 < self.end - 1e-9)
 
 
 class DynamicsNode(Node):
@@ -102,6 +109,8 @@ class DynamicsNode(Node):
             'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset'),
             'initial_y': declare(self, 'initial_y', 0.0, 'initial Y of the centre (m); applies at start and reset'),
             'initial_theta': declare(self, 'initial_theta', 0.0, 'initial heading (rad); applies at start and reset'),
+            'initial_at_rest': declare(self, 'initial_at_rest', True,
+                                       'start at rest; false: with the reference velocity at t = 0, wheels rolling'),
             'robot_file': declare(self, 'robot_file', '', 'robot parameter YAML; empty = installed config/robot.yaml',
                                   read_only=True),
             'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
@@ -116,6 +125,9 @@ class DynamicsNode(Node):
                                         'largest accepted |torque| per side in wheel_torque_cmd (N m, > 0)'),
             'stop_at': declare(self, 'stop_at', 0.0, 'pause when simulation time reaches this (s); 0 = never',
                                low=0.0, high=1e9),
+            'wait_for_recorder': declare(self, 'wait_for_recorder', False,
+                                         'do not start until a recorder (record_progress) hears every topic',
+                                         read_only=True),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
@@ -266,6 +278,9 @@ class DynamicsNode(Node):
                 self.pending_constraints = payload
             elif kind == 'plan':
                 self.plan = payload
+                self.get_logger().info(
+                    f'reference plan {payload.start:.3f} .. {payload.end:.3f} s'
+                    f'{" (ends at rest)" if payload.final else ""} at t = {self.sim.t if self.sim else 0.0:.3f} s')
                 if self.sim is not None:
                     self.sim.set_reference(payload.reference)
             elif kind == 'command':
@@ -295,7 +310,10 @@ class DynamicsNode(Node):
 
     def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
         p = self.params
-        return np.array([p['initial_x'], p['initial_y'], p['initial_theta'], 0, 0, 0, 0], dtype=float), np.zeros(DOF)
+        q0 = np.array([p['initial_x'], p['initial_y'], p['initial_theta'], 0, 0, 0, 0], dtype=float)
+        if p['initial_at_rest'] or self.plan is None:
+            return q0, np.zeros(DOF)
+        return q0, moving_start(self.robot, self.plan.reference, p['initial_theta'])
 
     def _reset(self) -> None:
         self.command, self.diverged = None, False
@@ -307,6 +325,9 @@ class DynamicsNode(Node):
 
     def _ready(self) -> bool:
         """Apply a pending constraint set if possible; say whether the next step may run."""
+        if self.sim is None and self.params['wait_for_recorder'] and not self._recorder_listening():
+            self.status = 'waiting for a recorder'
+            return False
         if self.pending_constraints is not None:
             selection, gains = self.pending_constraints
             if selection.trajectory and self.plan is None:
@@ -344,6 +365,11 @@ class DynamicsNode(Node):
         self.get_logger().info(
             f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
             f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+
+    def _recorder_listening(self) -> bool:
+        """Whether a recorder publishes record_progress and every step topic has a subscriber."""
+        return (self.count_publishers(self.progress_topic) > 0
+                and all(pub.get_subscription_count() > 0 for pub in self.publishers_.values()))
 
     def _held_back(self) -> bool:
         """At factor 0: whether a recorder's progress is more than the window behind."""
