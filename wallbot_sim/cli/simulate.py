@@ -58,20 +58,27 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
 
 
 class Progress:
-    """Simulation time and real-time factor on one refreshed stderr line, a few times a second."""
+    """Simulation time and real-time factor on one refreshed stderr line, a few times a second.
+
+    The factor is measured from the first time simulation time moved, so start-up is not in it.
+    """
 
     def __init__(self, duration: float, stream: TextIO | None) -> None:
         self.duration, self.stream = duration, stream
-        self.started = self.last = time.monotonic()
+        self.last = time.monotonic()
+        self.anchor: tuple[float, float] | None = None
 
     def update(self, t: float, force: bool = False) -> None:
         now = time.monotonic()
+        if self.anchor is None:
+            self.anchor = (t, now)
         if self.stream is None or not (force or now - self.last >= 0.25):
             return
         self.last = now
-        factor = t / max(now - self.started, 1e-9)
+        start_t, start_wall = self.anchor
+        factor = (t - start_t) / max(now - start_wall, 1e-9)
         end = '\n' if force else ''
-        self.stream.write(f'\r  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.1f}{end}')
+        self.stream.write(f'\r  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.2f}{end}')
         self.stream.flush()
 
 

@@ -56,14 +56,19 @@ class Scenario:
         """(q0, qd0): spins at 0, spin rates at their rolling values (so every constraint holds)."""
         pose = self.initial
         q0 = np.array([pose.x, pose.y, pose.theta, 0.0, 0.0, 0.0, 0.0])
-        qd0 = np.zeros(DOF)
-        if not pose.at_rest:
-            sample = self.reference.sample(0.0)
-            heading = tangent_heading(sample)
-            qd0[:2] = sample.velocity
-            qd0[2] = heading.rate if heading is not None else 0.0
-            qd0[3:] = robot.rolling_spin_rates(pose.theta, sample.velocity, qd0[2])
+        qd0 = np.zeros(DOF) if pose.at_rest else moving_start(robot, self.reference, pose.theta)
         return q0, qd0
+
+
+def moving_start(robot: Robot, reference: Reference, theta: float, t: float = 0.0) -> np.ndarray:
+    """qd at time t moving with the reference: its velocity, its turning rate, wheels rolling."""
+    sample = reference.sample(t)
+    heading = tangent_heading(sample)
+    qd = np.zeros(DOF)
+    qd[:2] = sample.velocity
+    qd[2] = heading.rate if heading is not None else 0.0
+    qd[3:] = robot.rolling_spin_rates(theta, sample.velocity, qd[2])
+    return qd
 
 
 def make_reference(values: Mapping[str, Any]) -> Reference:

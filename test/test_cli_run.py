@@ -1,0 +1,137 @@
+"""``wallbot-sim run``: the real graph in separate processes, recorded, compared with ``simulate``."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from wallbot_msgs_py import bagio
+from wallbot_sim.plots import FIGURES
+
+mcap_reader = pytest.importorskip('mcap.reader')
+WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
+
+
+def odometry(bag: Path) -> np.ndarray:
+    """(stamp ns, x, y, theta, vx, vy, omega) of every odometry message, read with the mcap package."""
+    rows = []
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        for schema, _channel, message in mcap_reader.make_reader(stream).iter_messages(topics=['/wallbot/odom']):
+            msg = bagio.deserialize(message.data, schema.name)
+            rows.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, *bagio.odom_row(msg)[1:]))
+    return np.array(rows)
+
+
+def children_of(pid: int) -> dict[int, str]:
+    """Child processes of ``pid`` and their command lines (from /proc)."""
+    found = {}
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                ppid = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
+                if ppid == pid:
+                    found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except (OSError, IndexError, ValueError):
+                continue
+    return found
+
+
+@pytest.mark.parametrize('scenario, factor, duration', [('circle', 1.0, 2.0), ('figure8', 0.0, 1.5)])
+def test_run_records_what_simulate_computes(tmp_path, scenario, factor, duration):
+    out = tmp_path / 'run'
+    result = subprocess.run([*WALLBOT, 'run', scenario, '--duration', str(duration), '--real-time-factor', str(factor),
+                             '--out', str(out)], capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stderr + result.stdout
+    assert 'real-time factor' in result.stderr
+    for line in ('tracking error:', 'constraint wrench:', 'drive forces:', 'constraint residual:', 'adsorption force:',
+                 f'bag:                 {out / "bag"}'):
+        assert line in result.stdout
+    meta = yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['storage_identifier'] == 'mcap'
+    recorded = odometry(out / 'bag')
+    steps = round(duration * 1000)
+    assert len(recorded) == steps + 1
+    assert np.all(np.diff(recorded[:, 0]) == 1_000_000) and recorded[0, 0] == 0
+
+    headless = tmp_path / 'headless'
+    assert subprocess.run([*WALLBOT, 'simulate', '--scenario', scenario, '--constraints', 'belt,non_lateral,nonslip',
+                           '--duration', str(duration), '--bag', str(headless), '--quiet'],
+                          capture_output=True, timeout=120).returncode == 0
+    expected = odometry(headless)
+    assert np.array_equal(recorded[:, 0], expected[:, 0])
+    assert np.max(np.abs(recorded[:, 1:] - expected[:, 1:])) < 1e-9
+
+    plots = sorted((out / 'plots').glob('*.png'))
+    assert len(plots) == len(FIGURES) and all(p.stat().st_size > 10_000 for p in plots)
+
+
+def start_run(process_runner, out: Path, *extra: str) -> subprocess.Popen:
+    """A long circle run, returned once its progress line shows more than a second simulated."""
+    process = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '60', '--out', str(out), '--no-plots',
+                                    *extra], 'run')
+    deadline = time.monotonic() + 90
+    while True:
+        assert process.poll() is None, process_runner.output('run')
+        assert time.monotonic() < deadline, 'the graph did not come up: ' + process_runner.output('run')
+        shown = re.findall(r't = +([0-9.]+) /', process_runner.output('run'))
+        if shown and float(shown[-1]) > 1.0:
+            return process
+        time.sleep(0.2)
+
+
+def test_a_node_that_dies_ends_the_run_with_its_status_and_log(tmp_path, process_runner):
+    out = tmp_path / 'run'
+    process = start_run(process_runner, out)
+    dynamics = [pid for pid, cmd in children_of(process.pid).items() if 'wallbot_sim.nodes.dynamics' in cmd]
+    assert len(dynamics) == 1
+    os.kill(dynamics[0], signal.SIGKILL)
+    assert process.wait(timeout=60) == 1
+    error = process_runner.output('run').strip().splitlines()[-1]
+    assert 'node dynamics exited with status -9' in error and str(out / 'logs' / 'dynamics.log') in error
+    assert 'partial bag kept' in error
+    assert (out / 'bag' / 'metadata.yaml').is_file() and len(odometry(out / 'bag')) > 500
+    assert children_of(process.pid) == {}
+
+
+@pytest.mark.parametrize('sig, status', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, process_runner, sig, status):
+    out = tmp_path / 'run'
+    process = start_run(process_runner, out)
+    nodes = list(children_of(process.pid))
+    os.kill(process.pid, sig)
+    assert process.wait(timeout=60) == status
+    assert 'Traceback' not in process_runner.output('run')
+    for pid in nodes:
+        assert not Path(f'/proc/{pid}').exists() or 'zombie' in Path(f'/proc/{pid}/status').read_text()
+    recorded = odometry(out / 'bag')
+    assert len(recorded) > 500 and np.all(np.diff(recorded[:, 0]) == 1_000_000)
+
+
+@pytest.mark.parametrize('args, message', [
+    (['square'], "unknown scenario 'square'"),
+    (['circle', '--real-time-factor', '-1'], '--real-time-factor must be >= 0'),
+    (['circle', '--duration', '0'], '--duration must be a positive number'),
+    (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
+    (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
+])
+def test_bad_arguments_give_one_line(args, message):
+    result = subprocess.run([*WALLBOT, 'run', *args], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+
+
+def test_an_existing_bag_is_never_overwritten(tmp_path):
+    (tmp_path / 'bag').mkdir()
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--out', str(tmp_path)], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 2 and 'exists already' in result.stderr

@@ -1,0 +1,201 @@
+"""``wallbot-sim run``: the main job. The real node graph in its own DDS domain, recorded, plotted.
+
+Starts recorder, constraint_config, trajectory and dynamics as separate processes with a
+ROS_DOMAIN_ID of their own (localhost discovery only), shows simulation time and real-time
+factor while they run, stops the graph once the recorder holds the whole duration, then prints
+a summary and writes the paper's figures. A node that dies ends the run with its status and log
+named; Ctrl-C or SIGTERM stops the graph cleanly; the bag is kept either way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+
+from wallbot_msgs_py import topics
+from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.simulate import Progress
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.graph import Graph, NodeDied, NodeSpec
+from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Robot, Scenario
+
+HELP = 'run a scenario through the real node graph, record a bag, plot it'
+RECORDER = 'recorder'
+START_TIMEOUT = 30.0
+"""Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('scenario', help='circle, figure8, or a scenario YAML path')
+    parser.add_argument('--constraints', default='belt,non_lateral,nonslip',
+                        help='comma list of belt, non_lateral, nonslip, or none (default: all three)')
+    parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
+                        help='heading task along the path (default: on when non_lateral is active)')
+    parser.add_argument('--duration', type=float, help="simulated seconds (default: the scenario's)")
+    parser.add_argument('--real-time-factor', type=float, default=1.0,
+                        help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
+    parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
+    parser.add_argument('--no-plots', action='store_true', help='skip the figures')
+
+
+def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: float, factor: float,
+               bag: Path) -> list[NodeSpec]:
+    """The graph of a run, in start order (the recorder first, so it misses nothing)."""
+    reference = scenario.reference
+    if isinstance(reference, Circle):
+        shape = {'shape': 'circle', 'radius': reference.radius}
+    elif isinstance(reference, FigureEight):
+        shape = {'shape': 'figure8', 'amplitude': reference.amplitude}
+    else:
+        raise CliError(f'scenario {scenario.name!r}: the trajectory node plays circles and figure-8s only')
+    pose = scenario.initial
+    switches = {'trajectory_task': selection.trajectory, 'belt': selection.belt,
+                'non_lateral': selection.non_lateral, 'nonslip': selection.nonslip,
+                'tangent_heading': selection.tangent_heading is not False}
+    return [
+        NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', {'output': str(bag)}),
+        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', switches),
+        NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
+            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
+        NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
+            'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
+            'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
+            'wait_for_recorder': True}),
+    ]
+
+
+def output_directory(requested: str | None, scenario: str) -> Path:
+    """The run's directory, created; it must not hold a bag already."""
+    out = Path(requested) if requested else Path('runs') / f'{Path(scenario).stem}-{datetime.now():%Y%m%d-%H%M%S}'
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / '.write-test'
+        probe.write_text('')
+        probe.unlink()
+    except OSError as error:
+        raise CliError(f'cannot write to output directory {out}: {error.strerror}') from None
+    if (out / 'bag').exists():
+        raise CliError(f'{out / "bag"} exists already: choose another --out')
+    return out
+
+
+class Monitor:
+    """The launcher's own view of the graph: how far the recorder got, the dynamics' diagnostics."""
+
+    def __init__(self, namespace: str = topics.NAMESPACE) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rosgraph_msgs.msg import Clock
+
+        from wallbot_msgs_py.qos import qos_profile
+        self._rclpy = rclpy
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('run_monitor', namespace=namespace, context=self.context)
+        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.recorded = -math.inf
+        self.diagnostics: dict[str, str] = {}
+        self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
+        self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
+                                      qos_profile(topics.RECORD_PROGRESS))
+        self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
+                                      qos_profile(topics.DIAGNOSTICS))
+
+    def _on_progress(self, msg) -> None:
+        self.recorded = max(self.recorded, msg.clock.sec + msg.clock.nanosec * 1e-9)
+
+    def _on_diagnostics(self, msg) -> None:
+        for status in msg.status:
+            if 'simulation' in status.name:
+                self.diagnostics = {item.key: item.value for item in status.values}
+
+    def spin(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+
+    def recorder_ready(self) -> bool:
+        return self.node.count_publishers(self.progress_topic) > 0
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self.context)
+
+
+def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
+    """Start the graph and return once the recorder holds ``duration`` seconds; NodeDied if one exits."""
+    monitor = Monitor()
+    try:
+        graph.start(specs[0])
+        deadline = time.monotonic() + START_TIMEOUT
+        while not monitor.recorder_ready():
+            graph.check()
+            if time.monotonic() > deadline:
+                raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(RECORDER)}')
+            monitor.spin(0.05)
+        for spec in specs[1:]:
+            graph.start(spec)
+        while monitor.recorded < duration - 1e-9:
+            graph.check()
+            if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
+                raise CliError(f'no simulation time recorded after {2 * START_TIMEOUT:.0f} s; logs in {graph.log_dir}')
+            monitor.spin(0.1)
+            if monitor.recorded > 0:
+                progress.update(monitor.recorded)
+        progress.update(duration, force=True)
+    finally:
+        monitor.close()
+
+
+def main(args: argparse.Namespace) -> int:
+    scenario = load_scenario(args.scenario)
+    selection = ConstraintSelection.parse(args.constraints, tangent_heading=args.tangent_heading)
+    duration = scenario.duration if args.duration is None else args.duration
+    if not (math.isfinite(duration) and duration > 0):
+        raise CliError(f'--duration must be a positive number of seconds, got {duration}')
+    factor = args.real_time_factor
+    if not (math.isfinite(factor) and factor >= 0):
+        raise CliError(f'--real-time-factor must be >= 0, got {factor}')
+    out = output_directory(args.out, args.scenario)
+    bag = out / 'bag'
+    specs = node_specs(scenario, selection, duration, factor, bag)
+    robot = Robot(load_robot_parameters())
+    graph = None
+    with claim_domain_id() as claim:
+        os.environ.update(claim.env())  # the monitor node joins the run's domain
+        graph = Graph(out / 'logs', claim.env())
+        print(f'wallbot-sim run: {scenario.name}, {selection.label()}, {duration:g} s at real-time factor {factor:g}, '
+              f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
+        try:
+            run_graph(graph, specs, duration, Progress(duration, sys.stderr))
+        except NodeDied as died:
+            graph.stop_all(first=(RECORDER,))
+            raise CliError(f'{died}; partial bag kept in {bag}', code=1) from None
+        except KeyboardInterrupt:
+            graph.stop_all(first=(RECORDER,))
+            print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
+            return 130
+        finally:
+            graph.stop_all(first=(RECORDER,))  # no-op for nodes already stopped
+    return report(bag, out, robot, plots=not args.no_plots)
+
+
+def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
+    """Print the summary of the recorded run and write its figures."""
+    from wallbot_sim.bag.summary import format_summary, summarize, write_plots
+    summary = summarize(bag)
+    adsorption = robot.adsorption
+    print(format_summary(summary))
+    print(f'adsorption force:    {adsorption.applied_force:.2f} N applied, {adsorption.minimum_force:.2f} N minimum '
+          f'(margin {adsorption.margin:.2f})')
+    print(f'bag:                 {bag}')
+    if plots:
+        files = write_plots(bag, out / 'plots')
+        print(f'plots:               {out / "plots"} ({len(files)} figures)')
+    return 0
