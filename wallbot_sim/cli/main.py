@@ -23,6 +23,7 @@ VERBS = {
     'plot': 'wallbot_sim.cli.plot',
     'compare': 'wallbot_sim.cli.compare',
     'bag': 'wallbot_sim.cli.bag',
+    'motors': 'wallbot_sim.cli.motors',
 }
 
 
