@@ -10,21 +10,11 @@ import pytest
 from model_helpers import is_consistent, kkt_acceleration, random_parameters, udwadia_kalaba_acceleration
 from wallbot_sim.model import (
     BaumgarteGains, Circle, FigureEight, Robot, SmoothStop, solve, solve_with_factor)
-from wallbot_sim.model.constraints import (
-    NonLateral, Nonslip, SynchronousBelt, TangentHeadingTask, TrajectoryTask)
-
-MODULE_NAMES = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
-
+from wallbot_sim.model.constraint_set import MODULES, make_module
+from wallbot_sim.model.constraints import TangentHeadingTask
 
 def make_modules(names, robot, reference, gains):
-    factories = {
-        'trajectory': lambda: TrajectoryTask(reference, gains),
-        'tangent_heading': lambda: TangentHeadingTask(reference, gains),
-        'belt': lambda: SynchronousBelt(gains),
-        'non_lateral': lambda: NonLateral(gains),
-        'nonslip': lambda: Nonslip(robot.params.wheel_radius, robot.lateral_offsets, gains),
-    }
-    return [factories[name]() for name in names]
+    return [make_module(name, robot, reference, gains) for name in names]
 
 
 def stacked(modules, t, q, qd):
@@ -45,7 +35,7 @@ def random_problem(rng, names):
     return robot, q, qd, rows, rhs, robot.applied_force(q, qd, tau)
 
 
-ALL_COMBINATIONS = [names for k in range(1, 6) for names in itertools.combinations(MODULE_NAMES, k)]
+ALL_COMBINATIONS = [names for k in range(1, 6) for names in itertools.combinations(MODULES, k)]
 
 
 def relative_error(a: np.ndarray, b: np.ndarray) -> float:

@@ -63,16 +63,28 @@ class ConstraintSelection:
         return '+'.join(self.active_names()) or 'free'
 
 
+MODULES = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
+"""Every module a selection can switch on, in stacking order."""
+
+
+def make_module(name: str, robot: Robot, reference: Reference | None, gains: BaumgarteGains) -> ConstraintModule:
+    """The constraint module called ``name`` (one of MODULES) for ``robot``."""
+    if name in ('trajectory', 'tangent_heading') and reference is None:
+        raise ParameterError(f'the {name} task needs a reference')
+    if name == 'trajectory':
+        return TrajectoryTask(reference, gains)
+    if name == 'tangent_heading':
+        return TangentHeadingTask(reference, gains)
+    if name == 'belt':
+        return SynchronousBelt(gains)
+    if name == 'non_lateral':
+        return NonLateral(gains)
+    if name == 'nonslip':
+        return Nonslip(robot.params.wheel_radius, robot.lateral_offsets, gains)
+    raise ParameterError(f'unknown constraint module {name!r} (known: {", ".join(MODULES)})')
+
+
 def build_modules(selection: ConstraintSelection, robot: Robot, reference: Reference | None,
                   gains: BaumgarteGains) -> list[ConstraintModule]:
     """The active constraint modules, in the order of ``selection.active_names()``."""
-    if selection.trajectory and reference is None:
-        raise ParameterError('the trajectory task needs a reference')
-    factories = {
-        'trajectory': lambda: TrajectoryTask(reference, gains),
-        'tangent_heading': lambda: TangentHeadingTask(reference, gains),
-        'belt': lambda: SynchronousBelt(gains),
-        'non_lateral': lambda: NonLateral(gains),
-        'nonslip': lambda: Nonslip(robot.params.wheel_radius, robot.lateral_offsets, gains),
-    }
-    return [factories[name]() for name in selection.active_names()]
+    return [make_module(name, robot, reference, gains) for name in selection.active_names()]
