@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from array import array
-from typing import Iterable, Sequence
+from typing import Iterable, NamedTuple, Sequence
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -186,6 +186,37 @@ class StepMessages:
 def step_messages(out: StepOutputs, namespace: str = topics.NAMESPACE) -> list[tuple[str, object]]:
     """(absolute topic name, fresh message) for everything the dynamics node publishes at one step."""
     return [(topic.resolve(namespace), msg) for topic, msg in StepMessages().update(out)]
+
+
+class PlanarState(NamedTuple):
+    """The chassis state an ``odom`` message carries, in the wall frame."""
+
+    stamp_ns: int
+    x: float
+    y: float
+    theta: float
+    """Yaw of the pose quaternion, in (-pi, pi] (the simulation's angle is unwrapped)."""
+    xd: float
+    yd: float
+    thd: float
+
+    @property
+    def t(self) -> float:
+        return self.stamp_ns * 1e-9
+
+
+def odometry_to_state(msg: Odometry) -> PlanarState:
+    """Decode ``odom``: pose in ``wall``, twist (v_long, v_lat, thd) in ``base_link`` rotated back
+    to wall-frame velocities (xd, yd). ValueError if a value is not finite."""
+    pose, twist = msg.pose.pose, msg.twist.twist
+    theta = quaternion_yaw(pose.orientation)
+    c, s = math.cos(theta), math.sin(theta)
+    u, v = twist.linear.x, twist.linear.y
+    state = PlanarState(stamp_nanoseconds(msg.header.stamp), pose.position.x, pose.position.y, theta,
+                        c * u - s * v, s * u + c * v, twist.angular.z)
+    if not all(math.isfinite(value) for value in state[1:]):
+        raise ValueError(f'odometry at t = {state.t:.3f} s is not finite')
+    return state
 
 
 # --- the reference ----------------------------------------------------------------------------
