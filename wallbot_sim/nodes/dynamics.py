@@ -128,6 +128,10 @@ class DynamicsNode(Node):
             'wait_for_recorder': declare(self, 'wait_for_recorder', False,
                                          'do not start until a recorder (record_progress) hears every topic',
                                          read_only=True),
+            'wait_for_command': declare(self, 'wait_for_command', False,
+                                        'driven mode: start once a wheel_torque_cmd publisher hears odom, and take '
+                                        'the first step only after its first command (a closed loop from t = 0)',
+                                        read_only=True),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
@@ -152,6 +156,8 @@ class DynamicsNode(Node):
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
                                  qos_profile(topics.RECORD_PROGRESS))
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
+        self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
+        self.odom_topic = self.resolve_topic_name(topics.ODOM.name)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.add_on_set_parameters_callback(self._on_set)
@@ -330,6 +336,11 @@ class DynamicsNode(Node):
             return False
         if self.pending_constraints is not None:
             selection, gains = self.pending_constraints
+            if self.sim is None and not selection.trajectory:
+                waiting = self._driven_start_blocked()
+                if waiting:
+                    self.status = waiting
+                    return False
             if selection.trajectory and self.plan is None:
                 self.status = 'waiting for reference_trajectory'
                 if self.sim is None:
@@ -350,6 +361,10 @@ class DynamicsNode(Node):
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
             self.status = f'waiting for a reference_trajectory covering t = {sim.t:.3f} s'
             return False
+        if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
+                and self.command is None):
+            self.status = 'waiting for the first wheel_torque_cmd'
+            return False
         self.status = 'running'
         return True
 
@@ -365,6 +380,23 @@ class DynamicsNode(Node):
         self.get_logger().info(
             f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
             f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+
+    def _driven_start_blocked(self) -> str | None:
+        """Why a driven run may not create its simulation yet (None: it may).
+
+        A moving start (initial_at_rest false) takes the reference velocity at t = 0, so it
+        needs the plan. With wait_for_command, a controller must be there to hear the initial
+        state: a wheel_torque_cmd publisher exists and every discovered odom subscription is
+        matched (odom is volatile; a subscriber matched later would miss the t = 0 state).
+        """
+        if not self.params['initial_at_rest'] and self.plan is None:
+            return 'waiting for reference_trajectory (the moving start takes its velocity)'
+        if self.params['wait_for_command']:
+            subscribers = self.count_subscribers(self.odom_topic)
+            if (self.count_publishers(self.command_topic) == 0 or subscribers == 0
+                    or self.publishers_[topics.ODOM].get_subscription_count() < subscribers):
+                return 'waiting for a controller (a wheel_torque_cmd publisher)'
+        return None
 
     def _recorder_listening(self) -> bool:
         """Whether a recorder publishes record_progress and every step topic has a subscriber."""
@@ -382,6 +414,20 @@ class DynamicsNode(Node):
         window = self.params['backpressure_window'] * self.sim.dt
         progress = -math.inf if self.progress_ns is None else self.progress_ns * 1e-9
         return self.sim.t - progress > window
+
+    def _command_state(self) -> str:
+        """The 'command' value of /diagnostics."""
+        sim = self.sim
+        if sim is None:
+            return 'no simulation yet'
+        if sim.selection.trajectory:
+            return 'ignored (trajectory task on)'
+        if self.command is None:
+            return 'none yet, zero torque'
+        if self.command_expired:
+            return 'timed out, zero torque'
+        (left, right), _since = self.command
+        return f'applied ({left:.4g}, {right:.4g}) N m'
 
     def _motor_torque(self) -> tuple[float, float]:
         sim = self.sim
@@ -460,8 +506,11 @@ class DynamicsNode(Node):
         t = sim.t if sim is not None else 0.0
         rate = window.steps / elapsed
         dt = sim.dt if sim is not None else 1.0 / self.params['rate_hz']
+        command = self._command_state()
         level = 'error' if self.diverged else ('ok' if self.status in ('running', 'paused')
                                                 or self.status.startswith('stopped') else 'warn')
+        if level == 'ok' and command.startswith('timed out'):
+            level = 'warn'
         adsorption = self.robot.adsorption
         values = [
             ('status', self.status), ('simulation time', t), ('achieved rate (Hz)', rate),
@@ -471,12 +520,15 @@ class DynamicsNode(Node):
             ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
             ('constraint residual', float(out.residual) if out is not None else math.nan),
             ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
+            ('command', command),
             ('adsorption force (N)', float(adsorption.applied_force)),
             ('adsorption minimum (N)', float(adsorption.minimum_force)),
             ('adsorption margin', float(adsorption.margin)),
         ]
+        message = self.status if level != 'warn' or not command.startswith('timed out') \
+            else f'{self.status}; no wheel_torque_cmd: zero torque'
         status = conversions.diagnostic_status(f'{self.get_fully_qualified_name()}: simulation', level,
-                                               self.status, values)
+                                               message, values)
         self.diagnostics_pub.publish(conversions.diagnostics_message(t, [status]))
 
     def close(self) -> None:
