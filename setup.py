@@ -79,6 +79,7 @@ setup(
             'trajectory_node = wallbot_sim.nodes.trajectory:main',
             'constraint_config_node = wallbot_sim.nodes.constraint_config:main',
             'recorder_node = wallbot_sim.nodes.recorder:main',
+            'tracking_controller_node = wallbot_sim.nodes.controller:main',
         ],
     },
 )

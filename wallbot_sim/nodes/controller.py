@@ -1,0 +1,233 @@
+"""tracking_controller_node (``/wallbot/controller``): an example closed-loop controller.
+
+Thin ROS shell around ``wallbot_sim.control.TrackingController`` (model-based feed-forward
+from the Udwadia-Phohomsiri inverse dynamics of its own robot copy, plus PD and integral
+feedback; see that module and docs/controller.md). Replace it with your own controller by
+speaking the same three topics:
+
+* subscribes ``odom`` (nav_msgs/Odometry, pose in ``wall``, twist in ``base_link``) and
+  ``reference_trajectory`` (the trajectory node's plan, transient-local);
+* publishes ``wheel_torque_cmd`` (std_msgs/Float64MultiArray ``[tau_L, tau_R]``, N m).
+
+Timing is simulation time taken from the odometry stamps, not from a ROS timer: the
+controller acts on the first ``odom`` stamped at or after each multiple of 1 / ``rate_hz``
+(every 5th message of the 1 kHz dynamics at 200 Hz). So its control instants are the same
+at any real-time factor or CPU load, and no ``/clock`` subscription is needed. A stamp that
+goes back (the dynamics' ``~/reset``) restarts the controller (integral cleared).
+
+The wheel spin rates are not read: the driven robot's wheels roll on the wall (nonslip),
+so the controller takes their rolling values from the odometry twist.
+
+Safety: commands are clamped to ``max_wheel_torque`` (the dynamics rejects larger ones) and
+a command that is not finite is never published (the error is logged; the dynamics then
+falls back to zero torque after its ``command_timeout``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import MultiDOFJointTrajectory
+
+from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.model import DOF, ModelError, Robot, SampledReference
+from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+
+NODE_NAME = 'controller'
+THROTTLE = 1.0
+"""Seconds between repeated log lines of one kind."""
+GAIN_NAMES = ('alpha', 'beta', 'look_ahead', 'integral', 'integral_zone')
+KEPT_PLANS = 3
+"""Plans kept: the newest one that has started is used, so a plan that starts a little after
+the state being handled (the trajectory node replans from its own view of the clock) never
+leaves the controller without a reference."""
+
+
+class Plans:
+    """The received plans as one reference: the newest plan that has started by t."""
+
+    def __init__(self) -> None:
+        self.plans: list[tuple[float, SampledReference]] = []
+
+    def add(self, start: float, reference: SampledReference) -> None:
+        self.plans = [p for p in self.plans if p[0] < start - 1e-9][-(KEPT_PLANS - 1):] + [(start, reference)]
+
+    def clear(self) -> None:
+        self.plans = []
+
+    def __bool__(self) -> bool:
+        return bool(self.plans)
+
+    def sample(self, t: float):
+        for start, reference in reversed(self.plans):
+            if start <= t + 1e-9:
+                return reference.sample(t)
+        return self.plans[0][1].sample(t)
+
+
+def check_values(values: dict) -> list[str]:
+    """Reasons why a full set of controller parameters is unusable (empty if fine)."""
+    reasons = [check_number(name, values[name], minimum=0.0, exclusive=True)
+               for name in ('alpha', 'beta', 'look_ahead', 'integral_zone', 'mass_scale', 'max_wheel_torque')]
+    reasons.append(check_number('integral', values['integral'], minimum=0.0))
+    rate = values['rate_hz']
+    if isinstance(rate, bool) or not isinstance(rate, int) or not 1 <= rate <= 1000:
+        reasons.append(f'rate_hz must be an integer in [1, 1000], got {rate!r}')
+    return [r for r in reasons if r]
+
+
+class ControllerNode(Node):
+    """odom + reference_trajectory -> wheel_torque_cmd at rate_hz of simulation time."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, **kwargs)
+        defaults = ControllerGains()
+        self.values = {
+            'rate_hz': declare(self, 'rate_hz', 200, 'control rate in simulation time (Hz; 1000 / rate_hz '
+                                                     'should be a whole number of dynamics steps)', low=1, high=1000),
+            'alpha': declare(self, 'alpha', defaults.alpha, 'velocity gain 2 alpha of the look-ahead task (1/s, > 0)'),
+            'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s, > 0)'),
+            'look_ahead': declare(self, 'look_ahead', defaults.look_ahead,
+                                  'distance of the steered point ahead of the centre (m, > 0)'),
+            'integral': declare(self, 'integral', defaults.integral, 'integral gain (1/s^3, >= 0; 0 = off)'),
+            'integral_zone': declare(self, 'integral_zone', defaults.integral_zone,
+                                     'integrate the error only within this distance of the path (m, > 0)'),
+            'robot_file': declare(self, 'robot_file', '', "the controller's robot parameter YAML; "
+                                  'empty = installed config/robot.yaml', read_only=True),
+            'mass_scale': declare(self, 'mass_scale', 1.0, "body_mass of the controller's robot copy relative to "
+                                  "the file's (model mismatch; > 0)"),
+            'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
+                                        'commands are clamped to +-this (N m, > 0; the dynamics\' limit)'),
+        }
+        reasons = check_values(self.values)
+        if reasons:
+            raise ValueError('; '.join(reasons))
+        self.file_params = load_robot_parameters(self.values['robot_file'] or None)
+        self.plans = Plans()
+        self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values))
+        self.controller.reference = self.plans
+        self.next_due_ns: int | None = None
+        self.last_stamp_ns: int | None = None
+        self.pending: Odometry | None = None
+        self.commands = 0
+        self.clamped = 0
+
+        self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
+                                                 qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
+                                 qos_profile(topics.REFERENCE_TRAJECTORY))
+        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM))
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        self.get_logger().info(
+            f'tracking controller at {self.values["rate_hz"]} Hz of simulation time, '
+            f'mass_scale {self.values["mass_scale"]:g} (body_mass {self.controller.robot.params.body_mass:g} kg), '
+            + ', '.join(f'{name} {self.values[name]:g}' for name in GAIN_NAMES))
+
+    # --- model ---------------------------------------------------------------------------------
+    def _robot(self, mass_scale: float) -> Robot:
+        return Robot(self.file_params.replace(body_mass=self.file_params.body_mass * mass_scale))
+
+    @staticmethod
+    def _gains(values: dict) -> ControllerGains:
+        return ControllerGains(**{name: float(values[name]) for name in GAIN_NAMES})
+
+    @property
+    def period_ns(self) -> int:
+        return round(1e9 / self.values['rate_hz'])
+
+    # --- callbacks -----------------------------------------------------------------------------
+    def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
+        try:
+            plan = conversions.plan_from_trajectory(msg)
+            reference = conversions.sampled_reference(plan)  # as the dynamics node interpolates it
+        except (ValueError, ModelError) as error:
+            self.get_logger().error(f'ignoring reference_trajectory: {error}')
+            return
+        self.plans.add(conversions.plan_sample_times(plan)[0], reference)
+        if self.pending is not None:  # a state that came before the first plan
+            msg, self.pending = self.pending, None
+            self._on_odom(msg)
+
+    def _on_odom(self, msg: Odometry) -> None:
+        stamp_ns = conversions.stamp_nanoseconds(msg.header.stamp)
+        if self.last_stamp_ns is not None and stamp_ns < self.last_stamp_ns:
+            self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: controller restarted')
+            self.controller.reset()
+            self.next_due_ns = None
+        self.last_stamp_ns = stamp_ns
+        if self.next_due_ns is not None and stamp_ns < self.next_due_ns:
+            return
+        if not self.plans:
+            self.pending = msg
+            self.get_logger().info('waiting for reference_trajectory', throttle_duration_sec=THROTTLE)
+            return
+        period = self.period_ns
+        self.next_due_ns = (stamp_ns // period + 1) * period
+        self._control(msg, period * 1e-9)
+
+    def _control(self, msg: Odometry, dt: float) -> None:
+        try:
+            state = conversions.odometry_to_state(msg)
+            robot = self.controller.robot
+            q = np.zeros(DOF)
+            qd = np.zeros(DOF)
+            q[:3] = state.x, state.y, state.theta
+            qd[:3] = state.xd, state.yd, state.thd
+            qd[3:] = robot.rolling_spin_rates(state.theta, (state.xd, state.yd), state.thd)
+            command = self.controller.update(state.t, q, qd, dt)
+            torques = (float(command.tau_left), float(command.tau_right))
+            if not all(math.isfinite(tau) for tau in torques):
+                raise ValueError(f'non-finite torques {torques}')
+        except (ValueError, ModelError, np.linalg.LinAlgError) as error:
+            self.get_logger().error(f'no command at t = {conversions.seconds(msg.header.stamp):.3f} s: {error}',
+                                    throttle_duration_sec=THROTTLE)
+            return
+        limit = float(self.values['max_wheel_torque'])
+        clamped = tuple(min(limit, max(-limit, tau)) for tau in torques)
+        if clamped != torques:
+            self.clamped += 1
+            self.get_logger().warning(f'torques {torques[0]:.3f}, {torques[1]:.3f} N m clamped to +-{limit:g} N m',
+                                      throttle_duration_sec=THROTTLE)
+        self.command_pub.publish(Float64MultiArray(data=list(clamped)))
+        self.commands += 1
+
+    # --- parameters ----------------------------------------------------------------------------
+    def _on_set(self, parameters):
+        changes = {k: v for k, v in param_dict(parameters).items() if k in self.values}
+        reasons = check_values({**self.values, **changes})
+        if not reasons and 'mass_scale' in changes:
+            try:
+                self._robot(changes['mass_scale'])
+            except ModelError as error:
+                reasons.append(str(error))
+        return parameter_result(reasons)
+
+    def _after_set(self, parameters) -> None:
+        changes = {k: v for k, v in param_dict(parameters).items() if k in self.values}
+        if not changes:
+            return
+        self.values.update(changes)
+        if set(changes) & set(GAIN_NAMES):
+            self.controller.gains = self._gains(self.values)
+        if 'mass_scale' in changes:
+            self.controller.robot = self._robot(self.values['mass_scale'])
+        if 'rate_hz' in changes:
+            self.next_due_ns = None
+        self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run(ControllerNode, args))
+
+
+if __name__ == '__main__':
+    main()
