@@ -20,6 +20,7 @@ from pathlib import Path
 from wallbot_msgs_py import topics
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.simulate import Progress
+from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
@@ -27,6 +28,10 @@ from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Robot, S
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 RECORDER = 'recorder'
+CONTROLLER = 'controller'
+OPTIONAL = (CONTROLLER,)
+"""Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
+torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
 
@@ -42,11 +47,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
+    parser.add_argument('--controller', action='store_true',
+                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with '
+                             'tracking_controller_node commanding the wheel torques; wheel_torque_cmd is recorded')
+    parser.add_argument('--controller-mass-scale', type=float, default=1.0,
+                        help="with --controller: the controller's robot mass relative to the simulator's "
+                             '(model mismatch; default 1.0)')
 
 
 def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: float, factor: float,
-               bag: Path) -> list[NodeSpec]:
-    """The graph of a run, in start order (the recorder first, so it misses nothing)."""
+               bag: Path, controller_mass_scale: float | None = None) -> list[NodeSpec]:
+    """The graph of a run, in start order (the recorder first, so it misses nothing).
+
+    With ``controller_mass_scale`` (a closed-loop run) ``selection`` must be the driven set
+    (no trajectory task); the controller starts before the dynamics, which waits for it
+    (``wait_for_command``) so the loop is closed from t = 0.
+    """
     reference = scenario.reference
     if isinstance(reference, Circle):
         shape = {'shape': 'circle', 'radius': reference.radius}
@@ -58,16 +74,23 @@ def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: flo
     switches = {'trajectory_task': selection.trajectory, 'belt': selection.belt,
                 'non_lateral': selection.non_lateral, 'nonslip': selection.nonslip,
                 'tangent_heading': selection.tangent_heading is not False}
-    return [
-        NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', {'output': str(bag)}),
+    closed_loop = controller_mass_scale is not None
+    recorder = {'output': str(bag)}
+    if closed_loop:
+        recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
+    specs = [
+        NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder),
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', switches),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
-        NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
-            'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
-            'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
-            'wait_for_recorder': True}),
     ]
+    if closed_loop:
+        specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {'mass_scale': float(controller_mass_scale)}))
+    specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
+        'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
+        'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
+        'wait_for_recorder': True, **({'wait_for_command': True} if closed_loop else {})}))
+    return specs
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -128,21 +151,37 @@ class Monitor:
         self._rclpy.try_shutdown(context=self.context)
 
 
+def check_nodes(graph: Graph, reported: set[str]) -> None:
+    """Raise NodeDied for the first essential node that has exited; report optional ones once."""
+    for name, process in graph.processes.items():
+        status = process.poll()
+        if status is None:
+            continue
+        if name not in OPTIONAL:
+            raise NodeDied(name, status, graph.log(name))
+        if name not in reported:
+            reported.add(name)
+            print(f'\nwallbot-sim run: node {name} exited with status {status} (its log: {graph.log(name)}); '
+                  'the dynamics falls back to zero torque after command_timeout, the run goes on', file=sys.stderr)
+
+
 def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
-    """Start the graph and return once the recorder holds ``duration`` seconds; NodeDied if one exits."""
+    """Start the graph and return once the recorder holds ``duration`` seconds; NodeDied if an
+    essential node exits."""
     monitor = Monitor()
+    reported: set[str] = set()
     try:
         graph.start(specs[0])
         deadline = time.monotonic() + START_TIMEOUT
         while not monitor.recorder_ready():
-            graph.check()
+            check_nodes(graph, reported)
             if time.monotonic() > deadline:
                 raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(RECORDER)}')
             monitor.spin(0.05)
         for spec in specs[1:]:
             graph.start(spec)
         while monitor.recorded < duration - 1e-9:
-            graph.check()
+            check_nodes(graph, reported)
             if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
                 raise CliError(f'no simulation time recorded after {2 * START_TIMEOUT:.0f} s; logs in {graph.log_dir}')
             monitor.spin(0.1)
@@ -162,15 +201,27 @@ def main(args: argparse.Namespace) -> int:
     factor = args.real_time_factor
     if not (math.isfinite(factor) and factor >= 0):
         raise CliError(f'--real-time-factor must be >= 0, got {factor}')
+    mass_scale = None
+    if args.controller:
+        if args.constraints != 'belt,non_lateral,nonslip' or args.tangent_heading is not None:
+            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
+                           'drop --constraints and --tangent-heading')
+        mass_scale = args.controller_mass_scale
+        if not (math.isfinite(mass_scale) and mass_scale > 0):
+            raise CliError(f'--controller-mass-scale must be a positive number, got {mass_scale}')
+        selection = DRIVEN
+    elif args.controller_mass_scale != 1.0:
+        raise CliError('--controller-mass-scale needs --controller')
     out = output_directory(args.out, args.scenario)
     bag = out / 'bag'
-    specs = node_specs(scenario, selection, duration, factor, bag)
+    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale)
     robot = Robot(load_robot_parameters())
     graph = None
     with claim_domain_id() as claim:
         os.environ.update(claim.env())  # the monitor node joins the run's domain
         graph = Graph(out / 'logs', claim.env())
-        print(f'wallbot-sim run: {scenario.name}, {selection.label()}, {duration:g} s at real-time factor {factor:g}, '
+        loop = '' if mass_scale is None else f' under tracking_controller_node (mass scale {mass_scale:g})'
+        print(f'wallbot-sim run: {scenario.name}, {selection.label()}{loop}, {duration:g} s at real-time factor {factor:g}, '
               f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
         try:
             run_graph(graph, specs, duration, Progress(duration, sys.stderr))
