@@ -30,6 +30,9 @@ HELP = 'run a scenario through the real node graph, record a bag, plot it'
 RECORDER = 'recorder'
 CONTROLLER = 'controller'
 OPTIONAL = (CONTROLLER,)
+CONTROL_STEPS = 5
+"""Dynamics steps per control period: the controller's default 200 Hz at the dynamics' 1 kHz. The
+dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 """Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
@@ -89,7 +92,8 @@ def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: flo
     specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
-        'wait_for_recorder': True, **({'wait_for_command': True} if closed_loop else {})}))
+        'wait_for_recorder': True,
+        **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
     return specs
 
 

@@ -62,6 +62,8 @@ from wallbot_sim.nodes.common import check_number, declare, param_dict, paramete
 LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
+LOCKSTEP_WAIT = 0.25
+"""Wall seconds lockstep waits for a controller's command before it gives up (until commands return)."""
 """Seconds between repeated warnings of one kind."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
@@ -132,6 +134,10 @@ class DynamicsNode(Node):
                                         'driven mode: start once a wheel_torque_cmd publisher hears odom, and take '
                                         'the first step only after its first command (a closed loop from t = 0)',
                                         read_only=True),
+            'lockstep_every': declare(self, 'lockstep_every', 0,
+                                      'driven mode: after publishing every Nth step, wait for the command '
+                                      'answering that state before stepping on (at most 0.25 s wall); 0 = off',
+                                      low=0, high=1000000),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
@@ -174,6 +180,9 @@ class DynamicsNode(Node):
         self.status = 'waiting for constraints'
         self.command: tuple[tuple[float, float], float] | None = None
         self.command_expired = False
+        self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
+        self.lockstep_since: float | None = None
+        self.lockstep_lost = False
         self.progress_ns: int | None = None
         self.recorder_present = False
         self.recorder_checked = 0.0
@@ -263,6 +272,10 @@ class DynamicsNode(Node):
                     self.wake.wait(0.005)
                     self.wake.clear()
                     continue
+                if self._lockstep_blocked():  # the anchor stays: a prompt answer costs no pace
+                    self.wake.wait(0.0005)
+                    self.wake.clear()
+                    continue
                 if self.params['real_time_factor'] == 0.0 and self._held_back():
                     self.wake.wait(0.0005)
                     self.wake.clear()
@@ -292,6 +305,10 @@ class DynamicsNode(Node):
             elif kind == 'command':
                 self.command = (payload, self.sim.t if self.sim is not None else 0.0)
                 self.command_expired = False
+                self.command_serial += 1
+                if self.lockstep_lost:
+                    self.lockstep_lost = False
+                    self.get_logger().info('wheel_torque_cmd again: lockstep resumed')
             elif kind == 'reset':
                 self._reset()
             elif kind == 'pause':
@@ -403,6 +420,34 @@ class DynamicsNode(Node):
         return (self.count_publishers(self.progress_topic) > 0
                 and all(pub.get_subscription_count() > 0 for pub in self.publishers_.values()))
 
+    def _lockstep_blocked(self) -> bool:
+        """Lockstep (driven mode, lockstep_every N > 0): whether to wait for the controller.
+
+        After the state of every Nth step is published, the next step waits for a command that
+        arrived after it: the controller's answer to that very state, so the loop behaves like
+        a controller sampling every N steps with no delay, at any pace or CPU load. Without an
+        answer within LOCKSTEP_WAIT (wall) it steps on, free-running until commands return
+        (then command_timeout brings zero torque, as without lockstep).
+        """
+        every, sim = self.params['lockstep_every'], self.sim
+        if (every <= 0 or sim.selection.trajectory or self.lockstep_lost or sim.steps % every != 0
+                or self.command_serial != self.sync_serial):
+            self.lockstep_since = None
+            return False
+        now = time.monotonic()
+        if self.lockstep_since is None:
+            self.lockstep_since = now
+        if now - self.lockstep_since <= LOCKSTEP_WAIT:
+            return True
+        self.lockstep_since, self.lockstep_lost = None, True
+        self.get_logger().warning(f'no wheel_torque_cmd within {LOCKSTEP_WAIT:g} s (wall) of the state at '
+                                  f't = {sim.t:.3f} s: stepping on without lockstep until commands return')
+        return False
+
+    def _mark_sync(self) -> None:
+        """The current state was just published: lockstep waits for a command newer than this."""
+        self.sync_serial = self.command_serial
+
     def _held_back(self) -> bool:
         """At factor 0: whether a recorder's progress is more than the window behind."""
         now = time.monotonic()
@@ -471,6 +516,7 @@ class DynamicsNode(Node):
         if publish:
             for topic, msg in pairs:
                 self.publishers_[topic].publish(msg)
+            self._mark_sync()
         self.last_outputs = out
 
     def _pace(self, step: int, dt: float) -> None:
@@ -497,6 +543,7 @@ class DynamicsNode(Node):
         self.last_outputs = out
         for topic, msg in self.messages.update(out):
             self.publishers_[topic].publish(msg)
+        self._mark_sync()
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
     def _publish_diagnostics(self) -> None:
