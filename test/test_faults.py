@@ -1,0 +1,170 @@
+"""Robustness: each node SIGKILLed and restarted once during a recorded run (real processes).
+
+One run (circle, trajectory task + belt + non_lateral + nonslip, factor 1) with a recorder:
+
+1. trajectory killed and restarted: the dynamics keeps stepping on the plan it holds (a plan covers
+   10 s), the restarted node republishes its latched topics (reference_trajectory,
+   reference_path) planned from the current simulation time;
+2. constraint_config killed and restarted: nothing changes for the dynamics; the restarted node
+   republishes ``constraints`` (the dynamics re-applies the same set);
+3. dynamics killed and restarted: the new process starts again from its initial state at t = 0
+   (there is no state hand-over), /clock jumps back, the trajectory node sees the jump and replans
+   from 0, and the run continues.
+
+The recorder runs throughout (one process, never restarted) and its bag shows the faults as they
+were: odometry stamps consecutive (1 ms) within each dynamics life, a gap in receive time while
+the dynamics was dead, then stamps starting again at 0 - so the stamps 0 .. t_kill appear twice in
+the bag, once per dynamics life, each life told apart by receive time. Nothing is invented: no
+message is received while the dynamics process is dead.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from test_nodes_graph import Graph, ns, start_graph  # noqa: E402
+from wallbot_msgs_py import bagio, topics  # noqa: E402
+from wallbot_sim.bag.reader import info, messages  # noqa: E402
+
+DOWN = 1.0
+"""Seconds a killed node stays dead before its restart."""
+
+
+def kill(proc) -> float:
+    """SIGKILL a node process by pid; the wall time (ns) it was dead by."""
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=5)
+    return time.time_ns()
+
+
+def test_each_node_killed_and_restarted_once(process_runner, tmp_path):
+    bag = tmp_path / 'bag'
+    recorder = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                     '-p', f'output:={bag}'], 'recorder')
+    graph = Graph(process_runner)
+    events = {}
+    try:
+        start_graph(graph, 'real_time_factor:=1.0', constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'))
+        graph.wait_sim_time(1.0, 20)
+
+        # 1. trajectory
+        plans_before = len(graph.messages(topics.REFERENCE_TRAJECTORY.name))
+        paths_before = len(graph.messages(topics.REFERENCE_PATH.name))
+        events['trajectory_killed'] = kill(graph.procs.pop('trajectory'))  # popped: wait_for must not fail on it
+        sim_at_kill = graph.last_stamp()
+        time.sleep(DOWN)
+        assert graph.last_stamp() > sim_at_kill + 500 * 1_000_000, 'the dynamics steps on the plan it holds'
+        restart(graph, 'trajectory')
+        events['trajectory_restarted'] = time.time_ns()
+        plan = graph.wait_for(lambda: graph.messages(topics.REFERENCE_TRAJECTORY.name)[plans_before:], 15,
+                              'the restarted trajectory node\'s plan')[0]
+        graph.wait_for(lambda: len(graph.messages(topics.REFERENCE_PATH.name)) > paths_before, 15,
+                       'the restarted trajectory node\'s path')
+        # its first plan starts at its clock when it starts (0 before the first /clock arrives);
+        # the grid makes it identical to the old plan where they overlap, and it covers now
+        last = plan.points[-1].time_from_start
+        plan_end = ns(plan) + last.sec * 1_000_000_000 + last.nanosec
+        # (the test's own odometry subscription may lag the graph by a few hundred ms under load)
+        now = graph.last_stamp()
+        assert ns(plan) <= now + 1_000_000_000 and now < plan_end, 'the republished plan covers the current time'
+        graph.wait_for(lambda: process_runner.output('dynamics').count('reference plan') >= 2, 10,
+                       'the dynamics applying the new plan')
+
+        # 2. constraint_config
+        constraints_before = len(graph.messages(topics.CONSTRAINTS.name))
+        events['constraint_config_killed'] = kill(graph.procs.pop('constraint_config'))  # popped: wait_for must not fail on it
+        time.sleep(DOWN)
+        restart(graph, 'constraint_config', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
+        events['constraint_config_restarted'] = time.time_ns()
+        republished = graph.wait_for(lambda: graph.messages(topics.CONSTRAINTS.name)[constraints_before:], 15,
+                                     'the restarted constraint_config\'s constraints')[0]
+        assert republished.message == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
+        graph.wait_for(lambda: 'constraints trajectory+tangent_heading+belt+non_lateral+nonslip -> '
+                       in process_runner.output('dynamics'), 10, 'the dynamics re-applying the set')
+
+        # 3. dynamics
+        graph.wait_sim_time(graph.last_stamp() * 1e-9 + 0.5)
+        first_log = process_runner.output('dynamics')
+        events['dynamics_killed'] = kill(graph.procs.pop('dynamics'))  # popped: wait_for must not fail on it
+        t_killed = graph.last_stamp()
+        time.sleep(DOWN)
+        graph.clear(topics.ODOM.name)
+        restart(graph, 'dynamics', 'real_time_factor:=1.0')
+        events['dynamics_restarted'] = time.time_ns()
+        graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) >= 1_000_000_000], 30,
+                       'the restarted dynamics at t = 1 s')
+        assert min(ns(m) for m in graph.messages(topics.ODOM.name)) == 0, 'the restart begins at t = 0'
+        for name, proc in [*graph.procs.items(), ('recorder', recorder)]:
+            assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-2000:]}'
+        assert 'simulation time went back' in process_runner.output('trajectory-2'), 'the trajectory saw the jump'
+        for name in ('dynamics', 'trajectory', 'constraint_config'):
+            assert process_runner.stop(graph.procs[name]) == 0
+        events['stopped'] = time.time_ns()
+    finally:
+        graph.close()
+    process_runner.stop_timeout = 30.0
+    assert process_runner.stop(recorder) == 0, process_runner.output('recorder')[-2000:]
+    assert 'Traceback' not in first_log
+
+    figures = bag_figures(bag, events, t_killed)
+    print('\nfaults:', figures)
+
+
+def restart(graph: Graph, name: str, *params: str):
+    """Start node ``name`` again, its output in ``NAME-2.log`` (the first life's log is kept)."""
+    from test_nodes_graph import NODES
+    args = [sys.executable, '-m', NODES[name], '--ros-args']
+    for param in params:
+        args += ['-p', param]
+    graph.procs[name] = graph.runner.start(args, f'{name}-2')
+    return graph.procs[name]
+
+
+def bag_figures(bag, events: dict, t_killed: int) -> dict:
+    names = {t.name.rsplit('/', 1)[-1]: t.name for t in info(bag).topics}
+    wanted = {names[k]: k for k in ('odom', 'clock', 'reference_trajectory', 'reference_path', 'constraints')}
+    odom, received = [], {k: [] for k in wanted.values()}
+    for raw in messages(bag, list(wanted)):
+        leaf = wanted[raw.topic]
+        received[leaf].append(raw.timestamp)
+        if leaf == 'odom':
+            odom.append((raw.timestamp, ns(bagio.deserialize(raw.data, raw.type))))
+    odom.sort()
+    receive = np.array([r for r, _ in odom])
+    stamps = np.array([s for _, s in odom])
+    back = np.flatnonzero(np.diff(stamps) < 0)
+    assert len(back) == 1, f'odom stamps go back {len(back)} times (one dynamics restart expected)'
+    lives = [stamps[:back[0] + 1], stamps[back[0] + 1:]]
+    for life in lives:
+        assert np.all(np.diff(life) == 1_000_000), 'consecutive 1 ms stamps within each dynamics life'
+    assert lives[1][0] == 0 and lives[0][-1] >= t_killed
+    # no message received while the dynamics was dead
+    dead = (receive > events['dynamics_killed']) & (receive < events['dynamics_restarted'])
+    assert not dead.any(), f'{dead.sum()} odometry messages received while the dynamics was dead'
+    gap = (receive[back[0] + 1] - receive[back[0]]) * 1e-9
+    # the other two faults: the dynamics kept publishing (no receive gap > 0.25 s then)
+    first_life_receive = receive[:back[0] + 1]
+    outage_gap = np.diff(first_life_receive).max() * 1e-9
+    duplicated = int(np.intersect1d(lives[0], lives[1]).size)
+
+    def after(leaf, key):
+        return sum(1 for r in received[leaf] if r > events[key])
+    figures = {'odom_recorded': len(odom), 'first_life_s': float(lives[0][-1] - lives[0][0]) * 1e-9,
+               'second_life_s': float(lives[1][-1] - lives[1][0]) * 1e-9, 'dynamics_receive_gap_s': round(float(gap), 3),
+               'dynamics_down_s': round((events['dynamics_restarted'] - events['dynamics_killed']) * 1e-9, 3),
+               'stamps_recorded_twice': duplicated, 'max_receive_gap_first_life_s': round(float(outage_gap), 3),
+               'plans_after_trajectory_restart': after('reference_trajectory', 'trajectory_restarted'),
+               'paths_after_trajectory_restart': after('reference_path', 'trajectory_restarted'),
+               'constraints_after_restart': after('constraints', 'constraint_config_restarted')}
+    assert figures['plans_after_trajectory_restart'] >= 1 and figures['paths_after_trajectory_restart'] >= 1
+    assert figures['constraints_after_restart'] >= 1
+    assert gap >= DOWN, 'the bag shows the dynamics outage as a receive-time gap'
+    assert outage_gap < 0.25, 'killing trajectory or constraint_config does not stall the dynamics'
+    return figures
