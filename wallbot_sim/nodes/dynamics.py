@@ -403,16 +403,18 @@ class DynamicsNode(Node):
 
         A moving start (initial_at_rest false) takes the reference velocity at t = 0, so it
         needs the plan. With wait_for_command, a controller must be there to hear the initial
-        state: a wheel_torque_cmd publisher exists and every discovered odom subscription is
-        matched (odom is volatile; a subscriber matched later would miss the t = 0 state).
+        state: a wheel_torque_cmd publisher exists, its node subscribes odom, and every
+        discovered odom subscription is matched (odom is volatile: a subscriber matched later
+        would miss the t = 0 state, and the first step would wait for ever).
         """
         if not self.params['initial_at_rest'] and self.plan is None:
             return 'waiting for reference_trajectory (the moving start takes its velocity)'
         if self.params['wait_for_command']:
-            subscribers = self.count_subscribers(self.odom_topic)
-            if (self.count_publishers(self.command_topic) == 0 or subscribers == 0
-                    or self.publishers_[topics.ODOM].get_subscription_count() < subscribers):
-                return 'waiting for a controller (a wheel_torque_cmd publisher)'
+            controllers = {(i.node_namespace, i.node_name) for i in self.get_publishers_info_by_topic(self.command_topic)}
+            listeners = {(i.node_namespace, i.node_name) for i in self.get_subscriptions_info_by_topic(self.odom_topic)}
+            if (not controllers or not controllers <= listeners
+                    or self.publishers_[topics.ODOM].get_subscription_count() < len(listeners)):
+                return 'waiting for a controller (a wheel_torque_cmd publisher that hears odom)'
         return None
 
     def _recorder_listening(self) -> bool:

@@ -1,0 +1,293 @@
+"""Closed loop through the graph (issue 5): tracking_controller_node driving the dynamics over DDS.
+
+Every run is real processes at real-time factor 1: ``wallbot-sim run --controller`` (its own
+domain) for the tracking targets and the controller kill, the nodes started one by one in the
+session's domain for two robots side by side. What is checked is what was recorded.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip('rclpy')
+
+from wallbot_msgs_py import bagio, topics  # noqa: E402
+from wallbot_sim.bag.reader import messages  # noqa: E402
+from wallbot_sim.config import load_robot_parameters, load_scenario  # noqa: E402
+from wallbot_sim.control import TrackingController  # noqa: E402
+from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
+from wallbot_sim.model import DriveForces, Robot, Simulation  # noqa: E402
+from wallbot_sim.model.outputs import side_motor_torques  # noqa: E402
+from wallbot_sim.plots.data import load_run  # noqa: E402
+
+WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
+COMMAND_TIMEOUT = 0.5
+"""The dynamics' default command_timeout (s of simulation time)."""
+MAX_TORQUE = 5.0
+ROBOT = Robot(load_robot_parameters())
+
+
+def children_of(pid: int) -> dict[int, str]:
+    """Child processes of ``pid`` and their command lines (from /proc)."""
+    found = {}
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                ppid = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
+                if ppid == pid:
+                    found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except (OSError, IndexError, ValueError):
+                continue
+    return found
+
+
+def start_run(process_runner, out: Path, scenario: str, duration: float, *extra: str):
+    return process_runner.start([*WALLBOT, 'run', scenario, '--controller', '--duration', str(duration),
+                                 '--out', str(out), '--no-plots', *extra], 'run')
+
+
+def finish(process_runner, process, timeout: float = 120.0) -> str:
+    try:
+        status = process.wait(timeout)
+    except Exception:  # noqa: BLE001 - TimeoutExpired: show what the run said
+        pytest.fail('the run did not finish:\n' + process_runner.output('run'))
+    output = process_runner.output('run')
+    assert status == 0, output
+    assert 'Traceback' not in output
+    return output
+
+
+def applied_torques(run) -> np.ndarray:
+    """(tau_L, tau_R) the dynamics applied at each recorded step: from drive forces and wheel efforts."""
+    radius = ROBOT.params.wheel_radius
+    return np.array([side_motor_torques(DriveForces(*drive), efforts, radius)
+                     for drive, efforts in zip(np.c_[run.F_left, run.F_right, run.F_lateral], run.tau)])
+
+
+def recorded(bag: Path, leaf: str) -> list:
+    """Decoded messages of the topic ``.../leaf`` (or ``/leaf``) in recording order."""
+    return [bagio.deserialize(raw.data, raw.type) for raw in messages(bag)
+            if raw.topic.rsplit('/', 1)[-1] == leaf]
+
+
+def model_closed_loop(scenario_name: str, mass_scale: float, steps: int) -> np.ndarray:
+    """Centre positions of the same loop on the model alone: torques from the state every 5th step
+    (200 Hz), clamped to the limit, held for 5 steps of the 1 kHz plant."""
+    params, scenario = ROBOT.params, load_scenario(scenario_name)
+    plant = Simulation(ROBOT, None, DRIVEN, *scenario.initial_state(ROBOT))
+    controller = TrackingController(Robot(params.replace(body_mass=params.body_mass * mass_scale)), scenario.reference)
+    positions = [plant.q[:2].copy()]
+    for k in range(steps):
+        if k % 5 == 0:
+            command = controller.update(plant.t, plant.q, plant.qd, 5 * plant.dt)
+            plant.set_motor_torque(*(min(MAX_TORQUE, max(-MAX_TORQUE, tau)) for tau in (command.tau_left, command.tau_right)))
+        plant.step()
+        positions.append(plant.q[:2].copy())
+    return np.array(positions)
+
+
+def check_complete(run, duration: float) -> None:
+    stamps = np.round(run.t * 1e9).astype(np.int64)
+    assert stamps[0] == 0 and len(stamps) == round(duration * 1000) + 1
+    assert np.all(np.diff(stamps) == 1_000_000), 'odometry stamps are not consecutive'
+
+
+def check_commands(bag: Path, duration: float) -> None:
+    """wheel_torque_cmd is recorded: about 200 Hz of simulation time, finite, within the limit."""
+    commands = np.array([list(m.data) for m in recorded(bag, 'wheel_torque_cmd')])
+    assert commands.shape[1] == 2 and np.all(np.isfinite(commands))
+    assert np.max(np.abs(commands)) <= MAX_TORQUE
+    assert 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2
+
+
+# --- 1: tracking targets -------------------------------------------------------------------------
+@pytest.mark.parametrize('scenario, mass_scale, bound', [
+    ('circle', 1.0, 5e-3), ('figure8', 1.0, 5e-3), ('circle', 1.2, 2e-2), ('figure8', 0.8, 2e-2)])
+def test_closed_loop_tracks_through_the_graph(tmp_path, process_runner, scenario, mass_scale, bound):
+    """Error after 10 s: < 5 mm with the exact parameters, < 2 cm with the controller's mass 20 % off."""
+    duration = 10.5
+    out = tmp_path / 'run'
+    output = finish(process_runner, start_run(process_runner, out, scenario, duration,
+                                              '--controller-mass-scale', str(mass_scale)))
+    assert f'under tracking_controller_node (mass scale {mass_scale:g})' in output
+    run = load_run(out / 'bag')
+    check_complete(run, duration)
+    after = run.err[run.t >= 10.0]
+    assert np.all(np.isfinite(after)) and np.max(after) < bound, f'error after 10 s: {np.max(after):.3e} m'
+    if scenario == 'circle':  # it starts 0.2 m off the path, at rest: the controller brought it there
+        assert run.err[0] == pytest.approx(0.2, abs=1e-9)
+    check_commands(out / 'bag', duration)
+    # the loop was closed from t = 0: the first step already had the controller's torque
+    tau = applied_torques(run)
+    assert np.all(np.abs(tau[1]) > 0.1)
+    # lockstep: the graph's loop is the model's loop (a 200 Hz controller without delay), whatever the load
+    model = model_closed_loop(scenario, mass_scale, len(run.t) - 1)
+    difference = np.max(np.hypot(model[:, 0] - run.x, model[:, 1] - run.y))
+    assert difference < 1e-9
+    print(f'\n{scenario} mass x{mass_scale}: error after 10 s max {np.max(after) * 1e3:.3f} mm, '
+          f'final {run.err[-1] * 1e3:.3f} mm; graph vs model loop {difference:.1e} m')
+
+
+# --- 2: controller killed --------------------------------------------------------------------------
+def test_killed_controller_falls_back_to_zero_torque_and_the_robot_rolls_down_as_the_model_says(
+        tmp_path, process_runner):
+    duration = 5.0
+    out = tmp_path / 'run'
+    process = start_run(process_runner, out, 'circle', duration)
+    deadline = time.monotonic() + 90
+    while True:  # kill once about 2 s are simulated
+        assert process.poll() is None, process_runner.output('run')
+        assert time.monotonic() < deadline, 'the graph did not come up: ' + process_runner.output('run')
+        shown = re.findall(r't = +([0-9.]+) /', process_runner.output('run'))
+        if shown and float(shown[-1]) > 2.0:
+            break
+        time.sleep(0.05)
+    controller = [pid for pid, cmd in children_of(process.pid).items() if 'wallbot_sim.nodes.controller' in cmd]
+    assert len(controller) == 1
+    os.kill(controller[0], signal.SIGKILL)
+    output = finish(process_runner, process)
+    assert 'node controller exited with status -9' in output and 'the run goes on' in output
+
+    run = load_run(out / 'bag')
+    check_complete(run, duration)  # nothing lost around the kill
+    tau = applied_torques(run)
+    assert np.all(np.isfinite(tau))
+    zero = np.all(np.abs(tau) < 1e-9, axis=1)
+    assert not zero[1] and zero[-1]
+    first_zero = int(np.argmax(zero & (run.t > 1.0)))
+    assert np.all(zero[first_zero:]), 'torque came back after the fallback'
+    held = tau[first_zero - 1]
+    last_change = first_zero - 1
+    while np.max(np.abs(tau[last_change - 1] - held)) < 1e-6:  # recovered torques agree to ~1e-9
+        last_change -= 1
+    # the last command was held command_timeout of simulation time, then zero torque
+    held_for = run.t[first_zero] - run.t[last_change]
+    assert COMMAND_TIMEOUT - 2e-3 <= held_for <= COMMAND_TIMEOUT + 2e-3, held_for
+    assert 2.0 < run.t[last_change] < 4.0
+
+    # /diagnostics said so (1 Hz wall: the zero-torque segment lasts > 1 s)
+    statuses = [s for m in recorded(out / 'bag', 'diagnostics') for s in m.status if s.name.endswith('simulation')]
+    timed_out = [s for s in statuses if {kv.key: kv.value for kv in s.values}.get('command') == 'timed out, zero torque']
+    seen = [(m.header.stamp.sec, {kv.key: kv.value for kv in s.values}.get('command')) for m in recorded(
+        out / 'bag', 'diagnostics') for s in m.status]
+    assert timed_out and all(s.level == 1 for s in timed_out), seen  # WARN
+    assert 'zero torque' in timed_out[0].message
+
+    # the model from the recorded state at the fallback, under zero torque: the same motion
+    k = first_zero - 1  # the state from which the first zero-torque step starts
+    q0 = np.r_[run.x[k], run.y[k], run.theta[k], run.phi[k]]
+    qd0 = np.r_[run.vx[k], run.vy[k], run.omega[k], run.dphi[k]]
+    model = Simulation(ROBOT, None, DRIVEN, q0, qd0, t0=run.t[k])
+    predicted = []
+    for _ in range(len(run.t) - 1 - k):
+        model.step()
+        predicted.append(model.q[:2].copy())
+    predicted = np.array(predicted)
+    actual = np.c_[run.x[k + 1:], run.y[k + 1:]]
+    assert np.max(np.abs(predicted - actual)) < 1e-6
+    # and that motion is rolling down the wall (backwards along its heading), faster and faster
+    later = slice(first_zero + 300, None)
+    assert run.y[-1] < run.y[first_zero] - 1.0
+    assert np.all(run.vy[later] < 0) and np.all(np.diff(run.y[later]) < 0)
+    assert np.all(np.diff(np.hypot(run.vx[later], run.vy[later])) > 0)
+    print(f'\nfallback {held_for:.3f} s after the last command; model vs graph over '
+          f'{run.t[-1] - run.t[k]:.2f} s: {np.max(np.abs(predicted - actual)):.2e} m; fell {run.y[first_zero] - run.y[-1]:.2f} m')
+
+
+# --- 3: two robots in one domain -------------------------------------------------------------------
+ROBOTS = {  # namespace: scenario as parameters (different shapes and places: cross-talk would show)
+    '/r1': {'trajectory': ('shape:=figure8', 'period:=30.0'),
+            'dynamics': ('initial_x:=0.0', 'initial_y:=0.0', 'initial_theta:=0.7853981633974483',
+                         'initial_at_rest:=false')},
+    '/r2': {'trajectory': ('shape:=circle', 'period:=20.0', 'center_x:=3.0'),
+            'dynamics': ('initial_x:=3.8', 'initial_y:=0.0', 'initial_theta:=0.0', 'initial_at_rest:=true')},
+}
+
+
+def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runner):
+    import rclpy
+    duration = 10.5
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    from rosgraph_msgs.msg import Clock
+
+    from wallbot_msgs_py.qos import qos_profile
+    probe = rclpy.create_node('two_robot_probe', context=context)
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
+    executor.add_node(probe)
+    progress = {ns: -1.0 for ns in ROBOTS}
+    for ns in ROBOTS:  # how far each robot's recorder got (its newest /clock written)
+        probe.create_subscription(Clock, f'{ns}/record_progress',
+                                  lambda msg, ns=ns: progress.__setitem__(ns, msg.clock.sec + msg.clock.nanosec * 1e-9),
+                                  qos_profile(topics.RECORD_PROGRESS))
+    procs = {}
+
+    def start(ns: str, name: str, module: str, *params: str):
+        args = [sys.executable, '-m', f'wallbot_sim.nodes.{module}', '--ros-args', '-r', f'__ns:={ns}',
+                '-r', f'/clock:={ns}/clock']  # each robot has its own simulation time
+        for param in params:
+            args += ['-p', param]
+        procs[f'{ns[1:]}_{name}'] = process_runner.start(args, f'{ns[1:]}_{name}')
+
+    def wait_for(predicate, timeout, what):
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            for name, proc in procs.items():
+                assert proc.poll() is None, f'{name} exited:\n{process_runner.output(name)}'
+            if time.monotonic() > deadline:
+                logs = '\n'.join(f'--- {n}\n{process_runner.output(n)[-2000:]}' for n in procs)
+                pytest.fail(f'timed out waiting for {what}\n{logs}')
+            executor.spin_once(timeout_sec=0.1)
+
+    try:
+        for ns, config in ROBOTS.items():
+            start(ns, 'recorder', 'recorder', f'output:={tmp_path / ns[1:]}', 'topics:=[' + ','.join(
+                t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)) + ']')
+            start(ns, 'constraint_config', 'constraint_config', 'trajectory_task:=false', 'belt:=true',
+                  'non_lateral:=true', 'nonslip:=true')
+            start(ns, 'trajectory', 'trajectory', *config['trajectory'])
+            start(ns, 'controller', 'controller')
+        for ns in ROBOTS:  # recorder and controller hear odom before the dynamics starts
+            wait_for(lambda ns=ns: probe.count_subscribers(f'{ns}/odom') == 2
+                     and probe.count_publishers(f'{ns}/wheel_torque_cmd') == 1, 30, f'{ns} recorder and controller')
+        for ns, config in ROBOTS.items():
+            start(ns, 'dynamics', 'dynamics', *config['dynamics'], 'wait_for_command:=true', 'lockstep_every:=5',
+                  'wait_for_recorder:=true',
+                  f'stop_at:={duration}')
+        for ns in ROBOTS:
+            wait_for(lambda ns=ns: progress[ns] >= duration - 1e-9, 60, f'{ns} recorded up to {duration} s')
+            # one publisher per robot topic: nobody answers on the other robot's topics
+            assert probe.count_publishers(f'{ns}/odom') == 1 and probe.count_publishers(f'{ns}/wheel_torque_cmd') == 1
+    finally:
+        for name, proc in procs.items():  # recorders with SIGINT: a closed bag
+            if name.endswith('recorder'):
+                proc.send_signal(signal.SIGINT)
+        for name, proc in procs.items():
+            if name.endswith('recorder'):
+                proc.wait(15)
+        executor.shutdown()
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+    results = {}
+    for ns, start_x in (('/r1', 0.0), ('/r2', 3.8)):
+        run = load_run(tmp_path / ns[1:])
+        assert run.t[0] == 0.0 and np.all(np.diff(np.round(run.t * 1e9)) == 1e6)
+        assert run.x[0] == start_x
+        after = run.err[run.t >= 10.0]
+        assert run.t[-1] >= duration - 1e-9 and np.max(after) < 5e-3, f'{ns}: {np.max(after):.3e} m'
+        results[ns] = run
+        check_commands(tmp_path / ns[1:], duration)
+    # no cross-talk: each robot stays around its own path (the figure-8 within |x| <= 1 m, the circle around x = 3)
+    assert np.max(np.abs(results['/r1'].x)) < 1.01 and np.min(results['/r2'].x) > 1.95
+    print(f'\ntwo robots: error after 10 s {np.max(results["/r1"].err[results["/r1"].t >= 10]) * 1e3:.3f} mm (r1), '
+          f'{np.max(results["/r2"].err[results["/r2"].t >= 10]) * 1e3:.3f} mm (r2)')
