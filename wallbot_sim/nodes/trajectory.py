@@ -30,6 +30,12 @@ from wallbot_sim.nodes.common import check_number, declare, param_dict, paramete
 
 REPLAN_CHECK_PERIOD = 0.02
 """Wall-clock period (s) of the check whether the plan needs renewing."""
+MAX_PLAN_SAMPLES = 200_000
+"""Largest plan accepted: beyond this a parameter set would stall the node building it."""
+LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4}
+"""Upper bounds (m, Hz) on sizes that no wall and no subscriber needs beyond."""
+MIN_PERIOD = 0.01
+"""A lap shorter than this (s) is no reference a robot can follow, and overflows its derivatives."""
 
 
 def make_reference(values: dict):
@@ -56,10 +62,21 @@ def check_values(values: dict) -> list[str]:
     reasons.append(check_number('duration', values['duration'], minimum=0.0))
     if not reasons[-1] and values['sample_dt'] > 0.1:
         reasons.append(f'sample_dt must be <= 0.1 s to keep the interpolation accurate, got {values["sample_dt"]!r}')
-    if isinstance(values['horizon'], float) and isinstance(values['sample_dt'], float) \
-            and values['horizon'] < 10 * values['sample_dt']:
+    reasons = [r for r in reasons if r]
+    if reasons:
+        return reasons
+    for name, limit in LIMITS.items():
+        if values[name] > limit:
+            reasons.append(f'{name} must be <= {limit:g}, got {values[name]!r}')
+    if values['period'] < MIN_PERIOD:
+        reasons.append(f'period must be >= {MIN_PERIOD:g} s, got {values["period"]!r}')
+    if values['horizon'] < 10 * values['sample_dt']:
         reasons.append('horizon must span at least 10 samples')
-    return [r for r in reasons if r]
+    span = values['duration'] + values['stop_time'] if values['duration'] > 0.0 else values['horizon']
+    if span / values['sample_dt'] > MAX_PLAN_SAMPLES:
+        reasons.append(f'a plan of {span:g} s every {values["sample_dt"]:g} s would exceed '
+                       f'{MAX_PLAN_SAMPLES} samples: raise sample_dt or shorten duration/horizon/stop_time')
+    return reasons
 
 
 class TrajectoryNode(Node):
