@@ -33,6 +33,8 @@ class RunSummary:
     peak_drive_force_right: float
     peak_lateral_force: float
     max_residual: float
+    restarts: int = 0
+    """Times simulation time jumped back in the bag; the figures are of the last run."""
 
     def as_dict(self) -> dict:
         data = asdict(self)
@@ -56,7 +58,7 @@ def summarize(path: Path | str) -> RunSummary:
         Path(path), float(run.t[-1] - run.t[0]), len(run.t),
         float(finite_err[-1]) if finite_err.size else math.nan, _peak(err), _peak(late),
         _peak(run.Fx), _peak(run.Fy), _peak(run.Mz), _peak(run.F_left), _peak(run.F_right), _peak(run.F_lateral),
-        _peak(run.residual))
+        _peak(run.residual), run.restarts)
 
 
 def format_summary(summary: RunSummary) -> str:
@@ -71,7 +73,8 @@ def format_summary(summary: RunSummary) -> str:
         f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '
         f'|F_lat| {s.peak_lateral_force:.3f} N',
         f'constraint residual: max {s.max_residual:.3e}',
-    ])
+    ] + ([f'note:                simulation time jumped back {s.restarts} time(s) in this bag (reset or '
+          f'restart of the dynamics); these figures are of the last run'] if s.restarts else []))
 
 
 def write_plots(path: Path | str, out_dir: Path | str | None = None) -> list[Path]:

@@ -5,7 +5,9 @@ matched by header stamp (NaN where a stamp has no message); the reference at tho
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
 present, else the ``reference`` topic (exact stamps, or linear interpolation between them); the residual comes from
 ``/diagnostics`` (key ``max_residual``, the maximum since the previous diagnostics, else a key
-containing "residual"), NaN where absent.
+containing "residual"), NaN where absent. When simulation time jumps back on a topic (the
+dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
+several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
 
 from __future__ import annotations
@@ -57,6 +59,8 @@ class RunData:
     path_x: np.ndarray = field(default_factory=lambda: np.empty(0))
     path_y: np.ndarray = field(default_factory=lambda: np.empty(0))
     """The full reference path if recorded (reference_path), else empty."""
+    restarts: int = 0
+    """How often odometry time jumped back in the bag (earlier runs are not in these arrays)."""
 
     def __len__(self) -> int:
         return len(self.t)
@@ -101,6 +105,22 @@ def _stamp_ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
+class _LastRun(dict):
+    """Messages by header stamp, forgetting everything earlier when the stamp jumps back."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.latest = -1
+        self.restarts = 0
+
+    def put(self, stamp: int, value: object) -> None:
+        if stamp < self.latest:
+            self.clear()
+            self.restarts += 1
+        self.latest = stamp
+        self[stamp] = value
+
+
 def _plan_reference(plan: dict):
     """The SampledReference of the recorded plan samples, or None."""
     if len(plan) < 2:
@@ -125,23 +145,24 @@ def _load_bag(path: Path, label: str) -> RunData:
     if want['odom'] is None:
         raise RunDataError(f'{path} has no odom topic: not a wallbot run')
     names = {v: k for k, v in want.items() if v is not None}
-    odom, wheels, wrench, drive, ref, diag, plan = {}, {}, {}, {}, {}, {}, {}
+    odom, wheels, wrench, drive, ref, diag = (_LastRun() for _ in range(6))
+    plan: dict = {}
     path_xy: tuple[list[float], list[float]] = ([], [])
     for raw in messages(path, list(names)):
         leaf = names[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
         if leaf == 'odom':
-            odom[_stamp_ns(msg.header.stamp)] = bagio.odom_row(msg)
+            odom.put(_stamp_ns(msg.header.stamp), bagio.odom_row(msg))
         elif leaf == 'wheel_states':
-            wheels[_stamp_ns(msg.header.stamp)] = (bagio.joint_row(msg, topics.WHEEL_JOINTS, 'position')
-                                                   + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'velocity')
-                                                   + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'effort'))
+            wheels.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.WHEEL_JOINTS, 'position')
+                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'velocity')
+                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'effort'))
         elif leaf == 'constraint_wrench':
-            wrench[_stamp_ns(msg.header.stamp)] = bagio.wrench_row(msg)[1:]
+            wrench.put(_stamp_ns(msg.header.stamp), bagio.wrench_row(msg)[1:])
         elif leaf == 'drive_forces':
-            drive[_stamp_ns(msg.header.stamp)] = bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort')
+            drive.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort'))
         elif leaf == 'reference':
-            ref[_stamp_ns(msg.header.stamp)] = bagio.reference_row(msg)[1:]
+            ref.put(_stamp_ns(msg.header.stamp), bagio.reference_row(msg)[1:])
         elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
             start = _stamp_ns(msg.header.stamp)
             for point in msg.points:
@@ -155,7 +176,7 @@ def _load_bag(path: Path, label: str) -> RunData:
             keys = [k for k in values if k.lower() == 'max_residual'] or [k for k in values if 'residual' in k.lower()]
             for key in keys[:1]:  # the period's maximum if published, else the instantaneous value
                 try:
-                    diag[_stamp_ns(msg.header.stamp)] = float(values[key])
+                    diag.put(_stamp_ns(msg.header.stamp), float(values[key]))
                 except ValueError:
                     pass
     if not odom:
@@ -188,4 +209,4 @@ def _load_bag(path: Path, label: str) -> RunData:
     residual = matched({k: (v,) for k, v in diag.items()}, 1)[:, 0]
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
                    w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, err, c[:, 0], c[:, 1], c[:, 2],
-                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]))
+                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]), odom.restarts)
