@@ -291,3 +291,38 @@ def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runn
     assert np.max(np.abs(results['/r1'].x)) < 1.01 and np.min(results['/r2'].x) > 1.95
     print(f'\ntwo robots: error after 10 s {np.max(results["/r1"].err[results["/r1"].t >= 10]) * 1e3:.3f} mm (r1), '
           f'{np.max(results["/r2"].err[results["/r2"].t >= 10]) * 1e3:.3f} mm (r2)')
+
+
+# --- the node's own checks (no closed loop) ------------------------------------------------------
+def test_cdr_stamp_and_odometry_decoding():
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+
+    from wallbot_msgs_py import conversions
+    from wallbot_sim.model.outputs import StepOutputs  # noqa: F401 - the conversions' input type
+    from wallbot_sim.nodes.controller import cdr_stamp_ns
+    plant = Simulation(ROBOT, None, DRIVEN, np.array([0.3, -0.2, 2.5, 0, 0, 0, 0]), np.zeros(7), t0=12.345)
+    plant.set_motor_torque(1.0, 2.0)
+    for _ in range(50):
+        plant.step()
+    msg = conversions.odometry_message(plant.outputs())
+    assert cdr_stamp_ns(serialize_message(msg)) == round(plant.t * 1e9)
+    assert cdr_stamp_ns(b'\0\1') is None
+    state = conversions.odometry_to_state(msg)
+    assert state.stamp_ns == round(plant.t * 1e9)
+    assert np.allclose([state.x, state.y, state.theta, state.xd, state.yd, state.thd], plant.q[:3].tolist()
+                       + plant.qd[:3].tolist(), atol=1e-12)
+    msg.twist.twist.linear.x = math.nan
+    with pytest.raises(ValueError, match='not finite'):
+        conversions.odometry_to_state(msg)
+    assert isinstance(Odometry(), type(msg))
+
+
+@pytest.mark.parametrize('param, reason', [('alpha:=-1.0', 'alpha must be > 0'), ('mass_scale:=0.0', 'mass_scale must be > 0'),
+                                           ('integral:=-2.0', 'integral must be >= 0'),
+                                           ('max_wheel_torque:=.nan', 'max_wheel_torque must be a finite number')])
+def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, reason):
+    proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args', '-p', param],
+                                'controller')
+    assert proc.wait(30) == 1
+    assert reason in process_runner.output('controller')
