@@ -59,6 +59,8 @@ from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledRefe
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
+SLOWEST_FACTOR = 1e-3
+"""Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
 LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
@@ -247,6 +249,9 @@ class DynamicsNode(Node):
         for name in ('real_time_factor', 'stop_at'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0))
+        factor = values.get('real_time_factor')
+        if isinstance(factor, float) and 0.0 < factor < SLOWEST_FACTOR:
+            reasons.append(f'real_time_factor must be 0 (as fast as possible) or >= {SLOWEST_FACTOR:g}, got {factor!r}')
         return [r for r in reasons if r]
 
     def _on_set(self, parameters):
@@ -530,6 +535,10 @@ class DynamicsNode(Node):
         anchor_wall, anchor_step = self.anchor
         due = anchor_wall + (step - anchor_step) * dt / factor
         while True:
+            if self.params['real_time_factor'] != factor:  # changed while waiting: due now, re-anchor
+                self.anchor = None
+                due = time.perf_counter()
+                break
             remaining = due - time.perf_counter()
             if remaining <= 0.0 or self.stopping.is_set():
                 break
