@@ -153,7 +153,7 @@ class Simulation:
         return np.concatenate((qd, constrained_acceleration(self.robot.mass_inverse_factor(q), force, rows, rhs)))
 
     def outputs(self) -> StepOutputs:
-        """The outputs at the current state (computed once; the next step reuses the solve)."""
+        """The outputs at the current state (computed once; the next step reuses their solve)."""
         if self._cached is None:
             q, qd = self._y[:DOF], self._y[DOF:]
             motion = self.solve(self._t, q, qd)
@@ -167,7 +167,8 @@ class Simulation:
     def step(self) -> None:
         """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite."""
         with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
-            k1 = np.concatenate((self._y[DOF:], self.outputs().acceleration))
+            cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
+            k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
             y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
         if not np.all(np.isfinite(y)):
             raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')

@@ -15,17 +15,16 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dgelsd as _least_squares
-from scipy.linalg.lapack import dgelsd_lwork as _least_squares_lwork
+from scipy.linalg.lapack import dgelsy as _least_squares
+from scipy.linalg.lapack import dgelsy_lwork as _least_squares_lwork
 
 _RELATIVE_CUTOFF = 1e-10
-"""Singular values of A M^-1/2 below this fraction of the largest count as zero (redundant rows).
-
-Exactly redundant rows leave singular values at round-off, ~1e-16 of the largest; the robot's
-independent rows stay far above the cut.
+"""Rank cut of A M^-1/2: directions whose pivoted-QR diagonal falls below this fraction of the
+largest count as redundant. Exactly redundant rows leave them at round-off, ~1e-16 of the largest;
+the robot's independent rows stay far above the cut.
 """
-_lwork: dict[int, tuple[int, int]] = {}
-"""LAPACK workspace sizes of dgelsd by row count (n = 7 columns)."""
+_lwork: dict[int, int] = {}
+"""LAPACK workspace size of dgelsy by row count (n = 7 columns)."""
 
 
 class ConstrainedMotion(NamedTuple):
@@ -62,7 +61,8 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
 
     With B = A W, qdd = a + W B+ (b - A a): the Udwadia-Kalaba form, whose M^-1/2 may be any
     such factor since qdd - a is the M-norm-smallest least-squares solution either way.
-    B+ (b - A a) is the minimum-norm least-squares solution of one small LAPACK call (dgelsd).
+    B+ (b - A a) is the minimum-norm least-squares solution of one small LAPACK call (dgelsy:
+    QR with column pivoting, then a complete orthogonal factorization of the rank found).
     """
     free = inverse_factor @ (inverse_factor.T @ force)
     count, size = rows.shape
@@ -73,8 +73,9 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
         misfit = np.concatenate((misfit, np.zeros(size - count)))
     work = _lwork.get(count)
     if work is None:
-        work = _lwork[count] = tuple(int(w) for w in _least_squares_lwork(count, size, 1, -1)[:2])
-    solution, _, _, info = _least_squares(rows @ inverse_factor, misfit, work[0], work[1], _RELATIVE_CUTOFF)
+        work = _lwork[count] = int(_least_squares_lwork(count, size, 1, _RELATIVE_CUTOFF)[0])
+    _, solution, _, _, info = _least_squares(rows @ inverse_factor, misfit, np.zeros(size, dtype=np.int32),
+                                             _RELATIVE_CUTOFF, work)
     if info != 0:
         raise np.linalg.LinAlgError(f'least-squares solve of A M^-1/2 failed (LAPACK info {info})')
     return free + inverse_factor @ solution[:size]
