@@ -198,7 +198,9 @@ def test_topics_types_and_1khz_odometry(graph):
     wall_start, sim_start = time.monotonic(), graph.last_stamp()
     time.sleep(1.5)
     wall, sim = time.monotonic() - wall_start, (graph.last_stamp() - sim_start) * 1e-9
-    assert 0.7 < sim / wall < 1.3, f'real-time factor 1 ran at {sim / wall:.2f}'
+    # paced, not free-running (factor 0 runs ~4x here); the lower bound only catches a stall,
+    # since a loaded CI machine may fall behind (speed itself is measured in bench/, not here)
+    assert 0.3 < sim / wall < 1.3, f'real-time factor 1 ran at {sim / wall:.2f}'
 
     odom = graph.messages(topics.ODOM.name)
     stamps = np.array([ns(m) for m in odom])
