@@ -5,6 +5,8 @@ For each scenario and constraint set, the same simulation is stepped with
   * a straightforward Udwadia-Phohomsiri evaluation: two numpy.linalg.pinv per evaluation, no
     structure exploited (wallbot_sim.model.solve),
 and the ratio is printed. Both must end in the same state (a check that the comparison is fair).
+Both share the model's evaluation (Q, the constraint rows, RK4); "solve ratio" compares the two
+solvers alone on the same inputs (A, b, M, Q at the final state).
 
     python bench/bench_core.py [--seconds 2.0]
 """
@@ -20,6 +22,7 @@ import numpy as np
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, solve
 from wallbot_sim.model.robot import DOF
+from wallbot_sim.model.solver import constrained_acceleration
 
 SETS = ('none', 'belt', 'belt,non_lateral', 'belt,non_lateral,nonslip')
 
@@ -31,6 +34,21 @@ class StraightforwardSimulation(Simulation):
         q, qd = y[:DOF], y[DOF:]
         force, rows, rhs = self._problem(t, q, qd)
         return np.concatenate((qd, solve(self.robot.mass_matrix(q), force, rows, rhs).acceleration))
+
+
+def solves_per_second(simulation: Simulation, count: int = 3000) -> tuple[float, float]:
+    """Solves per second at the simulation's state: the core's solver, then the two-pinv formula."""
+    q, qd = simulation.q, simulation.qd
+    force, rows, rhs = simulation._problem(simulation.t, q, qd)
+    mass, factor = simulation.robot.mass_matrix(q), simulation.robot.mass_inverse_factor(q)
+    rates = []
+    for solve_once in (lambda: constrained_acceleration(factor, force, rows, rhs),
+                       lambda: solve(mass, force, rows, rhs)):
+        started = time.perf_counter()
+        for _ in range(count):
+            solve_once()
+        rates.append(count / (time.perf_counter() - started))
+    return rates[0], rates[1]
 
 
 def steps_per_second(simulation: Simulation, steps: int) -> float:
@@ -48,7 +66,8 @@ def main() -> None:
     robot = Robot(load_robot_parameters())
     print(f'# {platform.processor() or platform.machine()}, Python {platform.python_version()}, '
           f'numpy {np.__version__}; {steps} steps of 1 ms per measurement, single thread')
-    print(f'{"scenario":9s} {"constraint set":48s} {"core steps/s":>12s} {"pinv steps/s":>12s} {"ratio":>6s} {"x real time":>11s}')
+    print(f'{"scenario":9s} {"constraint set":48s} {"core steps/s":>12s} {"pinv steps/s":>12s} {"ratio":>6s} '
+          f'{"x real time":>11s} {"solve ratio":>11s}')
     for name in ('circle', 'figure8'):
         scenario = load_scenario(name)
         q0, qd0 = scenario.initial_state(robot)
@@ -59,7 +78,9 @@ def main() -> None:
             fast, slow = steps_per_second(core, steps), steps_per_second(plain, steps)
             if not np.allclose(core.q, plain.q, rtol=1e-9, atol=1e-9):
                 raise SystemExit(f'{name} {constraints}: the two solvers disagree: {core.q} vs {plain.q}')
-            print(f'{name:9s} {selection.label():48s} {fast:12.0f} {slow:12.0f} {fast / slow:6.2f} {fast / 1000:11.1f}')
+            fast_solve, slow_solve = solves_per_second(core)
+            print(f'{name:9s} {selection.label():48s} {fast:12.0f} {slow:12.0f} {fast / slow:6.2f} {fast / 1000:11.1f} '
+                  f'{fast_solve / slow_solve:11.2f}')
 
 
 if __name__ == '__main__':

@@ -74,6 +74,8 @@ class Robot:
         """J_t about the geometric centre."""
         self._resistance_gain = params.rolling_resistance * self.adsorption.normal_force_per_wheel
         self._perpendicular_offsets = [(-dy, dx) for dx, dy in self.wheel_offsets.tolist()]
+        self._first_moment_xy = tuple(self.first_moment.tolist())
+        self._weight = self.total_mass * params.gravity
         self._centred = not self.first_moment.any()
         """With the CoM at the centre, M is constant (and so is its inverse)."""
         chassis = [self.total_mass, self.total_mass, self.yaw_inertia]
@@ -85,7 +87,7 @@ class Robot:
 
     def offset_moment_arm(self, theta: float) -> tuple[float, float]:
         """u(th) = R(th) S s, the coupling between heading and translation."""
-        sx, sy = self.first_moment
+        sx, sy = self._first_moment_xy
         cos_t, sin_t = math.cos(theta), math.sin(theta)
         return (-cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx)
 
@@ -130,14 +132,14 @@ class Robot:
     def applied_force(self, q: np.ndarray, qd: np.ndarray,
                       motor_torque: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
         """Q: offset-CoM centripetal term, gravity, rolling resistance and motor torques."""
-        theta = q[2]
-        xd, yd, thd = qd[0], qd[1], qd[2]
+        theta = float(q[2])
+        xd, yd, thd = qd[:3].tolist()  # Python floats: scalar arithmetic on numpy floats is slower
         cos_t, sin_t = math.cos(theta), math.sin(theta)
-        sx, sy = self.first_moment
+        sx, sy = self._first_moment_xy
         ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
         thd2 = thd * thd
         fx = thd2 * (cos_t * sx - sin_t * sy)
-        fy = thd2 * (sin_t * sx + cos_t * sy) - self.total_mass * self.params.gravity
+        fy = thd2 * (sin_t * sx + cos_t * sy) - self._weight
         mz = -self.params.gravity * uy
         gain, eps2 = self._resistance_gain, self.params.velocity_epsilon ** 2
         for px, py in self._perpendicular_offsets:

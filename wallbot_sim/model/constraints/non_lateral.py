@@ -18,11 +18,13 @@ class NonLateral:
         self.gains = gains
 
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
-        v_long = cos_t * qd[0] + sin_t * qd[1]
-        v_lat = -sin_t * qd[0] + cos_t * qd[1]
+        theta = float(q[2])
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        xd, yd, thd = qd[:3].tolist()
+        v_long = cos_t * xd + sin_t * yd
+        v_lat = -sin_t * xd + cos_t * yd
         return (np.array([[-sin_t, cos_t, 0.0, 0.0, 0.0, 0.0, 0.0]]),
-                np.array([qd[2] * v_long - self.gains.velocity_gain * v_lat]))
+                np.array([thd * v_long - self.gains.velocity_gain * v_lat]))
 
     def velocity_rows(self, q: np.ndarray) -> np.ndarray:
         return np.array([[-math.sin(q[2]), math.cos(q[2]), 0.0, 0.0, 0.0, 0.0, 0.0]])

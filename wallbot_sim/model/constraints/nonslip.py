@@ -22,16 +22,19 @@ class Nonslip:
         self._template[:, 3:] = wheel_radius * np.eye(4)
 
     def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        theta = float(q[2])
         rows = self._template.copy()
-        rows[:, 0] = -math.cos(q[2])
-        rows[:, 1] = -math.sin(q[2])
+        rows[:, :2] = (-math.cos(theta), -math.sin(theta))
         return rows
 
     def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self.velocity_rows(q) @ qd
 
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rows = self.velocity_rows(q)
-        slip = rows @ qd
-        v_lat = -math.sin(q[2]) * qd[0] + math.cos(q[2]) * qd[1]
-        return rows, qd[2] * v_lat - self.gains.velocity_gain * slip
+        theta = float(q[2])
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        rows = self._template.copy()
+        rows[:, :2] = (-cos_t, -sin_t)
+        xd, yd, thd = qd[:3].tolist()
+        v_lat = -sin_t * xd + cos_t * yd
+        return rows, thd * v_lat - self.gains.velocity_gain * (rows @ qd)

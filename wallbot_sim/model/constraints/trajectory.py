@@ -32,8 +32,9 @@ class TrajectoryTask:
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ref = self.reference.sample(t)
         two_alpha, beta2 = 2.0 * self.gains.alpha, self.gains.beta ** 2
+        position, velocity = q[:2].tolist(), qd[:2].tolist()
         b = np.array([
-            ref.acceleration[i] - two_alpha * (qd[i] - ref.velocity[i]) - beta2 * (q[i] - ref.position[i])
+            ref.acceleration[i] - two_alpha * (velocity[i] - ref.velocity[i]) - beta2 * (position[i] - ref.position[i])
             for i in (0, 1)])
         return _UNIT_XY, b
 
@@ -53,9 +54,9 @@ class TangentHeadingTask:
 
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         heading = tangent_heading(self.reference.sample(t))
-        two_alpha = 2.0 * self.gains.alpha
+        two_alpha, theta, rate = 2.0 * self.gains.alpha, float(q[2]), float(qd[2])
         if heading is None:
-            return _UNIT_TH, np.array([-two_alpha * qd[2]])
-        error = wrap_angle(q[2] - heading.angle)
-        return _UNIT_TH, np.array([heading.acceleration - two_alpha * (qd[2] - heading.rate)
+            return _UNIT_TH, np.array([-two_alpha * rate])
+        error = wrap_angle(theta - heading.angle)
+        return _UNIT_TH, np.array([heading.acceleration - two_alpha * (rate - heading.rate)
                                    - self.gains.beta ** 2 * error])
