@@ -182,6 +182,8 @@ class SampledReference:
             raise ParameterError('a sampled reference must be finite')
         self.times = [float(t) for t in times]
         self._samples = samples
+        self._segment = 0
+        self._coefficients = self._segment_coefficients(0)
 
     @property
     def start(self) -> float:
@@ -200,27 +202,38 @@ class SampledReference:
         if t < self.times[0] or t > self.times[-1]:
             px, py = self._samples[0 if t < self.times[0] else -1][:2]
             return ReferenceSample((px, py), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
-        k = min(bisect.bisect_right(self.times, t) - 1, len(self.times) - 2)
+        times = self.times
+        k = self._segment
+        if not times[k] <= t < times[k + 1]:  # the segment bisect would pick; mostly the last one
+            k = self._segment = min(bisect.bisect_right(times, t) - 1, len(times) - 2)
+            self._coefficients = self._segment_coefficients(k)
+        x = t - times[k]
+        cx, cy = self._coefficients
+        return ReferenceSample(*zip(_quintic(x, *cx), _quintic(x, *cy)))
+
+    def _segment_coefficients(self, k: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         h = self.times[k + 1] - self.times[k]
-        x = t - self.times[k]
         p0x, p0y, v0x, v0y, a0x, a0y = self._samples[k]
         p1x, p1y, v1x, v1y, a1x, a1y = self._samples[k + 1]
-        return ReferenceSample(*zip(_quintic(x, h, p0x, v0x, a0x, p1x, v1x, a1x),
-                                    _quintic(x, h, p0y, v0y, a0y, p1y, v1y, a1y)))
+        return (_quintic_coefficients(h, p0x, v0x, a0x, p1x, v1x, a1x),
+                _quintic_coefficients(h, p0y, v0y, a0y, p1y, v1y, a1y))
 
 
-def _quintic(x: float, h: float, p0: float, v0: float, a0: float,
-             p1: float, v1: float, a1: float) -> tuple[float, float, float, float]:
-    """Value and first three derivatives at x of the quintic Hermite segment on [0, h]."""
+def _quintic_coefficients(h: float, p0: float, v0: float, a0: float,
+                          p1: float, v1: float, a1: float) -> tuple[float, ...]:
+    """c0..c5 of the quintic on [0, h] matching position, velocity and acceleration at both ends."""
     d = p1 - (p0 + v0 * h + 0.5 * a0 * h * h)
     e = (v1 - (v0 + a0 * h)) * h
     f = (a1 - a0) * h * h
-    c3 = (10.0 * d - 4.0 * e + 0.5 * f) / h ** 3
-    c4 = (-15.0 * d + 7.0 * e - f) / h ** 4
-    c5 = (6.0 * d - 3.0 * e + 0.5 * f) / h ** 5
-    c2 = 0.5 * a0
-    return (p0 + x * (v0 + x * (c2 + x * (c3 + x * (c4 + x * c5)))),
-            v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5))),
+    return (p0, v0, 0.5 * a0, (10.0 * d - 4.0 * e + 0.5 * f) / h ** 3, (-15.0 * d + 7.0 * e - f) / h ** 4,
+            (6.0 * d - 3.0 * e + 0.5 * f) / h ** 5)
+
+
+def _quintic(x: float, c0: float, c1: float, c2: float, c3: float, c4: float,
+             c5: float) -> tuple[float, float, float, float]:
+    """Value and first three derivatives at x of c0 + c1 x + ... + c5 x^5."""
+    return (c0 + x * (c1 + x * (c2 + x * (c3 + x * (c4 + x * c5)))),
+            c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5))),
             2.0 * c2 + x * (6.0 * c3 + x * (12.0 * c4 + x * 20.0 * c5)),
             6.0 * c3 + x * (24.0 * c4 + x * 60.0 * c5))
 
