@@ -122,6 +122,7 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
     (['circle', '--duration', '0'], '--duration must be a positive number'),
     (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
     (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
+    (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),
 ])
 def test_bad_arguments_give_one_line(args, message):
     result = subprocess.run([*WALLBOT, 'run', *args], capture_output=True, text=True, timeout=60)

@@ -199,6 +199,9 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
 def main(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     selection = ConstraintSelection.parse(args.constraints, tangent_heading=args.tangent_heading)
+    if args.tangent_heading and not selection.non_lateral:
+        raise CliError('--tangent-heading acts with non_lateral in the graph (constraint_config); '
+                       'add non_lateral to --constraints, or use simulate for a heading task without it')
     duration = scenario.duration if args.duration is None else args.duration
     if not (math.isfinite(duration) and duration > 0):
         raise CliError(f'--duration must be a positive number of seconds, got {duration}')
