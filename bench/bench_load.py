@@ -132,7 +132,6 @@ def main() -> int:
     if args.json:
         print(json.dumps(result, indent=2))
         return 0
-    odom = result['topics']['odom']
     rate = result['achieved_rate_hz']
     print(f"{args.scenario}, {args.duration:g} s, controller {'on' if result['controller'] else 'off'}, "
           f"busy loop {'%.0f %% of a core' % (100 * busy_share) if busy_share is not None else 'off'}, "

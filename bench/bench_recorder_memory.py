@@ -22,13 +22,7 @@ import time
 from pathlib import Path
 
 from wallbot_sim.domain import claim_domain_id, isolated_ros_env
-
-
-def rss_mib(pid: int) -> float:
-    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
-        if line.startswith('VmRSS:'):
-            return int(line.split()[1]) / 1024.0
-    return float('nan')
+from wallbot_sim.graph import resident_mib
 
 
 def main() -> int:
@@ -47,14 +41,14 @@ def main() -> int:
         player = None
         try:
             time.sleep(2.0)
-            idle = rss_mib(recorder.pid)
+            idle = resident_mib(recorder.pid)
             player = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(source), '--quiet',
                                        '--delay', '2'], env=env, start_new_session=True)
             started = time.monotonic()
             samples = []
             while player.poll() is None:
                 time.sleep(1.0)
-                samples.append((time.monotonic() - started - 2.0, rss_mib(recorder.pid)))
+                samples.append((time.monotonic() - started - 2.0, resident_mib(recorder.pid)))
             at_10 = next((r for t, r in samples if t >= 10.0), float('nan'))
             final = samples[-1][1] if samples else float('nan')
             peak = max((r for _, r in samples), default=float('nan'))

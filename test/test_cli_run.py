@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from wallbot_msgs_py import bagio
+from wallbot_sim.graph import child_processes
 from wallbot_sim.plots import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
@@ -29,20 +30,6 @@ def odometry(bag: Path) -> np.ndarray:
             msg = bagio.deserialize(message.data, schema.name)
             rows.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, *bagio.odom_row(msg)[1:]))
     return np.array(rows)
-
-
-def children_of(pid: int) -> dict[int, str]:
-    """Child processes of ``pid`` and their command lines (from /proc)."""
-    found = {}
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                ppid = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
-                if ppid == pid:
-                    found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except (OSError, IndexError, ValueError):
-                continue
-    return found
 
 
 @pytest.mark.parametrize('scenario, factor, duration', [('circle', 1.0, 2.0), ('figure8', 0.0, 1.5)])
@@ -91,7 +78,7 @@ def start_run(process_runner, out: Path, *extra: str) -> subprocess.Popen:
 def test_a_node_that_dies_ends_the_run_with_its_status_and_log(tmp_path, process_runner):
     out = tmp_path / 'run'
     process = start_run(process_runner, out)
-    dynamics = [pid for pid, cmd in children_of(process.pid).items() if 'wallbot_sim.nodes.dynamics' in cmd]
+    dynamics = [pid for pid, cmd in child_processes(process.pid).items() if 'wallbot_sim.nodes.dynamics' in cmd]
     assert len(dynamics) == 1
     os.kill(dynamics[0], signal.SIGKILL)
     assert process.wait(timeout=60) == 1
@@ -99,14 +86,14 @@ def test_a_node_that_dies_ends_the_run_with_its_status_and_log(tmp_path, process
     assert 'node dynamics exited with status -9' in error and str(out / 'logs' / 'dynamics.log') in error
     assert 'partial bag kept' in error
     assert (out / 'bag' / 'metadata.yaml').is_file() and len(odometry(out / 'bag')) > 500
-    assert children_of(process.pid) == {}
+    assert child_processes(process.pid) == {}
 
 
 @pytest.mark.parametrize('sig, status', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, process_runner, sig, status):
     out = tmp_path / 'run'
     process = start_run(process_runner, out)
-    nodes = list(children_of(process.pid))
+    nodes = list(child_processes(process.pid))
     os.kill(process.pid, sig)
     assert process.wait(timeout=60) == status
     assert 'Traceback' not in process_runner.output('run')

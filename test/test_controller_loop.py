@@ -25,6 +25,7 @@ from wallbot_sim.bag.reader import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters, load_scenario  # noqa: E402
 from wallbot_sim.control import TrackingController  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
+from wallbot_sim.graph import child_processes  # noqa: E402
 from wallbot_sim.model import DriveForces, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.outputs import side_motor_torques  # noqa: E402
 from wallbot_sim.plots.data import load_run  # noqa: E402
@@ -34,20 +35,6 @@ COMMAND_TIMEOUT = 0.5
 """The dynamics' default command_timeout (s of simulation time)."""
 MAX_TORQUE = 5.0
 ROBOT = Robot(load_robot_parameters())
-
-
-def children_of(pid: int) -> dict[int, str]:
-    """Child processes of ``pid`` and their command lines (from /proc)."""
-    found = {}
-    for entry in Path('/proc').iterdir():
-        if entry.name.isdigit():
-            try:
-                ppid = int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1])
-                if ppid == pid:
-                    found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-            except (OSError, IndexError, ValueError):
-                continue
-    return found
 
 
 def start_run(process_runner, out: Path, scenario: str, duration: float, *extra: str):
@@ -151,7 +138,7 @@ def test_killed_controller_falls_back_to_zero_torque_and_the_robot_rolls_down_as
         if shown and float(shown[-1]) > 2.0:
             break
         time.sleep(0.05)
-    controller = [pid for pid, cmd in children_of(process.pid).items() if 'wallbot_sim.nodes.controller' in cmd]
+    controller = [pid for pid, cmd in child_processes(process.pid).items() if 'wallbot_sim.nodes.controller' in cmd]
     assert len(controller) == 1
     os.kill(controller[0], signal.SIGKILL)
     output = finish(process_runner, process)
@@ -299,7 +286,6 @@ def test_cdr_stamp_and_odometry_decoding():
     from rclpy.serialization import serialize_message
 
     from wallbot_msgs_py import conversions
-    from wallbot_sim.model.outputs import StepOutputs  # noqa: F401 - the conversions' input type
     from wallbot_sim.nodes.controller import cdr_stamp_ns
     plant = Simulation(ROBOT, None, DRIVEN, np.array([0.3, -0.2, 2.5, 0, 0, 0, 0]), np.zeros(7), t0=12.345)
     plant.set_motor_torque(1.0, 2.0)

@@ -103,6 +103,27 @@ class Graph:
             self.stop(name, signal.SIGTERM, timeout)
 
 
+def child_processes(pid: int) -> dict[int, str]:
+    """The live children of process ``pid`` with their command lines (Linux /proc)."""
+    found = {}
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                if int((entry / 'stat').read_text().rsplit(')', 1)[1].split()[1]) == pid:
+                    found[int(entry.name)] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+            except (OSError, IndexError, ValueError):  # gone meanwhile, or not ours to read
+                continue
+    return found
+
+
+def resident_mib(pid: int) -> float:
+    """Resident memory (VmRSS) of process ``pid`` in MiB; NaN if it does not say."""
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024.0
+    return float('nan')
+
+
 def _end_with_parent() -> None:
     """In the child: have Linux send SIGTERM if the launcher dies without stopping the graph."""
     if sys.platform.startswith('linux'):

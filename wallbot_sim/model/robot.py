@@ -136,7 +136,7 @@ class Robot:
         xd, yd, thd = qd[:3].tolist()  # Python floats: scalar arithmetic on numpy floats is slower
         cos_t, sin_t = math.cos(theta), math.sin(theta)
         sx, sy = self._first_moment_xy
-        ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
+        uy = -sin_t * sy + cos_t * sx  # y component of u(th) = R(th) S s
         thd2 = thd * thd
         fx = thd2 * (cos_t * sx - sin_t * sy)
         fy = thd2 * (sin_t * sx + cos_t * sy) - self._weight

@@ -1,0 +1,62 @@
+"""Resident memory of the dynamics node and the recorder in a long real run at 1 kHz.
+
+Starts ``wallbot-sim run circle`` (the real graph, factor 1, all constraints, recorder writing the
+bag), samples VmRSS of its dynamics and recorder processes every few seconds, and stops the run
+with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end, and the growth.
+
+    python bench/bench_memory.py --duration 600      # the issue's 10-minute figure
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from wallbot_sim.graph import child_processes, resident_mib
+
+NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
+    args = parser.parse_args()
+    work = Path(tempfile.mkdtemp(prefix='wallbot_bench_mem_'))
+    run = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
+                            '--no-plots', '--out', str(work / 'run')], stderr=subprocess.DEVNULL)
+    try:
+        pids: dict[str, int] = {}
+        while len(pids) < len(NODES):
+            if run.poll() is not None:
+                raise SystemExit(f'the run ended early with status {run.returncode}')
+            pids = {name: pid for pid, cmd in child_processes(run.pid).items()
+                    for name, module in NODES.items() if module in cmd}
+            time.sleep(0.2)
+        started = time.monotonic()
+        samples: list[tuple[float, dict[str, float]]] = []
+        while time.monotonic() - started < args.duration:
+            time.sleep(5.0)
+            samples.append((time.monotonic() - started, {name: resident_mib(pid) for name, pid in pids.items()}))
+            print(f'{samples[-1][0]:6.0f} s  ' + '  '.join(f'{n} {v:6.1f} MiB' for n, v in samples[-1][1].items()),
+                  flush=True)
+        at_10 = next(values for t, values in samples if t >= 10.0)
+        end = samples[-1][1]
+        print(f'\nafter {samples[-1][0]:.0f} s of the 1 kHz graph (wall time, factor 1):')
+        for name in NODES:
+            print(f'  {name:9s} RSS after 10 s {at_10[name]:6.1f} MiB, at the end {end[name]:6.1f} MiB, '
+                  f'growth {end[name] - at_10[name]:+.1f} MiB')
+    finally:
+        run.send_signal(signal.SIGINT)
+        run.wait(timeout=120)
+        shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
