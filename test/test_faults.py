@@ -144,7 +144,9 @@ def bag_figures(bag, events: dict, t_killed: int) -> dict:
     lives = [stamps[:back[0] + 1], stamps[back[0] + 1:]]
     for life in lives:
         assert np.all(np.diff(life) == 1_000_000), 'consecutive 1 ms stamps within each dynamics life'
-    assert lives[1][0] == 0 and lives[0][-1] >= t_killed
+    # messages still in flight from a SIGKILLed publisher can be lost (seen: 0.23 s under load);
+    # the bag must still hold the first life up to at most a second before the kill
+    assert lives[1][0] == 0 and lives[0][-1] >= t_killed - 1_000_000_000
     # no message received while the dynamics was dead
     dead = (receive > events['dynamics_killed']) & (receive < events['dynamics_restarted'])
     assert not dead.any(), f'{dead.sum()} odometry messages received while the dynamics was dead'
@@ -155,7 +157,8 @@ def bag_figures(bag, events: dict, t_killed: int) -> dict:
 
     def after(leaf, key):
         return sum(1 for r in received[leaf] if r > events[key])
-    figures = {'odom_recorded': len(odom), 'first_life_s': float(lives[0][-1] - lives[0][0]) * 1e-9,
+    figures = {'odom_recorded': len(odom), 'lost_at_kill_s': round(max(0, t_killed - int(lives[0][-1])) * 1e-9, 3),
+               'first_life_s': float(lives[0][-1] - lives[0][0]) * 1e-9,
                'second_life_s': float(lives[1][-1] - lives[1][0]) * 1e-9, 'dynamics_receive_gap_s': round(float(gap), 3),
                'dynamics_down_s': round((events['dynamics_restarted'] - events['dynamics_killed']) * 1e-9, 3),
                'stamps_recorded_twice': duplicated, 'max_receive_gap_first_life_s': round(float(outage_gap), 3),
