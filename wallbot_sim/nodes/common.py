@@ -76,6 +76,7 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     return status
 
 
-def param_dict(parameters: list[Parameter]) -> dict[str, object]:
-    """{name: value} of a parameter callback's list."""
-    return {p.name: p.value for p in parameters}
+def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) -> dict[str, object]:
+    """{name: value} of a parameter callback's list; only the names in ``known`` when given."""
+    names = None if known is None else set(known)
+    return {p.name: p.value for p in parameters if names is None or p.name in names}

@@ -221,7 +221,7 @@ class ControllerNode(Node):
 
     # --- parameters ----------------------------------------------------------------------------
     def _on_set(self, parameters):
-        changes = {k: v for k, v in param_dict(parameters).items() if k in self.values}
+        changes = param_dict(parameters, self.values)
         reasons = check_values({**self.values, **changes})
         if not reasons and 'mass_scale' in changes:
             try:
@@ -231,7 +231,7 @@ class ControllerNode(Node):
         return parameter_result(reasons)
 
     def _after_set(self, parameters) -> None:
-        changes = {k: v for k, v in param_dict(parameters).items() if k in self.values}
+        changes = param_dict(parameters, self.values)
         if not changes:
             return
         self.values.update(changes)

@@ -258,7 +258,7 @@ class DynamicsNode(Node):
         return parameter_result(self._check(param_dict(parameters)))
 
     def _after_set(self, parameters) -> None:
-        changes = {k: v for k, v in param_dict(parameters).items() if k in self.params}
+        changes = param_dict(parameters, self.params)
         if changes:
             self.params = {**self.params, **changes}
             self._post('params', changes)

@@ -176,7 +176,7 @@ class TrajectoryNode(Node):
         return parameter_result(reasons)
 
     def _after_set(self, parameters) -> None:
-        changes = {k: v for k, v in param_dict(parameters).items() if k in self.values}
+        changes = param_dict(parameters, self.values)
         if not changes:
             return
         self.values.update(changes)
