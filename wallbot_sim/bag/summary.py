@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,11 +35,6 @@ class RunSummary:
     max_residual: float
     restarts: int = 0
     """Times simulation time jumped back in the bag; the figures are of the last run."""
-
-    def as_dict(self) -> dict:
-        data = asdict(self)
-        data['path'] = str(self.path)
-        return data
 
 
 def _peak(values: np.ndarray) -> float:

@@ -5,7 +5,7 @@ from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.outputs import DriveForces, StepOutputs, drive_forces
 from wallbot_sim.model.parameters import RobotParameters
-from wallbot_sim.model.robot import DOF, WHEEL_NAMES, Adsorption, Robot, adsorption_analysis
+from wallbot_sim.model.robot import DOF, Adsorption, Robot, adsorption_analysis
 from wallbot_sim.model.scenario import Scenario, make_reference
 from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError, Simulation, SwitchReport
 from wallbot_sim.model.solver import ConstrainedMotion, solve, solve_with_factor
@@ -13,7 +13,7 @@ from wallbot_sim.model.trajectories import (
     Circle, FigureEight, Reference, ReferenceSample, SampledReference, SmoothStop, tangent_heading)
 
 __all__ = [
-    'DEFAULT_STEP', 'DOF', 'STRUCTURAL', 'WHEEL_NAMES', 'Adsorption', 'BaumgarteGains', 'Circle',
+    'DEFAULT_STEP', 'DOF', 'STRUCTURAL', 'Adsorption', 'BaumgarteGains', 'Circle',
     'ConstrainedMotion', 'ConstraintSelection', 'DivergedError', 'DriveForces', 'FigureEight',
     'ModelError', 'ParameterError', 'Reference', 'ReferenceSample', 'Robot', 'RobotParameters',
     'SampledReference', 'Scenario', 'Simulation', 'SmoothStop', 'StepOutputs', 'SwitchReport',

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from wallbot_sim.model.constraints import (
     BaumgarteGains, ConstraintModule, NonLateral, Nonslip, SynchronousBelt, TangentHeadingTask,
@@ -47,10 +47,6 @@ class ConstraintSelection:
         if not self.trajectory:
             return False
         return self.non_lateral if self.tangent_heading is None else self.tangent_heading
-
-    def with_changes(self, **changes: bool | None) -> ConstraintSelection:
-        """A copy with some switches changed."""
-        return replace(self, **changes)
 
     def active_names(self) -> list[str]:
         """Names of the active modules, in stacking order."""

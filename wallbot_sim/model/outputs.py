@@ -68,11 +68,6 @@ class StepOutputs:
         return self.constraint_force[:3]
 
     @property
-    def wheel_constraint_torques(self) -> np.ndarray:
-        """Q_c[3:7]: the constraint torque on each wheel's spin."""
-        return self.constraint_force[3:]
-
-    @property
     def wheel_torques(self) -> np.ndarray:
         """Total torque on each wheel: constraint torque plus its share of the motor torque."""
         tau_left, tau_right = self.motor_torque

@@ -70,11 +70,6 @@ class RobotParameters:
         """A copy with some values changed (validated like any other)."""
         return RobotParameters(**{**asdict(self), **changes})
 
-    def as_dict(self) -> dict[str, Any]:
-        """Plain mapping of every parameter, com_offset as a list."""
-        values = asdict(self)
-        values['com_offset'] = list(self.com_offset)
-        return values
 
 
 def _as_float(name: str, value: Any) -> float:

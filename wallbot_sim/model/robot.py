@@ -14,7 +14,6 @@ import numpy as np
 from wallbot_sim.model.parameters import RobotParameters
 
 DOF = 7
-WHEEL_NAMES = ('left_front', 'left_rear', 'right_front', 'right_rear')
 
 
 @dataclass(frozen=True)
