@@ -96,11 +96,12 @@ def test_each_node_killed_and_restarted_once(process_runner, tmp_path):
         t_killed = graph.last_stamp()
         time.sleep(DOWN)
         graph.clear(topics.ODOM.name)
-        restart(graph, 'dynamics', 'real_time_factor:=1.0')
+        restart(graph, 'dynamics', 'real_time_factor:=1.0', 'wait_for_recorder:=true')  # recorded from t = 0, as in run
         events['dynamics_restarted'] = time.time_ns()
         graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) >= 1_000_000_000], 30,
                        'the restarted dynamics at t = 1 s')
-        assert min(ns(m) for m in graph.messages(topics.ODOM.name)) == 0, 'the restart begins at t = 0'
+        # that the restart begins at t = 0 is checked on the bag (bag_figures): this test's own
+        # subscriber may discover the new publisher after its first messages, the recorder may not
         for name, proc in [*graph.procs.items(), ('recorder', recorder)]:
             assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-2000:]}'
         assert 'simulation time went back' in process_runner.output('trajectory-2'), 'the trajectory saw the jump'
