@@ -10,12 +10,13 @@ import pytest
 pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from rclpy.serialization import serialize_message  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from wallbot_msgs_py import conversions, topics  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
 from wallbot_sim.model import (  # noqa: E402
-    BaumgarteGains, Circle, ConstraintSelection, FigureEight, Robot, Simulation, SmoothStop)
+    BaumgarteGains, Circle, ConstraintSelection, FigureEight, Robot, SampledReference, Simulation, SmoothStop)
 from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
 
 
@@ -135,16 +136,35 @@ def test_tracking_through_the_plan_matches_the_analytic_reference(robot):
         assert np.max(np.abs(analytic.q[:2] - sampled.q[:2])) < 1e-6
 
 
+def test_serialized_plan_decodes_to_the_same_plan():
+    """The dynamics node takes plans raw (plan_from_cdr); they must equal rclpy's decoding."""
+    plan = sample_plan(FigureEight(1.0, 30.0, (0.5, -0.2)), 3.0, 13.0, 0.05)
+    msg = conversions.trajectory_message(plan)
+    assert conversions.plan_from_cdr(serialize_message(msg)) == conversions.plan_from_trajectory(msg)
+
+
+def from_bytes(msg):
+    return SampledReference(*conversions.plan_from_cdr(serialize_message(msg)))
+
+
+@pytest.mark.parametrize('decode', [conversions.reference_from_trajectory, from_bytes], ids=['message', 'cdr'])
 @pytest.mark.parametrize('build, reason', [
     (lambda msg: msg.points.__setitem__(slice(None), msg.points[:1]), '>= 2 points'),
     (lambda msg: msg.points[3].velocities.clear(), 'point 3'),
     (lambda msg: setattr(msg.points[2], 'time_from_start', msg.points[1].time_from_start), 'increase'),
 ])
-def test_bad_plans_are_refused_with_a_reason(build, reason):
+def test_bad_plans_are_refused_with_a_reason(decode, build, reason):
     msg = conversions.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01))
     build(msg)
     with pytest.raises(ValueError, match=reason):
-        conversions.reference_from_trajectory(msg)
+        decode(msg)
+
+
+@pytest.mark.parametrize('cut', [0, 3, 40, -9])
+def test_truncated_serialized_plan_is_refused(cut):
+    data = serialize_message(conversions.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01)))
+    with pytest.raises(ValueError, match='malformed reference_trajectory'):
+        conversions.plan_from_cdr(data[:cut])
 
 
 def test_path_and_reference_odometry():

@@ -158,7 +158,7 @@ class DynamicsNode(Node):
         self.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, self._on_constraints,
                                  qos_profile(topics.CONSTRAINTS))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
-                                 qos_profile(topics.REFERENCE_TRAJECTORY))
+                                 qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)  # see plan_from_cdr
         self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
@@ -208,9 +208,9 @@ class DynamicsNode(Node):
         except ValueError as error:
             self.get_logger().error(f'ignoring constraints message: {error}')
 
-    def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
+    def _on_plan(self, data: bytes) -> None:
         try:
-            plan = conversions.plan_from_trajectory(msg)
+            plan = conversions.plan_from_cdr(data)
             reference = SampledReference(*plan)
         except (ValueError, ModelError) as error:
             self.get_logger().error(f'ignoring reference_trajectory: {error}')
