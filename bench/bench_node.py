@@ -2,10 +2,12 @@
 
 Starts the three nodes on a private ROS domain with all constraints on, rate_hz 1000 and
 publishing every step, then reports
-  * at real_time_factor 1, over --seconds (default 20) of wall time: the achieved step rate
-    (from simulation time on /clock), the node's own max lateness and late-step count (from
-    /diagnostics), and the CPU share of the dynamics process (from /proc);
+  * at real_time_factor 1, over --seconds (default 20) of wall time, first with the node's
+    default realtime_priority and then with 0 (normal scheduling): the achieved step rate,
+    the node's own max lateness and late-step count, and the CPU share of each node (/proc);
   * at real_time_factor 0 (set through the SetParameters service), the factor reached.
+Simulation time is read from the 1 Hz /diagnostics, not from /clock: a 1 kHz subscriber in
+this process would take CPU from the graph it measures.
 
     python bench/bench_node.py [--seconds 20] [--fast-seconds 10]
 """
@@ -42,8 +44,6 @@ def main() -> int:
     from rcl_interfaces.srv import SetParameters
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from rosgraph_msgs.msg import Clock
 
     procs = []
 
@@ -57,12 +57,13 @@ def main() -> int:
 
     rclpy.init()
     node = rclpy.create_node('bench_node')
-    latest = {'clock': None}
     windows: list[dict[str, str]] = []
-    node.create_subscription(Clock, '/clock', lambda m: latest.__setitem__('clock', m.clock.sec + m.clock.nanosec * 1e-9),
-                             QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
-    node.create_subscription(DiagnosticArray, '/diagnostics',
-                             lambda m: windows.append({kv.key: kv.value for kv in m.status[0].values}), 10)
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        values = {kv.key: kv.value for kv in msg.status[0].values}
+        values['wall'] = time.monotonic()
+        windows.append(values)
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinning = True
@@ -73,38 +74,28 @@ def main() -> int:
     spinner = threading.Thread(target=spin, daemon=True)
     spinner.start()
 
-    def sample():
-        time.sleep(0.05)
-        return time.monotonic(), latest['clock']
+    def measure(seconds: float, pids: dict[str, int]) -> tuple[float, list[dict[str, str]], dict[str, float]]:
+        """Real-time factor (simulation over wall time, between the first and the last 1 Hz
+        /diagnostics of the interval), those diagnostics, and each process's CPU share."""
+        windows.clear()
+        cpu0 = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        time.sleep(seconds)
+        cpu1 = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        full = windows[1:]  # the first window began before the interval
+        first, last = full[0], full[-1]
+        factor = (float(last['simulation time']) - float(first['simulation time'])) / (last['wall'] - first['wall'])
+        return factor, full, {name: 100 * (cpu1[name] - cpu0[name]) / seconds for name in pids}
 
     try:
-        start('trajectory')
-        dynamics = start('dynamics')
-        start('constraint_config', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
+        pids = {'dynamics': start('dynamics').pid, 'trajectory': start('trajectory').pid,
+                'constraint_config': start('constraint_config', 'belt:=true', 'non_lateral:=true',
+                                           'nonslip:=true').pid}
         deadline = time.monotonic() + 30
-        while (latest['clock'] or 0.0) < 2.0:
+        while not windows or float(windows[-1]['simulation time']) < 2.0:
             if time.monotonic() > deadline:
                 raise SystemExit('the graph did not start')
             time.sleep(0.1)
 
-        # --- factor 1 ---
-        windows.clear()
-        cpu0, (wall0, sim0) = cpu_seconds(dynamics.pid), sample()
-        time.sleep(args.seconds)
-        cpu1, (wall1, sim1) = cpu_seconds(dynamics.pid), sample()
-        wall = wall1 - wall0
-        rate = (sim1 - sim0) * 1000.0 / wall
-        full = windows[1:-1] or windows
-        lateness = max(float(w['lateness max (ms)']) for w in full)
-        late = sum(int(w['late steps (> 2 ms)']) for w in full)
-        step_mean = sum(float(w['step time mean (ms)']) for w in full) / len(full)
-        print(f'real_time_factor 1, all constraints, publishing every step, {wall:.1f} s wall:')
-        print(f'  achieved step rate     {rate:8.1f} Hz   (target >= 999)')
-        print(f'  max lateness           {lateness:8.3f} ms   ({late} steps later than 2 ms; target 0)')
-        print(f'  step compute mean      {step_mean:8.3f} ms')
-        print(f'  dynamics CPU share     {100 * (cpu1 - cpu0) / wall:8.1f} % of one core (target <= 50)')
-
-        # --- factor 0 ---
         client = node.create_client(SetParameters, '/wallbot/dynamics/set_parameters')
         client.wait_for_service(timeout_sec=5)
 
@@ -112,20 +103,37 @@ def main() -> int:
             future = client.call_async(SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()]))
             while not future.done():
                 time.sleep(0.01)
+            if not future.result().results[0].successful:
+                raise SystemExit(f'{name} := {value!r} refused: {future.result().results[0].reason}')
             time.sleep(1.0)
 
+        # --- factor 1, with the default real-time priority of the loop thread, then without ---
+        for priority in (None, 0):
+            if priority is not None:
+                set_param('realtime_priority', priority)
+            factor, full, cpu = measure(args.seconds, pids)
+            lateness = max(float(w['lateness max (ms)']) for w in full)
+            late = sum(int(w['late steps (> 2 ms)']) for w in full)
+            step_mean = sum(float(w['step time mean (ms)']) for w in full) / len(full)
+            label = 'default realtime_priority' if priority is None else f'realtime_priority {priority}'
+            print(f'real_time_factor 1, all constraints, publishing every step, {label}, {args.seconds:g} s:')
+            print(f'  loop thread priority   {full[-1]["loop priority"]:>8s}')
+            print(f'  achieved step rate     {1000.0 * factor:8.1f} Hz   (target >= 999)')
+            print(f'  max lateness           {lateness:8.3f} ms   ({late} steps later than 2 ms; target 0)')
+            print(f'  step compute mean      {step_mean:8.3f} ms')
+            print('  CPU share (one core)   ' + ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items())
+                  + '  (target dynamics <= 50)')
+
+        # --- factor 0 ---
         for publish_every in (1, 10):
             if publish_every == 1:
                 set_param('real_time_factor', 0.0)
             else:
                 set_param('publish_every', publish_every)
-            cpu0, (wall0, sim0) = cpu_seconds(dynamics.pid), sample()
-            time.sleep(args.fast_seconds)
-            cpu1, (wall1, sim1) = cpu_seconds(dynamics.pid), sample()
-            wall = wall1 - wall0
-            print(f'real_time_factor 0, publish_every {publish_every}, {wall:.1f} s wall:')
-            print(f'  factor reached         {(sim1 - sim0) / wall:8.2f}      (target >= 5)')
-            print(f'  dynamics CPU share     {100 * (cpu1 - cpu0) / wall:8.1f} % of one core')
+            factor, _full, cpu = measure(args.fast_seconds, pids)
+            print(f'real_time_factor 0, publish_every {publish_every}, {args.fast_seconds:g} s:')
+            print(f'  factor reached         {factor:8.2f}      (target >= 5)')
+            print('  CPU share (one core)   ' + ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items()))
         print(f'machine: {os.cpu_count()} CPUs, Python {sys.version.split()[0]}')
     finally:
         spinning = False

@@ -27,6 +27,7 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 from trajectory_msgs.msg import MultiDOFJointTrajectory  # noqa: E402
 
+from test_pacing import may_use_fifo  # noqa: E402
 from wallbot_msgs_py import conversions, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
@@ -231,6 +232,11 @@ def test_topics_types_and_1khz_odometry(graph):
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     assert values['active constraints'] == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
     assert float(values['achieved rate (Hz)']) > 500 and 'adsorption margin' in values
+    if may_use_fifo():  # the paced loop thread runs under SCHED_FIFO at the default priority
+        assert values['loop priority'] == 'SCHED_FIFO 50'
+    else:
+        assert values['loop priority'] == 'normal'
+        assert 'realtime_priority 50 not applied' in graph.runner.output('dynamics')
     assert graph.runner.stop(dynamics) == 0, 'SIGTERM must end the node cleanly'
     assert 'Traceback' not in graph.runner.output('dynamics')
 
@@ -262,7 +268,8 @@ def test_invalid_parameters_are_refused_and_the_nodes_keep_running(graph):
     for node, values in [('dynamics', {'real_time_factor': -1.0}), ('dynamics', {'rate_hz': 0}),
                          ('dynamics', {'command_timeout': math.nan}), ('dynamics', {'max_wheel_torque': 0.0}),
                          ('dynamics', {'initial_x': math.inf}), ('dynamics', {'publish_every': 'often'}),
-                         ('dynamics', {'robot_file': '/nonexistent.yaml'}),
+                         ('dynamics', {'robot_file': '/nonexistent.yaml'}), ('dynamics', {'realtime_priority': 100}),
+                         ('dynamics', {'realtime_priority': -1}),
                          ('trajectory', {'shape': 'square'}), ('trajectory', {'radius': -1.0}),
                          ('trajectory', {'period': 0.0}), ('constraint_config', {'baumgarte_alpha': 0.0}),
                          ('constraint_config', {'belt': 'yes'})]:

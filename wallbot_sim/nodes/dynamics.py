@@ -14,7 +14,9 @@ CPU load or message timing: the same configuration gives the same states at any
 Pacing. At factor f > 0 the step reaching simulation time k*dt is computed ahead and
 published when due, at wall time anchor + k*dt/f (one anchor per run segment, re-anchored
 after a pause, a wait or a factor change, so lateness never accumulates into drift);
-lateness = publish time - due time is measured and reported in /diagnostics.
+lateness = publish time - due time is measured and reported in /diagnostics. While paced and
+keeping up, the loop thread runs under SCHED_FIFO (``realtime_priority``), so a busy machine
+does not delay its wake-ups (``pacing``).
 
 Back-pressure (lossless recording at factor 0). DDS acknowledgements are not enough: a
 reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
@@ -58,6 +60,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.pacing import Pacer
 
 SLOWEST_FACTOR = 1e-3
 """Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
@@ -140,6 +143,10 @@ class DynamicsNode(Node):
                                       'driven mode: after publishing every Nth step, wait for the command '
                                       'answering that state before stepping on (at most 0.25 s wall); 0 = off',
                                       low=0, high=1000000),
+            'realtime_priority': declare(self, 'realtime_priority', 50,
+                                         'SCHED_FIFO priority of the loop thread while paced and keeping up '
+                                         '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
+                                         low=0, high=99),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
@@ -191,7 +198,7 @@ class DynamicsNode(Node):
         self.last_outputs = None
         self.window = Window()
         self.messages = conversions.StepMessages()
-        self.anchor: tuple[float, int] | None = None
+        self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
         self.stopping = threading.Event()
         self.wake = threading.Event()
         # Everything allocated so far (rclpy, numpy, the model) lives for the whole run: move it
@@ -273,11 +280,11 @@ class DynamicsNode(Node):
             while not self.stopping.is_set():
                 self._apply_events()
                 if not self._ready():
-                    self.anchor = None
+                    self.pacer.reanchor()
                     self.wake.wait(0.005)
                     self.wake.clear()
                     continue
-                if self._lockstep_blocked():  # the anchor stays: a prompt answer costs no pace
+                if self._lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
                     self.wake.wait(0.0005)
                     self.wake.clear()
                     continue
@@ -324,9 +331,11 @@ class DynamicsNode(Node):
         # not reached
 
     def _apply_params(self, changes: dict) -> None:
+        if 'realtime_priority' in changes:
+            self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
-        self.anchor = None
+        self.pacer.reanchor()
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
     def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
@@ -349,7 +358,7 @@ class DynamicsNode(Node):
             self.sim = self._simulation(*self._initial_state(), 0.0)
             self.get_logger().info('reset to the initial state at t = 0')
             self._publish(self.sim.outputs())
-        self.anchor = None
+        self.pacer.reanchor()
 
     def _ready(self) -> bool:
         """Apply a pending constraint set if possible; say whether the next step may run."""
@@ -527,23 +536,7 @@ class DynamicsNode(Node):
         self.last_outputs = out
 
     def _pace(self, step: int, dt: float) -> None:
-        factor = self.params['real_time_factor']
-        if factor <= 0.0:
-            return
-        if self.anchor is None:
-            self.anchor = (time.perf_counter(), step - 1)
-        anchor_wall, anchor_step = self.anchor
-        due = anchor_wall + (step - anchor_step) * dt / factor
-        while True:
-            if self.params['real_time_factor'] != factor:  # changed while waiting: due now, re-anchor
-                self.anchor = None
-                due = time.perf_counter()
-                break
-            remaining = due - time.perf_counter()
-            if remaining <= 0.0 or self.stopping.is_set():
-                break
-            time.sleep(min(remaining, 0.05))
-        lateness = time.perf_counter() - due
+        lateness = self.pacer.wait(step, dt, lambda: self.params['real_time_factor'], self.stopping)
         window = self.window
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
@@ -576,6 +569,7 @@ class DynamicsNode(Node):
             ('step time mean (ms)', 1e3 * window.step_time_sum / max(window.steps, 1)),
             ('step time max (ms)', 1e3 * window.step_time_max),
             ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
+            ('loop priority', f'SCHED_FIFO {self.pacer.applied_priority}' if self.pacer.applied_priority else 'normal'),
             ('constraint residual', float(out.residual) if out is not None else math.nan),
             ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
             ('command', command),

@@ -1,0 +1,115 @@
+"""Wall-clock pacing of the dynamics loop, and the loop thread's real-time priority.
+
+At real-time factor f > 0 the step reaching step number k is due at wall time
+``anchor + (k - anchor_step) * dt / f``: one anchor per run segment, so lateness never
+accumulates into drift. The node re-anchors after a pause, a wait or a factor change.
+
+Priority. A paced loop sleeps most of each period; what makes a step late is the time the
+kernel takes to run it again after the sleep, which on a busy machine can exceed 2 ms under
+the normal scheduler (measured: bench/bench_node.py). Under SCHED_FIFO the loop thread wakes
+ahead of every normal thread. A FIFO thread that never sleeps would starve the normal ones,
+so the priority is held only while the loop is paced *and* keeps up: not at factor 0, and
+dropped (with one warning) when the loop stays behind its due times for ``BEHIND_LIMIT``
+steps in a row, until the next re-anchor. Linux only; where the priority is not permitted
+(an unprivileged user without an rtprio limit) the loop runs under the normal scheduler
+after one warning.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from typing import Callable
+
+BEHIND_LIMIT = 1000
+"""Consecutive steps found already due before sleeping, after which the priority is dropped."""
+LONGEST_SLEEP = 0.05
+"""A wait sleeps in slices of at most this (s), to notice factor changes and shutdown."""
+
+
+class Pacer:
+    """Sleeps the loop thread until each step is due; reports how late it woke.
+
+    Call :meth:`wait` from the loop thread only: the scheduling policy it sets applies to the
+    calling thread.
+    """
+
+    def __init__(self, priority: int, warn: Callable[[str], None]) -> None:
+        self._priority = priority
+        self._warn = warn
+        self._anchor: tuple[float, int] | None = None
+        self._behind = 0
+        self._dropped = False
+        self._refused = False
+        self._applied = 0
+
+    def reanchor(self) -> None:
+        """The next step starts a new run segment (after a pause, wait or factor change)."""
+        self._anchor = None
+        self._behind = 0
+        self._dropped = False
+
+    @property
+    def priority(self) -> int:
+        """SCHED_FIFO priority wanted while paced (1-99); 0 = normal scheduling."""
+        return self._priority
+
+    @priority.setter
+    def priority(self, value: int) -> None:
+        self._priority, self._refused = value, False
+
+    @property
+    def applied_priority(self) -> int:
+        """The SCHED_FIFO priority the loop thread holds now (0: normal scheduling)."""
+        return self._applied
+
+    def wait(self, step: int, dt: float, factor: Callable[[], float], stopping: threading.Event) -> float:
+        """Sleep until step number ``step`` is due at the current factor; return the lateness (s).
+
+        ``factor()`` is read again while sleeping: when it changes, the step is due at once and
+        the next one starts a new segment. At factor 0 nothing waits and the lateness is 0.
+        """
+        paced = factor()
+        self._schedule(paced > 0.0)
+        if paced <= 0.0:
+            return 0.0
+        if self._anchor is None:
+            self._anchor = (time.perf_counter(), step - 1)
+        anchor_wall, anchor_step = self._anchor
+        due = anchor_wall + (step - anchor_step) * dt / paced
+        first = True
+        while True:
+            if factor() != paced:
+                self.reanchor()
+                due = time.perf_counter()
+                break
+            remaining = due - time.perf_counter()
+            if first:
+                self._behind = self._behind + 1 if remaining <= 0.0 else 0
+                first = False
+            if remaining <= 0.0 or stopping.is_set():
+                break
+            time.sleep(min(remaining, LONGEST_SLEEP))
+        if self._behind >= BEHIND_LIMIT and self._applied and not self._dropped:
+            self._dropped = True
+            self._warn(f'the loop cannot keep real_time_factor {paced:g}: real-time priority dropped until the '
+                       f'next pause, reset or factor change')
+        return time.perf_counter() - due
+
+    def _schedule(self, paced: bool) -> None:
+        wanted = self._priority if paced and not self._dropped and not self._refused else 0
+        if wanted == self._applied:
+            return
+        try:
+            if wanted:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(wanted))
+            else:
+                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except (OSError, AttributeError) as error:  # AttributeError: no sched_setscheduler (not Linux)
+            self._refused = True
+            reason = error.strerror if isinstance(error, OSError) and error.strerror else 'not supported here'
+            self._warn(f'realtime_priority {wanted} not applied ({reason}): normal scheduling; allow it with an '
+                       f'rtprio limit (ulimit -r, /etc/security/limits.conf) or set realtime_priority 0')
+            return
+        self._applied = wanted
