@@ -127,7 +127,7 @@ def test_reindex_rebuilds_missing_metadata_of_a_complete_bag(tmp_path):
 
 
 def test_ros_conversions_and_portable_encoders_agree(tmp_path, monkeypatch):
-    """simulate --bag through the nodes' conversions (rclpy) and through bagio give the same run."""
+    """simulate --bag with ROS (reference pose through rclpy) and without (through bagio) give the same run."""
     pytest.importorskip('rclpy')
     import wallbot_sim.bag.headless as headless
     if headless._ros_conversions() is None:

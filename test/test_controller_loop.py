@@ -88,12 +88,13 @@ def check_complete(run, duration: float) -> None:
     assert np.all(np.diff(stamps) == 1_000_000), 'odometry stamps are not consecutive'
 
 
-def check_commands(bag: Path, duration: float) -> None:
+def check_commands(bag: Path, duration: float, output: str = '') -> None:
     """wheel_torque_cmd is recorded: about 200 Hz of simulation time, finite, within the limit."""
     commands = np.array([list(m.data) for m in recorded(bag, 'wheel_torque_cmd')])
     assert commands.shape[1] == 2 and np.all(np.isfinite(commands))
     assert np.max(np.abs(commands)) <= MAX_TORQUE
-    assert 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2
+    warnings = '\n'.join(line for line in output.splitlines() if 'WARN' in line or 'ERROR' in line)
+    assert 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2, f'{len(commands)} commands:\n{warnings}'
 
 
 # --- 1: tracking targets -------------------------------------------------------------------------
@@ -112,7 +113,7 @@ def test_closed_loop_tracks_through_the_graph(tmp_path, process_runner, scenario
     assert np.all(np.isfinite(after)) and np.max(after) < bound, f'error after 10 s: {np.max(after):.3e} m'
     if scenario == 'circle':  # it starts 0.2 m off the path, at rest: the controller brought it there
         assert run.err[0] == pytest.approx(0.2, abs=1e-9)
-    check_commands(out / 'bag', duration)
+    check_commands(out / 'bag', duration, output)
     # the loop was closed from t = 0: the first step already had the controller's torque
     tau = applied_torques(run)
     assert np.all(np.abs(tau[1]) > 0.1)
@@ -283,16 +284,18 @@ def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runn
 # --- the node's own checks (no closed loop) ------------------------------------------------------
 def test_cdr_stamp_and_odometry_decoding():
     from nav_msgs.msg import Odometry
-    from rclpy.serialization import serialize_message
+    from rclpy.serialization import deserialize_message
 
-    from wallbot_msgs_py import conversions
+    from wallbot_msgs_py import conversions, topics
+    from wallbot_msgs_py.step_cdr import StepEncoder
     from wallbot_sim.nodes.controller import cdr_stamp_ns
     plant = Simulation(ROBOT, None, DRIVEN, np.array([0.3, -0.2, 2.5, 0, 0, 0, 0]), np.zeros(7), t0=12.345)
     plant.set_motor_torque(1.0, 2.0)
     for _ in range(50):
         plant.step()
-    msg = conversions.odometry_message(plant.outputs())
-    assert cdr_stamp_ns(serialize_message(msg)) == round(plant.t * 1e9)
+    data = dict(StepEncoder().encode(plant.outputs()))[topics.ODOM]
+    msg = deserialize_message(data, Odometry)
+    assert cdr_stamp_ns(data) == round(plant.t * 1e9)
     assert cdr_stamp_ns(b'\0\1') is None
     state = conversions.odometry_to_state(msg)
     assert state.stamp_ns == round(plant.t * 1e9)

@@ -43,52 +43,6 @@ def test_stamps_are_exact_integer_nanoseconds():
     assert conversions.seconds(conversions.stamp(12.5)) == 12.5
 
 
-def test_odometry_pose_in_wall_twist_in_base_link(robot):
-    out = moving_outputs(robot)
-    msg = conversions.odometry_message(out)
-    assert (msg.header.frame_id, msg.child_frame_id) == (topics.WALL_FRAME, topics.BASE_FRAME)
-    assert conversions.stamp_nanoseconds(msg.header.stamp) == 3_000_000
-    x, y, th = out.q[:3]
-    xd, yd, thd = out.qd[:3]
-    assert (msg.pose.pose.position.x, msg.pose.pose.position.y) == (x, y)
-    assert conversions.quaternion_yaw(msg.pose.pose.orientation) == pytest.approx(th, abs=1e-15)
-    # REP 105: twist in the child frame; rotating it back gives the wall-frame velocity
-    vx, vy = msg.twist.twist.linear.x, msg.twist.twist.linear.y
-    assert math.cos(th) * vx - math.sin(th) * vy == pytest.approx(xd, abs=1e-15)
-    assert math.sin(th) * vx + math.cos(th) * vy == pytest.approx(yd, abs=1e-15)
-    assert msg.twist.twist.angular.z == thd
-
-
-def test_wheels_wrench_and_drive_forces(robot):
-    out = moving_outputs(robot, torque=(0.3, -0.2))
-    wheels = conversions.wheel_states_message(out)
-    assert list(wheels.name) == list(topics.WHEEL_JOINTS)
-    assert list(wheels.position) == list(out.q[3:])
-    assert list(wheels.velocity) == list(out.qd[3:])
-    expected_effort = out.constraint_force[3:] + np.array([0.15, 0.15, -0.1, -0.1])
-    assert np.allclose(list(wheels.effort), expected_effort, atol=1e-15)
-    wrench = conversions.constraint_wrench_message(out)
-    assert wrench.header.frame_id == topics.WALL_FRAME
-    assert (wrench.wrench.force.x, wrench.wrench.force.y, wrench.wrench.torque.z) == tuple(out.constraint_force[:3])
-    drive = conversions.drive_forces_message(out)
-    assert list(drive.name) == list(topics.DRIVE_JOINTS)
-    assert list(drive.effort) == [out.drive.left, out.drive.right, out.drive.lateral]
-
-
-def test_step_messages_are_what_the_node_publishes(robot):
-    out = moving_outputs(robot)
-    pairs = conversions.step_messages(out, '/robot2')
-    assert [name for name, _ in pairs] == ['/robot2/odom', '/robot2/wheel_states', '/robot2/constraint_wrench',
-                                           '/robot2/drive_forces', '/clock']
-    assert all(conversions.stamp_nanoseconds(msg.clock if name == '/clock' else msg.header.stamp) == 3_000_000
-               for name, msg in pairs)
-    reused = conversions.StepMessages()
-    first = reused.update(out)
-    again = reused.update(moving_outputs(robot, torque=(0.0, 0.0)))
-    assert first is again and first[0][1] is again[0][1]  # filled in place, nothing allocated per step
-    assert first[0][1] == conversions.odometry_message(moving_outputs(robot, torque=(0.0, 0.0)))
-
-
 @pytest.mark.parametrize('reference', [Circle(1.0, 20.0), FigureEight(1.0, 30.0, (0.5, -0.2)),
                                        SmoothStop(Circle(0.5, 7.0), 3.0, 2.0)], ids=['circle', 'figure8', 'stop'])
 def test_plan_round_trip_interpolates_the_reference(reference):

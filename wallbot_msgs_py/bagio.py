@@ -5,7 +5,9 @@
 * :func:`offered_qos`: the QoS a graph topic is offered with (from :mod:`topics`), as rosbags
   ``Qos`` for the bag's ``offered_qos_profiles``.
 * :func:`decode_stamp` and the ``*_row`` functions: recorded messages into plain numbers, the
-  inverse of what the dynamics and trajectory nodes publish (``wallbot_msgs_py.conversions``).
+  inverse of what the dynamics and trajectory nodes publish (``step_cdr``, ``conversions``).
+* the remaining builders: the latched topics, diagnostics and reference pose of a headless
+  ``simulate --bag`` (its per-step messages come from ``step_cdr``, which needs no ROS either).
 """
 
 from __future__ import annotations
@@ -122,8 +124,8 @@ def diagnostic_values(msg: Any) -> dict[str, str]:
 
 
 # --- encoding without ROS (``simulate --bag``) -------------------------------------------------
-# The field layout mirrors the decoders above and the dynamics/trajectory nodes' conversions:
-# odometry pose in the wall frame, twist in base_link; JointState in WHEEL_JOINTS / DRIVE_JOINTS order.
+# The field layout mirrors the decoders above and the trajectory node's conversions: odometry
+# pose in the wall frame, twist in the child frame.
 
 def _types() -> Any:
     return typestore().types
@@ -160,23 +162,6 @@ def odometry(t: float, x: float, y: float, theta: float, vx: float, vy: float, o
         header=header(t, frame), child_frame_id=child,
         pose=types['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=zeros),
         twist=types['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=zeros.copy()))
-
-
-def joint_state(t: float, names: tuple[str, ...], position=(), velocity=(), effort=(), frame: str = '') -> Any:
-    import numpy as np
-    return _types()['sensor_msgs/msg/JointState'](
-        header=header(t, frame), name=list(names), position=np.asarray(position, dtype=np.float64),
-        velocity=np.asarray(velocity, dtype=np.float64), effort=np.asarray(effort, dtype=np.float64))
-
-
-def wrench_stamped(t: float, fx: float, fy: float, mz: float, frame: str = topics.WALL_FRAME) -> Any:
-    types = _types()
-    return types['geometry_msgs/msg/WrenchStamped'](
-        header=header(t, frame), wrench=types['geometry_msgs/msg/Wrench'](force=_vector(fx, fy), torque=_vector(0, 0, mz)))
-
-
-def clock(t: float) -> Any:
-    return _types()['rosgraph_msgs/msg/Clock'](clock=stamp(t))
 
 
 def path(t: float, points: list[tuple[float, float, float]], frame: str = topics.WALL_FRAME) -> Any:

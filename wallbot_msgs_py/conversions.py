@@ -1,9 +1,8 @@
 """Model state and outputs <-> the graph's ROS messages (plain functions, no node code).
 
 Each ``*_message`` function builds one message from model objects and a simulation time;
-the dynamics node and the headless bag writer (``simulate --bag``) both go through here, so
-a bag written from the model holds the same messages the nodes publish. ``StepMessages``
-is the allocation-free variant the 1 kHz node uses: it fills pre-built messages in place.
+the per-step messages of the dynamics node (odom, wheel_states, constraint_wrench,
+drive_forces, /clock) are encoded straight to CDR bytes by ``step_cdr`` instead.
 
 Conventions (REP 103/105): poses in frame ``wall`` (X right, Y up, Z out of the wall), the
 robot's frame ``base_link`` at the geometric centre; odometry twists are expressed in the
@@ -13,21 +12,17 @@ child frame, so twist.linear = (v_long, v_lat) and twist.angular.z = thd.
 from __future__ import annotations
 
 import math
-from array import array
 from typing import Iterable, NamedTuple, Sequence
 
 from builtin_interfaces.msg import Duration, Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, Quaternion, Transform, Twist, WrenchStamped
+from geometry_msgs.msg import PoseStamped, Quaternion, Transform, Twist
 from nav_msgs.msg import Odometry, Path
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import MultiDOFJointTrajectory, MultiDOFJointTrajectoryPoint
 
 from wallbot_msgs_py import bagio, topics
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.trajectories import Plan, ReferenceSample, SampledReference, tangent_heading
 
 NS_PER_S = 1_000_000_000
@@ -73,119 +68,6 @@ def yaw_quaternion(yaw: float, msg: Quaternion | None = None) -> Quaternion:
 def quaternion_yaw(q: Quaternion) -> float:
     """Yaw of a rotation about Z (the only rotation this graph uses)."""
     return 2.0 * math.atan2(q.z, q.w)
-
-
-# --- one simulation step ----------------------------------------------------------------------
-def _fill_odometry(msg: Odometry, out: StepOutputs) -> Odometry:
-    x, y, th = float(out.q[0]), float(out.q[1]), float(out.q[2])
-    xd, yd, thd = float(out.qd[0]), float(out.qd[1]), float(out.qd[2])
-    c, s = math.cos(th), math.sin(th)
-    stamp(out.t, msg.header.stamp)
-    position, twist = msg.pose.pose.position, msg.twist.twist
-    position.x, position.y = x, y
-    yaw_quaternion(th, msg.pose.pose.orientation)
-    twist.linear.x, twist.linear.y = c * xd + s * yd, -s * xd + c * yd
-    twist.angular.z = thd
-    return msg
-
-
-def _fill_wheels(msg: JointState, out: StepOutputs) -> JointState:
-    stamp(out.t, msg.header.stamp)
-    msg.position = array('d', out.q[3:].tolist())
-    msg.velocity = array('d', out.qd[3:].tolist())
-    msg.effort = array('d', out.wheel_torques.tolist())
-    return msg
-
-
-def _fill_wrench(msg: WrenchStamped, out: StepOutputs) -> WrenchStamped:
-    fx, fy, mz = out.chassis_wrench.tolist()
-    stamp(out.t, msg.header.stamp)
-    msg.wrench.force.x, msg.wrench.force.y, msg.wrench.torque.z = fx, fy, mz
-    return msg
-
-
-def _fill_drive(msg: JointState, out: StepOutputs) -> JointState:
-    stamp(out.t, msg.header.stamp)
-    msg.effort = array('d', (out.drive.left, out.drive.right, out.drive.lateral))
-    return msg
-
-
-def _new_odometry() -> Odometry:
-    msg = Odometry()
-    msg.header.frame_id, msg.child_frame_id = topics.WALL_FRAME, topics.BASE_FRAME
-    return msg
-
-
-def _new_wheels() -> JointState:
-    return JointState(name=list(topics.WHEEL_JOINTS))
-
-
-def _new_wrench() -> WrenchStamped:
-    msg = WrenchStamped()
-    msg.header.frame_id = topics.WALL_FRAME
-    return msg
-
-
-def _new_drive() -> JointState:
-    return JointState(name=list(topics.DRIVE_JOINTS))
-
-
-def odometry_message(out: StepOutputs) -> Odometry:
-    """``odom``: pose of the centre in ``wall``, twist (v_long, v_lat, thd) in ``base_link``."""
-    return _fill_odometry(_new_odometry(), out)
-
-
-def wheel_states_message(out: StepOutputs) -> JointState:
-    """``wheel_states``: spin angle, spin rate, effort = constraint + motor torque, per wheel."""
-    return _fill_wheels(_new_wheels(), out)
-
-
-def constraint_wrench_message(out: StepOutputs) -> WrenchStamped:
-    """``constraint_wrench``: Q_c on the chassis (F_X, F_Y, M_Z about the centre), frame ``wall``."""
-    return _fill_wrench(_new_wrench(), out)
-
-
-def drive_forces_message(out: StepOutputs) -> JointState:
-    """``drive_forces``: efforts F_L, F_R, F_lat (MODEL.md section 7) of drive_left, drive_right, lateral."""
-    return _fill_drive(_new_drive(), out)
-
-
-def clock_message(t: float) -> Clock:
-    """``/clock`` at simulation time t."""
-    msg = Clock()
-    stamp(t, msg.clock)
-    return msg
-
-
-class StepMessages:
-    """The messages of one dynamics step, pre-built once and refilled in place.
-
-    ``update(out)`` returns (Topic, message) pairs in publishing order: odom, wheel_states,
-    constraint_wrench, drive_forces, /clock (last, so a subscriber that has seen a clock
-    stamp knows the step's other messages were sent before it). The messages are reused:
-    publish or serialize them before the next ``update``.
-    """
-
-    def __init__(self) -> None:
-        self.odom, self.wheels, self.wrench = _new_odometry(), _new_wheels(), _new_wrench()
-        self.drive, self.clock = _new_drive(), Clock()
-        self._pairs = [(topics.ODOM, self.odom), (topics.WHEEL_STATES, self.wheels),
-                       (topics.CONSTRAINT_WRENCH, self.wrench), (topics.DRIVE_FORCES, self.drive),
-                       (topics.CLOCK, self.clock)]
-
-    def update(self, out: StepOutputs) -> list[tuple[topics.Topic, object]]:
-        """Fill every message from ``out``; the returned list is the same object each time."""
-        _fill_odometry(self.odom, out)
-        _fill_wheels(self.wheels, out)
-        _fill_wrench(self.wrench, out)
-        _fill_drive(self.drive, out)
-        stamp(out.t, self.clock.clock)
-        return self._pairs
-
-
-def step_messages(out: StepOutputs, namespace: str = topics.NAMESPACE) -> list[tuple[str, object]]:
-    """(absolute topic name, fresh message) for everything the dynamics node publishes at one step."""
-    return [(topic.resolve(namespace), msg) for topic, msg in StepMessages().update(out)]
 
 
 class PlanarState(NamedTuple):

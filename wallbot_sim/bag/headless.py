@@ -1,10 +1,9 @@
 """``simulate --bag``: the graph's recorded topics written straight from the model, no middleware.
 
-The per-step messages are built by ``wallbot_msgs_py.conversions`` (the dynamics node's own
-``StepMessages`` and reference conversion) and serialized by rclpy when ROS is installed, so they
-are byte for byte what the node publishes; without ROS the ROS-free encoders of
-``wallbot_msgs_py.bagio`` (same topics, types, frames and field layout) are used. Either way the loader, plots, ``play`` and ``summary`` treat
-this bag like one recorded from ``run``. Differences, by design: the receive timestamps are the
+The per-step messages are the dynamics node's own bytes (``wallbot_msgs_py.step_cdr``, ROS-free).
+The reference pose is the trajectory node's conversion serialized by rclpy when ROS is installed,
+else the ROS-free encoder of ``wallbot_msgs_py.bagio`` (same type, frames and field layout).
+Either way the loader, plots, ``play`` and ``summary`` treat this bag like one recorded from ``run``. Differences, by design: the receive timestamps are the
 simulation time (ns since 0) rather than the recorder's clock, and ``/diagnostics`` is written at
 DIAGNOSTICS_RATE Hz with ``max_residual``, the largest residual since the previous one.
 """
@@ -15,8 +14,9 @@ import math
 from pathlib import Path
 
 from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.bag.writer import BagWriter
-from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
+from wallbot_sim.model import ReferenceSample, Simulation, StepOutputs, tangent_heading
 
 DIAGNOSTICS_RATE = 10.0
 """Hz of /diagnostics (residual, constraint set)."""
@@ -37,9 +37,7 @@ class HeadlessBagWriter:
                                 topics.DIAGNOSTICS)}
         self._latched_done = False
         self._ros = _ros_conversions()
-        if self._ros is not None:
-            conversions, _serialize = self._ros
-            self._step = conversions.StepMessages()
+        self._step = StepEncoder()
 
     @classmethod
     def open(cls, path: Path, simulation: Simulation) -> HeadlessBagWriter:
@@ -76,37 +74,21 @@ class HeadlessBagWriter:
         t = out.t
         if not self._latched_done:
             self._latched(t)
-        if self._ros is not None:
-            self._write_ros(out)
-        else:
-            self._write_portable(out)
+        for topic, data in self._step.encode(out):
+            self._put_raw(topic, t, data)
+        if out.reference is not None:
+            self._put_raw(topics.REFERENCE, t, self._reference_bytes(out.reference, t))
         self._diagnostics(out)
 
-    def _write_ros(self, out: StepOutputs) -> None:
-        conversions, serialize = self._ros
-        t = out.t
-        for topic, msg in self._step.update(out):
-            self._put_raw(topic, t, serialize(msg))
-        if out.reference is not None:
-            self._put_raw(topics.REFERENCE, t, serialize(conversions.reference_odometry_message(out.reference, t)))
-
-    def _write_portable(self, out: StepOutputs) -> None:
-        t = out.t
-        q, qd = out.q, out.qd
-        self._put(topics.CLOCK, t, bagio.clock(t))
-        self._put(topics.ODOM, t, bagio.odometry(t, q[0], q[1], q[2], qd[0], qd[1], qd[2]))
-        self._put(topics.WHEEL_STATES, t, bagio.joint_state(t, topics.WHEEL_JOINTS, q[3:7], qd[3:7], out.wheel_torques))
-        fx, fy, mz = out.chassis_wrench
-        self._put(topics.CONSTRAINT_WRENCH, t, bagio.wrench_stamped(t, fx, fy, mz))
-        self._put(topics.DRIVE_FORCES, t, bagio.joint_state(
-            t, topics.DRIVE_JOINTS, effort=(out.drive.left, out.drive.right, out.drive.lateral)))
-        if out.reference is not None:
-            sample = out.reference
-            heading = tangent_heading(sample)
-            theta = heading.angle if heading is not None else 0.0
-            rate = heading.rate if heading is not None else 0.0
-            self._put(topics.REFERENCE, t, bagio.odometry(t, *sample.position, theta, *sample.velocity, rate,
-                                                          child='reference'))
+    def _reference_bytes(self, sample: ReferenceSample, t: float) -> bytes:
+        if self._ros is not None:
+            conversions, serialize = self._ros
+            return serialize(conversions.reference_odometry_message(sample, t))
+        heading = tangent_heading(sample)
+        theta = heading.angle if heading is not None else 0.0
+        rate = heading.rate if heading is not None else 0.0
+        return bagio.serialize(bagio.odometry(t, *sample.position, theta, *sample.velocity, rate,
+                                              child=topics.REFERENCE_FRAME), topics.REFERENCE.type)
 
     def _diagnostics(self, out: StepOutputs) -> None:
         t = out.t
@@ -129,7 +111,7 @@ def _ros_conversions():
         from rclpy.serialization import serialize_message
 
         from wallbot_msgs_py import conversions
-        conversions.StepMessages, conversions.reference_odometry_message  # noqa: B018 (API check)
+        conversions.reference_odometry_message  # noqa: B018 (API check)
     except Exception:  # no ROS, or conversions not there yet: the ROS-free encoders
         return None
     return conversions, serialize_message

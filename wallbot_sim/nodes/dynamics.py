@@ -56,6 +56,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import conversions, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.scenario import moving_start
@@ -67,12 +68,13 @@ SLOWEST_FACTOR = 1e-3
 LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
+"""Seconds between repeated warnings of one kind."""
 LOCKSTEP_WAIT = 0.25
 """Wall seconds lockstep waits for a controller's command before it gives up (until commands return)."""
-"""Seconds between repeated warnings of one kind."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.CLOCK: ClockMsg}
+"""The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
 
 
 @dataclass
@@ -197,7 +199,7 @@ class DynamicsNode(Node):
         self.recorder_checked = 0.0
         self.last_outputs = None
         self.window = Window()
-        self.messages = conversions.StepMessages()
+        self.encoder = StepEncoder()
         self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
         self.stopping = threading.Event()
         self.wake = threading.Event()
@@ -527,11 +529,11 @@ class DynamicsNode(Node):
         window.step_time_max = max(window.step_time_max, step_time)
         publish = sim.steps % self.params['publish_every'] == 0
         if publish:
-            pairs = self.messages.update(out)
+            encoded = self.encoder.encode(out)
         self._pace(sim.steps, sim.dt)
         if publish:
-            for topic, msg in pairs:
-                self.publishers_[topic].publish(msg)
+            for topic, data in encoded:
+                self.publishers_[topic].publish(data)
             self._mark_sync()
         self.last_outputs = out
 
@@ -545,8 +547,8 @@ class DynamicsNode(Node):
     def _publish(self, out) -> None:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
-        for topic, msg in self.messages.update(out):
-            self.publishers_[topic].publish(msg)
+        for topic, data in self.encoder.encode(out):
+            self.publishers_[topic].publish(data)
         self._mark_sync()
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------

@@ -1,0 +1,165 @@
+"""The dynamics node's per-step messages as CDR bytes, encoded without ROS.
+
+Every step publishes odom, wheel_states, constraint_wrench, drive_forces and /clock. Their
+strings (frames, joint names) and array lengths never change, so each message is a fixed
+byte template whose numbers are overwritten in place: encoding a step costs a few
+``struct.pack_into`` calls instead of filling rclpy message objects and having rclpy convert
+and serialize them (measured: bench/bench_node.py, README). The bytes are what rclpy itself
+serializes for the same message (XCDR1, little endian; checked by test_step_cdr.py), so the
+node publishes them as serialized messages, and ``simulate --bag`` writes them unchanged with
+or without a ROS install.
+
+Field meanings (REP 103/105, as ``conversions`` documents them): odom pose of the centre in
+``wall``, twist (v_long, v_lat, thd) in ``base_link``; wheel_states position / velocity /
+effort per wheel in WHEEL_JOINTS order, effort = constraint torque + motor torque;
+constraint_wrench Q_c on the chassis (F_X, F_Y, M_Z) in ``wall``; drive_forces effort
+(F_L, F_R, F_lat) of DRIVE_JOINTS; every stamp the simulation time.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+from wallbot_msgs_py import topics
+from wallbot_sim.model.outputs import StepOutputs
+
+ENCAPSULATION = b'\x00\x01\x00\x00'
+"""CDR, little endian (what rmw_fastrtps writes)."""
+NS_PER_S = 1_000_000_000
+
+_STAMP = struct.Struct('<iI')
+_TWO = struct.Struct('<2d')
+_THREE = struct.Struct('<3d')
+_ONE = struct.Struct('<d')
+
+
+class _Template:
+    """A message's bytes built field by field with CDR alignment; offsets of the fields that change."""
+
+    def __init__(self) -> None:
+        self.data = bytearray(ENCAPSULATION)
+
+    def _align(self, size: int) -> None:
+        self.data += bytes(-(len(self.data) - len(ENCAPSULATION)) % size)
+
+    def uint32(self, value: int) -> int:
+        self._align(4)
+        offset = len(self.data)
+        self.data += struct.pack('<I', value)
+        return offset
+
+    def stamp(self) -> int:
+        """builtin_interfaces/Time (int32 sec, uint32 nanosec), zero for now; its offset."""
+        offset = self.uint32(0)
+        self.uint32(0)
+        return offset
+
+    def string(self, text: str) -> None:
+        encoded = text.encode()
+        self.uint32(len(encoded) + 1)
+        self.data += encoded + b'\x00'
+
+    def strings(self, texts: tuple[str, ...]) -> None:
+        self.uint32(len(texts))
+        for text in texts:
+            self.string(text)
+
+    def doubles(self, count: int) -> int:
+        """``count`` float64 fields (zero for now); the offset of the first."""
+        if count:
+            self._align(8)
+        offset = len(self.data)
+        self.data += bytes(8 * count)
+        return offset
+
+    def double_sequence(self, count: int) -> int:
+        self.uint32(count)
+        return self.doubles(count)
+
+    def header(self, frame: str) -> int:
+        """std_msgs/Header; the offset of its stamp."""
+        offset = self.stamp()
+        self.string(frame)
+        return offset
+
+
+class StepEncoder:
+    """Encodes the messages of one step; ``encode`` returns (Topic, bytes) in publishing order.
+
+    The order is odom, wheel_states, constraint_wrench, drive_forces, /clock (last, so a
+    subscriber that has seen a clock stamp knows the step's other messages were sent before it).
+    """
+
+    def __init__(self) -> None:
+        odom = _Template()
+        self._odom_stamp = odom.header(topics.WALL_FRAME)
+        odom.string(topics.BASE_FRAME)
+        self._odom_position = odom.doubles(3)
+        self._odom_orientation = odom.doubles(4)
+        odom.doubles(36)  # pose covariance: unknown (zeros)
+        self._odom_twist = odom.doubles(6)
+        odom.doubles(36)
+
+        wheels = _Template()
+        self._wheels_stamp = wheels.header('')
+        wheels.strings(topics.WHEEL_JOINTS)
+        count = len(topics.WHEEL_JOINTS)
+        self._wheels_position = wheels.double_sequence(count)
+        self._wheels_velocity = wheels.double_sequence(count)
+        self._wheels_effort = wheels.double_sequence(count)
+
+        wrench = _Template()
+        self._wrench_stamp = wrench.header(topics.WALL_FRAME)
+        self._wrench_force = wrench.doubles(3)
+        self._wrench_torque = wrench.doubles(3)
+
+        drive = _Template()
+        self._drive_stamp = drive.header('')
+        drive.strings(topics.DRIVE_JOINTS)
+        drive.double_sequence(0)
+        drive.double_sequence(0)
+        self._drive_effort = drive.double_sequence(len(topics.DRIVE_JOINTS))
+
+        clock = _Template()
+        self._clock_stamp = clock.stamp()
+
+        self._odom, self._wheels, self._wrench = odom.data, wheels.data, wrench.data
+        self._drive, self._clock = drive.data, clock.data
+        self._wheel_values = struct.Struct(f'<{count}d')
+
+    def encode(self, out: StepOutputs) -> list[tuple[topics.Topic, bytes]]:
+        """The five messages of ``out`` as CDR bytes (new bytes objects, safe to keep)."""
+        sec, nanosec = divmod(round(out.t * 1e9), NS_PER_S)
+        q, qd = out.q.tolist(), out.qd.tolist()
+        x, y, theta = q[0], q[1], q[2]
+        xd, yd, thd = qd[0], qd[1], qd[2]
+        c, s = math.cos(theta), math.sin(theta)
+
+        odom = self._odom
+        _STAMP.pack_into(odom, self._odom_stamp, sec, nanosec)
+        _TWO.pack_into(odom, self._odom_position, x, y)
+        _TWO.pack_into(odom, self._odom_orientation + 16, math.sin(0.5 * theta), math.cos(0.5 * theta))
+        _TWO.pack_into(odom, self._odom_twist, c * xd + s * yd, -s * xd + c * yd)
+        _ONE.pack_into(odom, self._odom_twist + 40, thd)
+
+        wheels, values = self._wheels, self._wheel_values
+        _STAMP.pack_into(wheels, self._wheels_stamp, sec, nanosec)
+        values.pack_into(wheels, self._wheels_position, *q[3:])
+        values.pack_into(wheels, self._wheels_velocity, *qd[3:])
+        values.pack_into(wheels, self._wheels_effort, *out.wheel_torques.tolist())
+
+        wrench = self._wrench
+        fx, fy, mz = out.chassis_wrench.tolist()
+        _STAMP.pack_into(wrench, self._wrench_stamp, sec, nanosec)
+        _TWO.pack_into(wrench, self._wrench_force, fx, fy)
+        _ONE.pack_into(wrench, self._wrench_torque + 16, mz)
+
+        drive = self._drive
+        _STAMP.pack_into(drive, self._drive_stamp, sec, nanosec)
+        _THREE.pack_into(drive, self._drive_effort, out.drive.left, out.drive.right, out.drive.lateral)
+
+        _STAMP.pack_into(self._clock, self._clock_stamp, sec, nanosec)
+        return [(topics.ODOM, bytes(odom)), (topics.WHEEL_STATES, bytes(wheels)),
+                (topics.CONSTRAINT_WRENCH, bytes(wrench)), (topics.DRIVE_FORCES, bytes(drive)),
+                (topics.CLOCK, bytes(self._clock))]
