@@ -93,8 +93,14 @@ def check_commands(bag: Path, duration: float, output: str = '') -> None:
     commands = np.array([list(m.data) for m in recorded(bag, 'wheel_torque_cmd')])
     assert commands.shape[1] == 2 and np.all(np.isfinite(commands))
     assert np.max(np.abs(commands)) <= MAX_TORQUE
-    warnings = '\n'.join(line for line in output.splitlines() if 'WARN' in line or 'ERROR' in line)
-    assert 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2, f'{len(commands)} commands:\n{warnings}'
+    if not 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2:
+        received = {leaf: [raw.timestamp for raw in messages(bag) if raw.topic.rsplit('/', 1)[-1] == leaf]
+                    for leaf in ('odom', 'wheel_torque_cmd')}
+        first_odom, command_times = received['odom'][0], np.array(received['wheel_torque_cmd'])
+        warnings = '\n'.join(line for line in output.splitlines() if 'WARN' in line or 'ERROR' in line)
+        pytest.fail(f'{len(commands)} commands recorded; the first {(command_times[0] - first_odom) * 1e-9:.3f} s '
+                    f'after the first odom, largest gap {np.max(np.diff(command_times)) * 1e-9:.3f} s; '
+                    f'warnings:\n{warnings}')
 
 
 # --- 1: tracking targets -------------------------------------------------------------------------
@@ -315,3 +321,41 @@ def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, 
                                 'controller')
     assert proc.wait(30) == 1
     assert reason in process_runner.output('controller')
+
+
+def test_controller_waits_for_a_recorder_before_subscribing_odom(process_runner):
+    """run --controller: the dynamics starts once the controller subscribes odom; with
+    wait_for_recorder the controller does that only when a recorder hears its commands, so the
+    bag holds every command from t = 0."""
+    import rclpy
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import Float64MultiArray
+
+    from wallbot_msgs_py.qos import qos_profile
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    probe = rclpy.create_node('recorder_probe', namespace=topics.NAMESPACE, context=context)
+    odom, commands = topics.ODOM.resolve(), topics.WHEEL_TORQUE_CMD.resolve()
+
+    def wait_for(predicate, what: str) -> None:
+        deadline = time.monotonic() + 30
+        while not predicate():
+            assert proc.poll() is None, process_runner.output('controller')
+            if time.monotonic() > deadline:
+                pytest.fail(f'timed out waiting for {what}:\n{process_runner.output("controller")}')
+            time.sleep(0.05)
+
+    try:
+        proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args',
+                                     '-p', 'wait_for_recorder:=true'], 'controller')
+        wait_for(lambda: probe.count_publishers(commands) == 1, 'the controller')
+        time.sleep(1.0)
+        assert probe.count_subscribers(odom) == 0, 'subscribed odom with no recorder listening'
+        probe.create_publisher(Clock, topics.RECORD_PROGRESS.name, qos_profile(topics.RECORD_PROGRESS))
+        probe.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, lambda _msg: None,
+                                  qos_profile(topics.WHEEL_TORQUE_CMD))
+        wait_for(lambda: probe.count_subscribers(odom) == 1, 'the odom subscription')
+        assert 'a recorder hears wheel_torque_cmd: subscribing odom' in process_runner.output('controller')
+    finally:
+        probe.destroy_node()
+        rclpy.try_shutdown(context=context)

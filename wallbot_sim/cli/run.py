@@ -88,7 +88,8 @@ def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: flo
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
     ]
     if closed_loop:
-        specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {'mass_scale': float(controller_mass_scale)}))
+        specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
+            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': True}))
     specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,

@@ -119,6 +119,9 @@ class ControllerNode(Node):
                                   "the file's (model mismatch; > 0)"),
             'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
                                         'commands are clamped to +-this (N m, > 0; the dynamics\' limit)'),
+            'wait_for_recorder': declare(self, 'wait_for_recorder', False,
+                                         'subscribe odom only once a recorder (record_progress) is matched on '
+                                         'wheel_torque_cmd, so a recording holds every command', read_only=True),
         }
         reasons = check_values(self.values)
         if reasons:
@@ -137,9 +140,10 @@ class ControllerNode(Node):
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY))
-        # raw: of the 1 kHz odometry only the messages acted on are decoded (the stamp is read
-        # from the CDR bytes), which keeps the controller's CPU share low on a busy machine
-        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
+        if self.values['wait_for_recorder']:
+            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded)
+        else:
+            self._subscribe_odom()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
@@ -158,6 +162,31 @@ class ControllerNode(Node):
     @property
     def period_ns(self) -> int:
         return round(1e9 / self.values['rate_hz'])
+
+    # --- start-up -----------------------------------------------------------------------------
+    def _subscribe_odom(self) -> None:
+        # raw: of the 1 kHz odometry only the messages acted on are decoded (the stamp is read
+        # from the CDR bytes), which keeps the controller's CPU share low on a busy machine
+        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
+
+    def _subscribe_when_recorded(self) -> None:
+        """wait_for_recorder: subscribe odom once a recorder hears wheel_torque_cmd.
+
+        A dynamics node waiting for a controller (its wait_for_command) starts when this node
+        subscribes odom; before that, a recorder that publishes record_progress must subscribe
+        wheel_torque_cmd and every discovered subscription of it must be matched to this
+        publisher, or the first commands of the run could be sent before the recorder hears them.
+        """
+        command_topic = self.command_pub.topic_name
+        progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
+        recorders = {(i.node_namespace, i.node_name) for i in self.get_publishers_info_by_topic(progress_topic)}
+        listeners = self.get_subscriptions_info_by_topic(command_topic)
+        if (not recorders or not recorders <= {(i.node_namespace, i.node_name) for i in listeners}
+                or self.command_pub.get_subscription_count() < len(listeners)):
+            return
+        self.recorder_check.cancel()
+        self.get_logger().info('a recorder hears wheel_torque_cmd: subscribing odom')
+        self._subscribe_odom()
 
     # --- callbacks -----------------------------------------------------------------------------
     def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
