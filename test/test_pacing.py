@@ -92,7 +92,7 @@ def test_factor_change_while_waiting_makes_the_step_due_and_reanchors(clock, sch
     pacer = Pacer(0, [].append)
     stopping = threading.Event()
     pacer.wait(1, 1.0, lambda: 1.0, stopping)
-    factors = iter([1.0, 1.0])  # read at the start and before the first sleep; then 4
+    factors = iter([1.0])  # read at the start; after the first sleep slice it is 4
     began = clock.now
     assert pacer.wait(2, 1.0, lambda: next(factors, 4.0), stopping) == 0.0
     assert clock.now == pytest.approx(began + pacing.LONGEST_SLEEP)  # one slice, not the whole second

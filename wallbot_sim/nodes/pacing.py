@@ -78,19 +78,15 @@ class Pacer:
             self._anchor = (time.perf_counter(), step - 1)
         anchor_wall, anchor_step = self._anchor
         due = anchor_wall + (step - anchor_step) * dt / paced
-        first = True
-        while True:
+        remaining = due - time.perf_counter()
+        self._behind = self._behind + 1 if remaining <= 0.0 else 0
+        while remaining > 0.0 and not stopping.is_set():
+            time.sleep(min(remaining, LONGEST_SLEEP))
             if factor() != paced:
                 self.reanchor()
                 due = time.perf_counter()
                 break
             remaining = due - time.perf_counter()
-            if first:
-                self._behind = self._behind + 1 if remaining <= 0.0 else 0
-                first = False
-            if remaining <= 0.0 or stopping.is_set():
-                break
-            time.sleep(min(remaining, LONGEST_SLEEP))
         if self._behind >= BEHIND_LIMIT and self._applied and not self._dropped:
             self._dropped = True
             self._warn(f'the loop cannot keep real_time_factor {paced:g}: real-time priority dropped until the '
