@@ -66,6 +66,11 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         status = 1
+    except Exception:  # noqa: BLE001
+        # A signal that shuts the context down while the executor builds its wait set makes rclpy
+        # raise RCLError ('the given context is not valid') instead of ExternalShutdownException.
+        if node is None or node.context.ok():
+            raise
     finally:
         if node is not None:
             close = getattr(node, 'close', None)

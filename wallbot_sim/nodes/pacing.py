@@ -7,12 +7,12 @@ accumulates into drift. The node re-anchors after a pause, a wait or a factor ch
 Priority. A paced loop sleeps most of each period; what makes a step late is the time the
 kernel takes to run it again after the sleep, which on a busy machine can exceed 2 ms under
 the normal scheduler (measured: bench/bench_node.py). Under SCHED_FIFO the loop thread wakes
-ahead of every normal thread. A FIFO thread that never sleeps would starve the normal ones,
-so the priority is held only while the loop is paced *and* keeps up: not at factor 0, and
-dropped (with one warning) when the loop stays behind its due times for ``BEHIND_LIMIT``
-steps in a row, until the next re-anchor. Linux only; where the priority is not permitted
-(an unprivileged user without an rtprio limit) the loop runs under the normal scheduler
-after one warning.
+ahead of every normal thread. A FIFO thread that never sleeps would starve the normal ones
+(on a loaded machine that includes the DDS threads the loop's own messages need), so the
+priority is taken only for a step that has time to sleep: at factor 0, and for every step
+already due when its wait begins (a loop catching up), the thread runs under the normal
+scheduler. Linux only; where the priority is not permitted (an unprivileged user without an
+rtprio limit) the loop runs under the normal scheduler after one warning.
 """
 
 from __future__ import annotations
@@ -22,8 +22,6 @@ import threading
 import time
 from typing import Callable
 
-BEHIND_LIMIT = 1000
-"""Consecutive steps found already due before sleeping, after which the priority is dropped."""
 LONGEST_SLEEP = 0.05
 """A wait sleeps in slices of at most this (s), to notice factor changes and shutdown."""
 
@@ -39,16 +37,12 @@ class Pacer:
         self._priority = priority
         self._warn = warn
         self._anchor: tuple[float, int] | None = None
-        self._behind = 0
-        self._dropped = False
         self._refused = False
         self._applied = 0
 
     def reanchor(self) -> None:
         """The next step starts a new run segment (after a pause, wait or factor change)."""
         self._anchor = None
-        self._behind = 0
-        self._dropped = False
 
     @property
     def priority(self) -> int:
@@ -71,15 +65,15 @@ class Pacer:
         the next one starts a new segment. At factor 0 nothing waits and the lateness is 0.
         """
         paced = factor()
-        self._schedule(paced > 0.0)
         if paced <= 0.0:
+            self._schedule(0)
             return 0.0
         if self._anchor is None:
             self._anchor = (time.perf_counter(), step - 1)
         anchor_wall, anchor_step = self._anchor
         due = anchor_wall + (step - anchor_step) * dt / paced
         remaining = due - time.perf_counter()
-        self._behind = self._behind + 1 if remaining <= 0.0 else 0
+        self._schedule(self._priority if remaining > 0.0 else 0)
         while remaining > 0.0 and not stopping.is_set():
             time.sleep(min(remaining, LONGEST_SLEEP))
             if factor() != paced:
@@ -87,14 +81,12 @@ class Pacer:
                 due = time.perf_counter()
                 break
             remaining = due - time.perf_counter()
-        if self._behind >= BEHIND_LIMIT and self._applied and not self._dropped:
-            self._dropped = True
-            self._warn(f'the loop cannot keep real_time_factor {paced:g}: real-time priority dropped until the '
-                       f'next pause, reset or factor change')
         return time.perf_counter() - due
 
-    def _schedule(self, paced: bool) -> None:
-        wanted = self._priority if paced and not self._dropped and not self._refused else 0
+    def _schedule(self, wanted: int) -> None:
+        """Run the calling thread under SCHED_FIFO ``wanted`` (0: the normal scheduler)."""
+        if self._refused:
+            wanted = 0
         if wanted == self._applied:
             return
         try:
