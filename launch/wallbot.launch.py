@@ -4,6 +4,7 @@ Arguments:
   scenario:=circle|figure8           trajectory shape (default circle)
   constraints:=belt,non_lateral,...  comma list of belt, non_lateral, nonslip (default none)
   real_time_factor:=1.0              simulation speed relative to wall clock
+  realtime_priority:=50              SCHED_FIFO priority of the dynamics loop thread (0 = normal)
 
 Example:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip
@@ -44,6 +45,7 @@ def _constraint_node(context, *args, **kwargs):
 def generate_launch_description():
     scenario = LaunchConfiguration('scenario')
     real_time_factor = LaunchConfiguration('real_time_factor')
+    realtime_priority = LaunchConfiguration('realtime_priority')
     return LaunchDescription([
         DeclareLaunchArgument('scenario', default_value='circle', choices=list(SCENARIOS),
                               description='Trajectory scenario'),
@@ -51,13 +53,16 @@ def generate_launch_description():
                               description='Comma list of: ' + ', '.join(CONSTRAINTS)),
         DeclareLaunchArgument('real_time_factor', default_value='1.0',
                               description='Simulation speed relative to wall clock'),
+        DeclareLaunchArgument('realtime_priority', default_value='50',
+                              description='SCHED_FIFO priority of the dynamics loop thread (0 = normal scheduling)'),
         Node(
             package=PACKAGE,
             executable='dynamics_node',
             name='dynamics',
             namespace=NAMESPACE,
             output='screen',
-            parameters=[{'real_time_factor': ParameterValue(real_time_factor, value_type=float)}],
+            parameters=[{'real_time_factor': ParameterValue(real_time_factor, value_type=float),
+                         'realtime_priority': ParameterValue(realtime_priority, value_type=int)}],
         ),
         Node(
             package=PACKAGE,
