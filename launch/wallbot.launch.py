@@ -4,7 +4,7 @@ Arguments:
   scenario:=circle|figure8           trajectory shape (default circle)
   constraints:=belt,non_lateral,...  comma list of belt, non_lateral, nonslip (default none)
   real_time_factor:=1.0              simulation speed relative to wall clock
-  realtime_priority:=50              SCHED_FIFO priority of the dynamics loop thread (0 = normal)
+  realtime_priority:=0               SCHED_FIFO priority of the dynamics loop thread (0 = normal)
 
 Example:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip
@@ -53,7 +53,7 @@ def generate_launch_description():
                               description='Comma list of: ' + ', '.join(CONSTRAINTS)),
         DeclareLaunchArgument('real_time_factor', default_value='1.0',
                               description='Simulation speed relative to wall clock'),
-        DeclareLaunchArgument('realtime_priority', default_value='50',
+        DeclareLaunchArgument('realtime_priority', default_value='0',
                               description='SCHED_FIFO priority of the dynamics loop thread (0 = normal scheduling)'),
         Node(
             package=PACKAGE,

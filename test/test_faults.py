@@ -148,9 +148,12 @@ def bag_figures(bag, events: dict, t_killed: int) -> dict:
     # messages still in flight from a SIGKILLed publisher can be lost (seen: 0.23 s under load);
     # the bag must still hold the first life up to at most a second before the kill
     assert lives[1][0] == 0 and lives[0][-1] >= t_killed - 1_000_000_000
-    # no message received while the dynamics was dead
-    dead = (receive > events['dynamics_killed']) & (receive < events['dynamics_restarted'])
-    assert not dead.any(), f'{dead.sum()} odometry messages received while the dynamics was dead'
+    # nothing from a live dynamics while it was dead: no second-life message before the restart,
+    # and first-life messages received after the kill only as the backlog of what was sent before it
+    # (a recorder behind by 0.16 s at the kill was seen)
+    assert receive[back[0] + 1:].min() > events['dynamics_restarted'], 'a second life before the restart'
+    backlog = (receive[:back[0] + 1].max() - events['dynamics_killed']) * 1e-9
+    assert backlog < 1.0, f'first-life odometry received {backlog:.3f} s after the kill'
     gap = (receive[back[0] + 1] - receive[back[0]]) * 1e-9
     first_life_receive = receive[:back[0] + 1]
     outage_gap = np.diff(first_life_receive).max() * 1e-9

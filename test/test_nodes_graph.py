@@ -232,7 +232,12 @@ def test_topics_types_and_1khz_odometry(graph):
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     assert values['active constraints'] == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
     assert float(values['achieved rate (Hz)']) > 500 and 'adsorption margin' in values
-    if may_use_fifo():  # the paced loop thread runs under SCHED_FIFO at the default priority
+    assert values['loop priority'] == 'normal'  # by default
+    assert graph.set_parameters('dynamics', realtime_priority=50)[0].successful
+    graph.clear(topics.DIAGNOSTICS.name)
+    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name)[1:], 5, 'diagnostics after the set')
+    values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
+    if may_use_fifo():  # the paced loop thread now runs under SCHED_FIFO
         assert values['loop priority'] == 'SCHED_FIFO 50'
     else:
         assert values['loop priority'] == 'normal'

@@ -14,9 +14,10 @@ CPU load or message timing: the same configuration gives the same states at any
 Pacing. At factor f > 0 the step reaching simulation time k*dt is computed ahead and
 published when due, at wall time anchor + k*dt/f (one anchor per run segment, re-anchored
 after a pause, a wait or a factor change, so lateness never accumulates into drift);
-lateness = publish time - due time is measured and reported in /diagnostics. While paced and
-keeping up, the loop thread runs under SCHED_FIFO (``realtime_priority``), so a busy machine
-does not delay its wake-ups (``pacing``).
+lateness = publish time - due time is measured and reported in /diagnostics. With
+``realtime_priority`` > 0 the loop thread runs under SCHED_FIFO for steps it sleeps before, so
+a busy machine does not delay its wake-ups (``pacing``); off by default, since the latency it
+saves is shifted onto the rest of the graph (controllers, recorders) on a small machine.
 
 Back-pressure (lossless recording at factor 0). DDS acknowledgements are not enough: a
 reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
@@ -145,8 +146,8 @@ class DynamicsNode(Node):
                                       'driven mode: after publishing every Nth step, wait for the command '
                                       'answering that state before stepping on (at most 0.25 s wall); 0 = off',
                                       low=0, high=1000000),
-            'realtime_priority': declare(self, 'realtime_priority', 50,
-                                         'SCHED_FIFO priority of the loop thread while paced and keeping up '
+            'realtime_priority': declare(self, 'realtime_priority', 0,
+                                         'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
                                          '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
                                          low=0, high=99),
             'backpressure_window': declare(self, 'backpressure_window', 200,
