@@ -11,6 +11,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 
 from wallbot_sim.model import ModelError
 
@@ -79,6 +80,16 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+def heard_by_every(node: Node, publisher: Publisher, senders_topic: str) -> bool:
+    """Whether some node publishes on ``senders_topic``, each such node subscribes ``publisher``'s
+    topic, and every discovered subscription of that topic is matched to ``publisher`` (so a
+    message published now reaches all of them)."""
+    senders = {(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(senders_topic)}
+    listeners = node.get_subscriptions_info_by_topic(publisher.topic_name)
+    return (bool(senders) and senders <= {(i.node_namespace, i.node_name) for i in listeners}
+            and publisher.get_subscription_count() >= len(listeners))
 
 
 def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) -> dict[str, object]:

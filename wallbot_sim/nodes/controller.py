@@ -41,7 +41,7 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import ControllerGains, TrackingController
 from wallbot_sim.model import DOF, ModelError, Robot, SampledReference
-from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -177,12 +177,7 @@ class ControllerNode(Node):
         wheel_torque_cmd and every discovered subscription of it must be matched to this
         publisher, or the first commands of the run could be sent before the recorder hears them.
         """
-        command_topic = self.command_pub.topic_name
-        progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
-        recorders = {(i.node_namespace, i.node_name) for i in self.get_publishers_info_by_topic(progress_topic)}
-        listeners = self.get_subscriptions_info_by_topic(command_topic)
-        if (not recorders or not recorders <= {(i.node_namespace, i.node_name) for i in listeners}
-                or self.command_pub.get_subscription_count() < len(listeners)):
+        if not heard_by_every(self, self.command_pub, self.resolve_topic_name(topics.RECORD_PROGRESS.name)):
             return
         self.recorder_check.cancel()
         self.get_logger().info('a recorder hears wheel_torque_cmd: subscribing odom')

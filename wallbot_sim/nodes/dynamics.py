@@ -61,7 +61,7 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.scenario import moving_start
-from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.pacing import Pacer
 
 SLOWEST_FACTOR = 1e-3
@@ -175,7 +175,6 @@ class DynamicsNode(Node):
                                  qos_profile(topics.RECORD_PROGRESS))
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
-        self.odom_topic = self.resolve_topic_name(topics.ODOM.name)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.add_on_set_parameters_callback(self._on_set)
@@ -427,10 +426,7 @@ class DynamicsNode(Node):
         if not self.params['initial_at_rest'] and self.plan is None:
             return 'waiting for reference_trajectory (the moving start takes its velocity)'
         if self.params['wait_for_command']:
-            controllers = {(i.node_namespace, i.node_name) for i in self.get_publishers_info_by_topic(self.command_topic)}
-            listeners = {(i.node_namespace, i.node_name) for i in self.get_subscriptions_info_by_topic(self.odom_topic)}
-            if (not controllers or not controllers <= listeners
-                    or self.publishers_[topics.ODOM].get_subscription_count() < len(listeners)):
+            if not heard_by_every(self, self.publishers_[topics.ODOM], self.command_topic):
                 return 'waiting for a controller (a wheel_torque_cmd publisher that hears odom)'
         return None
 

@@ -165,8 +165,7 @@ class TrajectoryNode(Node):
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):
-        changes = param_dict(parameters)
-        merged = {**self.values, **{k: v for k, v in changes.items() if k in self.values}}
+        merged = {**self.values, **param_dict(parameters, self.values)}
         reasons = check_values(merged)
         if not reasons:
             try:
