@@ -82,13 +82,22 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     return status
 
 
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+"""The node name rmw reports for an endpoint whose node it has not yet discovered."""
+
+
 def heard_by_every(node: Node, publisher: Publisher, senders_topic: str) -> bool:
     """Whether some node publishes on ``senders_topic``, each such node subscribes ``publisher``'s
     topic, and every discovered subscription of that topic is matched to ``publisher`` (so a
-    message published now reaches all of them)."""
+    message published now reaches all of them).
+
+    Endpoints of nodes not yet identified all carry UNKNOWN_NODE, which would make a sender look
+    like it subscribes when another unidentified node does: not ready until every sender is known.
+    """
     senders = {(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(senders_topic)}
     listeners = node.get_subscriptions_info_by_topic(publisher.topic_name)
-    return (bool(senders) and senders <= {(i.node_namespace, i.node_name) for i in listeners}
+    return (bool(senders) and all(name != UNKNOWN_NODE for _namespace, name in senders)
+            and senders <= {(i.node_namespace, i.node_name) for i in listeners}
             and publisher.get_subscription_count() >= len(listeners))
 
 
