@@ -237,11 +237,11 @@ def test_topics_types_and_1khz_odometry(graph):
     graph.clear(topics.DIAGNOSTICS.name)
     diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name)[1:], 5, 'diagnostics after the set')
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
-    if may_use_fifo():  # the paced loop thread now runs under SCHED_FIFO
-        assert values['loop priority'] == 'SCHED_FIFO 50'
-    else:
-        assert values['loop priority'] == 'normal'
-        assert 'realtime_priority 50 not applied' in graph.runner.output('dynamics')
+    # the node's decision; whether a step had time to sleep under FIFO depends on the machine's load
+    if may_use_fifo():
+        assert values['loop priority'] == 'SCHED_FIFO 50 while paced'
+    else:  # refused at the first step that sleeps, if one has slept yet
+        assert values['loop priority'] in ('SCHED_FIFO 50 while paced', 'normal (SCHED_FIFO 50 not permitted)')
     assert graph.runner.stop(dynamics) == 0, 'SIGTERM must end the node cleanly'
     assert 'Traceback' not in graph.runner.output('dynamics')
 

@@ -130,8 +130,17 @@ def test_refused_priority_warns_once_and_runs_normally(clock, monkeypatch):
     pacer = Pacer(50, warnings.append)
     lateness = run_steps(pacer, clock, range(1, 100), factor=1.0, compute=1e-4)
     assert max(lateness) == pytest.approx(0.0, abs=1e-12)  # still paced
-    assert pacer.applied_priority == 0
+    assert pacer.applied_priority == 0 and pacer.policy == 'normal (SCHED_FIFO 50 not permitted)'
     assert len(warnings) == 1 and warnings[0].startswith('realtime_priority 50 not applied (Operation not permitted)')
+
+
+def test_policy_states_the_decision_before_any_step_sleeps(clock, scheduler):
+    pacer = Pacer(0, [].append)
+    assert pacer.policy == 'normal'
+    pacer.priority = 50
+    assert pacer.policy == 'SCHED_FIFO 50 while paced' and pacer.applied_priority == 0
+    run_steps(pacer, clock, range(1, 5), factor=0.0)  # nothing sleeps at factor 0: the decision stands
+    assert pacer.policy == 'SCHED_FIFO 50 while paced' and scheduler.calls == []
 
 
 def may_use_fifo() -> bool:

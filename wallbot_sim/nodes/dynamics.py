@@ -568,7 +568,7 @@ class DynamicsNode(Node):
             ('step time mean (ms)', 1e3 * window.step_time_sum / max(window.steps, 1)),
             ('step time max (ms)', 1e3 * window.step_time_max),
             ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
-            ('loop priority', f'SCHED_FIFO {self.pacer.applied_priority}' if self.pacer.applied_priority else 'normal'),
+            ('loop priority', self.pacer.policy),
             ('constraint residual', float(out.residual) if out is not None else math.nan),
             ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
             ('command', command),

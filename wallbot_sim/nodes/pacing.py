@@ -54,6 +54,15 @@ class Pacer:
         self._priority, self._refused = value, False
 
     @property
+    def policy(self) -> str:
+        """What the loop thread is set to do: the decision, whether or not a step has slept since."""
+        if not self._priority:
+            return 'normal'
+        if self._refused:
+            return f'normal (SCHED_FIFO {self._priority} not permitted)'
+        return f'SCHED_FIFO {self._priority} while paced'
+
+    @property
     def applied_priority(self) -> int:
         """The SCHED_FIFO priority the loop thread holds now (0: normal scheduling)."""
         return self._applied

@@ -3,17 +3,20 @@
 It publishes the *plan* on ``reference_trajectory`` (transient-local): the reference sampled
 every ``sample_dt`` with position, velocity and acceleration, which the dynamics node
 interpolates (quintic Hermite) at its own simulation time, so the motion never depends on
-message timing. With ``duration`` 0 the reference repeats forever: a plan covers ``horizon``
-seconds and is replaced by a fresh one once simulation time passes its middle. Plan samples
+message timing. A plan covers ``horizon`` seconds and is replaced by a fresh one once
+simulation time passes its middle; with ``duration`` 0 the reference repeats forever, a finite
+``duration`` comes to rest through ``SmoothStop`` and its last plan ends at rest. Plan samples
 lie on the grid k * sample_dt, so overlapping plans agree exactly where they overlap.
-A finite ``duration`` comes to rest through ``SmoothStop`` and is published as one plan
-that ends at rest. Parameter changes replan from the current simulation time; a clock that
-jumps back (``~/reset`` of the dynamics) replans from there.
+Parameter changes replan from the current simulation time; a clock that jumps back
+(``~/reset`` of the dynamics) replans from there. Plans are built on a background thread
+(``LatestRequestWorker``), so the node answers parameter and service requests at once
+whatever it is planning.
 """
 
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry, Path
 from rclpy.clock import Clock, ClockType
@@ -25,15 +28,16 @@ from wallbot_msgs_py import conversions, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
 from wallbot_sim.model.scenario import SHAPES
-from wallbot_sim.model.trajectories import sample_plan
+from wallbot_sim.model.trajectories import Plan, SampledReference, sample_plan
+from wallbot_sim.nodes.background import LatestRequestWorker
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
 REPLAN_CHECK_PERIOD = 0.02
 """Wall-clock period (s) of the check whether the plan needs renewing."""
-MAX_PLAN_SAMPLES = 200_000
-"""Largest plan accepted: beyond this a parameter set would stall the node building it."""
-LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4}
-"""Upper bounds (m, Hz) on sizes that no wall and no subscriber needs beyond."""
+MAX_PLAN_SAMPLES = 5_000
+"""Largest plan accepted: every subscriber decodes a whole plan in one callback."""
+LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4, 'stop_time': 1e6}
+"""Upper bounds (m, Hz, s) on sizes that no wall, no subscriber and no smooth stop needs beyond."""
 MIN_PERIOD = 0.01
 """A lap shorter than this (s) is no reference a robot can follow, and overflows its derivatives."""
 
@@ -48,6 +52,14 @@ def make_reference(values: dict):
     if values['duration'] > 0.0:
         return SmoothStop(path, float(values['duration']), float(values['stop_time']))
     return path
+
+
+def plan_end(values: dict, now: float) -> float:
+    """End of the plan that starts at ``now``: ``horizon`` ahead, or the rest at the end of a finite run."""
+    end = now + values['horizon']
+    if values['duration'] > 0.0:
+        end = max(min(end, values['duration'] + values['stop_time'] + values['sample_dt']), now)
+    return end
 
 
 def check_values(values: dict) -> list[str]:
@@ -72,11 +84,42 @@ def check_values(values: dict) -> list[str]:
         reasons.append(f'period must be >= {MIN_PERIOD:g} s, got {values["period"]!r}')
     if values['horizon'] < 10 * values['sample_dt']:
         reasons.append('horizon must span at least 10 samples')
-    span = values['duration'] + values['stop_time'] if values['duration'] > 0.0 else values['horizon']
-    if span / values['sample_dt'] > MAX_PLAN_SAMPLES:
-        reasons.append(f'a plan of {span:g} s every {values["sample_dt"]:g} s would exceed '
-                       f'{MAX_PLAN_SAMPLES} samples: raise sample_dt or shorten duration/horizon/stop_time')
+    if values['horizon'] / values['sample_dt'] > MAX_PLAN_SAMPLES:
+        reasons.append(f'a plan of {values["horizon"]:g} s every {values["sample_dt"]:g} s would exceed '
+                       f'{MAX_PLAN_SAMPLES} samples: raise sample_dt or shorten horizon')
     return reasons
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """What a plan is built from: the parameters, the start time and the heading to fall back on."""
+
+    values: dict
+    now: float
+    fallback_yaw: float
+
+
+@dataclass(frozen=True)
+class BuiltPlan:
+    """A plan with its messages, ready to publish."""
+
+    plan: Plan
+    reference: SampledReference
+    trajectory: MultiDOFJointTrajectory
+    path: Path
+    yaw: float
+    shape: str
+
+
+def build_plan(request: PlanRequest) -> BuiltPlan:
+    """Sample the reference of ``request`` from its start time and encode plan and path."""
+    values = request.values
+    reference = make_reference(values)
+    plan = sample_plan(reference, request.now, plan_end(values, request.now), values['sample_dt'])
+    first = tangent_heading(reference.sample(plan.times[0]))
+    yaw = first.angle if first is not None else request.fallback_yaw
+    return BuiltPlan(plan, conversions.sampled_reference(plan), conversions.trajectory_message(plan, yaw),
+                     conversions.path_message(plan, fallback_yaw=yaw), yaw, values['shape'])
 
 
 class TrajectoryNode(Node):
@@ -111,11 +154,11 @@ class TrajectoryNode(Node):
         self.reference_pub = self.create_publisher(Odometry, topics.REFERENCE.name, qos_profile(topics.REFERENCE))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.plan_start = self.plan_end = 0.0
-        self.final = False
+        self.span = (0.0, 0.0, False)  # start, end, ends at rest: of the plan last published
         self.last_now = 0.0
         self.yaw = 0.0
-        self.reference = None
+        self.reference: SampledReference | None = None
+        self.planner = LatestRequestWorker(build_plan, self._publish_plan, self._planning_failed, 'planner')
         self.replan(self._now())
         self.create_timer(REPLAN_CHECK_PERIOD, self._check_plan, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.pose_timer = self.create_timer(1.0 / self.values['publish_rate_hz'], self._publish_reference)
@@ -125,35 +168,39 @@ class TrajectoryNode(Node):
 
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
-        """Plan from ``now`` (rounded down to the sample grid) and publish plan and path."""
-        values, dt = self.values, self.values['sample_dt']
-        reference = make_reference(values)
-        if values['duration'] > 0.0:
-            end = max(values['duration'] + values['stop_time'] + dt, now)
-        else:
-            end = now + values['horizon']
-        plan = sample_plan(reference, now, end, dt)
-        first = tangent_heading(reference.sample(plan.times[0]))
-        if first is not None:
-            self.yaw = first.angle
-        self.trajectory_pub.publish(conversions.trajectory_message(plan, self.yaw))
-        self.path_pub.publish(conversions.path_message(plan, fallback_yaw=self.yaw))
-        self.reference = conversions.sampled_reference(plan)
-        self.plan_start, self.plan_end = plan.times[0], plan.times[-1]
-        self.final = conversions.plan_is_final(plan)
+        """Plan from ``now`` (rounded down to the sample grid) on the planner thread; returns at once."""
+        self.planner.submit(PlanRequest(dict(self.values), now, self.yaw))
+
+    def _publish_plan(self, built: BuiltPlan) -> None:
+        """Planner thread: publish plan and path, then make the plan the current reference."""
+        self.trajectory_pub.publish(built.trajectory)
+        self.path_pub.publish(built.path)
+        times = built.plan.times
+        self.reference, self.yaw = built.reference, built.yaw
+        self.span = (times[0], times[-1], conversions.plan_is_final(built.plan))
         self.get_logger().info(
-            f'plan {values["shape"]} from t = {self.plan_start:.3f} s to {self.plan_end:.3f} s '
-            f'({len(plan.times)} samples{", ends at rest" if self.final else ""})')
+            f'plan {built.shape} from t = {times[0]:.3f} s to {times[-1]:.3f} s '
+            f'({len(times)} samples{", ends at rest" if self.span[2] else ""})')
+
+    def _planning_failed(self, error: Exception) -> None:
+        self.get_logger().error(f'planning failed: {error}')
 
     def _check_plan(self) -> None:
         now = self._now()
-        jumped_back = now < self.last_now - 1e-9 or now < self.plan_start
+        start, end, final = self.span
+        jumped_back = now < self.last_now - 1e-9 or now < start
         self.last_now = now
+        if self.planner.busy:
+            return
         if jumped_back:
             self.get_logger().info(f'simulation time went back to {now:.3f} s: replanning')
             self.replan(now)
-        elif not self.final and now > 0.5 * (self.plan_start + self.plan_end):
+        elif not final and now > 0.5 * (start + end):
             self.replan(now)
+
+    def close(self) -> None:
+        """Stop the planner thread (called by ``run`` before the node is destroyed)."""
+        self.planner.stop()
 
     def _publish_reference(self) -> None:
         now = self._now()

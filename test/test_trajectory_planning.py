@@ -1,0 +1,136 @@
+"""Trajectory planning off the executor: LatestRequestWorker, plan windows, and a node that answers
+parameter requests while a plan is being built."""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import pytest
+
+from wallbot_sim.nodes.background import LatestRequestWorker
+
+WAIT = 10.0
+"""Bound (s) on waits for the worker thread: catches a stall, asserts no speed."""
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.delivered: list = []
+        self.errors: list[Exception] = []
+
+
+def test_newest_request_wins_and_superseded_results_are_dropped():
+    release, started = threading.Event(), threading.Event()
+    seen = Recorder()
+
+    def build(request):
+        started.set()
+        release.wait(WAIT)
+        return request * 10
+
+    worker = LatestRequestWorker(build, seen.delivered.append, seen.errors.append)
+    try:
+        worker.submit(1)
+        assert started.wait(WAIT)
+        worker.submit(2)  # waits behind 1, then is replaced by 3 before it starts
+        worker.submit(3)
+        assert worker.busy
+        release.set()
+        assert worker.wait_idle(WAIT)
+        assert seen.delivered == [30]  # 1 was superseded while it ran, 2 before it started
+        assert not seen.errors and not worker.busy
+    finally:
+        release.set()
+        worker.stop()
+
+
+def test_a_failing_build_is_reported_and_the_worker_goes_on():
+    seen = Recorder()
+
+    def build(request):
+        if request == 'bad':
+            raise ValueError('cannot plan that')
+        return request
+
+    worker = LatestRequestWorker(build, seen.delivered.append, seen.errors.append)
+    try:
+        worker.submit('bad')
+        assert worker.wait_idle(WAIT)
+        worker.submit('good')
+        assert worker.wait_idle(WAIT)
+        assert [str(e) for e in seen.errors] == ['cannot plan that'] and seen.delivered == ['good']
+    finally:
+        worker.stop()
+
+
+def test_submit_never_waits_for_a_build():
+    release = threading.Event()
+    worker = LatestRequestWorker(lambda r: release.wait(WAIT), lambda r: None, lambda e: None)
+    try:
+        for request in range(100):  # would take 100 * WAIT if submit waited for a build
+            worker.submit(request)
+        assert worker.busy
+    finally:
+        release.set()
+        worker.stop()
+    assert not worker._thread.is_alive()
+
+
+DEFAULTS = {'shape': 'circle', 'radius': 1.0, 'amplitude': 1.0, 'period': 20.0, 'center_x': 0.0,
+            'center_y': 0.0, 'duration': 0.0, 'stop_time': 2.0, 'publish_rate_hz': 100.0, 'sample_dt': 0.05,
+            'horizon': 10.0}
+
+
+def test_plans_cover_at_most_the_horizon_and_a_finite_run_ends_at_rest():
+    pytest.importorskip('rclpy')
+    from wallbot_msgs_py import conversions
+    from wallbot_sim.nodes.trajectory import MAX_PLAN_SAMPLES, PlanRequest, build_plan, check_values
+
+    long_run = {**DEFAULTS, 'duration': 1464.9, 'sample_dt': 0.05}  # once a 29,257-sample plan
+    assert not check_values(long_run)
+    first = build_plan(PlanRequest(long_run, 2.1, 0.0)).plan
+    assert first.times[0] <= 2.1 < first.times[1] and first.times[-1] == pytest.approx(12.1, abs=0.05)
+    assert not conversions.plan_is_final(first)
+    last = build_plan(PlanRequest(long_run, 1460.0, 0.0)).plan
+    assert last.times[-1] >= 1464.9 + 2.0 and conversions.plan_is_final(last)
+    assert len(last.times) <= MAX_PLAN_SAMPLES
+    assert check_values({**DEFAULTS, 'horizon': 1000.0, 'sample_dt': 0.001})  # 10^6 samples: refused
+
+
+def test_the_node_answers_parameter_requests_while_planning(monkeypatch, ros_domain):
+    """A plan that takes for ever to build does not hold up set_parameters (it runs on the planner thread)."""
+    rclpy = pytest.importorskip('rclpy')
+    from rclpy.parameter import Parameter
+
+    from wallbot_sim.nodes import trajectory
+
+    release, building = threading.Event(), threading.Event()
+    real_build = trajectory.build_plan
+
+    def slow_build(request):
+        building.set()
+        release.wait(WAIT)
+        return real_build(request)
+
+    monkeypatch.setattr(trajectory, 'build_plan', slow_build)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = None
+    try:
+        node = trajectory.TrajectoryNode(context=context)
+        assert building.wait(WAIT), 'the first plan is built on the planner thread'
+        results = node.set_parameters([Parameter('radius', Parameter.Type.DOUBLE, 2.0),
+                                       Parameter('period', Parameter.Type.DOUBLE, 0.0)])
+        assert results[0].successful and not results[1].successful and 'period' in results[1].reason
+        assert node.planner.busy and node.reference is None  # answered while the plan was still building
+        release.set()
+        assert node.planner.wait_idle(WAIT)
+        assert node.reference is not None  # the plan of the accepted radius
+        assert node.reference.sample(1.0).position[0] == pytest.approx(2.0 * math.cos(2 * math.pi / 20.0), abs=1e-6)
+    finally:
+        release.set()
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.shutdown(context=context)
