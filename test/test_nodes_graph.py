@@ -168,7 +168,8 @@ def start_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),
     proc = graph.start('dynamics', *dynamics)
     odom = topics.ODOM.resolve(graph.namespace)
     graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
-    time.sleep(0.3)
+    # a message of the dynamics received here: its endpoints and this test's are matched both ways
+    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 15, 'the first diagnostics (1 Hz)')
     graph.start('constraint_config', *constraints)
     return proc
 
@@ -195,17 +196,17 @@ def final_state(graph: Graph, t: float):
 # --- tests --------------------------------------------------------------------------------------
 def test_topics_types_and_1khz_odometry(graph):
     dynamics = start_tracking_graph(graph, constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'))
-    graph.wait_sim_time(0.2)
-    wall_start, sim_start = time.monotonic(), graph.last_stamp()
-    time.sleep(1.5)
-    wall, sim = time.monotonic() - wall_start, (graph.last_stamp() - sim_start) * 1e-9
-    # paced, not free-running (factor 0 runs ~4x here); the lower bound only catches a stall,
-    # since a loaded CI machine may fall behind (speed itself is measured in bench/, not here)
-    assert 0.3 < sim / wall < 1.3, f'real-time factor 1 ran at {sim / wall:.2f}'
+    graph.wait_sim_time(0.0)
+    wall_start = time.monotonic()
+    graph.wait_sim_time(2.0, timeout=60)  # the timeout only catches a stall: a loaded machine may fall behind
+    wall = time.monotonic() - wall_start
+    # Paced at factor 1, the loop is never ahead of real time (factor 0 runs 2-8x); the 0.5 s of slack
+    # covers the first message's delivery and this poll's own delays. Speed is measured in bench/.
+    assert wall > 2.0 - 0.5, f'2 s of simulation in {wall:.2f} s of wall time at real-time factor 1'
 
     odom = graph.messages(topics.ODOM.name)
     stamps = np.array([ns(m) for m in odom])
-    assert stamps[0] == 0 and len(stamps) > 1500
+    assert stamps[0] == 0 and len(stamps) >= 2001
     assert np.all(np.diff(stamps) == MS), 'odometry stamps must be consecutive, 1 ms apart'
     assert odom[0].header.frame_id == 'wall' and odom[0].child_frame_id == 'base_link'
 
@@ -291,13 +292,13 @@ def test_invalid_parameters_are_refused_and_the_nodes_keep_running(graph):
 def test_pause_and_reset(graph):
     start_tracking_graph(graph, 'initial_x:=0.7')
     graph.wait_sim_time(0.5)
+    graph.clear(topics.DIAGNOSTICS.name)
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=True)).success
-    time.sleep(0.2)
-    held = graph.last_stamp()
-    time.sleep(0.5)
-    assert graph.last_stamp() == held, 'a paused simulation must not advance'
     graph.wait_for(lambda: any(s.message == 'paused' for a in graph.messages(topics.DIAGNOSTICS.name)
                                for s in a.status), 3, 'paused diagnostics')
+    held = graph.last_stamp()  # the pause applied before that diagnostics went out
+    time.sleep(0.5)  # an absence is observed over a window, not polled for
+    assert graph.last_stamp() == held, 'a paused simulation must not advance'
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=False)).success
     graph.wait_sim_time(held * 1e-9 + 0.2)
 
