@@ -287,8 +287,7 @@ def test_fuzz_parameters_and_commands(process_runner, tmp_path):
             else:
                 fuzzer.fuzz_parameters('trajectory', list(TRAJECTORY_DEFAULTS))
         commands = len(fuzzer.commands_valid) + len(fuzzer.commands_rejected)
-        time.sleep(0.5)  # the last commands reach the node
-        phase_a_end = time.time_ns()
+        phase_a_end = time.time_ns()  # commands still in flight are valid ones too: no need to wait
 
         # phase B: trajectory task on, parameters only (max_wheel_torque too)
         result = fuzzer.set_parameters('constraint_config', [parameter_msg('trajectory_task', True)])[0]
