@@ -1,76 +1,61 @@
-"""Launch the wallbot simulation nodes in namespace /wallbot.
+"""Launch the wallbot simulation graph: the same nodes with the same parameters as ``wallbot-sim run``.
 
-Arguments:
-  scenario:=circle|figure8           trajectory shape (default circle)
-  constraints:=belt,non_lateral,...  comma list of belt, non_lateral, nonslip (default none)
-  real_time_factor:=1.0              simulation speed relative to wall clock
-  realtime_priority:=0               SCHED_FIFO priority of the dynamics loop thread (0 = normal)
+Arguments (defaults as ``wallbot-sim run``):
+  scenario:=circle|figure8|PATH.yaml   the scenario: reference path and initial state (default circle)
+  constraints:=belt,non_lateral,nonslip  comma list of belt, non_lateral, nonslip, or none
+  duration:=0                          simulated seconds before the dynamics stops; 0 = until stopped
+  real_time_factor:=1.0                simulation speed relative to wall clock; 0 = as fast as possible
+  realtime_priority:=0                 SCHED_FIFO priority of the dynamics loop thread (0 = normal)
+  record:=                             bag directory to record into (empty: no recorder)
+  controller:=false                    true: closed loop under tracking_controller_node (driven robot)
+  controller_mass_scale:=1.0           the controller's robot mass relative to the simulator's
 
 Example:
-  ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip
+  ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
 """
+from pathlib import Path
+
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
-from launch_ros.parameter_descriptions import ParameterValue
+
+from wallbot_msgs_py import topics
+from wallbot_sim.config import load_scenario
+from wallbot_sim.graph_description import EXECUTABLES, describe_graph
+from wallbot_sim.model import ConstraintSelection
 
 PACKAGE = 'wallbot_sim'
-NAMESPACE = 'wallbot'
-SCENARIOS = ('circle', 'figure8')
-CONSTRAINTS = ('belt', 'non_lateral', 'nonslip')
+ARGUMENTS = {
+    'scenario': ('circle', 'circle, figure8, or a scenario YAML path'),
+    'constraints': ('belt,non_lateral,nonslip', 'comma list of belt, non_lateral, nonslip, or none'),
+    'duration': ('0', 'simulated seconds before the dynamics stops (0 = until stopped)'),
+    'real_time_factor': ('1.0', 'simulation speed relative to wall clock (0 = as fast as possible)'),
+    'realtime_priority': ('0', 'SCHED_FIFO priority of the dynamics loop thread (0 = normal scheduling)'),
+    'record': ('', 'bag directory to record into (empty: no recorder)'),
+    'controller': ('false', 'true: closed loop under tracking_controller_node'),
+    'controller_mass_scale': ('1.0', "the controller's robot mass relative to the simulator's"),
+}
 
 
-def parse_constraints(text):
-    """Parse a comma list of constraint names into {name: bool} for every known constraint."""
-    names = {c.strip() for c in text.split(',') if c.strip()}
-    unknown = names - set(CONSTRAINTS)
-    if unknown:
-        raise ValueError(f'unknown constraints {sorted(unknown)}; choose from {CONSTRAINTS}')
-    return {c: c in names for c in CONSTRAINTS}
+def _graph(context, *args, **kwargs):
+    def arg(name):
+        return LaunchConfiguration(name).perform(context)
 
-
-def _constraint_node(context, *args, **kwargs):
-    flags = parse_constraints(LaunchConfiguration('constraints').perform(context))
-    return [Node(
-        package=PACKAGE,
-        executable='constraint_config_node',
-        name='constraint_config',
-        namespace=NAMESPACE,
-        output='screen',
-        parameters=[flags],
-    )]
+    closed_loop = arg('controller').strip().lower() == 'true'
+    specs = describe_graph(
+        load_scenario(arg('scenario')), ConstraintSelection.parse(arg('constraints')),
+        duration=float(arg('duration')), real_time_factor=float(arg('real_time_factor')),
+        bag=Path(arg('record')) if arg('record') else None,
+        controller_mass_scale=float(arg('controller_mass_scale')) if closed_loop else None,
+        realtime_priority=int(arg('realtime_priority')))
+    return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], name=spec.name, namespace=topics.NAMESPACE,
+                 output='screen', parameters=[dict(spec.parameters)])
+            for spec in specs]
 
 
 def generate_launch_description():
-    scenario = LaunchConfiguration('scenario')
-    real_time_factor = LaunchConfiguration('real_time_factor')
-    realtime_priority = LaunchConfiguration('realtime_priority')
-    return LaunchDescription([
-        DeclareLaunchArgument('scenario', default_value='circle', choices=list(SCENARIOS),
-                              description='Trajectory scenario'),
-        DeclareLaunchArgument('constraints', default_value='',
-                              description='Comma list of: ' + ', '.join(CONSTRAINTS)),
-        DeclareLaunchArgument('real_time_factor', default_value='1.0',
-                              description='Simulation speed relative to wall clock'),
-        DeclareLaunchArgument('realtime_priority', default_value='0',
-                              description='SCHED_FIFO priority of the dynamics loop thread (0 = normal scheduling)'),
-        Node(
-            package=PACKAGE,
-            executable='dynamics_node',
-            name='dynamics',
-            namespace=NAMESPACE,
-            output='screen',
-            parameters=[{'real_time_factor': ParameterValue(real_time_factor, value_type=float),
-                         'realtime_priority': ParameterValue(realtime_priority, value_type=int)}],
-        ),
-        Node(
-            package=PACKAGE,
-            executable='trajectory_node',
-            name='trajectory',
-            namespace=NAMESPACE,
-            output='screen',
-            parameters=[{'shape': ParameterValue(scenario, value_type=str)}],
-        ),
-        OpaqueFunction(function=_constraint_node),
-    ])
+    return LaunchDescription(
+        [DeclareLaunchArgument(name, default_value=default, description=description)
+         for name, (default, description) in ARGUMENTS.items()]
+        + [OpaqueFunction(function=_graph)])

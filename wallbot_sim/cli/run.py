@@ -24,15 +24,11 @@ from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
-from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Robot, Scenario
+from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
+from wallbot_sim.model import ConstraintSelection, Robot
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
-RECORDER = 'recorder'
-CONTROLLER = 'controller'
 OPTIONAL = (CONTROLLER,)
-CONTROL_STEPS = 5
-"""Dynamics steps per control period: the controller's default 200 Hz at the dynamics' 1 kHz. The
-dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 """Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
@@ -56,46 +52,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--controller-mass-scale', type=float, default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
                              '(model mismatch; default 1.0)')
-
-
-def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: float, factor: float,
-               bag: Path, controller_mass_scale: float | None = None) -> list[NodeSpec]:
-    """The graph of a run, in start order (the recorder first, so it misses nothing).
-
-    With ``controller_mass_scale`` (a closed-loop run) ``selection`` must be the driven set
-    (no trajectory task); the controller starts before the dynamics, which waits for it
-    (``wait_for_command``) so the loop is closed from t = 0.
-    """
-    reference = scenario.reference
-    if isinstance(reference, Circle):
-        shape = {'shape': 'circle', 'radius': reference.radius}
-    elif isinstance(reference, FigureEight):
-        shape = {'shape': 'figure8', 'amplitude': reference.amplitude}
-    else:
-        raise CliError(f'scenario {scenario.name!r}: the trajectory node plays circles and figure-8s only')
-    pose = scenario.initial
-    switches = {'trajectory_task': selection.trajectory, 'belt': selection.belt,
-                'non_lateral': selection.non_lateral, 'nonslip': selection.nonslip,
-                'tangent_heading': selection.tangent_heading is not False}
-    closed_loop = controller_mass_scale is not None
-    recorder = {'output': str(bag)}
-    if closed_loop:
-        recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
-    specs = [
-        NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder),
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', switches),
-        NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
-            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
-    ]
-    if closed_loop:
-        specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
-            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': True}))
-    specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
-        'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
-        'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
-        'wait_for_recorder': True,
-        **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
-    return specs
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -222,7 +178,11 @@ def main(args: argparse.Namespace) -> int:
         raise CliError('--controller-mass-scale needs --controller')
     out = output_directory(args.out, args.scenario)
     bag = out / 'bag'
-    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale)
+    try:
+        specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
+                               controller_mass_scale=mass_scale)
+    except GraphDescriptionError as error:
+        raise CliError(str(error)) from None
     robot = Robot(load_robot_parameters())
     graph = None
     with claim_domain_id() as claim:

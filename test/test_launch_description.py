@@ -1,0 +1,105 @@
+"""launch/wallbot.launch.py and ``wallbot-sim run`` start the same graph, from one description.
+
+launch and launch_ros are not installable here, so the launch file runs against minimal stand-ins
+that record what it asks for; what it asks for must be exactly ``describe_graph``'s nodes.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+import types
+from pathlib import Path
+
+import pytest
+
+from wallbot_sim.config import load_scenario
+from wallbot_sim.graph_description import EXECUTABLES, describe_graph
+from wallbot_sim.model import ConstraintSelection
+
+LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
+
+
+class Recorded:
+    """Stands in for a launch action: keeps its arguments."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.args, self.kwargs = args, kwargs
+
+
+class LaunchConfiguration:
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def perform(self, context: dict) -> str:
+        return context[self.name]
+
+
+@pytest.fixture
+def launch_file(monkeypatch):
+    stand_ins = {
+        'launch': {'LaunchDescription': Recorded},
+        'launch.actions': {'DeclareLaunchArgument': Recorded, 'OpaqueFunction': Recorded},
+        'launch.substitutions': {'LaunchConfiguration': LaunchConfiguration},
+        'launch_ros': {},
+        'launch_ros.actions': {'Node': Recorded},
+    }
+    for name, attributes in stand_ins.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(attributes)
+        monkeypatch.setitem(sys.modules, name, module)
+    spec = importlib.util.spec_from_file_location('wallbot_launch', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def launched_nodes(launch_file, **arguments: str) -> list[dict]:
+    """The Node actions the launch file creates for ``arguments`` (the rest at their defaults)."""
+    actions = launch_file.generate_launch_description().args[0]
+    context = {a.args[0]: a.kwargs['default_value'] for a in actions if 'default_value' in a.kwargs}
+    unknown = set(arguments) - set(context)
+    assert not unknown, f'not launch arguments: {unknown}'
+    context.update(arguments)
+    opaque = [a for a in actions if 'function' in a.kwargs]
+    assert len(opaque) == 1
+    return [node.kwargs for node in opaque[0].kwargs['function'](context)]
+
+
+def as_launched(specs) -> list[dict]:
+    return [{'package': 'wallbot_sim', 'executable': EXECUTABLES[s.module], 'name': s.name,
+             'namespace': '/wallbot', 'output': 'screen', 'parameters': [dict(s.parameters)]} for s in specs]
+
+
+def test_defaults_are_the_circle_with_every_constraint_as_run_starts_it(launch_file):
+    nodes = launched_nodes(launch_file)
+    assert nodes == as_launched(describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip')))
+    assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'dynamics_node']
+
+
+def test_figure8_starts_from_the_figure8_state(launch_file):
+    """scenario:=figure8 once changed only the shape and kept the circle's start."""
+    dynamics = launched_nodes(launch_file, scenario='figure8')[-1]['parameters'][0]
+    figure8 = load_scenario('figure8').initial
+    assert (dynamics['initial_x'], dynamics['initial_y'], dynamics['initial_theta'], dynamics['initial_at_rest']) == (
+        figure8.x, figure8.y, figure8.theta, figure8.at_rest)
+    assert dynamics['initial_theta'] == pytest.approx(math.pi / 4) and dynamics['initial_at_rest'] is False
+
+
+def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_path):
+    nodes = launched_nodes(launch_file, record=str(tmp_path / 'bag'), controller='true', controller_mass_scale='1.2',
+                           duration='20', real_time_factor='0')
+    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
+                              duration=20.0, real_time_factor=0.0, bag=tmp_path / 'bag', controller_mass_scale=1.2)
+    assert nodes == as_launched(expected)
+    assert [n['name'] for n in nodes] == ['recorder', 'constraint_config', 'trajectory', 'controller', 'dynamics']
+    dynamics = nodes[-1]['parameters'][0]
+    assert dynamics['wait_for_recorder'] and dynamics['wait_for_command'] and dynamics['stop_at'] == 20.0
+    assert nodes[0]['parameters'][0]['output'] == str(tmp_path / 'bag')
+
+
+def test_every_node_module_has_its_console_script():
+    setup = (LAUNCH_FILE.parents[1] / 'setup.py').read_text()
+    for module, executable in EXECUTABLES.items():
+        assert f"'{executable} = {module}:main'" in setup
