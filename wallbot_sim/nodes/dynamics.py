@@ -19,17 +19,19 @@ lateness = publish time - due time is measured and reported in /diagnostics. Wit
 a busy machine does not delay its wake-ups (``pacing``); off by default, since the latency it
 saves is shifted onto the rest of the graph (controllers, recorders) on a small machine.
 
-Back-pressure (lossless recording at factor 0). DDS acknowledgements are not enough: a
+Back-pressure (lossless recording at any factor). DDS acknowledgements are not enough: a
 reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
 application has taken it, so a recorder slower than the simulation still loses samples
 (measured: ``wait_for_all_acked`` every 200 steps returned within 4 ms while a slow
 subscriber lost 70 % of the samples), and acknowledgements may wait for Fast DDS's
 heartbeat period (up to 3 s per wait measured). So the recorder reports its progress
 instead: it publishes on ``record_progress`` (rosgraph_msgs/Clock, relative to the
-namespace) the newest /clock stamp up to which it has taken every message. At factor 0,
-while at least one publisher exists on that topic, the loop never runs more than
-``backpressure_window`` steps (default 200, well below the recorded topics' depth of 1000)
-ahead of the reported progress; without a recorder it runs free.
+namespace) the newest /clock stamp up to which it has taken every message. While at least
+one publisher exists on that topic, the loop never runs more than ``backpressure_window`` steps
+(default 200, well below the recorded topics' depth of 1000) ahead of the reported progress: at
+factor 0 that paces the loop to the recorder; at factor 1 it only acts when the recorder falls
+behind (a loaded machine, or the burst of a loop catching up after a stall), which then slows the
+simulation instead of losing messages. Without a recorder it runs free.
 """
 
 from __future__ import annotations
@@ -70,8 +72,6 @@ LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
 """Seconds between repeated warnings of one kind."""
-LOCKSTEP_WAIT = 0.25
-"""Wall seconds lockstep waits for a controller's command before it gives up (until commands return)."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.CLOCK: ClockMsg}
@@ -144,14 +144,18 @@ class DynamicsNode(Node):
                                         read_only=True),
             'lockstep_every': declare(self, 'lockstep_every', 0,
                                       'driven mode: after publishing every Nth step, wait for the command '
-                                      'answering that state before stepping on (at most 0.25 s wall); 0 = off',
+                                      'answering that state before stepping on (at most lockstep_timeout); 0 = off',
                                       low=0, high=1000000),
+            'lockstep_timeout': declare(self, 'lockstep_timeout', 2.0,
+                                        'wall seconds lockstep waits for a command before stepping on without it '
+                                        'until commands return (a dead controller costs this once)',
+                                        low=0.01, high=60.0),
             'realtime_priority': declare(self, 'realtime_priority', 0,
                                          'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
                                          '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
                                          low=0, high=99),
             'backpressure_window': declare(self, 'backpressure_window', 200,
-                                           'at factor 0, max steps ahead of a recorder\'s record_progress',
+                                           'max steps ahead of a recorder\'s record_progress (any factor)',
                                            low=1, high=1000000),
         }
         reasons = self._check(p)
@@ -290,7 +294,7 @@ class DynamicsNode(Node):
                     self.wake.wait(0.0005)
                     self.wake.clear()
                     continue
-                if self.params['real_time_factor'] == 0.0 and self._held_back():
+                if self._held_back():
                     self.wake.wait(0.0005)
                     self.wake.clear()
                     continue
@@ -441,8 +445,10 @@ class DynamicsNode(Node):
         After the state of every Nth step is published, the next step waits for a command that
         arrived after it: the controller's answer to that very state, so the loop behaves like
         a controller sampling every N steps with no delay, at any pace or CPU load. Without an
-        answer within LOCKSTEP_WAIT (wall) it steps on, free-running until commands return
-        (then command_timeout brings zero torque, as without lockstep).
+        answer within ``lockstep_timeout`` (wall) it steps on, free-running until commands return
+        (then command_timeout brings zero torque, as without lockstep). The timeout is long
+        against a loaded machine's scheduling delays (a 0.25 s one was exceeded under load, and
+        the loop then no longer equalled the model's), short against a controller's death.
         """
         every, sim = self.params['lockstep_every'], self.sim
         if (every <= 0 or sim.selection.trajectory or self.lockstep_lost or sim.steps % every != 0
@@ -452,10 +458,11 @@ class DynamicsNode(Node):
         now = time.monotonic()
         if self.lockstep_since is None:
             self.lockstep_since = now
-        if now - self.lockstep_since <= LOCKSTEP_WAIT:
+        if now - self.lockstep_since <= self.params['lockstep_timeout']:
             return True
         self.lockstep_since, self.lockstep_lost = None, True
-        self.get_logger().warning(f'no wheel_torque_cmd within {LOCKSTEP_WAIT:g} s (wall) of the state at '
+        self.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
+        self.get_logger().warning(f'no wheel_torque_cmd within {self.params["lockstep_timeout"]:g} s (wall) of the state at '
                                   f't = {sim.t:.3f} s: stepping on without lockstep until commands return')
         return False
 
@@ -464,7 +471,8 @@ class DynamicsNode(Node):
         self.sync_serial = self.command_serial
 
     def _held_back(self) -> bool:
-        """At factor 0: whether a recorder's progress is more than the window behind."""
+        """Whether a recorder's progress is more than the window behind (at any factor: a recorder
+        that falls behind on a loaded machine slows the simulation down instead of losing messages)."""
         now = time.monotonic()
         if now - self.recorder_checked > 0.2:
             self.recorder_checked = now
