@@ -108,6 +108,8 @@ def test_closed_loop_across_two_hosts_is_lossless_and_equals_the_single_host_loo
 
     run = load_run(graph.bag)
     check_complete(run, duration)  # every 1 ms state recorded on host B, none twice
+    # the data crossed the link (several step topics per state), not shared memory
+    assert hosts.packets_received(1) > len(run.t)
     check_commands(graph.bag, duration)
     # lockstep: the same loop as on one host (test_controller_loop: the graph there equals this model loop)
     model = model_closed_loop(SCENARIO, 1.0, len(run.t) - 1)
@@ -134,25 +136,26 @@ def test_one_second_link_outage_mid_run_and_recovery(tmp_path, hosts, process_ru
     up = time.time_ns()
     graph.finish()  # no node exited meanwhile, the recorder got the whole duration
 
-    # the link was the only path: host B received nothing in the second half of the outage
+    # what is lost: at most one block of states after the cut (older than the 1000 the publisher's history
+    # held when the link came back); nothing twice, nothing out of order, everything else up to the end
     stamps, received = odometry_received(graph.bag)
-    assert not np.any((received > down + (up - down) // 2) & (received < up))
-    gap = int(np.argmax(np.diff(received)))
-    assert received[gap] < up < received[gap + 1]
-    # what is lost: at most one block of states, right after the last one received before the cut
-    # (older than the 1000 the publisher's history held when the link came back); nothing twice,
-    # nothing out of order, everything after it up to the end
     assert stamps[0] == 0 and stamps[-1] == round(duration * 1e9) and np.all(np.diff(stamps) > 0)
     skipped = np.flatnonzero(np.diff(stamps) != MS)
-    assert set(skipped) <= {gap}, f'states missing after {stamps[skipped] * 1e-9} s'
+    assert len(skipped) <= 1 and np.all(stamps[skipped] >= round(cut_at * 1e9)), \
+        f'states missing after {stamps[skipped] * 1e-9} s'
     lost = round(duration * 1000) + 1 - len(stamps)
+    # for the record (receive times are when the recorder took a message, behind its arrival on a busy machine)
+    gap = int(np.argmax(np.diff(received)))
+    lost_block = (f'{stamps[skipped[0]] * 1e-9:.3f} -> {stamps[skipped[0] + 1] * 1e-9:.3f} s' if lost else 'none')
 
     # lockstep gave up, then commands came back; on the way the command timeout (if the dynamics stepped
     # COMMAND_TIMEOUT of simulation time without a command: a slow machine may not) brought zero torque
     dynamics_log = process_runner.output('dynamics')
-    gave_up = re.search(r'of the state at t = ([0-9.]+) s: stepping on without lockstep', dynamics_log)
+    gave_up = next((m for m in re.finditer(r'of the state at t = ([0-9.]+) s: stepping on without lockstep',
+                                           dynamics_log) if float(m.group(1)) >= cut_at), None)
     assert gave_up, dynamics_log
-    resumed = re.compile(r'wheel_torque_cmd again at t = ([0-9.]+) s: lockstep resumed').search(dynamics_log, gave_up.end())
+    resumed = re.compile(r'wheel_torque_cmd again at t = ([0-9.]+) s: lockstep resumed').search(
+        dynamics_log, gave_up.end())
     timed_out = re.compile(r'the last at t = ([0-9.]+) s\): zero torque from t = ([0-9.]+) s').search(
         dynamics_log, gave_up.end())
     assert resumed, dynamics_log
@@ -177,13 +180,14 @@ def test_one_second_link_outage_mid_run_and_recovery(tmp_path, hosts, process_ru
     after = known & (run.t > back + 1.5e-3)
     assert after.any() and not np.any(np.all(np.abs(tau[after]) < 1e-9, axis=1))
     fallen = np.max(run.err[run.t > back])
-    assert run.err[-1] < max(0.5 * fallen, 5e-3), f'error {run.err[-1]:.3f} m at the end, {fallen:.3f} m after the outage'
+    assert run.err[-1] < max(0.5 * fallen, 5e-3), \
+        f'error {run.err[-1]:.3f} m at the end, {fallen:.3f} m after the outage'
     fallback = (f'zero torque {zero_from:.3f} .. {back:.3f} s ({np.count_nonzero(zero)} of '
                 f'{round((back - zero_from) * 1000)} steps recorded)' if zero_from < back else
                 f'no zero torque: commands back after {back - waited:.3f} s of simulation time')
-    print(f'\noutage {(up - down) * 1e-9:.3f} s at t = {stamps[gap] * 1e-9:.3f} s; odometry: {lost} of '
-          f'{round(duration * 1000) + 1} states lost ({stamps[gap] * 1e-9:.3f} -> {stamps[gap + 1] * 1e-9:.3f} s), '
-          f'host B heard nothing for {(received[gap + 1] - received[gap]) * 1e-9:.3f} s, the first state '
+    print(f'\noutage {(up - down) * 1e-9:.3f} s; odometry: {lost} of {round(duration * 1000) + 1} states lost '
+          f'({lost_block}), '
+          f'the recorder took no odometry for {(received[gap + 1] - received[gap]) * 1e-9:.3f} s, the first state '
           f'{(received[gap + 1] - up) * 1e-9:.3f} s after the link came back; lockstep gave up at {waited:.3f} s, '
           f'{fallback}; lockstep back at {back:.3f} s; error {fallen:.3f} m after the outage, '
           f'{run.err[-1] * 1e3:.2f} mm at {duration:g} s')

@@ -5,7 +5,8 @@
         hosts.set_link(False)  # pull the cable
 
 Each namespace has its own ``lo`` (up) and one end of the veth pair (``veth0``, a /30 of
-private addresses), so the only path between the two is that link. Namespace names are unique
+private addresses, and a multicast route: with only a /30 there is no route to DDS's discovery
+group 239.255.0.1), so the only path between the two is that link. Namespace names are unique
 per instance (pid + random suffix): concurrent runs cannot clash, and the addresses exist only
 inside the namespaces. Creating them needs root or CAP_NET_ADMIN; ``unavailable_reason`` says
 why a machine cannot.
@@ -13,6 +14,7 @@ why a machine cannot.
 
 from __future__ import annotations
 
+import json
 import os
 import secrets
 import shutil
@@ -29,10 +31,10 @@ DDS_OVER_THE_LINK = {
     'FASTRTPS_DEFAULT_PROFILES_FILE': str(Path(__file__).with_name('fastdds_udp.xml')),
 }
 """Environment for nodes in the namespaces (beside ROS_DOMAIN_ID): discovery by multicast on the
-link instead of localhost only, and UDP as the only transport: two real hosts share no memory,
-but two namespaces share /dev/shm. (Fast DDS 2.14 did not take the shared-memory path between
-the namespaces here even by default; whether it does depends on how it tells hosts apart, so
-the test does not rely on it.)"""
+link instead of localhost only, and the Fast DDS profile fastdds_udp.xml: UDP as the only
+transport (two real hosts share no memory, two namespaces share /dev/shm), socket buffers large
+enough that a busy receiver does not drop the 1 kHz step topics, and a heartbeat that repairs a
+lost datagram within lockstep's wait (docs/robustness.md)."""
 
 
 def unavailable_reason() -> str | None:
@@ -70,7 +72,7 @@ class TwoHosts:
                 _ip('-n', name, 'addr', 'add', f'{address}/{PREFIX_LENGTH}', 'dev', LINK)
                 _ip('-n', name, 'link', 'set', 'lo', 'up')
                 _ip('-n', name, 'link', 'set', LINK, 'up')
-                _ip('-n', name, 'route', 'add', '224.0.0.0/4', 'dev', LINK)
+                _multicast_route(name)
         except BaseException:
             self.remove()
             raise
@@ -88,16 +90,25 @@ class TwoHosts:
         """``cmd`` run inside host ``host`` (0 or 1)."""
         return ['ip', 'netns', 'exec', self.names[host], *cmd]
 
-    def udp_counters(self, host: int) -> dict[str, int]:
-        """The kernel's UDP counters inside host ``host`` (/proc/net/snmp: InDatagrams, RcvbufErrors, ...)."""
-        lines = [line.split() for line in subprocess.run(
-            self.command(host, ['cat', '/proc/net/snmp']), capture_output=True, text=True, check=True).stdout.splitlines()
-            if line.startswith('Udp:')]
-        return dict(zip(lines[0][1:], map(int, lines[1][1:])))
+    def packets_received(self, host: int) -> int:
+        """Packets host ``host`` has received on its end of the link."""
+        result = subprocess.run(['ip', '-n', self.names[host], '-s', '-j', 'link', 'show', LINK],
+                                capture_output=True, text=True, check=True)
+        return int(json.loads(result.stdout)[0]['stats64']['rx']['packets'])
 
     def set_link(self, up: bool) -> None:
-        """Bring host 0's end of the link up or down (down on one end is no carrier on both)."""
+        """Bring host 0's end of the link up or down (down on one end is no carrier on both).
+
+        Taking a link down drops its routes; up restores the multicast route, as a host's network
+        configuration would.
+        """
         _ip('-n', self.names[0], 'link', 'set', LINK, 'up' if up else 'down')
+        if up:
+            _multicast_route(self.names[0])
+
+
+def _multicast_route(namespace: str) -> None:
+    _ip('-n', namespace, 'route', 'replace', '224.0.0.0/4', 'dev', LINK)
 
 
 def _ip(*args: str) -> None:
