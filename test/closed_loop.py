@@ -23,6 +23,7 @@ from wallbot_sim.model.outputs import side_motor_torques
 COMMAND_TIMEOUT = 0.5
 """The dynamics' default command_timeout (s of simulation time)."""
 MAX_TORQUE = 5.0
+"""The dynamics' and the controller's default max_wheel_torque (N m)."""
 ROBOT = Robot(load_robot_parameters())
 
 

@@ -29,6 +29,8 @@ from wallbot_sim.model import Simulation  # noqa: E402
 from wallbot_sim.plots.data import load_run  # noqa: E402
 
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
+
+
 def start_run(process_runner, out: Path, scenario: str, duration: float, *extra: str):
     return process_runner.start([*WALLBOT, 'run', scenario, '--controller', '--duration', str(duration),
                                  '--out', str(out), '--no-plots', *extra], 'run')
