@@ -326,7 +326,7 @@ class DynamicsNode(Node):
                 self.command_serial += 1
                 if self.lockstep_lost:
                     self.lockstep_lost = False
-                    self.get_logger().info('wheel_torque_cmd again: lockstep resumed')
+                    self.get_logger().info(f'wheel_torque_cmd again at t = {self.sim.t:.3f} s: lockstep resumed')
             elif kind == 'reset':
                 self._reset()
             elif kind == 'pause':
@@ -506,8 +506,8 @@ class DynamicsNode(Node):
             if not self.command_expired:
                 self.command_expired = True
                 self.get_logger().warning(
-                    f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time: zero torque',
-                    throttle_duration_sec=THROTTLE)
+                    f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time (the last '
+                    f'at t = {since:.3f} s): zero torque from t = {sim.t:.3f} s', throttle_duration_sec=THROTTLE)
             return (0.0, 0.0)
         return torque
 
