@@ -9,6 +9,7 @@ claimed ROS_DOMAIN_ID. What is checked is what was recorded. Needs root or CAP_N
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import signal
 import subprocess
@@ -25,9 +26,9 @@ import two_hosts  # noqa: E402
 from closed_loop import (COMMAND_TIMEOUT, applied_torques, check_commands, check_complete,  # noqa: E402
                          model_closed_loop)
 from wallbot_sim.bag.reader import messages  # noqa: E402
-from wallbot_sim.cli.run import RECORDER, node_specs  # noqa: E402
 from wallbot_sim.config import load_scenario  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
+from wallbot_sim.graph_description import RECORDER, describe_graph  # noqa: E402
 from wallbot_sim.nodes.controller import cdr_stamp_ns  # noqa: E402
 from wallbot_sim.plots.data import load_run  # noqa: E402
 
@@ -51,12 +52,16 @@ def hosts():
 class SplitGraph:
     """The closed-loop run's nodes started on their hosts, watched through a probe on host B."""
 
-    def __init__(self, hosts: two_hosts.TwoHosts, runner, out: Path, duration: float) -> None:
+    def __init__(self, hosts: two_hosts.TwoHosts, runner, out: Path, duration: float,
+                 dynamics: dict[str, object] | None = None) -> None:
         self.hosts, self.runner, self.duration = hosts, runner, duration
         self.bag = out / 'bag'
         self.procs: dict[str, subprocess.Popen] = {}
         self._start('probe', 1, PROBE)
-        specs = node_specs(load_scenario(SCENARIO), DRIVEN, duration, 1.0, self.bag, controller_mass_scale=1.0)
+        specs = describe_graph(load_scenario(SCENARIO), DRIVEN, duration=duration, real_time_factor=1.0, bag=self.bag,
+                               controller_mass_scale=1.0)
+        specs = [dataclasses.replace(s, parameters={**s.parameters, **dynamics}) if s.name == 'dynamics' and dynamics
+                 else s for s in specs]
         assert [s.name for s in specs][0] == RECORDER and {s.name for s in specs} == set(HOST_OF)
         self._start(RECORDER, HOST_OF[RECORDER], specs[0].command())
         self.wait_for(lambda: 'recorder ready' in self.runner.output('probe'), 'the recorder, seen from host B')
@@ -121,13 +126,14 @@ def test_closed_loop_across_two_hosts_is_lossless_and_equals_the_single_host_loo
 def test_one_second_link_outage_mid_run_and_recovery(tmp_path, hosts, process_runner):
     """The link goes down for 1 s at 2 s of simulation time; every node keeps running.
 
-    Host A's dynamics steps on (lockstep gives up after 0.25 s without a command, command_timeout
-    brings zero torque), host B records nothing while the link is down; when it is back the
+    Host A's dynamics steps on (lockstep_timeout 0.25 s here, shorter than the outage, so lockstep gives
+    up and command_timeout brings zero torque; the default 2 s would wait the outage out), host B
+    records nothing while the link is down; when it is back the
     publishers resend what their history (1000 messages) still holds, the controller answers,
     lockstep resumes. Measured figures: docs/robustness.md.
     """
     duration, cut_at = 8.0, 2.0
-    graph = SplitGraph(hosts, process_runner, tmp_path / 'run', duration)
+    graph = SplitGraph(hosts, process_runner, tmp_path / 'run', duration, dynamics={'lockstep_timeout': 0.25})
     graph.wait_recorded(cut_at)
     down = time.time_ns()
     hosts.set_link(False)
