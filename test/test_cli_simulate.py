@@ -40,7 +40,7 @@ def test_csv_has_the_contract_header_and_one_row_per_step(tmp_path):
     for row in rows:
         assert row[col['err']] == pytest.approx(math.hypot(row[col['x']] - row[col['ref_x']],
                                                            row[col['y']] - row[col['ref_y']]), abs=1e-12)
-        # drive forces reproduce the chassis wrench through G (MODEL.md section 7)
+        # drive forces reproduce the chassis wrench through G (docs/model.md section 8)
         th = row[col['theta']]
         fl, fr, flat = row[col['F_left']], row[col['F_right']], row[col['F_lateral']]
         assert math.cos(th) * (fl + fr) - math.sin(th) * flat == pytest.approx(row[col['Fx']], abs=1e-9)

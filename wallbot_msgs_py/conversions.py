@@ -264,7 +264,7 @@ def selection_from_switches(trajectory_task: bool, belt: bool, non_lateral: bool
                             tangent_heading: bool) -> ConstraintSelection:
     """The model's selection from the constraint_config switches.
 
-    ``tangent_heading`` true keeps MODEL.md's default (heading task on whenever non_lateral is
+    ``tangent_heading`` true keeps the model's default (heading task on whenever non_lateral is
     active with the trajectory task); false switches it off (the paper's inconsistent set).
     """
     return ConstraintSelection(bool(trajectory_task), bool(belt), bool(non_lateral), bool(nonslip),

@@ -3,7 +3,7 @@
 Per side (left, right), from a bag or a ``simulate`` CSV read through ``wallbot_sim.plots.load_run``:
 
 * motor torque tau_side = r F_side + the total torque on the side's two wheels
-  (``wallbot_sim.model.outputs.side_motor_torques``, MODEL.md section 7): in a tracking run the
+  (``wallbot_sim.model.outputs.side_motor_torques``, docs/model.md section 8): in a tracking run the
   torque motors would need to replace the trajectory task, in a driven run the applied torque;
 * spin rate: the mean of the side's two wheels (the belt keeps them equal), and the side's ground
   speed r * spin rate;

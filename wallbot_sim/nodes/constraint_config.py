@@ -29,7 +29,7 @@ SWITCH_DEFAULTS = {'trajectory_task': True, 'belt': False, 'non_lateral': False,
 
 
 def _default_gains() -> BaumgarteGains:
-    """The installed robot file's Baumgarte gains (MODEL.md defaults if it cannot be read)."""
+    """The installed robot file's Baumgarte gains (the model defaults if it cannot be read)."""
     try:
         from wallbot_sim.config import load_robot_parameters
         params = load_robot_parameters()

@@ -1,4 +1,4 @@
-"""trajectory_node: the circle / figure-8 reference (MODEL.md section 8) as a plan, a path and a pose.
+"""trajectory_node: the circle / figure-8 reference (docs/model.md section 10) as a plan, a path and a pose.
 
 It publishes the *plan* on ``reference_trajectory`` (transient-local): the reference sampled
 every ``sample_dt`` with position, velocity and acceleration, which the dynamics node
