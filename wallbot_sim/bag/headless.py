@@ -5,7 +5,7 @@ The reference pose is the trajectory node's conversion serialized by rclpy when 
 else the ROS-free encoder of ``wallbot_msgs_py.bagio`` (same type, frames and field layout).
 Either way the loader, plots, ``play`` and ``summary`` treat this bag like one recorded from ``run``. Differences, by design: the receive timestamps are the
 simulation time (ns since 0) rather than the recorder's clock, and ``/diagnostics`` is written at
-DIAGNOSTICS_RATE Hz with ``max_residual``, the largest residual since the previous one.
+DIAGNOSTICS_RATE Hz, with the largest residual since the previous one.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ class HeadlessBagWriter:
         self.writer, self.simulation, self.namespace = writer, simulation, namespace
         self._next_diagnostics = -math.inf
         self._max_residual = 0.0
+        self._unreported: StepOutputs | None = None
         self._conn = {t.name: writer.add_graph_topic(t, namespace)
                       for t in (topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH, topics.DRIVE_FORCES,
                                 topics.REFERENCE, topics.REFERENCE_PATH, topics.CONSTRAINTS, topics.CLOCK,
@@ -90,18 +91,23 @@ class HeadlessBagWriter:
         return bagio.serialize(bagio.odometry(t, *sample.position, theta, *sample.velocity, rate,
                                               child=topics.REFERENCE_FRAME), topics.REFERENCE.type)
 
-    def _diagnostics(self, out: StepOutputs) -> None:
+    def _diagnostics(self, out: StepOutputs, last: bool = False) -> None:
         t = out.t
         self._max_residual = max(self._max_residual, out.residual)
-        if t >= self._next_diagnostics - 1e-12:
+        self._unreported = out
+        if last or t >= self._next_diagnostics - 1e-12:
             self._next_diagnostics = t + 1.0 / DIAGNOSTICS_RATE
+            self._unreported = None
             status = bagio.diagnostic_status('wallbot/dynamics', 'running', {
-                'residual': f'{out.residual:.17g}', 'max_residual': f'{self._max_residual:.17g}',
+                'residual': f'{out.residual:.17g}', topics.DIAGNOSTIC_RESIDUAL_MAX: f'{self._max_residual:.17g}',
                 'tracking_error': f'{out.tracking_error:.17g}', 'constraints': self.simulation.selection.label()})
             self._put(topics.DIAGNOSTICS, t, bagio.diagnostic_array(t, [status]))
             self._max_residual = 0.0
 
     def close(self) -> None:
+        """Report the steps since the last diagnostics (their residuals belong to the run), then close."""
+        if self._unreported is not None:
+            self._diagnostics(self._unreported, last=True)
         self.writer.close()
 
 

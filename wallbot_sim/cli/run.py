@@ -19,7 +19,7 @@ from pathlib import Path
 
 from wallbot_msgs_py import topics
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.simulate import Progress
+from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
@@ -37,6 +37,9 @@ dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does n
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
+FINAL_DIAGNOSTICS_WAIT = 3.0
+"""Wall seconds to wait, after the last step is recorded, for the dynamics' diagnostics of the stop
+(they are published once a second)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -144,6 +147,10 @@ class Monitor:
             if 'simulation' in status.name:
                 self.diagnostics = {item.key: item.value for item in status.values}
 
+    def dynamics_stopped(self) -> bool:
+        """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
+        return self.diagnostics.get('status', '').startswith('stopped')
+
     def spin(self, seconds: float) -> None:
         self.executor.spin_once(timeout_sec=seconds)
 
@@ -193,6 +200,12 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             if monitor.recorded > 0:
                 progress.update(monitor.recorded)
         progress.update(duration, force=True)
+        # The summary's residual is the maximum the diagnostics carry for each window of steps:
+        # wait for the window that holds the last steps, published after the dynamics stopped.
+        deadline = time.monotonic() + FINAL_DIAGNOSTICS_WAIT
+        while not monitor.dynamics_stopped() and time.monotonic() < deadline:
+            check_nodes(graph, reported)
+            monitor.spin(0.1)
     finally:
         monitor.close()
 

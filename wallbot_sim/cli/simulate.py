@@ -6,11 +6,11 @@ import argparse
 import csv
 import math
 import sys
-import time
 from pathlib import Path
 from typing import TextIO
 
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
 
@@ -55,31 +55,6 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     q0, qd0 = scenario.initial_state(robot)
     duration = args.duration if args.duration is not None else scenario.duration
     return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt), duration
-
-
-class Progress:
-    """Simulation time and real-time factor on one refreshed stderr line, a few times a second.
-
-    The factor is measured from the first time simulation time moved, so start-up is not in it.
-    """
-
-    def __init__(self, duration: float, stream: TextIO | None) -> None:
-        self.duration, self.stream = duration, stream
-        self.last = time.monotonic()
-        self.anchor: tuple[float, float] | None = None
-
-    def update(self, t: float, force: bool = False) -> None:
-        now = time.monotonic()
-        if self.anchor is None:
-            self.anchor = (t, now)
-        if self.stream is None or not (force or now - self.last >= 0.25):
-            return
-        self.last = now
-        start_t, start_wall = self.anchor
-        factor = (t - start_t) / max(now - start_wall, 1e-9)
-        end = '\n' if force else ''
-        self.stream.write(f'\r  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.2f}{end}')
-        self.stream.flush()
 
 
 def main(args: argparse.Namespace) -> int:

@@ -89,6 +89,8 @@ class Window:
     step_time_max: float = 0.0
     lateness_max: float = 0.0
     late: int = 0
+    residual_max: float = 0.0
+    """Largest constraint residual of every state of the window (not a sample of one)."""
 
 
 @dataclass
@@ -199,6 +201,7 @@ class DynamicsNode(Node):
         self.recorder_checked = 0.0
         self.last_outputs = None
         self.window = Window()
+        self.window_lock = threading.Lock()
         self.encoder = StepEncoder()
         self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
         self.stopping = threading.Event()
@@ -532,6 +535,7 @@ class DynamicsNode(Node):
             for topic, data in encoded:
                 self.publishers_[topic].publish(data)
             self._mark_sync()
+        self._note_residual(out.residual)
         self.last_outputs = out
 
     def _pace(self, step: int, dt: float) -> None:
@@ -544,13 +548,19 @@ class DynamicsNode(Node):
     def _publish(self, out) -> None:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
+        self._note_residual(out.residual)
         for topic, data in self.encoder.encode(out):
             self.publishers_[topic].publish(data)
         self._mark_sync()
 
+    def _note_residual(self, residual: float) -> None:
+        with self.window_lock:  # the diagnostics swap windows on the executor thread: lose no step
+            self.window.residual_max = max(self.window.residual_max, residual)
+
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
     def _publish_diagnostics(self) -> None:
-        window, self.window = self.window, Window()
+        with self.window_lock:
+            window, self.window = self.window, Window()
         sim, out = self.sim, self.last_outputs
         elapsed = max(time.perf_counter() - window.started, 1e-9)
         t = sim.t if sim is not None else 0.0
@@ -570,6 +580,7 @@ class DynamicsNode(Node):
             ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
             ('loop priority', f'SCHED_FIFO {self.pacer.applied_priority}' if self.pacer.applied_priority else 'normal'),
             ('constraint residual', float(out.residual) if out is not None else math.nan),
+            (topics.DIAGNOSTIC_RESIDUAL_MAX, window.residual_max),
             ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
             ('command', command),
             ('adsorption force (N)', float(adsorption.applied_force)),

@@ -3,9 +3,9 @@
 Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
 matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
-present, else the ``reference`` topic (exact stamps, or linear interpolation between them); the residual comes from
-``/diagnostics`` (key ``max_residual``, the maximum since the previous diagnostics, else a key
-containing "residual"), NaN where absent. When simulation time jumps back on a topic (the
+present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
+residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
+of every step since the previous diagnostics message), NaN at the other stamps. When simulation time jumps back on a topic (the
 dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
 several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
@@ -172,11 +172,10 @@ def _load_bag(path: Path, label: str) -> RunData:
         elif leaf == 'reference_path':
             path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
         elif leaf == 'diagnostics':
-            values = bagio.diagnostic_values(msg)
-            keys = [k for k in values if k.lower() == 'max_residual'] or [k for k in values if 'residual' in k.lower()]
-            for key in keys[:1]:  # the period's maximum if published, else the instantaneous value
+            value = bagio.diagnostic_values(msg).get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+            if value is not None:
                 try:
-                    diag.put(_stamp_ns(msg.header.stamp), float(values[key]))
+                    diag.put(_stamp_ns(msg.header.stamp), float(value))
                 except ValueError:
                     pass
     if not odom:
