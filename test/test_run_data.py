@@ -54,10 +54,10 @@ def test_summary_figures_come_from_every_step(tmp_path):
     assert peak > 1.0 and 0.005 < float(rows[int(residuals.argmax())]['t']) < 0.05
     sampled = [residuals[round(t * 1000)] for t in (0.0, 0.1, 0.2, 0.3)]  # what 10 Hz samples would show
     assert max(sampled) < 0.99 * peak
-    assert summarize(bag).max_residual == pytest.approx(peak, rel=1e-12)
+    assert summarize(bag).max_residual == pytest.approx(peak, rel=1e-5)  # diagnostics hold 6 digits
     assert summarize(table).max_residual == peak
     residual_of_bag = load_run(bag).residual
-    assert np.nanmax(residual_of_bag) == pytest.approx(peak, rel=1e-12)
+    assert np.nanmax(residual_of_bag) == pytest.approx(peak, rel=1e-5)
     assert np.isfinite(residual_of_bag[-1])  # the steps after the last 10 Hz message are reported too
 
 

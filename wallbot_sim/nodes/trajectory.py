@@ -21,11 +21,11 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py import topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
 from wallbot_sim.model.scenario import SHAPES
-from wallbot_sim.model.trajectories import sample_plan
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
 REPLAN_CHECK_PERIOD = 0.02
@@ -96,10 +96,10 @@ class TrajectoryNode(Node):
                                 'seconds of simulation time to follow the shape, then stop smoothly; 0 = forever',
                                 low=0.0, high=1e9),
             'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s, > 0)'),
-            'publish_rate_hz': declare(self, 'publish_rate_hz', 100.0,
+            'publish_rate_hz': declare(self, 'publish_rate_hz', messages.PUBLISH_RATE_HZ,
                                        'rate of the reference pose in simulation time (Hz, > 0)'),
-            'sample_dt': declare(self, 'sample_dt', 0.05, 'plan sample spacing (s, in (0, 0.1])'),
-            'horizon': declare(self, 'horizon', 10.0,
+            'sample_dt': declare(self, 'sample_dt', messages.SAMPLE_DT, 'plan sample spacing (s, in (0, 0.1])'),
+            'horizon': declare(self, 'horizon', messages.HORIZON,
                                'seconds a plan covers when duration is 0 (renewed at half-way)'),
         }
         reasons = check_values(self.values)
@@ -111,8 +111,7 @@ class TrajectoryNode(Node):
         self.reference_pub = self.create_publisher(Odometry, topics.REFERENCE.name, qos_profile(topics.REFERENCE))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.plan_start = self.plan_end = 0.0
-        self.final = False
+        self.plan = None
         self.last_now = 0.0
         self.yaw = 0.0
         self.reference = None
@@ -126,42 +125,38 @@ class TrajectoryNode(Node):
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
         """Plan from ``now`` (rounded down to the sample grid) and publish plan and path."""
-        values, dt = self.values, self.values['sample_dt']
+        values = self.values
         reference = make_reference(values)
-        if values['duration'] > 0.0:
-            end = max(values['duration'] + values['stop_time'] + dt, now)
-        else:
-            end = now + values['horizon']
-        plan = sample_plan(reference, now, end, dt)
+        rest_at = values['duration'] + values['stop_time'] if values['duration'] > 0.0 else None
+        plan = messages.plan_ahead(reference, now, values['sample_dt'], values['horizon'], rest_at)
         first = tangent_heading(reference.sample(plan.times[0]))
         if first is not None:
             self.yaw = first.angle
-        self.trajectory_pub.publish(conversions.trajectory_message(plan, self.yaw))
-        self.path_pub.publish(conversions.path_message(plan, fallback_yaw=self.yaw))
-        self.reference = conversions.sampled_reference(plan)
-        self.plan_start, self.plan_end = plan.times[0], plan.times[-1]
-        self.final = conversions.plan_is_final(plan)
+        self.trajectory_pub.publish(messages.trajectory_message(plan, self.yaw))
+        self.path_pub.publish(messages.path_message(plan, fallback_yaw=self.yaw))
+        self.reference = messages.sampled_reference(plan)
+        self.plan = plan
+        final = messages.plan_is_final(plan)
         self.get_logger().info(
-            f'plan {values["shape"]} from t = {self.plan_start:.3f} s to {self.plan_end:.3f} s '
-            f'({len(plan.times)} samples{", ends at rest" if self.final else ""})')
+            f'plan {values["shape"]} from t = {plan.times[0]:.3f} s to {plan.times[-1]:.3f} s '
+            f'({len(plan.times)} samples{", ends at rest" if final else ""})')
 
     def _check_plan(self) -> None:
         now = self._now()
-        jumped_back = now < self.last_now - 1e-9 or now < self.plan_start
+        jumped_back = now < self.last_now - 1e-9 or now < self.plan.times[0]
         self.last_now = now
         if jumped_back:
             self.get_logger().info(f'simulation time went back to {now:.3f} s: replanning')
             self.replan(now)
-        elif not self.final and now > 0.5 * (self.plan_start + self.plan_end):
+        elif messages.replan_due(self.plan, now):
             self.replan(now)
 
     def _publish_reference(self) -> None:
         now = self._now()
         if self.reference is None:
             return
-        msg = conversions.reference_odometry_message(self.reference.sample(now), now, self.yaw)
-        self.yaw = conversions.quaternion_yaw(msg.pose.pose.orientation)
-        self.reference_pub.publish(msg)
+        data, self.yaw = messages.reference_message(self.reference.sample(now), now, self.yaw)
+        self.reference_pub.publish(data)
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):

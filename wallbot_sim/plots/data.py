@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag.errors import BagError
 
 COLUMNS = ('t', 'x', 'y', 'theta', 'vx', 'vy', 'omega', 'ref_x', 'ref_y', 'err',
@@ -101,10 +101,6 @@ def _load_csv(path: Path, label: str) -> RunData:
                    col['F_left'], col['F_right'], col['F_lateral'], col['residual'])
 
 
-def _stamp_ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
 class _LastRun(dict):
     """Messages by header stamp, forgetting everything earlier when the stamp jumps back."""
 
@@ -151,31 +147,36 @@ def _load_bag(path: Path, label: str) -> RunData:
     for raw in messages(path, list(names)):
         leaf = names[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
+        stamp = codec.stamp_nanoseconds(msg.header.stamp)
         if leaf == 'odom':
-            odom.put(_stamp_ns(msg.header.stamp), bagio.odom_row(msg))
+            try:
+                state = codec.planar_state(msg)
+            except ValueError as error:
+                raise RunDataError(f'{path}: {error}') from None
+            odom.put(stamp, (state.t, *state[1:]))
         elif leaf == 'wheel_states':
-            wheels.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.WHEEL_JOINTS, 'position')
-                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'velocity')
-                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'effort'))
+            wheels.put(stamp, sum((codec.joint_values(msg, topics.WHEEL_JOINTS, field)
+                                   for field in ('position', 'velocity', 'effort')), ()))
         elif leaf == 'constraint_wrench':
-            wrench.put(_stamp_ns(msg.header.stamp), bagio.wrench_row(msg)[1:])
+            wrench.put(stamp, codec.wrench_values(msg))
         elif leaf == 'drive_forces':
-            drive.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort'))
+            drive.put(stamp, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort'))
         elif leaf == 'reference':
-            ref.put(_stamp_ns(msg.header.stamp), bagio.reference_row(msg)[1:])
+            ref.put(stamp, (msg.pose.pose.position.x, msg.pose.pose.position.y))
         elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
-            start = _stamp_ns(msg.header.stamp)
-            for point in msg.points:
-                if point.transforms and point.velocities and point.accelerations:
-                    p, v, a = point.transforms[0].translation, point.velocities[0].linear, point.accelerations[0].linear
-                    plan[start + _stamp_ns(point.time_from_start)] = ((p.x, p.y), (v.x, v.y), (a.x, a.y))
+            try:
+                samples = codec.plan_samples(msg)
+            except ValueError:
+                continue
+            for sample in zip(*samples):
+                plan[codec.to_nanoseconds(sample[0])] = sample[1:]
         elif leaf == 'reference_path':
             path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
         elif leaf == 'diagnostics':
-            value = bagio.diagnostic_values(msg).get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+            value = codec.diagnostic_values(msg).get(topics.DIAGNOSTIC_RESIDUAL_MAX)
             if value is not None:
                 try:
-                    diag.put(_stamp_ns(msg.header.stamp), float(value))
+                    diag.put(stamp, float(value))
                 except ValueError:
                     pass
     if not odom:
