@@ -66,7 +66,7 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
 
 
 def test_summary_of_the_headless_circle(tmp_path):
-    from wallbot_sim.bag.summary import format_summary, summarize
+    from wallbot_sim.rundata import format_summary, summarize
     bag, _ = _simulate(tmp_path, duration=1.0)
     summary = summarize(bag)
     assert summary.odom_count == 1001 and summary.duration == pytest.approx(1.0)

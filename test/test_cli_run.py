@@ -15,9 +15,9 @@ import pytest
 import yaml
 
 from wallbot_msgs_py import bagio, codec
-from wallbot_sim.bag.summary import summarize
+from wallbot_sim.rundata import summarize
 from wallbot_sim.graph import child_processes
-from wallbot_sim.plots import FIGURES
+from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from wallbot_sim.cli.simulate import CSV_COLUMNS
+from wallbot_sim.rundata import CSV_COLUMNS
 
 HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
           'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual')

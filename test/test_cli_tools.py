@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.cli.main import main as cli
-from wallbot_sim.plots import FIGURES
+from wallbot_sim.plots.figures import FIGURES
 
 
 @pytest.fixture(scope='module')

@@ -28,7 +28,7 @@ from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
 from wallbot_sim.graph import child_processes  # noqa: E402
 from wallbot_sim.model import DriveForces, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.outputs import side_motor_torques  # noqa: E402
-from wallbot_sim.plots.data import load_run  # noqa: E402
+from wallbot_sim.rundata import load_run  # noqa: E402
 
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 COMMAND_TIMEOUT = 0.5

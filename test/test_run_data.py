@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from wallbot_sim.bag.headless import HeadlessBagWriter
-from wallbot_sim.bag.summary import format_summary, summarize
+from wallbot_sim.rundata import format_summary, summarize
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.plots import load_run
+from wallbot_sim.rundata import load_run
 
 
 def test_a_bag_with_a_restart_is_read_as_its_last_run(tmp_path):

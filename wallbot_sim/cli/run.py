@@ -260,7 +260,8 @@ def main(args: argparse.Namespace) -> int:
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
     """Print the summary of the recorded run and write its figures."""
-    from wallbot_sim.bag.summary import format_summary, summarize, write_plots
+    from wallbot_sim.plots.figures import write_figures
+    from wallbot_sim.rundata import format_summary, load_run, summarize
     summary = summarize(bag)
     adsorption = robot.adsorption
     print(format_summary(summary))
@@ -268,6 +269,6 @@ def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
           f'(margin {adsorption.margin:.2f})')
     print(f'bag:                 {bag}')
     if plots:
-        files = write_plots(bag, out / 'plots')
+        files = write_figures([load_run(bag)], out / 'plots')
         print(f'plots:               {out / "plots"} ({len(files)} figures)')
     return 0

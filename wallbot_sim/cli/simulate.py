@@ -13,14 +13,9 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
-
-CSV_COLUMNS = (
-    't', 'x', 'y', 'theta', 'phi1', 'phi2', 'phi3', 'phi4', 'vx', 'vy', 'omega',
-    'dphi1', 'dphi2', 'dphi3', 'dphi4', 'ref_x', 'ref_y', 'err', 'Fx', 'Fy', 'Mz',
-    'tau1', 'tau2', 'tau3', 'tau4', 'F_left', 'F_right', 'F_lateral', 'residual')
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scenario', default='circle', help='circle, figure8, or a scenario YAML path')
@@ -34,13 +29,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
-
-
-def csv_row(out: StepOutputs) -> list[float]:
-    """One CSV row in the order of CSV_COLUMNS."""
-    ref = out.reference.position if out.reference is not None else (math.nan, math.nan)
-    return [out.t, *out.q, *out.qd, *ref, out.tracking_error, *out.constraint_force,
-            out.drive.left, out.drive.right, out.drive.lateral, out.residual]
 
 
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:

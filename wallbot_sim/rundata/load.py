@@ -20,15 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from wallbot_msgs_py import bagio, codec, topics
-from wallbot_sim.bag.errors import BagError
-
-COLUMNS = ('t', 'x', 'y', 'theta', 'vx', 'vy', 'omega', 'ref_x', 'ref_y', 'err',
-           'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral', 'residual')
-
-
-class RunDataError(BagError):
-    """The path is neither a readable bag nor a simulate CSV (one-line message)."""
-
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS
+from wallbot_sim.rundata.errors import RunDataError
 
 @dataclass
 class RunData:
@@ -78,7 +71,6 @@ def load_run(path: Path | str, label: str | None = None) -> RunData:
 
 
 def _load_csv(path: Path, label: str) -> RunData:
-    from wallbot_sim.cli.simulate import CSV_COLUMNS
     try:
         with open(path, newline='', encoding='utf-8') as stream:
             reader = csv.reader(stream)
