@@ -17,7 +17,7 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import codec, topics
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
@@ -140,7 +140,7 @@ class Monitor:
                                       qos_profile(topics.DIAGNOSTICS))
 
     def _on_progress(self, msg) -> None:
-        self.recorded = max(self.recorded, msg.clock.sec + msg.clock.nanosec * 1e-9)
+        self.recorded = max(self.recorded, codec.seconds(msg.clock))
 
     def _on_diagnostics(self, msg) -> None:
         for status in msg.status:
