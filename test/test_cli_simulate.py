@@ -80,3 +80,15 @@ def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_every_column_group_gives_one_value_per_name():
+    from wallbot_sim.config import load_robot_parameters, load_scenario
+    from wallbot_sim.model import ConstraintSelection, Robot, Simulation
+    from wallbot_sim.rundata.csv_format import COLUMN_GROUPS, csv_row
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    out = Simulation(robot, scenario.reference, ConstraintSelection(), *scenario.initial_state(robot)).outputs()
+    for names, values in COLUMN_GROUPS:
+        assert len(values(out)) == len(names), names
+    assert len(csv_row(out)) == len(CSV_COLUMNS) == len(set(CSV_COLUMNS))
