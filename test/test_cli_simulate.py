@@ -71,6 +71,7 @@ def test_every_paper_scenario_runs(tmp_path, scenario, constraints, heading):
     (['--dt', '0', '--csv', 'x.csv'], '--dt must be in'),
     (['--duration', 'abc', '--csv', 'x.csv'], "invalid float value: 'abc'"),
     ([], 'nothing to write'),
+    (['--constraints', 'belt', '--tangent-heading', '--bag', 'b', '--duration', '0.01'], 'a bag cannot hold it'),
     (['--csv', '/nonexistent-dir/x.csv', '--duration', '0.01'], 'cannot write /nonexistent-dir/x.csv'),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):

@@ -52,7 +52,13 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress(duration, None if args.quiet else sys.stderr)
     sinks = []
     if args.bag:
-        from wallbot_sim.bag.headless import HeadlessBagWriter  # only when asked: needs message types
+        from wallbot_sim import messages
+        from wallbot_sim.bag.headless import HeadlessBagWriter  # only when asked: loads rosbags
+        selection = simulation.selection
+        described = messages.selection_from_switches(messages.switches_from_selection(selection))
+        if described.active_names() != selection.active_names():
+            raise CliError('--tangent-heading without non_lateral is not a set the graph runs (constraint_config '
+                           'has no switch for it), so a bag cannot hold it: add non_lateral, or drop --bag')
         sinks.append(HeadlessBagWriter.open(Path(args.bag), simulation))
     with _open_csv(args.csv) as stream:
         writer = csv.writer(stream) if stream is not None else None
