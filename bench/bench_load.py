@@ -31,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from wallbot_msgs_py import bagio  # noqa: E402
+from wallbot_msgs_py import bagio, codec  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 
 STEP_TOPICS = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'clock')
@@ -58,7 +58,7 @@ def analyse(bag: Path, duration: float) -> dict:
         leaf = wanted[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
         if leaf == 'diagnostics':
-            values = bagio.diagnostic_values(msg)
+            values = codec.diagnostic_values(msg)
             if 'achieved rate (Hz)' in values:
                 windows.append(values)
             continue

@@ -1,4 +1,4 @@
-"""Independent computations the model tests compare against (written from MODEL.md, not the code)."""
+"""Independent computations the model tests compare against (written from docs/model.md, not the code)."""
 
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
-from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag import BagError
 from wallbot_sim.bag.reader import info
 from wallbot_sim.bag.reindex import reindex
@@ -40,7 +40,7 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     assert meta['version'] == 9 and meta['storage_identifier'] == 'mcap'
     names = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
-    assert set(names) == {t.resolve() for t in topics.RECORDED} - {topics.REFERENCE_TRAJECTORY.resolve()}
+    assert set(names) == {t.resolve() for t in topics.RECORDED}
     path_qos = names['/wallbot/reference_path']['topic_metadata']['offered_qos_profiles'][0]
     assert path_qos['durability'] == 'transient_local' and path_qos['reliability'] == 'reliable'
 
@@ -57,16 +57,16 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
     assert np.all(np.diff(stamps) == 1_000_000)
     with open(table, newline='') as stream:
         rows = list(csv.DictReader(stream))
-    got = np.array([bagio.odom_row(m)[1:4] for m in odom])
+    got = np.array([codec.planar_state(m)[1:4] for m in odom])
     want = np.array([[float(r['x']), float(r['y']), float(r['theta'])] for r in rows])
     assert np.max(np.abs(got - want)) < 1e-12
-    wrench = [bagio.wrench_row(m)[1:] for _, m in _mcap_messages(bag, '/wallbot/constraint_wrench')]
+    wrench = [codec.wrench_values(m) for _, m in _mcap_messages(bag, '/wallbot/constraint_wrench')]
     assert np.max(np.abs(np.array(wrench) - np.array([[float(r['Fx']), float(r['Fy']), float(r['Mz'])]
                                                       for r in rows]))) < 1e-12
 
 
 def test_summary_of_the_headless_circle(tmp_path):
-    from wallbot_sim.bag.summary import format_summary, summarize
+    from wallbot_sim.rundata import format_summary, summarize
     bag, _ = _simulate(tmp_path, duration=1.0)
     summary = summarize(bag)
     assert summary.odom_count == 1001 and summary.duration == pytest.approx(1.0)
@@ -95,8 +95,7 @@ def test_reindex_recovers_a_recording_cut_mid_chunk(tmp_path):
     writer = BagWriter(bag, flush_period=1e9)
     odom = writer.add_graph_topic(topics.ODOM)
     for i in range(3000):
-        msg = bagio.odometry(i * 1e-3, float(i), 0.0, 0.0, 0.0, 0.0, 0.0)
-        writer.write(odom, i * 1_000_000, bagio.serialize(msg, topics.ODOM.type))
+        writer.write(odom, i * 1_000_000, codec.odometry(i * 1e-3, float(i), 0.0, 0.0, 0.0, 0.0, 0.0))
         if i in (999, 1999):
             writer.flush()
     writer._writer.storage.bio.flush()
@@ -126,19 +125,28 @@ def test_reindex_rebuilds_missing_metadata_of_a_complete_bag(tmp_path):
         [(t.name, t.count) for t in sorted(before.topics, key=lambda t: t.name)]
 
 
-def test_ros_conversions_and_portable_encoders_agree(tmp_path, monkeypatch):
-    """simulate --bag with ROS (reference pose through rclpy) and without (through bagio) give the same run."""
-    pytest.importorskip('rclpy')
-    import wallbot_sim.bag.headless as headless
-    if headless._ros_conversions() is None:
-        pytest.skip('wallbot_msgs_py.conversions not importable')
-    from wallbot_sim.plots import load_run
-    ros_bag = tmp_path / 'ros'
-    assert cli(['simulate', '--scenario', 'figure8', '--duration', '0.3', '--bag', str(ros_bag), '--quiet']) == 0
-    monkeypatch.setattr(headless, '_ros_conversions', lambda: None)
-    portable = tmp_path / 'portable'
-    assert cli(['simulate', '--scenario', 'figure8', '--duration', '0.3', '--bag', str(portable), '--quiet']) == 0
-    a, b = load_run(ros_bag), load_run(portable)
-    for name in ('x', 'y', 'theta', 'vx', 'vy', 'omega', 'phi', 'dphi', 'tau', 'ref_x', 'ref_y',
-                 'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral'):
-        assert np.nanmax(np.abs(getattr(a, name) - getattr(b, name))) < 1e-12, name
+def test_without_ros_the_headless_bag_holds_the_same_messages(tmp_path):
+    """Whether rclpy is installed does not change what simulate --bag writes: every message is the
+    same, field for field (diagnostics apart from their wall-clock figures)."""
+    import subprocess
+    import sys
+
+    from bag_helpers import by_topic, diagnostics_without_wall_clock, fields
+    with_ros, without_ros = tmp_path / 'with', tmp_path / 'without'
+    args = ['simulate', '--scenario', 'figure8', '--constraints', 'belt,non_lateral', '--duration', '0.3', '--quiet']
+    assert cli([*args, '--bag', str(with_ros)]) == 0
+    blocked = ('rclpy', 'rosidl_runtime_py', 'nav_msgs', 'geometry_msgs', 'diagnostic_msgs', 'trajectory_msgs',
+               'sensor_msgs', 'std_msgs', 'rosgraph_msgs', 'builtin_interfaces')
+    script = (f'import sys\nfor name in {blocked!r}:\n    sys.modules[name] = None\n'
+              'from wallbot_sim.cli.main import main\nmain(sys.argv[1:])\n')
+    result = subprocess.run([sys.executable, '-c', script, *args, '--bag', str(without_ros)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    a, b = by_topic(with_ros), by_topic(without_ros)
+    assert sorted(a) == sorted(b) == sorted(t.resolve() for t in topics.RECORDED)
+    for topic in a:
+        if topic == '/diagnostics':
+            assert [diagnostics_without_wall_clock(m, same_moments=True) for m in a[topic]] == \
+                [diagnostics_without_wall_clock(m, same_moments=True) for m in b[topic]]
+        else:
+            assert [fields(m) for m in a[topic]] == [fields(m) for m in b[topic]], topic

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 import yaml
 
-from wallbot_msgs_py import bagio
+from wallbot_msgs_py import bagio, codec
+from wallbot_sim.rundata import summarize
 from wallbot_sim.graph import child_processes
-from wallbot_sim.plots import FIGURES
+from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
@@ -28,7 +29,7 @@ def odometry(bag: Path) -> np.ndarray:
     with open(next(bag.glob('*.mcap')), 'rb') as stream:
         for schema, _channel, message in mcap_reader.make_reader(stream).iter_messages(topics=['/wallbot/odom']):
             msg = bagio.deserialize(message.data, schema.name)
-            rows.append((msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, *bagio.odom_row(msg)[1:]))
+            rows.append((*codec.planar_state(msg),))
     return np.array(rows)
 
 
@@ -56,6 +57,9 @@ def test_run_records_what_simulate_computes(tmp_path, scenario, factor, duration
     expected = odometry(headless)
     assert np.array_equal(recorded[:, 0], expected[:, 0])
     assert np.max(np.abs(recorded[:, 1:] - expected[:, 1:])) < 1e-9
+    # the residual peak comes from every step (the diagnostics carry each window's maximum), not
+    # from 1 Hz samples: the same as the headless run's, to the diagnostics' 6 digits
+    assert summarize(out / 'bag').max_residual == pytest.approx(summarize(headless).max_residual, rel=1e-5)
 
     plots = sorted((out / 'plots').glob('*.png'))
     assert len(plots) == len(FIGURES) and all(p.stat().st_size > 10_000 for p in plots)
@@ -123,3 +127,43 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--out', str(tmp_path)], capture_output=True, text=True,
                             timeout=60)
     assert result.returncode == 2 and 'exists already' in result.stderr
+
+
+def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
+    """simulate --bag and run (factor 0) of the same scenario and duration: every topic both write
+    carries the same messages, field for field; diagnostics apart from their wall-clock figures
+    and the moments they were sent at."""
+    from bag_helpers import by_topic, diagnostics_without_wall_clock, fields, stamp_ns
+    from wallbot_msgs_py import topics
+
+    graph_out, headless = tmp_path / 'run', tmp_path / 'headless'
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--no-plots',
+                             '--out', str(graph_out)], capture_output=True, text=True, timeout=180)
+    assert result.returncode == 0, result.stderr
+    result = subprocess.run([*WALLBOT, 'simulate', '--scenario', 'circle', '--constraints', 'belt,non_lateral,nonslip',
+                             '--duration', '1', '--bag', str(headless), '--quiet'], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    graph, alone = by_topic(graph_out / 'bag'), by_topic(headless)
+    assert set(graph) == set(alone) == {t.resolve() for t in topics.RECORDED}
+
+    for topic in (topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH, topics.DRIVE_FORCES, topics.CLOCK):
+        name = topic.resolve()
+        assert len(graph[name]) == 1001, name
+        assert [fields(m) for m in graph[name]] == [fields(m) for m in alone[name]], name
+    # the trajectory node publishes the pose at its own rate: each is the headless one of that time
+    by_stamp = {stamp_ns(m): fields(m) for m in alone[topics.REFERENCE.resolve()]}
+    references = graph[topics.REFERENCE.resolve()]
+    assert len(references) > 10
+    assert [fields(m) for m in references] == [by_stamp[stamp_ns(m)] for m in references]
+    for topic in (topics.REFERENCE_TRAJECTORY, topics.REFERENCE_PATH, topics.CONSTRAINTS):
+        name = topic.resolve()
+        assert len(graph[name]) == 1
+        assert [fields(m) for m in graph[name]] == [fields(m) for m in alone[name]], name
+
+    def running(messages):
+        return {diagnostics_without_wall_clock(m, same_moments=False) for m in messages
+                if m.status[0].values[0].value == 'running' or m.status[0].values[0].value.startswith('stopped')}
+
+    graph_diagnostics = running(graph['/diagnostics'])
+    assert graph_diagnostics and graph_diagnostics == running(alone['/diagnostics'])

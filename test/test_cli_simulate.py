@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from wallbot_sim.cli.simulate import CSV_COLUMNS
+from wallbot_sim.rundata import CSV_COLUMNS
 
 HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
           'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual')
@@ -40,7 +40,7 @@ def test_csv_has_the_contract_header_and_one_row_per_step(tmp_path):
     for row in rows:
         assert row[col['err']] == pytest.approx(math.hypot(row[col['x']] - row[col['ref_x']],
                                                            row[col['y']] - row[col['ref_y']]), abs=1e-12)
-        # drive forces reproduce the chassis wrench through G (MODEL.md section 7)
+        # drive forces reproduce the chassis wrench through G (docs/model.md section 8)
         th = row[col['theta']]
         fl, fr, flat = row[col['F_left']], row[col['F_right']], row[col['F_lateral']]
         assert math.cos(th) * (fl + fr) - math.sin(th) * flat == pytest.approx(row[col['Fx']], abs=1e-9)
@@ -71,6 +71,7 @@ def test_every_paper_scenario_runs(tmp_path, scenario, constraints, heading):
     (['--dt', '0', '--csv', 'x.csv'], '--dt must be in'),
     (['--duration', 'abc', '--csv', 'x.csv'], "invalid float value: 'abc'"),
     ([], 'nothing to write'),
+    (['--constraints', 'belt', '--tangent-heading', '--bag', 'b', '--duration', '0.01'], 'a bag cannot hold it'),
     (['--csv', '/nonexistent-dir/x.csv', '--duration', '0.01'], 'cannot write /nonexistent-dir/x.csv'),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
@@ -80,3 +81,15 @@ def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], result.stderr
     assert 'Traceback' not in result.stderr
+
+
+def test_every_column_group_gives_one_value_per_name():
+    from wallbot_sim.config import load_robot_parameters, load_scenario
+    from wallbot_sim.model import ConstraintSelection, Robot, Simulation
+    from wallbot_sim.rundata.csv_format import COLUMN_GROUPS, csv_row
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    out = Simulation(robot, scenario.reference, ConstraintSelection(), *scenario.initial_state(robot)).outputs()
+    for names, values in COLUMN_GROUPS:
+        assert len(values(out)) == len(names), names
+    assert len(csv_row(out)) == len(CSV_COLUMNS) == len(set(CSV_COLUMNS))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import subprocess
 import sys
 from pathlib import Path
@@ -9,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.cli.main import main as cli
-from wallbot_sim.plots import FIGURES
+from wallbot_sim.plots.figures import FIGURES
 
 
 @pytest.fixture(scope='module')
@@ -88,3 +89,69 @@ def test_missing_metadata_points_at_reindex_and_reindex_repairs(runs, tmp_path):
     result = wallbot('bag', 'reindex', bag)
     assert result.returncode == 0, result.stderr
     assert wallbot('info', bag).returncode == 0
+
+
+def test_info_rates_each_topic_over_its_own_span(tmp_path):
+    """A topic recorded over part of the bag is rated over its own span, not the bag's."""
+    from wallbot_msgs_py import bagio, codec, topics
+    from wallbot_sim.bag.writer import BagWriter
+
+    def clock(ns: int) -> bytes:
+        types = bagio.typestore().types
+        return bagio.serialize(types['rosgraph_msgs/msg/Clock'](clock=codec.stamp(ns * 1e-9)), topics.CLOCK.type)
+
+    bag = tmp_path / 'spans'
+    writer = BagWriter(bag)
+    fast = writer.add_graph_topic(topics.CLOCK, topics.NAMESPACE)
+    slow = writer.add_graph_topic(topics.RECORD_PROGRESS, topics.NAMESPACE)
+    for k in range(1001):  # 1 kHz over 1 s
+        writer.write(fast, k * 1_000_000, clock(k * 1_000_000))
+    for k in range(11):  # 100 Hz over the last 0.1 s only
+        writer.write(slow, 900_000_000 + k * 10_000_000, clock(k))
+    writer.close()
+    result = wallbot('info', bag)
+    assert result.returncode == 0, result.stderr
+    lines = {line.split()[0]: line for line in result.stdout.splitlines() if line.startswith('  /')}
+    assert '1000.0 Hz' in lines['/clock'] and '1001 msgs' in lines['/clock']
+    assert '100.0 Hz' in lines['/wallbot/record_progress'] and '11 msgs' in lines['/wallbot/record_progress']
+
+
+class _FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def _drive(progress_stream, monkeypatch) -> str:
+    from wallbot_sim.cli import progress as progress_module
+    clock = _FakeClock()
+    monkeypatch.setattr(progress_module.time, 'monotonic', clock)
+    progress = progress_module.Progress(10.0, progress_stream)
+    for step in range(1001):  # 10 s of simulation in 10 s of wall time, updated every 10 ms
+        clock.now += 0.01
+        progress.update(step * 0.01)
+    progress.update(10.0, force=True)
+    return progress_stream.getvalue()
+
+
+def test_progress_outside_a_terminal_prints_a_plain_line_every_few_seconds(monkeypatch):
+    from wallbot_sim.cli.progress import LOG_PERIOD
+    text = _drive(io.StringIO(), monkeypatch)
+    assert '\r' not in text
+    lines = text.splitlines()
+    assert len(lines) == int(10.0 / LOG_PERIOD) + 1  # one per period, and the final one
+    assert all(line.startswith('  t = ') and 'real-time factor' in line for line in lines)
+    assert lines[-1].startswith('  t =  10.000 / 10.000 s')
+
+
+def test_progress_in_a_terminal_redraws_one_line(monkeypatch):
+    text = _drive(_Terminal(), monkeypatch)
+    assert text.count('\n') == 1 and text.endswith('\n')
+    assert text.count('\r') > 20  # redrawn a few times a second

@@ -1,4 +1,4 @@
-"""The example tracking controller closes the loop on the model (no ROS): MODEL.md plant, 200 Hz."""
+"""The example tracking controller closes the loop on the model (no ROS): the docs/model.md plant, 200 Hz."""
 
 from __future__ import annotations
 

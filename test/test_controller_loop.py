@@ -26,7 +26,7 @@ from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
 from wallbot_sim.graph import child_processes  # noqa: E402
 from wallbot_sim.model import Simulation  # noqa: E402
-from wallbot_sim.plots.data import load_run  # noqa: E402
+from wallbot_sim.rundata import load_run  # noqa: E402
 
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 
@@ -236,7 +236,7 @@ def test_cdr_stamp_and_odometry_decoding():
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message
 
-    from wallbot_msgs_py import conversions, topics
+    from wallbot_msgs_py import codec, topics
     from wallbot_msgs_py.step_cdr import StepEncoder
     from wallbot_sim.nodes.controller import cdr_stamp_ns
     plant = Simulation(ROBOT, None, DRIVEN, np.array([0.3, -0.2, 2.5, 0, 0, 0, 0]), np.zeros(7), t0=12.345)
@@ -247,13 +247,13 @@ def test_cdr_stamp_and_odometry_decoding():
     msg = deserialize_message(data, Odometry)
     assert cdr_stamp_ns(data) == round(plant.t * 1e9)
     assert cdr_stamp_ns(b'\0\1') is None
-    state = conversions.odometry_to_state(msg)
+    state = codec.planar_state(msg)
     assert state.stamp_ns == round(plant.t * 1e9)
     assert np.allclose([state.x, state.y, state.theta, state.xd, state.yd, state.thd], plant.q[:3].tolist()
                        + plant.qd[:3].tolist(), atol=1e-12)
     msg.twist.twist.linear.x = math.nan
     with pytest.raises(ValueError, match='not finite'):
-        conversions.odometry_to_state(msg)
+        codec.planar_state(msg)
     assert isinstance(Odometry(), type(msg))
 
 

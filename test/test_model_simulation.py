@@ -81,7 +81,7 @@ def test_non_lateral_without_heading_is_an_honest_compromise():
     run = paper_run('circle', 'belt,non_lateral', heading=False)
     assert np.all(np.isfinite(run.final_q))
     assert run.residual.max() > 1e-3
-    assert run.after(run.error, 5.0) == pytest.approx(0.12, abs=0.01)  # MODEL.md: about 0.12 m off the path
+    assert run.after(run.error, 5.0) == pytest.approx(0.12, abs=0.01)  # docs/model.md section 10: about 0.12 m off the path
     # neither row wins: the centre keeps a lateral velocity and does not settle on the path
     assert run.after(run.lateral, 5.0) > 0.1
     assert run.error[-1] > 0.05

@@ -1,14 +1,18 @@
-"""The run loader on a bag holding a reset: only the last run is analysed, and that is said."""
+"""The run loader and summary: a bag holding a reset (only the last run is analysed, and that is said),
+figures from every step, short runs."""
 
 from __future__ import annotations
 
+import csv
+
 import numpy as np
+import pytest
 
 from wallbot_sim.bag.headless import HeadlessBagWriter
-from wallbot_sim.bag.summary import format_summary, summarize
+from wallbot_sim.rundata import format_summary, summarize
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.plots import load_run
+from wallbot_sim.rundata import load_run
 
 
 def test_a_bag_with_a_restart_is_read_as_its_last_run(tmp_path):
@@ -34,3 +38,33 @@ def test_a_bag_with_a_restart_is_read_as_its_last_run(tmp_path):
     summary = summarize(bag)
     assert summary.restarts == 1 and summary.odom_count == 301
     assert 'jumped back 1 time(s)' in format_summary(summary)
+
+
+def test_summary_figures_come_from_every_step(tmp_path):
+    """The residual peak of the circle comes 14 ms into the run, between two diagnostics messages:
+    the summary of the bag must still report it, as the CSV's per-step column does."""
+    from wallbot_sim.cli.main import main as cli
+    bag, table = tmp_path / 'bag', tmp_path / 'run.csv'
+    assert cli(['simulate', '--scenario', 'circle', '--constraints', 'belt,non_lateral,nonslip', '--duration', '0.35',
+                '--bag', str(bag), '--csv', str(table), '--quiet']) == 0
+    with open(table, newline='', encoding='utf-8') as stream:
+        rows = list(csv.DictReader(stream))
+    residuals = np.array([float(row['residual']) for row in rows])
+    peak = residuals.max()
+    assert peak > 1.0 and 0.005 < float(rows[int(residuals.argmax())]['t']) < 0.05
+    sampled = [residuals[round(t * 1000)] for t in (0.0, 0.1, 0.2, 0.3)]  # what 10 Hz samples would show
+    assert max(sampled) < 0.99 * peak
+    assert summarize(bag).max_residual == pytest.approx(peak, rel=1e-5)  # diagnostics hold 6 digits
+    assert summarize(table).max_residual == peak
+    residual_of_bag = load_run(bag).residual
+    assert np.nanmax(residual_of_bag) == pytest.approx(peak, rel=1e-5)
+    assert np.isfinite(residual_of_bag[-1])  # the steps after the last 10 Hz message are reported too
+
+
+def test_a_run_shorter_than_five_seconds_says_so(tmp_path):
+    from wallbot_sim.cli.main import main as cli
+    table = tmp_path / 'short.csv'
+    assert cli(['simulate', '--scenario', 'circle', '--duration', '0.2', '--csv', str(table), '--quiet']) == 0
+    text = format_summary(summarize(table))
+    assert 'nan' not in text
+    assert 'no peak after 5 s (the run is shorter than 5 s)' in text

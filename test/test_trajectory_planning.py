@@ -84,16 +84,16 @@ DEFAULTS = {'shape': 'circle', 'radius': 1.0, 'amplitude': 1.0, 'period': 20.0, 
 
 def test_plans_cover_at_most_the_horizon_and_a_finite_run_ends_at_rest():
     pytest.importorskip('rclpy')
-    from wallbot_msgs_py import conversions
+    from wallbot_sim import messages
     from wallbot_sim.nodes.trajectory import MAX_PLAN_SAMPLES, PlanRequest, build_plan, check_values
 
     long_run = {**DEFAULTS, 'duration': 1464.9, 'sample_dt': 0.05}  # once a 29,257-sample plan
     assert not check_values(long_run)
     first = build_plan(PlanRequest(long_run, 2.1, 0.0)).plan
     assert first.times[0] <= 2.1 < first.times[1] and first.times[-1] == pytest.approx(12.1, abs=0.05)
-    assert not conversions.plan_is_final(first)
+    assert not messages.plan_is_final(first)
     last = build_plan(PlanRequest(long_run, 1460.0, 0.0)).plan
-    assert last.times[-1] >= 1464.9 + 2.0 and conversions.plan_is_final(last)
+    assert last.times[-1] >= 1464.9 + 2.0 and messages.plan_is_final(last)
     assert len(last.times) <= MAX_PLAN_SAMPLES
     assert check_values({**DEFAULTS, 'horizon': 1000.0, 'sample_dt': 0.001})  # 10^6 samples: refused
 

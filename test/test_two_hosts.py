@@ -30,7 +30,7 @@ from wallbot_sim.config import load_scenario  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
 from wallbot_sim.graph_description import RECORDER, describe_graph  # noqa: E402
 from wallbot_sim.nodes.controller import cdr_stamp_ns  # noqa: E402
-from wallbot_sim.plots.data import load_run  # noqa: E402
+from wallbot_sim.rundata import load_run  # noqa: E402
 
 SCENARIO = 'circle'
 HOST_OF = {'dynamics': 0, 'trajectory': 0, 'constraint_config': 0, RECORDER: 1, 'controller': 1}

@@ -1,4 +1,6 @@
-"""The interface layer of wallbot_sim: topics, QoS, messages and model<->message conversions.
+"""The interface of the wallbot graph: topic names, types and QoS (``topics``, ``qos``), one
+encoder and decoder per message (``codec``, ``step_cdr``) and bag-level helpers (``bagio``).
 
-Shared by the nodes and the tools; holds no node code. ``topics`` needs no ROS install.
+A third-party node can decode ``odom`` with it without the simulator: it imports nothing from
+``wallbot_sim``, and only ``qos`` needs rclpy.
 """

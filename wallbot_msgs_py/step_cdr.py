@@ -9,7 +9,7 @@ serializes for the same message (XCDR1, little endian; checked by test_step_cdr.
 node publishes them as serialized messages, and ``simulate --bag`` writes them unchanged with
 or without a ROS install.
 
-Field meanings (REP 103/105, as ``conversions`` documents them): odom pose of the centre in
+Field meanings (REP 103/105, as ``codec`` documents them): odom pose of the centre in
 ``wall``, twist (v_long, v_lat, thd) in ``base_link``; wheel_states position / velocity /
 effort per wheel in WHEEL_JOINTS order, effort = constraint torque + motor torque;
 constraint_wrench Q_c on the chassis (F_X, F_Y, M_Z) in ``wall``; drive_forces effort
@@ -20,9 +20,21 @@ from __future__ import annotations
 
 import math
 import struct
+from typing import Any, Protocol
 
 from wallbot_msgs_py import topics
-from wallbot_sim.model.outputs import StepOutputs
+
+
+class StepState(Protocol):
+    """What a step's messages carry (``wallbot_sim.model.StepOutputs`` is one): numpy arrays
+    q, qd (7), wheel_torques (4), chassis_wrench (3), drive forces left, right, lateral."""
+
+    t: float
+    q: Any
+    qd: Any
+    wheel_torques: Any
+    chassis_wrench: Any
+    drive: Any
 
 ENCAPSULATION = b'\x00\x01\x00\x00'
 """CDR, little endian (what rmw_fastrtps writes)."""
@@ -128,7 +140,7 @@ class StepEncoder:
         self._drive, self._clock = drive.data, clock.data
         self._wheel_values = struct.Struct(f'<{count}d')
 
-    def encode(self, out: StepOutputs) -> list[tuple[topics.Topic, bytes]]:
+    def encode(self, out: StepState) -> list[tuple[topics.Topic, bytes]]:
         """The five messages of ``out`` as CDR bytes (new bytes objects, safe to keep)."""
         sec, nanosec = divmod(round(out.t * 1e9), NS_PER_S)
         q, qd = out.q.tolist(), out.qd.tolist()

@@ -67,6 +67,10 @@ REFERENCE_FRAME = 'reference'
 WHEEL_JOINTS = ('wheel_left_front', 'wheel_left_rear', 'wheel_right_front', 'wheel_right_rear')
 DRIVE_JOINTS = ('drive_left', 'drive_right', 'lateral')
 
+DIAGNOSTIC_RESIDUAL_MAX = 'constraint residual max'
+"""Key of the dynamics' /diagnostics value: the largest constraint residual |A qdd - b| of every
+state published since the previous diagnostics message (so a run's peak is never missed)."""
+
 NODE_DYNAMICS = 'dynamics'
 NODE_TRAJECTORY = 'trajectory'
 NODE_CONSTRAINT_CONFIG = 'constraint_config'

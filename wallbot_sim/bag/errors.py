@@ -1,14 +1,9 @@
-"""Errors of the bag tools: each carries a one-line message for the user.
-
-BagError is a CliError (exit status 2), so every verb (including ``simulate --bag``) reports it
-as one line without catching it itself.
-"""
-
-from wallbot_sim.cli.errors import CliError
+"""Errors of bag I/O: each carries a one-line message naming the path (the command line maps
+them to its exit status)."""
 
 
-class BagError(CliError):
-    """A bag cannot be read, written or repaired (message is one line, names the path)."""
+class BagError(Exception):
+    """A bag cannot be read, written or repaired."""
 
 
 class NotABagError(BagError):

@@ -1,43 +1,58 @@
 """``simulate --bag``: the graph's recorded topics written straight from the model, no middleware.
 
-The per-step messages are the dynamics node's own bytes (``wallbot_msgs_py.step_cdr``, ROS-free).
-The reference pose is the trajectory node's conversion serialized by rclpy when ROS is installed,
-else the ROS-free encoder of ``wallbot_msgs_py.bagio`` (same type, frames and field layout).
-Either way the loader, plots, ``play`` and ``summary`` treat this bag like one recorded from ``run``. Differences, by design: the receive timestamps are the
-simulation time (ns since 0) rather than the recorder's clock, and ``/diagnostics`` is written at
-DIAGNOSTICS_RATE Hz with ``max_residual``, the largest residual since the previous one.
+Every message is built by the encoder the graph's nodes publish with (``wallbot_msgs_py.step_cdr``
+for the per-step messages, ``wallbot_sim.messages`` for the rest), so a headless bag holds the
+messages a recorded ``run`` of the same scenario holds, field for field. To make that hold for the
+motion too, the simulation follows what the dynamics node follows: the trajectory node's plan
+(the reference sampled every ``messages.SAMPLE_DT``, interpolated quintic Hermite, renewed at
+half-way), which agrees with the analytic reference to far below a micrometre.
+
+Differences, by design: the receive timestamps are the simulation time (ns since 0) rather than
+the recorder's clock; ``reference`` is written at every step (the node samples the same plan at
+its own rate); ``/diagnostics`` is written every DIAGNOSTICS_PERIOD of simulation time and once
+at the end, with this process's wall-clock figures.
 """
 
 from __future__ import annotations
 
-import math
+import time
 from pathlib import Path
 
-from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.step_cdr import StepEncoder
+from wallbot_sim import messages
 from wallbot_sim.bag.writer import BagWriter
-from wallbot_sim.model import ReferenceSample, Simulation, StepOutputs, tangent_heading
+from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
 
-DIAGNOSTICS_RATE = 10.0
-"""Hz of /diagnostics (residual, constraint set)."""
-PATH_STEP = 0.05
-"""Seconds between points of the recorded reference_path."""
+DIAGNOSTICS_PERIOD = 0.1
+"""Simulation seconds between /diagnostics messages."""
 
 
 class HeadlessBagWriter:
-    """Writes every step's outputs of a Simulation into a new bag."""
+    """Writes every step's outputs of a Simulation into a new bag (and makes it follow the plan)."""
 
     def __init__(self, writer: BagWriter, simulation: Simulation, namespace: str = topics.NAMESPACE) -> None:
-        self.writer, self.simulation, self.namespace = writer, simulation, namespace
-        self._next_diagnostics = -math.inf
-        self._max_residual = 0.0
-        self._conn = {t.name: writer.add_graph_topic(t, namespace)
-                      for t in (topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH, topics.DRIVE_FORCES,
-                                topics.REFERENCE, topics.REFERENCE_PATH, topics.CONSTRAINTS, topics.CLOCK,
-                                topics.DIAGNOSTICS)}
-        self._latched_done = False
-        self._ros = _ros_conversions()
+        self.writer, self.simulation = writer, simulation
+        self._conn = {t.name: writer.add_graph_topic(t, namespace) for t in topics.RECORDED}
         self._step = StepEncoder()
+        self._node_name = f'{namespace.rstrip("/")}/{topics.NODE_DYNAMICS}'
+        self._path_reference = simulation.reference
+        """The reference the trajectory node samples (the simulation follows its plans)."""
+        self._yaw = 0.0
+        self._plan = None
+        self._window_start = time.perf_counter()
+        self._window_steps = 0
+        self._step_time_max = 0.0
+        self._last_write = self._window_start
+        self._next_diagnostics = simulation.t
+        self._residual_max = 0.0
+        self._unreported: StepOutputs | None = None
+        t = simulation.t
+        selection = simulation.selection
+        self._put(topics.CONSTRAINTS, t, messages.constraints_message(
+            messages.switches_from_selection(selection), simulation.gains))
+        if self._path_reference is not None:
+            self._replan(t)
 
     @classmethod
     def open(cls, path: Path, simulation: Simulation) -> HeadlessBagWriter:
@@ -47,71 +62,62 @@ class HeadlessBagWriter:
         writer.set_custom_data('wallbot.constraints', simulation.selection.label())
         return cls(writer, simulation)
 
-    def _put_raw(self, topic: topics.Topic, t: float, data: bytes) -> None:
-        self.writer.write(self._conn[topic.name], int(round(t * 1e9)), data)
+    def _put(self, topic: topics.Topic, t: float, data: bytes) -> None:
+        self.writer.write(self._conn[topic.name], codec.to_nanoseconds(t), data)
 
-    def _put(self, topic: topics.Topic, t: float, msg: object) -> None:
-        self.writer.write(self._conn[topic.name], int(round(t * 1e9)), bagio.serialize(msg, topic.type))
-
-    def _latched(self, t: float) -> None:
-        reference = self.simulation.reference
-        if reference is not None:
-            horizon = float(getattr(reference, 'period', 30.0))
-            count = int(round(horizon / PATH_STEP))
-            points = []
-            for k in range(count + 1):
-                tp = t + k * PATH_STEP
-                px, py = reference.sample(tp).position
-                points.append((tp, px, py))
-            self._put(topics.REFERENCE_PATH, t, bagio.path(t, points))
-        selection = self.simulation.selection
-        self._put(topics.CONSTRAINTS, t, bagio.diagnostic_status(
-            'wallbot/constraints', selection.label(), {'active': ','.join(selection.active_names())}))
-        self._latched_done = True
+    def _replan(self, t: float) -> None:
+        """A plan from t, as the trajectory node makes it, written and handed to the simulation."""
+        plan = messages.plan_ahead(self._path_reference, t)
+        first = tangent_heading(self._path_reference.sample(plan.times[0]))
+        if first is not None:
+            self._yaw = first.angle
+        self._put(topics.REFERENCE_TRAJECTORY, t, messages.trajectory_message(plan, self._yaw))
+        self._put(topics.REFERENCE_PATH, t, messages.path_message(plan, fallback_yaw=self._yaw))
+        self.simulation.set_reference(messages.sampled_reference(plan))
+        self._plan = plan
 
     def write(self, out: StepOutputs) -> None:
-        """All topics of one step (t, state, wrench, drive forces, reference, clock, diagnostics)."""
+        """All topics of one step (state, wrench, drive forces, clock, reference, diagnostics)."""
         t = out.t
-        if not self._latched_done:
-            self._latched(t)
         for topic, data in self._step.encode(out):
-            self._put_raw(topic, t, data)
-        if out.reference is not None:
-            self._put_raw(topics.REFERENCE, t, self._reference_bytes(out.reference, t))
-        self._diagnostics(out)
+            self._put(topic, t, data)
+        reference = self.simulation.reference
+        if reference is not None:  # sampled at the stamp's time, as the trajectory node samples it
+            stamp_t = codec.to_nanoseconds(t) * 1e-9
+            data, self._yaw = messages.reference_message(reference.sample(stamp_t), stamp_t, self._yaw)
+            self._put(topics.REFERENCE, t, data)
+        if self._plan is not None and messages.replan_due(self._plan, t):
+            self._replan(t)
+        self._note(out)
 
-    def _reference_bytes(self, sample: ReferenceSample, t: float) -> bytes:
-        if self._ros is not None:
-            conversions, serialize = self._ros
-            return serialize(conversions.reference_odometry_message(sample, t))
-        heading = tangent_heading(sample)
-        theta = heading.angle if heading is not None else 0.0
-        rate = heading.rate if heading is not None else 0.0
-        return bagio.serialize(bagio.odometry(t, *sample.position, theta, *sample.velocity, rate,
-                                              child=topics.REFERENCE_FRAME), topics.REFERENCE.type)
+    def _note(self, out: StepOutputs) -> None:
+        now = time.perf_counter()
+        self._step_time_max = max(self._step_time_max, now - self._last_write)
+        self._last_write = now
+        self._window_steps += 1
+        self._residual_max = max(self._residual_max, out.residual)
+        self._unreported = out
+        if out.t >= self._next_diagnostics - 1e-12:
+            self._diagnostics(out, 'running')
 
-    def _diagnostics(self, out: StepOutputs) -> None:
-        t = out.t
-        self._max_residual = max(self._max_residual, out.residual)
-        if t >= self._next_diagnostics - 1e-12:
-            self._next_diagnostics = t + 1.0 / DIAGNOSTICS_RATE
-            status = bagio.diagnostic_status('wallbot/dynamics', 'running', {
-                'residual': f'{out.residual:.17g}', 'max_residual': f'{self._max_residual:.17g}',
-                'tracking_error': f'{out.tracking_error:.17g}', 'constraints': self.simulation.selection.label()})
-            self._put(topics.DIAGNOSTICS, t, bagio.diagnostic_array(t, [status]))
-            self._max_residual = 0.0
+    def _diagnostics(self, out: StepOutputs, status: str) -> None:
+        elapsed = max(time.perf_counter() - self._window_start, 1e-9)
+        rate = self._window_steps / elapsed
+        loop = messages.LoopFigures(rate, rate * self.simulation.dt, 0.0, 1e3 * elapsed / max(self._window_steps, 1),
+                                    1e3 * self._step_time_max, 0.0, 0, 'normal')
+        selection = self.simulation.selection
+        command = messages.COMMAND_IGNORED if selection.trajectory else messages.applied_command(*out.motor_torque)
+        diagnostics = messages.simulation_status(self._node_name, status, False, command, out.t, loop, out.residual,
+                                                 self._residual_max, selection.label(),
+                                                 self.simulation.robot.adsorption)
+        self._put(topics.DIAGNOSTICS, out.t, codec.diagnostics(out.t, [diagnostics]))
+        self._next_diagnostics = out.t + DIAGNOSTICS_PERIOD
+        self._window_start, self._window_steps, self._step_time_max = time.perf_counter(), 0, 0.0
+        self._residual_max = 0.0
+        self._unreported = None
 
     def close(self) -> None:
+        """Report the steps since the last diagnostics (their residuals belong to the run), then close."""
+        if self._unreported is not None:
+            self._diagnostics(self._unreported, messages.stopped_status(self._unreported.t))
         self.writer.close()
-
-
-def _ros_conversions():
-    """(conversions module, rclpy serialize_message), or None without a ROS install."""
-    try:
-        from rclpy.serialization import serialize_message
-
-        from wallbot_msgs_py import conversions
-        conversions.reference_odometry_message  # noqa: B018 (API check)
-    except Exception:  # no ROS, or conversions not there yet: the ROS-free encoders
-        return None
-    return conversions, serialize_message

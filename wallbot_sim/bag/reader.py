@@ -118,6 +118,19 @@ def info(path: Path | str) -> BagInfo:
         reader.close()
 
 
+def topic_spans(path: Path | str) -> dict[str, tuple[int, int]]:
+    """Receive time (ns) of the first and the last message of every topic that has one.
+
+    A topic's rate is its count over its own span: a latched topic or one that started late
+    says nothing about the rate of the others.
+    """
+    spans: dict[str, tuple[int, int]] = {}
+    for message in messages(path):
+        first, last = spans.get(message.topic, (message.timestamp, message.timestamp))
+        spans[message.topic] = (min(first, message.timestamp), max(last, message.timestamp))
+    return spans
+
+
 @dataclass(frozen=True)
 class RawMessage:
     """One recorded message: topic, type, receive time (ns) and CDR bytes as stored."""

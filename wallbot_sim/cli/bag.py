@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from wallbot_sim.cli.errors import CliError
-
 HELP = 'bag maintenance: reindex (repair a bag whose recording was killed)'
 
 
@@ -19,12 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from wallbot_sim.bag import BagError
     from wallbot_sim.bag.reindex import reindex
-    try:
-        report = reindex(args.bag)
-    except BagError as error:
-        raise CliError(str(error)) from None
+    report = reindex(args.bag)
     note = ' (the end was cut: its last partial chunk is dropped)' if report.truncated else ''
     print(f'reindexed {report.path}: {report.messages} messages, {report.duration:.3f} s, '
           f'{report.chunks} chunks{note}')

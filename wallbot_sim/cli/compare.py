@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.plot import load_runs, write
 
 HELP = 'overlay several runs (bags or simulate CSVs) in one set of the paper\'s figures'
 
@@ -20,13 +19,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     if len(args.runs) < 2:
         raise CliError('compare needs at least two runs (use plot for one)')
-    runs = load_runs(args.runs)
+    from wallbot_sim.plots.figures import write_figures
+    from wallbot_sim.rundata import load_run
+    runs = [load_run(path) for path in args.runs]
     if args.labels:
         labels = [s.strip() for s in args.labels.split(',')]
         if len(labels) != len(runs):
             raise CliError(f'--labels has {len(labels)} labels for {len(runs)} runs')
         for run, text in zip(runs, labels):
             run.label = text
-    for path in write(runs, Path(args.out)):
+    for path in write_figures(runs, Path(args.out)):
         print(path)
     return 0

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from datetime import datetime, timezone
 
-from wallbot_sim.cli.errors import CliError
-
 HELP = 'show what a recorded bag holds: duration, topics, types, counts, rates, storage, size'
 
 
@@ -22,8 +20,15 @@ def _size(n: int) -> str:
     return f'{n} B'
 
 
-def format_info(bag) -> str:
-    """The text ``info`` prints for a BagInfo."""
+def _rate(count: int, span: tuple[int, int] | None) -> str:
+    """Messages per second of receive time over the topic's own first-to-last span."""
+    if span is None or count < 2 or span[1] <= span[0]:
+        return '        - Hz'
+    return f'{(count - 1) / ((span[1] - span[0]) * 1e-9):9.1f} Hz'
+
+
+def format_info(bag, spans: dict[str, tuple[int, int]]) -> str:
+    """The text ``info`` prints for a BagInfo and the topics' spans (``reader.topic_spans``)."""
     start = datetime.fromtimestamp(bag.start_ns * 1e-9, tz=timezone.utc).isoformat(timespec='milliseconds')
     lines = [f'Bag:       {bag.path}',
              f'Storage:   {bag.storage} (rosbag2 metadata version {bag.version}), files: {", ".join(bag.files)}',
@@ -35,7 +40,7 @@ def format_info(bag) -> str:
     width = max((len(t.name) for t in bag.topics), default=0)
     twidth = max((len(t.type) for t in bag.topics), default=0)
     for topic in bag.topics:
-        rate = f'{(topic.count - 1) / bag.duration:9.1f} Hz' if bag.duration > 0 and topic.count > 1 else '        - Hz'
+        rate = _rate(topic.count, spans.get(topic.name))
         qos = topic.offered_qos[0] if topic.offered_qos else None
         qos_text = (f'{qos.reliability.name.lower()}, {qos.durability.name.lower()}, depth {qos.depth}'
                     if qos is not None else 'no offered QoS')
@@ -44,10 +49,6 @@ def format_info(bag) -> str:
 
 
 def main(args: argparse.Namespace) -> int:
-    from wallbot_sim.bag import BagError
-    from wallbot_sim.bag.reader import info
-    try:
-        print(format_info(info(args.bag)))
-    except BagError as error:
-        raise CliError(str(error)) from None
+    from wallbot_sim.bag.reader import info, topic_spans
+    print(format_info(info(args.bag), topic_spans(args.bag)))
     return 0

@@ -12,8 +12,15 @@ import signal
 import sys
 from typing import NoReturn, Sequence
 
+from wallbot_sim.bag.errors import BagError
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.model import ModelError
+from wallbot_sim.model.errors import ModelError
+from wallbot_sim.plots.errors import PlotError
+from wallbot_sim.rundata.errors import RunDataError
+
+USER_ERRORS = (CliError, BagError, ModelError, PlotError, RunDataError)
+"""What a verb may raise for bad input: printed as one line, exit status 2 (or a CliError's code).
+The libraries' errors know nothing of the command line; this is the one place that maps them."""
 
 VERBS = {
     'simulate': 'wallbot_sim.cli.simulate',
@@ -63,7 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.handler(args) or 0)
-    except (CliError, ModelError) as error:
+    except USER_ERRORS as error:
         print(f'wallbot-sim {args.verb}: error: {error}', file=sys.stderr)
         return getattr(error, 'code', 2)
     except KeyboardInterrupt:

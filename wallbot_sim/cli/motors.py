@@ -1,13 +1,11 @@
 """``wallbot-sim motors BAG|CSV``: per side, the motor torque, speed and power a run needed, and
-the adsorption force, for choosing a motor (``wallbot_sim.bag.motors``)."""
+the adsorption force, for choosing a motor (``wallbot_sim.rundata.motors``)."""
 
 from __future__ import annotations
 
 import argparse
 import json
 from pathlib import Path
-
-from wallbot_sim.cli.errors import CliError
 
 HELP = 'motor sizing of a run: per side peak/RMS torque, peak speed and power, adsorption force needed'
 
@@ -19,17 +17,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from wallbot_sim.bag.motors import format_report, motor_report
-    from wallbot_sim.cli.plot import load_runs
     from wallbot_sim.config import load_robot_parameters
-    from wallbot_sim.plots import RunDataError
+    from wallbot_sim.rundata import load_run
+    from wallbot_sim.rundata.motors import format_report, motor_report
 
-    params = load_robot_parameters(args.robot)  # ParameterError: one line from main
-    run, = load_runs([args.run])
-    try:
-        report = motor_report(run, params)
-    except RunDataError as error:
-        raise CliError(str(error)) from None
+    report = motor_report(load_run(args.run), load_robot_parameters(args.robot))
     if args.json:
         print(json.dumps({'run': str(Path(args.run)), 'robot': args.robot or 'config/robot.yaml',
                           **report.as_dict()}, indent=2))

@@ -72,16 +72,12 @@ def publisher_qos(offered: tuple[Any, ...], topic_name: str) -> Any:
 
 
 def main(args: argparse.Namespace) -> int:
-    from wallbot_sim.bag import BagError
     from wallbot_sim.bag.reader import info, messages, resolve_topics
 
     if not (math.isfinite(args.delay) and args.delay >= 0):
         raise CliError(f'--delay must be >= 0 seconds, got {args.delay}')
-    try:
-        bag = info(args.bag)
-        names = resolve_topics(bag, args.topics)
-    except BagError as error:
-        raise CliError(str(error)) from None
+    bag = info(args.bag)
+    names = resolve_topics(bag, args.topics)
     if args.clock:
         names = [n for n in names if n != graph.CLOCK.name]  # /clock comes from the replay itself
     if not names:
@@ -129,26 +125,23 @@ def main(args: argparse.Namespace) -> int:
         windows = {name: max(1, publishers[name].qos_profile.depth // 2) for name in names}
         while True:
             wall0, bag0, last_clock = time.monotonic(), None, -math.inf
-            try:
-                for raw in messages(bag.path, names):
-                    if bag0 is None:
-                        bag0 = raw.timestamp
-                    due = wall0 + (raw.timestamp - bag0) * 1e-9 / args.rate
-                    delay = due - time.monotonic()
-                    if delay > 0:
-                        time.sleep(delay)
-                    if clock_pub is not None and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
-                        clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(raw.timestamp, 1_000_000_000)
-                        clock_pub.publish(clock_msg)
-                        last_clock = time.monotonic()
-                    publisher = publishers[raw.topic]
-                    publisher.publish(raw.data)
-                    total += 1
-                    sent[raw.topic] += 1
-                    if sent[raw.topic] % windows[raw.topic] == 0:  # back-pressure: never overrun a reader
-                        publisher.wait_for_all_acked(Duration(seconds=1.0))
-            except BagError as error:
-                raise CliError(str(error)) from None
+            for raw in messages(bag.path, names):
+                if bag0 is None:
+                    bag0 = raw.timestamp
+                due = wall0 + (raw.timestamp - bag0) * 1e-9 / args.rate
+                delay = due - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+                if clock_pub is not None and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
+                    clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(raw.timestamp, 1_000_000_000)
+                    clock_pub.publish(clock_msg)
+                    last_clock = time.monotonic()
+                publisher = publishers[raw.topic]
+                publisher.publish(raw.data)
+                total += 1
+                sent[raw.topic] += 1
+                if sent[raw.topic] % windows[raw.topic] == 0:  # back-pressure: never overrun a reader
+                    publisher.wait_for_all_acked(Duration(seconds=1.0))
             if not args.loop:
                 break
         for publisher in publishers.values():

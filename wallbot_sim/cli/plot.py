@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from wallbot_sim.cli.errors import CliError
-
 HELP = "write the paper's figures (path, x/y, tracking error, attitude, wheel tracks, forces) as PNG"
 
 
@@ -20,30 +18,10 @@ def default_out(path: Path) -> Path:
     return path.with_name(f'{path.stem}_plots') if path.is_file() else path / 'plots'
 
 
-def load_runs(paths: list[str]) -> list:
-    """RunData of each path, with bag/CSV errors as CliError."""
-    from wallbot_sim.bag import BagError
-    from wallbot_sim.plots import RunDataError, load_run
-    runs = []
-    for text in paths:
-        try:
-            runs.append(load_run(Path(text)))
-        except (BagError, RunDataError) as error:
-            raise CliError(str(error)) from None
-    return runs
-
-
-def write(runs: list, out: Path) -> list[Path]:
-    from wallbot_sim.plots.figures import PlotError, write_figures
-    try:
-        return write_figures(runs, out)
-    except PlotError as error:
-        raise CliError(str(error)) from None
-
-
 def main(args: argparse.Namespace) -> int:
-    runs = load_runs([args.run])
+    from wallbot_sim.plots.figures import write_figures
+    from wallbot_sim.rundata import load_run
     out = Path(args.out) if args.out else default_out(Path(args.run))
-    for path in write(runs, out):
+    for path in write_figures([load_run(args.run)], out):
         print(path)
     return 0

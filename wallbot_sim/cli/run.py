@@ -17,9 +17,9 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import codec, topics
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.simulate import Progress
+from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
@@ -33,6 +33,9 @@ OPTIONAL = (CONTROLLER,)
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
+FINAL_DIAGNOSTICS_WAIT = 3.0
+"""Wall seconds to wait, after the last step is recorded, for the dynamics' diagnostics of the stop
+(they are published once a second)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -93,12 +96,16 @@ class Monitor:
                                       qos_profile(topics.DIAGNOSTICS))
 
     def _on_progress(self, msg) -> None:
-        self.recorded = max(self.recorded, msg.clock.sec + msg.clock.nanosec * 1e-9)
+        self.recorded = max(self.recorded, codec.seconds(msg.clock))
 
     def _on_diagnostics(self, msg) -> None:
         for status in msg.status:
             if 'simulation' in status.name:
                 self.diagnostics = {item.key: item.value for item in status.values}
+
+    def dynamics_stopped(self) -> bool:
+        """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
+        return self.diagnostics.get('status', '').startswith('stopped')
 
     def spin(self, seconds: float) -> None:
         self.executor.spin_once(timeout_sec=seconds)
@@ -149,6 +156,12 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             if monitor.recorded > 0:
                 progress.update(monitor.recorded)
         progress.update(duration, force=True)
+        # The summary's residual is the maximum the diagnostics carry for each window of steps:
+        # wait for the window that holds the last steps, published after the dynamics stopped.
+        deadline = time.monotonic() + FINAL_DIAGNOSTICS_WAIT
+        while not monitor.dynamics_stopped() and time.monotonic() < deadline:
+            check_nodes(graph, reported)
+            monitor.spin(0.1)
     finally:
         monitor.close()
 
@@ -207,7 +220,8 @@ def main(args: argparse.Namespace) -> int:
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
     """Print the summary of the recorded run and write its figures."""
-    from wallbot_sim.bag.summary import format_summary, summarize, write_plots
+    from wallbot_sim.plots.figures import write_figures
+    from wallbot_sim.rundata import format_summary, load_run, summarize
     summary = summarize(bag)
     adsorption = robot.adsorption
     print(format_summary(summary))
@@ -215,6 +229,6 @@ def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
           f'(margin {adsorption.margin:.2f})')
     print(f'bag:                 {bag}')
     if plots:
-        files = write_plots(bag, out / 'plots')
+        files = write_figures([load_run(bag)], out / 'plots')
         print(f'plots:               {out / "plots"} ({len(files)} figures)')
     return 0

@@ -6,21 +6,16 @@ import argparse
 import csv
 import math
 import sys
-import time
 from pathlib import Path
 from typing import TextIO
 
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
-
-CSV_COLUMNS = (
-    't', 'x', 'y', 'theta', 'phi1', 'phi2', 'phi3', 'phi4', 'vx', 'vy', 'omega',
-    'dphi1', 'dphi2', 'dphi3', 'dphi4', 'ref_x', 'ref_y', 'err', 'Fx', 'Fy', 'Mz',
-    'tau1', 'tau2', 'tau3', 'tau4', 'F_left', 'F_right', 'F_lateral', 'residual')
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scenario', default='circle', help='circle, figure8, or a scenario YAML path')
@@ -34,13 +29,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
-
-
-def csv_row(out: StepOutputs) -> list[float]:
-    """One CSV row in the order of CSV_COLUMNS."""
-    ref = out.reference.position if out.reference is not None else (math.nan, math.nan)
-    return [out.t, *out.q, *out.qd, *ref, out.tracking_error, *out.constraint_force,
-            out.drive.left, out.drive.right, out.drive.lateral, out.residual]
 
 
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
@@ -57,31 +45,6 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt), duration
 
 
-class Progress:
-    """Simulation time and real-time factor on one refreshed stderr line, a few times a second.
-
-    The factor is measured from the first time simulation time moved, so start-up is not in it.
-    """
-
-    def __init__(self, duration: float, stream: TextIO | None) -> None:
-        self.duration, self.stream = duration, stream
-        self.last = time.monotonic()
-        self.anchor: tuple[float, float] | None = None
-
-    def update(self, t: float, force: bool = False) -> None:
-        now = time.monotonic()
-        if self.anchor is None:
-            self.anchor = (t, now)
-        if self.stream is None or not (force or now - self.last >= 0.25):
-            return
-        self.last = now
-        start_t, start_wall = self.anchor
-        factor = (t - start_t) / max(now - start_wall, 1e-9)
-        end = '\n' if force else ''
-        self.stream.write(f'\r  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.2f}{end}')
-        self.stream.flush()
-
-
 def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
@@ -89,7 +52,13 @@ def main(args: argparse.Namespace) -> int:
     progress = Progress(duration, None if args.quiet else sys.stderr)
     sinks = []
     if args.bag:
-        from wallbot_sim.bag.headless import HeadlessBagWriter  # only when asked: needs message types
+        from wallbot_sim import messages
+        from wallbot_sim.bag.headless import HeadlessBagWriter  # only when asked: loads rosbags
+        selection = simulation.selection
+        described = messages.selection_from_switches(messages.switches_from_selection(selection))
+        if described.active_names() != selection.active_names():
+            raise CliError('--tangent-heading without non_lateral is not a set the graph runs (constraint_config '
+                           'has no switch for it), so a bag cannot hold it: add non_lateral, or drop --bag')
         sinks.append(HeadlessBagWriter.open(Path(args.bag), simulation))
     with _open_csv(args.csv) as stream:
         writer = csv.writer(stream) if stream is not None else None

@@ -3,7 +3,7 @@
 Feed-forward is the model's inverse dynamics. The controller's own copy of the robot (its
 parameters may differ from the simulator's) is given the structural constraints (belt,
 non-lateral, nonslip) and a look-ahead point task; the Udwadia-Phohomsiri solution at the
-measured state yields the constraint wrench that task needs, which MODEL.md section 7 maps to
+measured state yields the constraint wrench that task needs, which docs/model.md section 8 maps to
 side drive forces F_L, F_R and motor torques tau = r F + the torque on the side's wheels.
 The task's Baumgarte terms are a PD feedback on the point's error; an integral term on the
 centre's error (integrated only within ``integral_zone`` of the path) removes the steady error

@@ -1,4 +1,4 @@
-"""The wall-climbing robot model of MODEL.md: pure NumPy, no ROS, no I/O."""
+"""The wall-climbing robot model of docs/model.md: pure NumPy, no ROS, no I/O."""
 
 from wallbot_sim.model.constraint_set import STRUCTURAL, ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains

@@ -17,7 +17,7 @@ STRUCTURAL = ('belt', 'non_lateral', 'nonslip')
 
 @dataclass(frozen=True)
 class ConstraintSelection:
-    """The switches of MODEL.md section 5.
+    """The module switches of docs/model.md section 5.
 
     ``tangent_heading`` None means the default: on whenever non-lateral motion is constrained
     together with the trajectory task (without it that set is inconsistent).

@@ -1,4 +1,4 @@
-"""Derived outputs of MODEL.md section 7: chassis wrench, wheel torques, drive forces."""
+"""Derived outputs (docs/model.md section 8): chassis wrench, wheel torques, drive forces."""
 
 from __future__ import annotations
 

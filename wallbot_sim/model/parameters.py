@@ -1,4 +1,4 @@
-"""Robot parameters (MODEL.md section 2) and their validation."""
+"""Robot parameters (docs/model.md section 2) and their validation."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The unconstrained robot: chassis plus four omni-directional wheels (MODEL.md sections 3 and 4).
+"""The unconstrained robot: chassis plus four omni-directional wheels (docs/model.md sections 3 and 4).
 
 Generalized coordinates q = [x, y, th, p1, p2, p3, p4]: the geometric centre in the wall frame,
 the heading, and the spin angles of the left-front, left-rear, right-front and right-rear wheels.

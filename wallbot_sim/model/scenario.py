@@ -1,4 +1,4 @@
-"""The paper's scenarios (MODEL.md section 8): a reference, a duration and an initial state."""
+"""The paper's scenarios (docs/model.md section 10): a reference, a duration and an initial state."""
 
 from __future__ import annotations
 

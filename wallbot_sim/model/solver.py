@@ -1,4 +1,4 @@
-"""The Udwadia-Phohomsiri equation (MODEL.md section 6).
+"""The Udwadia-Phohomsiri equation (docs/model.md section 6).
 
     qdd = [ (I - A+ A) M ; A ]+ [ (I - A+ A) Q ; b ],   Q_c = M qdd - Q
 

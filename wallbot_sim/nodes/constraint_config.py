@@ -11,8 +11,9 @@ import sys
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
 
-from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim import messages
 from wallbot_sim.model import BaumgarteGains, ModelError
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
@@ -29,7 +30,7 @@ SWITCH_DEFAULTS = {'trajectory_task': True, 'belt': False, 'non_lateral': False,
 
 
 def _default_gains() -> BaumgarteGains:
-    """The installed robot file's Baumgarte gains (MODEL.md defaults if it cannot be read)."""
+    """The installed robot file's Baumgarte gains (the model defaults if it cannot be read)."""
     try:
         from wallbot_sim.config import load_robot_parameters
         params = load_robot_parameters()
@@ -64,7 +65,7 @@ class ConstraintConfigNode(Node):
     @staticmethod
     def _check(values: dict) -> str | None:
         reasons = [check_number(name, values[name], minimum=0.0, exclusive=True)
-                   for name in conversions.GAINS if name in values]
+                   for name in codec.GAINS if name in values]
         return '; '.join(r for r in reasons if r) or None
 
     def _on_set(self, parameters):
@@ -83,10 +84,10 @@ class ConstraintConfigNode(Node):
 
     def publish(self) -> None:
         """Publish the current set and log it."""
-        msg = conversions.constraints_message(
-            self.switches, BaumgarteGains(self.gains['baumgarte_alpha'], self.gains['baumgarte_beta']))
-        self.publisher.publish(msg)
-        self.get_logger().info(f'constraints: {msg.message} (alpha {self.gains["baumgarte_alpha"]:g}, '
+        self.publisher.publish(messages.constraints_message(
+            self.switches, BaumgarteGains(self.gains['baumgarte_alpha'], self.gains['baumgarte_beta'])))
+        label = messages.selection_from_switches(self.switches).label()
+        self.get_logger().info(f'constraints: {label} (alpha {self.gains["baumgarte_alpha"]:g}, '
                                f'beta {self.gains["baumgarte_beta"]:g})')
 
 

@@ -36,8 +36,9 @@ from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import ControllerGains, TrackingController
 from wallbot_sim.model import DOF, ModelError, Robot, SampledReference
@@ -83,7 +84,7 @@ def cdr_stamp_ns(data: bytes) -> int | None:
     if len(data) < 12:
         return None
     sec, nanosec = struct.unpack_from('<iI' if data[1] & 1 else '>iI', data, 4)
-    return sec * conversions.NS_PER_S + nanosec
+    return sec * codec.NS_PER_S + nanosec
 
 
 def check_values(values: dict) -> list[str]:
@@ -186,12 +187,12 @@ class ControllerNode(Node):
     # --- callbacks -----------------------------------------------------------------------------
     def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
         try:
-            plan = conversions.plan_from_trajectory(msg)
-            reference = conversions.sampled_reference(plan)  # as the dynamics node interpolates it
+            plan = messages.plan_from_message(msg)
+            reference = messages.sampled_reference(plan)  # as the dynamics node interpolates it
         except (ValueError, ModelError) as error:
             self.get_logger().error(f'ignoring reference_trajectory: {error}')
             return
-        self.plans.add(conversions.plan_sample_times(plan)[0], reference)
+        self.plans.add(messages.plan_sample_times(plan)[0], reference)
         if self.pending is not None:  # a state that came before the first plan
             msg, self.pending = self.pending, None
             self._on_odom(msg)
@@ -219,7 +220,7 @@ class ControllerNode(Node):
     def _control(self, data: bytes, dt: float) -> None:
         try:
             msg = deserialize_message(data, Odometry)
-            state = conversions.odometry_to_state(msg)
+            state = codec.planar_state(msg)
             robot = self.controller.robot
             q = np.zeros(DOF)
             qd = np.zeros(DOF)

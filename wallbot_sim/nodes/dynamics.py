@@ -57,9 +57,10 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.step_cdr import StepEncoder
+from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.scenario import moving_start
@@ -89,6 +90,8 @@ class Window:
     step_time_max: float = 0.0
     lateness_max: float = 0.0
     late: int = 0
+    residual_max: float = 0.0
+    """Largest constraint residual of every state of the window (not a sample of one)."""
 
 
 @dataclass
@@ -203,6 +206,7 @@ class DynamicsNode(Node):
         self.recorder_checked = 0.0
         self.last_outputs = None
         self.window = Window()
+        self.window_lock = threading.Lock()
         self.encoder = StepEncoder()
         self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
         self.stopping = threading.Event()
@@ -217,27 +221,27 @@ class DynamicsNode(Node):
     # --- executor side: callbacks only queue events ---------------------------------------
     def _on_constraints(self, msg: DiagnosticStatus) -> None:
         try:
-            self._post('constraints', conversions.constraints_from_message(msg))
+            self._post('constraints', messages.constraints_from_message(msg))
         except ValueError as error:
             self.get_logger().error(f'ignoring constraints message: {error}')
 
     def _on_plan(self, data: bytes) -> None:
         try:
-            plan = conversions.plan_from_cdr(data)
+            plan = messages.plan_from_cdr(data)
             reference = SampledReference(*plan)
         except (ValueError, ModelError) as error:
             self.get_logger().error(f'ignoring reference_trajectory: {error}')
             return
-        self._post('plan', Plan(reference, plan.times[0], plan.times[-1], conversions.plan_is_final(plan)))
+        self._post('plan', Plan(reference, plan.times[0], plan.times[-1], messages.plan_is_final(plan)))
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         try:
-            self._post('command', conversions.parse_torque_command(msg, self.params['max_wheel_torque']))
+            self._post('command', codec.torque_command(msg, self.params['max_wheel_torque']))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
     def _on_progress(self, msg: ClockMsg) -> None:
-        self.progress_ns = conversions.stamp_nanoseconds(msg.clock)
+        self.progress_ns = codec.stamp_nanoseconds(msg.clock)
 
     def _on_reset(self, _request, response):
         self._post('reset', None)
@@ -393,7 +397,7 @@ class DynamicsNode(Node):
         sim = self.sim
         stop_at = self.params['stop_at']
         if stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt:
-            self.status = f'stopped at t = {sim.t:.3f} s (stop_at)'
+            self.status = messages.stopped_status(sim.t)
             return False
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
             self.status = f'waiting for a reference_trajectory covering t = {sim.t:.3f} s'
@@ -489,13 +493,13 @@ class DynamicsNode(Node):
         if sim is None:
             return 'no simulation yet'
         if sim.selection.trajectory:
-            return 'ignored (trajectory task on)'
+            return messages.COMMAND_IGNORED
         if self.command is None:
             return 'none yet, zero torque'
         if self.command_expired:
             return 'timed out, zero torque'
         (left, right), _since = self.command
-        return f'applied ({left:.4g}, {right:.4g}) N m'
+        return messages.applied_command(left, right)
 
     def _motor_torque(self) -> tuple[float, float]:
         sim = self.sim
@@ -540,6 +544,7 @@ class DynamicsNode(Node):
             for topic, data in encoded:
                 self.publishers_[topic].publish(data)
             self._mark_sync()
+        self._note_residual(out.residual)
         self.last_outputs = out
 
     def _pace(self, step: int, dt: float) -> None:
@@ -552,43 +557,33 @@ class DynamicsNode(Node):
     def _publish(self, out) -> None:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
+        self._note_residual(out.residual)
         for topic, data in self.encoder.encode(out):
             self.publishers_[topic].publish(data)
         self._mark_sync()
 
+    def _note_residual(self, residual: float) -> None:
+        with self.window_lock:  # the diagnostics swap windows on the executor thread: lose no step
+            self.window.residual_max = max(self.window.residual_max, residual)
+
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
     def _publish_diagnostics(self) -> None:
-        window, self.window = self.window, Window()
+        with self.window_lock:
+            window, self.window = self.window, Window()
         sim, out = self.sim, self.last_outputs
         elapsed = max(time.perf_counter() - window.started, 1e-9)
         t = sim.t if sim is not None else 0.0
         rate = window.steps / elapsed
         dt = sim.dt if sim is not None else 1.0 / self.params['rate_hz']
-        command = self._command_state()
-        level = 'error' if self.diverged else ('ok' if self.status in ('running', 'paused')
-                                                or self.status.startswith('stopped') else 'warn')
-        if level == 'ok' and command.startswith('timed out'):
-            level = 'warn'
-        adsorption = self.robot.adsorption
-        values = [
-            ('status', self.status), ('simulation time', t), ('achieved rate (Hz)', rate),
-            ('real-time factor', rate * dt), ('real-time factor target', float(self.params['real_time_factor'])),
-            ('step time mean (ms)', 1e3 * window.step_time_sum / max(window.steps, 1)),
-            ('step time max (ms)', 1e3 * window.step_time_max),
-            ('lateness max (ms)', 1e3 * window.lateness_max), ('late steps (> 2 ms)', window.late),
-            ('loop priority', self.pacer.policy),
-            ('constraint residual', float(out.residual) if out is not None else math.nan),
-            ('active constraints', sim.selection.label() if sim is not None else 'none yet'),
-            ('command', command),
-            ('adsorption force (N)', float(adsorption.applied_force)),
-            ('adsorption minimum (N)', float(adsorption.minimum_force)),
-            ('adsorption margin', float(adsorption.margin)),
-        ]
-        message = self.status if level != 'warn' or not command.startswith('timed out') \
-            else f'{self.status}; no wheel_torque_cmd: zero torque'
-        status = conversions.diagnostic_status(f'{self.get_fully_qualified_name()}: simulation', level,
-                                               message, values)
-        self.diagnostics_pub.publish(conversions.diagnostics_message(t, [status]))
+        loop = messages.LoopFigures(
+            rate, rate * dt, float(self.params['real_time_factor']), 1e3 * window.step_time_sum / max(window.steps, 1),
+            1e3 * window.step_time_max, 1e3 * window.lateness_max, window.late,
+            self.pacer.policy)
+        status = messages.simulation_status(
+            self.get_fully_qualified_name(), self.status, self.diverged, self._command_state(), t, loop,
+            float(out.residual) if out is not None else math.nan, window.residual_max,
+            sim.selection.label() if sim is not None else 'none yet', self.robot.adsorption)
+        self.diagnostics_pub.publish(codec.diagnostics(t, [status]))
 
     def close(self) -> None:
         """Stop the loop thread (called by main on shutdown)."""

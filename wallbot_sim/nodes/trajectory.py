@@ -1,4 +1,4 @@
-"""trajectory_node: the circle / figure-8 reference (MODEL.md section 8) as a plan, a path and a pose.
+"""trajectory_node: the circle / figure-8 reference (docs/model.md section 10) as a plan, a path and a pose.
 
 It publishes the *plan* on ``reference_trajectory`` (transient-local): the reference sampled
 every ``sample_dt`` with position, velocity and acceleration, which the dynamics node
@@ -24,11 +24,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import conversions, topics
+from wallbot_msgs_py import topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
 from wallbot_sim.model.scenario import SHAPES
-from wallbot_sim.model.trajectories import Plan, SampledReference, sample_plan
+from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
 from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
 
@@ -52,14 +53,6 @@ def make_reference(values: dict):
     if values['duration'] > 0.0:
         return SmoothStop(path, float(values['duration']), float(values['stop_time']))
     return path
-
-
-def plan_end(values: dict, now: float) -> float:
-    """End of the plan that starts at ``now``: ``horizon`` ahead, or the rest at the end of a finite run."""
-    end = now + values['horizon']
-    if values['duration'] > 0.0:
-        end = max(min(end, values['duration'] + values['stop_time'] + values['sample_dt']), now)
-    return end
 
 
 def check_values(values: dict) -> list[str]:
@@ -105,8 +98,8 @@ class BuiltPlan:
 
     plan: Plan
     reference: SampledReference
-    trajectory: MultiDOFJointTrajectory
-    path: Path
+    trajectory: bytes
+    path: bytes
     yaw: float
     shape: str
 
@@ -115,11 +108,12 @@ def build_plan(request: PlanRequest) -> BuiltPlan:
     """Sample the reference of ``request`` from its start time and encode plan and path."""
     values = request.values
     reference = make_reference(values)
-    plan = sample_plan(reference, request.now, plan_end(values, request.now), values['sample_dt'])
+    rest_at = values['duration'] + values['stop_time'] if values['duration'] > 0.0 else None
+    plan = messages.plan_ahead(reference, request.now, values['sample_dt'], values['horizon'], rest_at)
     first = tangent_heading(reference.sample(plan.times[0]))
     yaw = first.angle if first is not None else request.fallback_yaw
-    return BuiltPlan(plan, conversions.sampled_reference(plan), conversions.trajectory_message(plan, yaw),
-                     conversions.path_message(plan, fallback_yaw=yaw), yaw, values['shape'])
+    return BuiltPlan(plan, messages.sampled_reference(plan), messages.trajectory_message(plan, yaw),
+                     messages.path_message(plan, fallback_yaw=yaw), yaw, values['shape'])
 
 
 class TrajectoryNode(Node):
@@ -139,10 +133,10 @@ class TrajectoryNode(Node):
                                 'seconds of simulation time to follow the shape, then stop smoothly; 0 = forever',
                                 low=0.0, high=1e9),
             'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s, > 0)'),
-            'publish_rate_hz': declare(self, 'publish_rate_hz', 100.0,
+            'publish_rate_hz': declare(self, 'publish_rate_hz', messages.PUBLISH_RATE_HZ,
                                        'rate of the reference pose in simulation time (Hz, > 0)'),
-            'sample_dt': declare(self, 'sample_dt', 0.05, 'plan sample spacing (s, in (0, 0.1])'),
-            'horizon': declare(self, 'horizon', 10.0,
+            'sample_dt': declare(self, 'sample_dt', messages.SAMPLE_DT, 'plan sample spacing (s, in (0, 0.1])'),
+            'horizon': declare(self, 'horizon', messages.HORIZON,
                                'seconds a plan covers when duration is 0 (renewed at half-way)'),
         }
         reasons = check_values(self.values)
@@ -154,7 +148,7 @@ class TrajectoryNode(Node):
         self.reference_pub = self.create_publisher(Odometry, topics.REFERENCE.name, qos_profile(topics.REFERENCE))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.span = (0.0, 0.0, False)  # start, end, ends at rest: of the plan last published
+        self.plan: Plan | None = None  # the plan last published
         self.last_now = 0.0
         self.yaw = 0.0
         self.reference: SampledReference | None = None
@@ -176,26 +170,24 @@ class TrajectoryNode(Node):
         self.trajectory_pub.publish(built.trajectory)
         self.path_pub.publish(built.path)
         times = built.plan.times
-        self.reference, self.yaw = built.reference, built.yaw
-        self.span = (times[0], times[-1], conversions.plan_is_final(built.plan))
+        self.reference, self.yaw, self.plan = built.reference, built.yaw, built.plan
         self.get_logger().info(
             f'plan {built.shape} from t = {times[0]:.3f} s to {times[-1]:.3f} s '
-            f'({len(times)} samples{", ends at rest" if self.span[2] else ""})')
+            f'({len(times)} samples{", ends at rest" if messages.plan_is_final(built.plan) else ""})')
 
     def _planning_failed(self, error: Exception) -> None:
         self.get_logger().error(f'planning failed: {error}')
 
     def _check_plan(self) -> None:
-        now = self._now()
-        start, end, final = self.span
-        jumped_back = now < self.last_now - 1e-9 or now < start
+        now, plan = self._now(), self.plan
+        jumped_back = now < self.last_now - 1e-9 or (plan is not None and now < plan.times[0])
         self.last_now = now
-        if self.planner.busy:
+        if self.planner.busy or plan is None:
             return
         if jumped_back:
             self.get_logger().info(f'simulation time went back to {now:.3f} s: replanning')
             self.replan(now)
-        elif not final and now > 0.5 * (start + end):
+        elif messages.replan_due(plan, now):
             self.replan(now)
 
     def close(self) -> None:
@@ -206,9 +198,8 @@ class TrajectoryNode(Node):
         now = self._now()
         if self.reference is None:
             return
-        msg = conversions.reference_odometry_message(self.reference.sample(now), now, self.yaw)
-        self.yaw = conversions.quaternion_yaw(msg.pose.pose.orientation)
-        self.reference_pub.publish(msg)
+        data, self.yaw = messages.reference_message(self.reference.sample(now), now, self.yaw)
+        self.reference_pub.publish(data)
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):

@@ -20,7 +20,8 @@ from typing import Sequence
 import numpy as np
 
 from wallbot_msgs_py import topics
-from wallbot_sim.plots.data import RunData
+from wallbot_sim.plots.errors import PlotError
+from wallbot_sim.rundata import RunData
 
 FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'constraint_forces', 'drive_forces')
 """Base names of the PNG files written, in this order."""
@@ -28,10 +29,6 @@ FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'co
 WHEEL_OFFSETS = {  # body-frame axle centres in units of (a, b): x forward, y to the left
     'wheel_left_front': (1, 1), 'wheel_left_rear': (-1, 1),
     'wheel_right_front': (1, -1), 'wheel_right_rear': (-1, -1)}
-
-
-class PlotError(Exception):
-    """Output directory unusable (one-line message)."""
 
 
 def wheel_tracks(run: RunData, half_wheelbase: float, half_track: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:

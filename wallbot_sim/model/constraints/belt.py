@@ -1,7 +1,7 @@
 """The synchronous toothed belt: front and rear wheel of a side spin together.
 
 Written on the wheel spins (pd1 = pd2, pd3 = pd4), not on the axle speeds as in the paper:
-see MODEL.md section 5 for why.
+docs/model.md section 9 says why.
 """
 
 from __future__ import annotations

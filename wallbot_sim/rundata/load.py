@@ -3,9 +3,9 @@
 Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
 matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
-present, else the ``reference`` topic (exact stamps, or linear interpolation between them); the residual comes from
-``/diagnostics`` (key ``max_residual``, the maximum since the previous diagnostics, else a key
-containing "residual"), NaN where absent. When simulation time jumps back on a topic (the
+present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
+residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
+of every step since the previous diagnostics message), NaN at the other stamps. When simulation time jumps back on a topic (the
 dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
 several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
@@ -19,16 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from wallbot_msgs_py import bagio, topics
-from wallbot_sim.bag.errors import BagError
-
-COLUMNS = ('t', 'x', 'y', 'theta', 'vx', 'vy', 'omega', 'ref_x', 'ref_y', 'err',
-           'Fx', 'Fy', 'Mz', 'F_left', 'F_right', 'F_lateral', 'residual')
-
-
-class RunDataError(BagError):
-    """The path is neither a readable bag nor a simulate CSV (one-line message)."""
-
+from wallbot_msgs_py import bagio, codec, topics
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS
+from wallbot_sim.rundata.errors import RunDataError
 
 @dataclass
 class RunData:
@@ -78,7 +71,6 @@ def load_run(path: Path | str, label: str | None = None) -> RunData:
 
 
 def _load_csv(path: Path, label: str) -> RunData:
-    from wallbot_sim.cli.simulate import CSV_COLUMNS
     try:
         with open(path, newline='', encoding='utf-8') as stream:
             reader = csv.reader(stream)
@@ -99,10 +91,6 @@ def _load_csv(path: Path, label: str) -> RunData:
                    np.column_stack([col[f'tau{i}'] for i in range(1, 5)]),
                    col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
                    col['F_left'], col['F_right'], col['F_lateral'], col['residual'])
-
-
-def _stamp_ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 class _LastRun(dict):
@@ -151,32 +139,36 @@ def _load_bag(path: Path, label: str) -> RunData:
     for raw in messages(path, list(names)):
         leaf = names[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
+        stamp = codec.stamp_nanoseconds(msg.header.stamp)
         if leaf == 'odom':
-            odom.put(_stamp_ns(msg.header.stamp), bagio.odom_row(msg))
+            try:
+                state = codec.planar_state(msg)
+            except ValueError as error:
+                raise RunDataError(f'{path}: {error}') from None
+            odom.put(stamp, (state.t, *state[1:]))
         elif leaf == 'wheel_states':
-            wheels.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.WHEEL_JOINTS, 'position')
-                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'velocity')
-                       + bagio.joint_row(msg, topics.WHEEL_JOINTS, 'effort'))
+            wheels.put(stamp, sum((codec.joint_values(msg, topics.WHEEL_JOINTS, field)
+                                   for field in ('position', 'velocity', 'effort')), ()))
         elif leaf == 'constraint_wrench':
-            wrench.put(_stamp_ns(msg.header.stamp), bagio.wrench_row(msg)[1:])
+            wrench.put(stamp, codec.wrench_values(msg))
         elif leaf == 'drive_forces':
-            drive.put(_stamp_ns(msg.header.stamp), bagio.joint_row(msg, topics.DRIVE_JOINTS, 'effort'))
+            drive.put(stamp, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort'))
         elif leaf == 'reference':
-            ref.put(_stamp_ns(msg.header.stamp), bagio.reference_row(msg)[1:])
+            ref.put(stamp, (msg.pose.pose.position.x, msg.pose.pose.position.y))
         elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
-            start = _stamp_ns(msg.header.stamp)
-            for point in msg.points:
-                if point.transforms and point.velocities and point.accelerations:
-                    p, v, a = point.transforms[0].translation, point.velocities[0].linear, point.accelerations[0].linear
-                    plan[start + _stamp_ns(point.time_from_start)] = ((p.x, p.y), (v.x, v.y), (a.x, a.y))
+            try:
+                samples = codec.plan_samples(msg)
+            except ValueError:
+                continue
+            for sample in zip(*samples):
+                plan[codec.to_nanoseconds(sample[0])] = sample[1:]
         elif leaf == 'reference_path':
             path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
         elif leaf == 'diagnostics':
-            values = bagio.diagnostic_values(msg)
-            keys = [k for k in values if k.lower() == 'max_residual'] or [k for k in values if 'residual' in k.lower()]
-            for key in keys[:1]:  # the period's maximum if published, else the instantaneous value
+            value = codec.diagnostic_values(msg).get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+            if value is not None:
                 try:
-                    diag.put(_stamp_ns(msg.header.stamp), float(values[key]))
+                    diag.put(stamp, float(value))
                 except ValueError:
                     pass
     if not odom:

@@ -1,9 +1,7 @@
-"""What a finished run says: the numbers ``wallbot-sim run`` prints, and its plots.
+"""What a finished run says: the numbers ``wallbot-sim run`` prints, every one from per-step data.
 
-    from wallbot_sim.bag.summary import summarize, format_summary, write_plots
     summary = summarize(bag_dir)            # RunSummary (BagError / RunDataError if unreadable)
     print(format_summary(summary))
-    files = write_plots(bag_dir, out_dir)   # the seven PNGs of wallbot_sim.plots.FIGURES
 """
 
 from __future__ import annotations
@@ -13,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from wallbot_sim.rundata.load import load_run
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,6 @@ def _peak(values: np.ndarray) -> float:
 
 def summarize(path: Path | str) -> RunSummary:
     """Summary of a bag (or simulate CSV) at ``path``."""
-    from wallbot_sim.plots.data import load_run
     run = load_run(Path(path))
     err = run.err
     late = err[run.t >= run.t[0] + 5.0]
@@ -61,8 +60,9 @@ def format_summary(summary: RunSummary) -> str:
     s = summary
     return '\n'.join([
         f'run:                 {s.path} ({s.duration:.3f} s, {s.odom_count} odometry messages)',
-        f'tracking error:      final {s.final_tracking_error:.3e} m, peak {s.peak_tracking_error:.3e} m'
-        f', peak after 5 s {s.peak_tracking_error_after_5s:.3e} m',
+        f'tracking error:      final {s.final_tracking_error:.3e} m, peak {s.peak_tracking_error:.3e} m, '
+        + (f'peak after 5 s {s.peak_tracking_error_after_5s:.3e} m' if s.duration >= 5.0
+           else 'no peak after 5 s (the run is shorter than 5 s)'),
         f'constraint wrench:   peak |F_X| {s.peak_constraint_force_x:.3f} N, |F_Y| {s.peak_constraint_force_y:.3f} N, '
         f'|M_Z| {s.peak_constraint_torque_z:.4f} N m',
         f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '
@@ -71,10 +71,3 @@ def format_summary(summary: RunSummary) -> str:
     ] + ([f'note:                simulation time jumped back {s.restarts} time(s) in this bag (reset or '
           f'restart of the dynamics); these figures are of the last run'] if s.restarts else []))
 
-
-def write_plots(path: Path | str, out_dir: Path | str | None = None) -> list[Path]:
-    """The figure set of the run at ``path`` into ``out_dir`` (default ``<bag>/plots``)."""
-    from wallbot_sim.plots import load_run, write_figures
-    path = Path(path)
-    out = Path(out_dir) if out_dir is not None else (path / 'plots' if path.is_dir() else path.with_name(path.stem + '_plots'))
-    return write_figures([load_run(path)], out)

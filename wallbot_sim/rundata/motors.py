@@ -1,9 +1,9 @@
 """Motor sizing from a run (``wallbot-sim motors``): what each side's motor had to deliver.
 
-Per side (left, right), from a bag or a ``simulate`` CSV read through ``wallbot_sim.plots.load_run``:
+Per side (left, right), from a bag or a ``simulate`` CSV read through ``wallbot_sim.rundata.load_run``:
 
 * motor torque tau_side = r F_side + the total torque on the side's two wheels
-  (``wallbot_sim.model.outputs.side_motor_torques``, MODEL.md section 7): in a tracking run the
+  (``wallbot_sim.model.outputs.side_motor_torques``, docs/model.md section 8): in a tracking run the
   torque motors would need to replace the trajectory task, in a driven run the applied torque;
 * spin rate: the mean of the side's two wheels (the belt keeps them equal), and the side's ground
   speed r * spin rate;
@@ -29,7 +29,8 @@ import numpy as np
 
 from wallbot_sim.model import RobotParameters, adsorption_analysis
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
-from wallbot_sim.plots.data import RunData, RunDataError
+from wallbot_sim.rundata.errors import RunDataError
+from wallbot_sim.rundata.load import RunData
 
 SIDES = ('left', 'right')
 WHEELS = {'left': (0, 1), 'right': (2, 3)}

@@ -1,0 +1,231 @@
+"""The message codecs (wallbot_msgs_py.codec) and the model-aware conversions (wallbot_sim.messages),
+without ROS; rclpy, where installed, decodes the same bytes to the same fields."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bag_helpers import fields
+from wallbot_msgs_py import bagio, codec, topics
+from wallbot_sim import messages
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import (
+    BaumgarteGains, Circle, ConstraintSelection, FigureEight, Robot, SampledReference, Simulation, SmoothStop)
+from wallbot_sim.model.trajectories import sample_plan
+
+
+def decode(data: bytes, topic: topics.Topic):
+    return bagio.deserialize(data, topic.type)
+
+
+@pytest.fixture(scope='module')
+def robot() -> Robot:
+    return Robot(load_robot_parameters())
+
+
+def test_stamps_are_exact_integer_nanoseconds():
+    for k in (0, 1, 999, 1000, 1001, 123456789):
+        msg = codec.stamp(k * 1e-3)
+        assert codec.stamp_nanoseconds(msg) == k * 1_000_000
+    assert codec.seconds(codec.stamp(12.5)) == 12.5
+
+
+@pytest.mark.parametrize('reference', [Circle(1.0, 20.0), FigureEight(1.0, 30.0, (0.5, -0.2)),
+                                       SmoothStop(Circle(0.5, 7.0), 3.0, 2.0)], ids=['circle', 'figure8', 'stop'])
+def test_plan_round_trip_interpolates_the_reference(reference):
+    plan = sample_plan(reference, 0.0, 6.0, 0.01)
+    msg = decode(messages.trajectory_message(plan), topics.REFERENCE_TRAJECTORY)
+    assert msg.header.frame_id == topics.WALL_FRAME and len(msg.points) == len(plan.times) == 601
+    parsed = SampledReference(*messages.plan_from_message(msg))
+    direct = messages.sampled_reference(plan)
+    worst = 0.0
+    for t in np.arange(0.0, 6.0, 0.0013):
+        got, want = parsed.sample(t), reference.sample(t)
+        assert got == direct.sample(t)  # the headless writer and the node interpolate alike
+        worst = max(worst, math.hypot(got.position[0] - want.position[0], got.position[1] - want.position[1]))
+        assert np.allclose(got.velocity, want.velocity, atol=1e-6)
+    assert worst < 1e-6
+
+
+def test_overlapping_plans_agree_exactly():
+    reference = FigureEight()
+    early = messages.sampled_reference(sample_plan(reference, 0.0, 10.0, 0.01))
+    late = messages.sampled_reference(sample_plan(reference, 5.0042, 15.0, 0.01))
+    assert late.start == 5.0
+    for t in np.arange(5.0, 10.0, 0.001):
+        assert early.sample(t) == late.sample(t)
+
+
+def test_final_plan_ends_at_rest():
+    moving = sample_plan(Circle(), 0.0, 3.0, 0.01)
+    stopping = sample_plan(SmoothStop(Circle(), 2.0, 1.0), 0.0, 3.01, 0.01)
+    assert not messages.plan_is_final(moving)
+    assert messages.plan_is_final(stopping)
+
+
+def test_tracking_through_the_plan_matches_the_analytic_reference(robot):
+    """The model core's tracking run with the interpolated plan stays within 1e-6 m of the analytic one."""
+    q0, qd0 = np.array([0.8, 0, 0, 0, 0, 0, 0.0]), np.zeros(7)
+    selection = ConstraintSelection(True, True, True, True)
+    plan = SampledReference(*messages.plan_from_cdr(messages.trajectory_message(sample_plan(Circle(), 0.0, 2.0, 0.01))))
+    analytic = Simulation(robot, Circle(), selection, q0, qd0)
+    sampled = Simulation(robot, plan, selection, q0, qd0)
+    for _ in range(1500):
+        analytic.step()
+        sampled.step()
+        assert np.max(np.abs(analytic.q[:2] - sampled.q[:2])) < 1e-6
+
+
+def test_serialized_plan_decodes_to_the_plan():
+    plan = sample_plan(FigureEight(1.0, 30.0, (0.5, -0.2)), 3.0, 13.0, 0.05)
+    decoded = messages.plan_from_cdr(messages.trajectory_message(plan))
+    assert decoded.times == messages.plan_sample_times(plan)
+    assert (decoded.positions, decoded.velocities, decoded.accelerations) == \
+        (plan.positions, plan.velocities, plan.accelerations)
+
+
+def from_message(msg):
+    return SampledReference(*messages.plan_from_message(msg))
+
+
+def from_bytes(msg):
+    return SampledReference(*messages.plan_from_cdr(bagio.serialize(msg, topics.REFERENCE_TRAJECTORY.type)))
+
+
+@pytest.mark.parametrize('decode_plan', [from_message, from_bytes], ids=['message', 'cdr'])
+@pytest.mark.parametrize('build, reason', [
+    (lambda msg: msg.points.__setitem__(slice(None), msg.points[:1]), '>= 2 points'),
+    (lambda msg: msg.points[3].velocities.clear(), 'point 3'),
+    (lambda msg: setattr(msg.points[2], 'time_from_start', msg.points[1].time_from_start), 'increase'),
+])
+def test_bad_plans_are_refused_with_a_reason(decode_plan, build, reason):
+    msg = decode(messages.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01)), topics.REFERENCE_TRAJECTORY)
+    build(msg)
+    with pytest.raises(ValueError, match=reason):
+        decode_plan(msg)
+
+
+@pytest.mark.parametrize('cut', [0, 3, 40, -9])
+def test_truncated_serialized_plan_is_refused(cut):
+    data = messages.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01))
+    with pytest.raises(ValueError, match='malformed reference_trajectory'):
+        messages.plan_from_cdr(data[:cut])
+
+
+def test_path_and_reference_odometry():
+    plan = sample_plan(Circle(), 0.0, 10.0, 0.01)
+    path = decode(messages.path_message(plan, max_poses=100), topics.REFERENCE_PATH)
+    assert path.header.frame_id == topics.WALL_FRAME and 50 <= len(path.poses) <= 101
+    assert path.poses[-1].pose.position.x == plan.positions[-1][0]
+    headings = messages.plan_headings(plan)
+    for pose in path.poses:  # along the tangent
+        yaw, _rate = headings[round(codec.seconds(pose.header.stamp) / 0.01)]
+        assert codec.quaternion_yaw(pose.pose.orientation) == pytest.approx(math.remainder(yaw, 2 * math.pi), abs=1e-12)
+    sample = Circle().sample(2.0)
+    data, yaw = messages.reference_message(sample, 2.0)
+    msg = decode(data, topics.REFERENCE)
+    assert msg.child_frame_id == topics.REFERENCE_FRAME
+    assert yaw == pytest.approx(2 * math.pi * 2.0 / 20.0 + math.pi / 2, abs=1e-12)
+    state = codec.planar_state(msg)
+    assert (state.x, state.y, state.xd, state.yd) == pytest.approx((*sample.position, *sample.velocity), abs=1e-12)
+    speed = 2 * math.pi / 20.0
+    assert msg.twist.twist.linear.x == pytest.approx(speed, abs=1e-12)
+    assert msg.twist.twist.linear.y == pytest.approx(0.0, abs=1e-12)
+    assert msg.twist.twist.angular.z == pytest.approx(2 * math.pi / 20.0, abs=1e-12)
+
+
+def test_constraints_message_round_trip():
+    switches = {'trajectory_task': True, 'belt': True, 'non_lateral': True, 'nonslip': False,
+                'tangent_heading': True}
+    msg = decode(messages.constraints_message(switches, BaumgarteGains(4.0, 6.0)), topics.CONSTRAINTS)
+    assert msg.message == 'trajectory+tangent_heading+belt+non_lateral'
+    values = {kv.key: kv.value for kv in msg.values}
+    assert values['nonslip'] == 'false' and values['baumgarte_beta'] == '6.0'
+    assert values['active'] == 'trajectory,tangent_heading,belt,non_lateral'
+    selection, gains = messages.constraints_from_message(msg)
+    assert selection == ConstraintSelection(True, True, True, False, None)
+    assert gains == BaumgarteGains(4.0, 6.0)
+    off = decode(messages.constraints_message({**switches, 'tangent_heading': False}, BaumgarteGains()), topics.CONSTRAINTS)
+    assert messages.constraints_from_message(off)[0].heading is False
+
+
+@pytest.mark.parametrize('selection', [ConstraintSelection(), ConstraintSelection(True, True, True, True),
+                                       ConstraintSelection(True, True, True, False, False),
+                                       ConstraintSelection(False, True, True, True)], ids=lambda s: s.label())
+def test_a_selection_survives_its_switches(selection):
+    """What simulate --bag writes for its selection decodes to that selection in the dynamics node."""
+    msg = decode(messages.constraints_message(messages.switches_from_selection(selection), BaumgarteGains()),
+                 topics.CONSTRAINTS)
+    decoded, _gains = messages.constraints_from_message(msg)
+    assert decoded.active_names() == selection.active_names()
+
+
+@pytest.mark.parametrize('key, value, reason', [('belt', 'yes', 'belt'), ('baumgarte_alpha', '-1', 'alpha'),
+                                                ('baumgarte_beta', 'nan', 'beta')])
+def test_bad_constraints_message(key, value, reason):
+    msg = decode(messages.constraints_message({name: False for name in codec.SWITCHES}, BaumgarteGains()),
+                 topics.CONSTRAINTS)
+    for kv in msg.values:
+        if kv.key == key:
+            kv.value = value
+    with pytest.raises(ValueError, match=reason):
+        messages.constraints_from_message(msg)
+
+
+def test_torque_command_validation():
+    def command(data):
+        return bagio.typestore().types['std_msgs/msg/Float64MultiArray'](
+            layout=bagio.typestore().types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
+            data=np.array(data, dtype=np.float64))
+
+    assert codec.torque_command(command([0.5, -1.0]), 2.0) == (0.5, -1.0)
+    for data, reason in [([1.0], 'got 1 values'), ([1.0, 2.0, 3.0], 'got 3'), ([math.nan, 0.0], 'tau_L is not finite'),
+                         ([0.0, math.inf], 'tau_R is not finite'), ([0.0, -2.5], 'beyond max_wheel_torque')]:
+        with pytest.raises(ValueError, match=reason):
+            codec.torque_command(command(data), 2.0)
+
+
+def test_diagnostics_builder():
+    status = codec.Status('x', 'error', 'diverged', [('rate', 999.123456), ('set', 'belt')])
+    array = decode(codec.diagnostics(1.5, [status]), topics.DIAGNOSTICS)
+    assert codec.seconds(array.header.stamp) == 1.5
+    assert array.status[0].level == codec.LEVELS['error'] and array.status[0].hardware_id == codec.HARDWARE_ID
+    assert [(kv.key, kv.value) for kv in array.status[0].values] == [('rate', '999.123'), ('set', 'belt')]
+    assert codec.diagnostic_values(array) == {'rate': '999.123', 'set': 'belt'}
+
+
+def test_rclpy_decodes_the_codec_bytes_to_the_same_fields():
+    """The nodes publish these bytes as serialized messages: rclpy subscribers must read the same."""
+    pytest.importorskip('rclpy')
+    import importlib
+
+    from rclpy.serialization import deserialize_message
+
+    plan = sample_plan(FigureEight(), 0.0, 1.0, 0.05)
+    encoded = {
+        topics.REFERENCE_TRAJECTORY: messages.trajectory_message(plan),
+        topics.REFERENCE_PATH: messages.path_message(plan),
+        topics.REFERENCE: messages.reference_message(FigureEight().sample(0.3), 0.3)[0],
+        topics.CONSTRAINTS: messages.constraints_message(messages.switches_from_selection(ConstraintSelection()),
+                                                         BaumgarteGains()),
+        topics.DIAGNOSTICS: codec.diagnostics(2.0, [codec.Status('n', 'warn', 'm', [('k', 1.5)])]),
+    }
+    for topic, data in encoded.items():
+        ours = decode(data, topic)
+        package, _msg, name = topic.type.split('/')
+        theirs = deserialize_message(data, getattr(importlib.import_module(f'{package}.msg'), name))
+        assert rclpy_fields(theirs) == fields(ours), topic.name
+
+
+def rclpy_fields(msg):
+    """An rclpy message in the shape of bag_helpers.fields."""
+    if hasattr(msg, 'get_fields_and_field_types'):
+        return tuple((name, rclpy_fields(getattr(msg, name))) for name in msg.get_fields_and_field_types())
+    if isinstance(msg, (list, tuple, np.ndarray)) or type(msg).__name__ == 'array':
+        return tuple(rclpy_fields(item) for item in msg)
+    if isinstance(msg, bytes) and len(msg) == 1:  # rclpy's byte fields (a status level)
+        return msg[0]
+    return msg

@@ -1,0 +1,46 @@
+"""The progress of a run on stderr: simulation time and the real-time factor reached."""
+
+from __future__ import annotations
+
+import time
+from typing import TextIO
+
+TERMINAL_PERIOD = 0.25
+"""Seconds between redraws of the progress line in a terminal."""
+LOG_PERIOD = 2.0
+"""Seconds between progress lines when stderr is not a terminal (a log file, a pipe)."""
+
+
+class Progress:
+    """Simulation time and real-time factor, shown while a run goes on.
+
+    In a terminal one line is redrawn in place a few times a second; anywhere else (a log
+    file, a pipe) a plain line is printed every LOG_PERIOD seconds, so a log never holds one
+    line thousands of characters long. The factor is measured from the first time simulation
+    time moved, so start-up is not in it.
+    """
+
+    def __init__(self, duration: float, stream: TextIO | None) -> None:
+        self.duration, self.stream = duration, stream
+        self.terminal = stream is not None and stream.isatty()
+        self.period = TERMINAL_PERIOD if self.terminal else LOG_PERIOD
+        self.last = time.monotonic()
+        self.anchor: tuple[float, float] | None = None
+
+    def update(self, t: float, force: bool = False) -> None:
+        """Show simulation time ``t`` if the period is up; ``force`` shows it now (and ends the line)."""
+        now = time.monotonic()
+        if self.anchor is None:
+            self.anchor = (t, now)
+        if self.stream is None or not (force or now - self.last >= self.period):
+            return
+        self.last = now
+        start_t, start_wall = self.anchor
+        factor = (t - start_t) / max(now - start_wall, 1e-9)
+        text = f'  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.2f}'
+        if self.terminal:  # redraw in place; a forced (final) line ends it
+            text = '\r' + text + ('\n' if force else '')
+        else:
+            text += '\n'
+        self.stream.write(text)
+        self.stream.flush()

@@ -1,0 +1,210 @@
+"""The simulator's side of the interface: model objects as the graph's messages and back.
+
+``wallbot_msgs_py.codec`` encodes and decodes each message in plain numbers and knows no model;
+this module adds what needs the model: the plan a trajectory node publishes and how a follower
+interpolates it, the reference pose with its tangent heading, the constraint switches as a
+``ConstraintSelection``, and the dynamics' diagnostics. The nodes and ``simulate --bag`` both
+use it, so a headless bag holds the graph's messages. No ROS import.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from wallbot_msgs_py import codec, topics
+from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.constraints import BaumgarteGains
+from wallbot_sim.model.robot import Adsorption
+from wallbot_sim.model.trajectories import Plan, Reference, ReferenceSample, SampledReference, sample_plan, tangent_heading
+
+# --- the trajectory node's plans --------------------------------------------------------------
+SAMPLE_DT = 0.05
+"""Default plan sample spacing (s)."""
+HORIZON = 10.0
+"""Default span of a plan of an endless reference (s); it is renewed at half-way."""
+PUBLISH_RATE_HZ = 100.0
+"""Default rate of the reference pose, in simulation time."""
+
+
+def plan_ahead(reference: Reference, now: float, sample_dt: float = SAMPLE_DT, horizon: float = HORIZON,
+               rest_at: float | None = None) -> Plan:
+    """The plan from ``now`` (rounded down to the sample grid) ``horizon`` seconds ahead, or up to
+    ``rest_at`` (plus a sample) for a reference that comes to rest sooner: a plan never grows with
+    the run's length, so no subscriber has to decode an unbounded one."""
+    end = now + horizon
+    if rest_at is not None:
+        end = max(min(end, rest_at + sample_dt), now)
+    return sample_plan(reference, now, end, sample_dt)
+
+
+def replan_due(plan: Plan, now: float) -> bool:
+    """Whether simulation time ``now`` has passed the middle of a plan that does not end at rest."""
+    return not plan_is_final(plan) and now > 0.5 * (plan.times[0] + plan.times[-1])
+
+
+def plan_is_final(plan: Plan, tolerance: float = 1e-12) -> bool:
+    """True if the plan ends at rest (zero velocity and acceleration at its last sample).
+
+    Holding the last point after such a plan is the exact continuation of the reference, so
+    the dynamics may run past its end; a plan that ends moving only covers up to its end.
+    """
+    (vx, vy), (ax, ay) = plan.velocities[-1], plan.accelerations[-1]
+    return max(abs(vx), abs(vy), abs(ax), abs(ay)) <= tolerance
+
+
+def plan_sample_times(plan: Plan) -> list[float]:
+    """The sample times of a plan as a follower sees them (through integer nanoseconds)."""
+    return [codec.to_nanoseconds(t) * 1e-9 for t in plan.times]
+
+
+def sampled_reference(plan: Plan) -> SampledReference:
+    """The reference a follower interpolates from ``plan`` (quintic Hermite): identical to the
+    one decoded from ``trajectory_message(plan)``, without building the message."""
+    return SampledReference(plan_sample_times(plan), plan.positions, plan.velocities, plan.accelerations)
+
+
+def plan_headings(plan: Plan, fallback_yaw: float = 0.0) -> list[tuple[float, float]]:
+    """Tangent heading and its rate at each sample (the last heading carried over where at rest)."""
+    result, yaw = [], fallback_yaw
+    for p, v, a in zip(plan.positions, plan.velocities, plan.accelerations):
+        heading = tangent_heading(ReferenceSample(p, v, a, (0.0, 0.0)))
+        if heading is None:
+            result.append((yaw, 0.0))
+        else:
+            yaw = heading.angle
+            result.append((yaw, heading.rate))
+    return result
+
+
+def trajectory_message(plan: Plan, fallback_yaw: float = 0.0) -> bytes:
+    """``reference_trajectory`` of ``plan`` (CDR)."""
+    return codec.trajectory(codec.PlanSamples(*plan), plan_headings(plan, fallback_yaw))
+
+
+def path_message(plan: Plan, max_poses: int = 2000, fallback_yaw: float = 0.0) -> bytes:
+    """``reference_path`` (CDR): the plan's points with their tangent heading, at most ``max_poses``
+    (evenly strided, the last point always kept)."""
+    stride = max(1, -(-len(plan.times) // max_poses))
+    indices = list(range(0, len(plan.times), stride))
+    if indices[-1] != len(plan.times) - 1:
+        indices.append(len(plan.times) - 1)
+    headings = plan_headings(plan, fallback_yaw)
+    return codec.path([(plan.times[i], *plan.positions[i], headings[i][0]) for i in indices], plan.times[0])
+
+
+def plan_from_message(msg: Any) -> Plan:
+    """The plan of a ``reference_trajectory`` message; ValueError if it is not a usable plan."""
+    return Plan(*codec.plan_samples(msg))
+
+
+def plan_from_cdr(data: bytes) -> Plan:
+    """The plan of a serialized ``reference_trajectory``; ValueError if malformed."""
+    return Plan(*codec.plan_samples_from_cdr(data))
+
+
+def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0.0) -> tuple[bytes, float]:
+    """``reference`` at time t (CDR) and the heading it carries.
+
+    The child frame ``reference`` points along the path (the tangent heading; ``fallback_yaw``
+    while the reference is at rest), so the twist is (speed, 0, turning rate) in that frame,
+    like the odometry of a robot driving the path exactly.
+    """
+    heading = tangent_heading(sample)
+    yaw = heading.angle if heading is not None else fallback_yaw
+    rate = heading.rate if heading is not None else 0.0
+    data = codec.odometry(t, *sample.position, yaw, *sample.velocity, rate, child=topics.REFERENCE_FRAME)
+    return data, yaw
+
+
+# --- the constraint set --------------------------------------------------------------------------
+def selection_from_switches(switches: Mapping[str, bool]) -> ConstraintSelection:
+    """The model's selection from the constraint_config switches.
+
+    ``tangent_heading`` true keeps the model's default (heading task on whenever non_lateral is
+    active with the trajectory task); false switches it off (the paper's inconsistent set).
+    """
+    return ConstraintSelection(bool(switches['trajectory_task']), bool(switches['belt']),
+                               bool(switches['non_lateral']), bool(switches['nonslip']),
+                               None if switches['tangent_heading'] else False)
+
+
+def switches_from_selection(selection: ConstraintSelection) -> dict[str, bool]:
+    """The constraint_config switches that give ``selection`` (a heading task forced on without
+    non_lateral has no switch: the graph runs its default there)."""
+    return {'trajectory_task': selection.trajectory, 'belt': selection.belt, 'non_lateral': selection.non_lateral,
+            'nonslip': selection.nonslip, 'tangent_heading': selection.tangent_heading is not False}
+
+
+def constraints_message(switches: Mapping[str, bool], gains: BaumgarteGains) -> bytes:
+    """``constraints`` (CDR): the switches, the gains and the modules they activate."""
+    selection = selection_from_switches(switches)
+    return codec.constraints(switches, gains.alpha, gains.beta, selection.active_names(), selection.label())
+
+
+def constraints_from_message(msg: Any) -> tuple[ConstraintSelection, BaumgarteGains]:
+    """The selection and gains of a ``constraints`` message; ValueError naming what is wrong."""
+    decoded = codec.constraint_switches(msg)
+    try:
+        gains = BaumgarteGains(decoded.alpha, decoded.beta)
+    except Exception as error:  # ParameterError of the model
+        raise ValueError(f'constraints message: {error}') from None
+    return selection_from_switches(decoded.switches), gains
+
+
+# --- the dynamics' diagnostics ----------------------------------------------------------------------
+COMMAND_IGNORED = 'ignored (trajectory task on)'
+"""The diagnostics' ``command`` while the trajectory task drives the robot."""
+
+
+def applied_command(tau_left: float, tau_right: float) -> str:
+    """The diagnostics' ``command`` while motor torques are applied."""
+    return f'applied ({tau_left:.4g}, {tau_right:.4g}) N m'
+
+
+def stopped_status(t: float) -> str:
+    """The dynamics' status once simulation time reached its stop."""
+    return f'stopped at t = {t:.3f} s (stop_at)'
+
+
+@dataclass(frozen=True)
+class LoopFigures:
+    """What the loop measured in wall-clock time over one diagnostics window."""
+
+    achieved_rate: float
+    """Steps per wall second."""
+    real_time_factor: float
+    real_time_factor_target: float
+    step_time_mean_ms: float
+    step_time_max_ms: float
+    lateness_max_ms: float
+    late_steps: int
+    loop_priority: str
+
+
+def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,
+                      residual: float, residual_max: float, constraints_label: str,
+                      adsorption: Adsorption) -> codec.Status:
+    """The dynamics' status on ``/diagnostics``: OK while running, paused or stopped, WARN while
+    waiting or without torque commands, ERROR once diverged."""
+    level = 'error' if diverged else ('ok' if status in ('running', 'paused') or status.startswith('stopped')
+                                      else 'warn')
+    timed_out = command.startswith('timed out')
+    if level == 'ok' and timed_out:
+        level = 'warn'
+    values = [
+        ('status', status), ('simulation time', t), ('achieved rate (Hz)', loop.achieved_rate),
+        ('real-time factor', loop.real_time_factor), ('real-time factor target', loop.real_time_factor_target),
+        ('step time mean (ms)', loop.step_time_mean_ms), ('step time max (ms)', loop.step_time_max_ms),
+        ('lateness max (ms)', loop.lateness_max_ms), ('late steps (> 2 ms)', loop.late_steps),
+        ('loop priority', loop.loop_priority),
+        ('constraint residual', residual), (topics.DIAGNOSTIC_RESIDUAL_MAX, residual_max),
+        ('active constraints', constraints_label),
+        ('command', command),
+        ('adsorption force (N)', float(adsorption.applied_force)),
+        ('adsorption minimum (N)', float(adsorption.minimum_force)),
+        ('adsorption margin', float(adsorption.margin)),
+    ]
+    message = f'{status}; no wheel_torque_cmd: zero torque' if level == 'warn' and timed_out else status
+    return codec.Status(f'{node_name}: simulation', level, message, values)
+

@@ -1,0 +1,38 @@
+"""The CSV of a run (``wallbot-sim simulate --csv``): one row per step.
+
+COLUMN_GROUPS is the one description of the columns: each group's names and how its values come
+from a step's outputs, in order. Velocities are in the wall frame; ``err`` is the distance of the
+centre from the reference point; ``Fx..tau4`` are the constraint force Q_c; ``F_left, F_right,
+F_lateral`` the drive forces (docs/model.md section 8).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Sequence
+
+from wallbot_sim.model import StepOutputs
+
+
+def _reference(out: StepOutputs) -> Sequence[float]:
+    return out.reference.position if out.reference is not None else (math.nan, math.nan)
+
+
+COLUMN_GROUPS: tuple[tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[float]]], ...] = (
+    (('t',), lambda out: (out.t,)),
+    (('x', 'y', 'theta', 'phi1', 'phi2', 'phi3', 'phi4'), lambda out: out.q),
+    (('vx', 'vy', 'omega', 'dphi1', 'dphi2', 'dphi3', 'dphi4'), lambda out: out.qd),
+    (('ref_x', 'ref_y'), _reference),
+    (('err',), lambda out: (out.tracking_error,)),
+    (('Fx', 'Fy', 'Mz', 'tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.constraint_force),
+    (('F_left', 'F_right', 'F_lateral'), lambda out: (out.drive.left, out.drive.right, out.drive.lateral)),
+    (('residual',), lambda out: (out.residual,)),
+)
+
+CSV_COLUMNS = tuple(name for names, _values in COLUMN_GROUPS for name in names)
+"""The header, in order."""
+
+
+def csv_row(out: StepOutputs) -> list[float]:
+    """One CSV row in the order of CSV_COLUMNS."""
+    return [float(value) for _names, values in COLUMN_GROUPS for value in values(out)]
