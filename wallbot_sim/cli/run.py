@@ -48,6 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--duration', type=float, help="simulated seconds (default: the scenario's)")
     parser.add_argument('--real-time-factor', type=float, default=1.0,
                         help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
+    parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
     parser.add_argument('--controller', action='store_true',
@@ -59,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: float, factor: float,
-               bag: Path, controller_mass_scale: float | None = None) -> list[NodeSpec]:
+               bag: Path, controller_mass_scale: float | None = None, robot_file: Path | None = None) -> list[NodeSpec]:
     """The graph of a run, in start order (the recorder first, so it misses nothing).
 
     With ``controller_mass_scale`` (a closed-loop run) ``selection`` must be the driven set
@@ -93,7 +94,7 @@ def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: flo
     specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
-        'wait_for_recorder': True,
+        'wait_for_recorder': True, **({'robot_file': str(robot_file)} if robot_file is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
     return specs
 
@@ -220,10 +221,11 @@ def main(args: argparse.Namespace) -> int:
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
+    robot_file = Path(args.robot).resolve() if args.robot else None
+    robot = Robot(load_robot_parameters(robot_file))
     out = output_directory(args.out, args.scenario)
     bag = out / 'bag'
-    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale)
-    robot = Robot(load_robot_parameters())
+    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale, robot_file)
     graph = None
     with claim_domain_id() as claim:
         os.environ.update(claim.env())  # the monitor node joins the run's domain
