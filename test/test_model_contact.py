@@ -10,7 +10,7 @@ import pytest
 from model_helpers import kinetic_energy, potential_energy, random_parameters, rotation, wheel_offsets
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Simulation
-from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.contact import DetachedError, unheld_slip
 from wallbot_sim.model.normal_loads import normal_loads
 
 DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
@@ -241,3 +241,34 @@ def test_switching_contact_model_and_adhesion_between_steps():
     assert simulation.outputs().contact.slipping == (False, False, True)
     with pytest.raises(ValueError, match="unknown contact model 'sticky'"):
         simulation.set_contact_model('sticky')
+
+
+def test_a_robot_falling_without_the_lateral_constraint_is_reported_sliding():
+    """The driven robot without non-lateral motion falls sideways; ideal or not, that is never silent."""
+    robot = Robot(RobotParameters())
+    falling = Simulation(robot, None, ConstraintSelection(trajectory=False, belt=True, nonslip=True),
+                         np.zeros(7), np.zeros(7))
+    assert unheld_slip(robot, falling.selection, falling.outputs()) == {}
+    falling.run(0.1)
+    sliding = unheld_slip(robot, falling.selection, falling.outputs())
+    assert list(sliding) == ['lateral'] and sliding['lateral'] > 0.5
+    holding = at_rest()
+    holding.run(0.1)
+    assert unheld_slip(holding.robot, holding.selection, holding.outputs()) == {}
+    slide = at_rest(adhesion_force=100.0)
+    slide.run(0.1)
+    assert list(unheld_slip(slide.robot, slide.selection, slide.outputs())) == ['lateral']
+
+
+def test_a_new_reference_reaches_the_solver():
+    """set_reference rebuilds the modules the solver sees (the active list follows them)."""
+    from wallbot_sim.model import Circle
+    robot = Robot(RobotParameters())
+    selection = ConstraintSelection.parse('belt,non_lateral,nonslip')
+    q0 = np.array([0.8, 0.0, 0.0, 0, 0, 0, 0])
+    direct = Simulation(robot, Circle(1.0, 20.0), selection, q0, np.zeros(7))
+    switched = Simulation(robot, Circle(2.0, 10.0), selection, q0, np.zeros(7))
+    switched.set_reference(Circle(1.0, 20.0))
+    direct.run(0.2)
+    switched.run(0.2)
+    assert np.array_equal(direct.q, switched.q)

@@ -33,6 +33,7 @@ class HeadlessBagWriter:
         self._max_residual = 0.0
         self._conn = {t.name: writer.add_graph_topic(t, namespace)
                       for t in (topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH, topics.DRIVE_FORCES,
+                                topics.WHEEL_CONTACT,
                                 topics.REFERENCE, topics.REFERENCE_PATH, topics.CONSTRAINTS, topics.CLOCK,
                                 topics.DIAGNOSTICS)}
         self._latched_done = False

@@ -12,14 +12,18 @@ row belongs to and which wheels' loads bound it.
 
 from __future__ import annotations
 
+import math
 from typing import Callable, Sequence
 
 import numpy as np
 
-from wallbot_sim.model.constraints import CHANNELS, ConstraintModule, ContactConstraint
+from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.constraints import CHANNELS, LATERAL, LEFT, RIGHT, ConstraintModule, ContactConstraint
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
+from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.parameters import RobotParameters
+from wallbot_sim.model.robot import Robot
 from wallbot_sim.model.solver import ConstrainedMotion
 
 IDEAL, COULOMB = 'ideal', 'coulomb'
@@ -232,3 +236,25 @@ def _within_limit(use: FrictionUse, channel: str) -> bool:
 def slip_flags(slipping: frozenset[str]) -> tuple[bool, bool, bool]:
     """(left, right, lateral) slipping flags."""
     return tuple(channel in slipping for channel in CHANNELS)  # type: ignore[return-value]
+
+
+def unheld_slip(robot: Robot, selection: ConstraintSelection, out: StepOutputs) -> dict[str, float]:
+    """Channels moving faster than v_st with no friction holding them, and their slip speed (m/s).
+
+    A channel is held while its rows are active and it sticks; otherwise it slides when its slip
+    velocity (|h_i| of a side's wheels, |v_lat|) exceeds v_st: a slipping channel, or a robot
+    without the non-lateral or nonslip constraint sliding down the wall. None with the
+    trajectory task on: the task holds the robot.
+    """
+    if selection.trajectory:
+        return {}
+    theta = float(out.q[2])
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    xd, yd, thd = out.qd[:3].tolist()
+    v_long, v_lat = cos_t * xd + sin_t * yd, -sin_t * xd + cos_t * yd
+    wheel_slip = np.abs(robot.params.wheel_radius * out.qd[3:] - v_long + robot.lateral_offsets * thd)
+    speeds = {LEFT: float(max(wheel_slip[:2])), RIGHT: float(max(wheel_slip[2:])), LATERAL: abs(v_lat)}
+    rows = {LEFT: selection.nonslip, RIGHT: selection.nonslip, LATERAL: selection.non_lateral}
+    slipping = dict(zip(CHANNELS, out.contact.slipping))
+    return {channel: speed for channel, speed in speeds.items()
+            if speed > robot.params.stick_velocity and (slipping[channel] or not rows[channel])}

@@ -57,6 +57,8 @@ class ContactOutputs:
     """N_1..N_4 (N)."""
     use: FrictionUse
     """Friction use per channel (9.2)."""
+    limits: tuple[float, float, float]
+    """Friction limit per channel: mu_s (N_1 + N_2), mu_s (N_3 + N_4), mu_s F_ad (N)."""
     slipping: tuple[bool, bool, bool]
     """Whether each channel (left, right, lateral) slips; always False with ideal contact."""
     friction_force: np.ndarray | None

@@ -12,7 +12,7 @@ from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, ContactConstraint, VelocityConstraint
 from wallbot_sim.model.contact import IDEAL, CoulombContact, DetachedError, check_contact_model, slip_flags
 from wallbot_sim.model.errors import ModelError, ParameterError
-from wallbot_sim.model.friction import FrictionUse, friction_use
+from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
@@ -159,6 +159,8 @@ class Simulation:
         """A new reference for the trajectory and heading tasks, from the next step on."""
         self._reference = reference
         self._modules = self._build(self._selection, reference, self.gains)
+        self._active = self._coulomb.active_modules(self._modules) if self.coulomb_applies else self._modules
+        self._friction = None  # rebuilt on the new modules by the next outputs()
         self._cached = None
 
     def set_constraints(self, selection: ConstraintSelection, gains: BaumgarteGains | None = None) -> SwitchReport:
@@ -258,7 +260,7 @@ class Simulation:
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
                 self.motor_torque, self._channel_forces(q, motion.constraint_force, friction), reference,
-                ContactOutputs(loads, use, slipping, friction))
+                ContactOutputs(loads, use, self._limits(loads), slipping, friction))
         return self._cached
 
     def _evaluate(self, modules: Sequence[ConstraintModule],
@@ -283,6 +285,10 @@ class Simulation:
         adsorption = self.robot.adsorption
         return loads, friction_use((drive.left, drive.right, drive.lateral), loads, adsorption.applied_force,
                                    self.robot.params.wall_friction)
+
+    def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
+        static = self.robot.params.wall_friction
+        return tuple(static * load for load in channel_loads(loads, self.robot.adsorption.applied_force))
 
     def step(self) -> None:
         """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite, and

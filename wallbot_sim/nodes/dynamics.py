@@ -60,6 +60,8 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.model.constraints import CHANNELS
+from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError, unheld_slip
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.pacing import Pacer
@@ -73,7 +75,7 @@ THROTTLE = 1.0
 LOCKSTEP_WAIT = 0.25
 """Wall seconds lockstep waits for a controller's command before it gives up (until commands return)."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
-                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
+                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState, topics.WHEEL_CONTACT: JointState,
                  topics.CLOCK: ClockMsg}
 """The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
 
@@ -150,6 +152,11 @@ class DynamicsNode(Node):
                                          'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
                                          '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
                                          low=0, high=99),
+            'contact_model': declare(self, 'contact_model', 'ideal',
+                                     'wheel-wall contact: ideal, or coulomb (channels stick or slip, a wheel lifting '
+                                     'off pauses the run; acts while the trajectory task is off)'),
+            'adhesion_force': declare(self, 'adhesion_force', 0.0,
+                                      "force pressing the robot to the wall (N); 0 = the robot file's"),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
@@ -158,7 +165,8 @@ class DynamicsNode(Node):
         if reasons:
             raise ValueError('; '.join(reasons))
         self.params = p
-        self.robot = Robot(load_robot_parameters(p['robot_file'] or None))
+        self.robot = Robot(load_robot_parameters(p['robot_file'] or None).replace(
+            adhesion_force=p['adhesion_force'] or None))
         sys.setswitchinterval(5e-4)  # executor callbacks yield the GIL to the loop within 0.5 ms
 
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
@@ -188,6 +196,8 @@ class DynamicsNode(Node):
         self.selection = self.gains = None
         self.pending_constraints = None
         self.paused = self.diverged = False
+        self.detached: str | None = None
+        """Why the robot left the wall (coulomb contact), until a reset."""
         self.status = 'waiting for constraints'
         self.command: tuple[tuple[float, float], float] | None = None
         self.command_expired = False
@@ -255,7 +265,9 @@ class DynamicsNode(Node):
         for name in ('command_timeout', 'max_wheel_torque'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
-        for name in ('real_time_factor', 'stop_at'):
+        if 'contact_model' in values and values['contact_model'] not in CONTACT_MODELS:
+            reasons.append(f'contact_model must be one of {", ".join(CONTACT_MODELS)}, got {values["contact_model"]!r}')
+        for name in ('real_time_factor', 'stop_at', 'adhesion_force'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0))
         factor = values.get('real_time_factor')
@@ -337,13 +349,19 @@ class DynamicsNode(Node):
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+        if 'adhesion_force' in changes:
+            self.robot = Robot(self.robot.params.replace(adhesion_force=changes['adhesion_force'] or None))
+            if self.sim is not None:
+                self.sim.set_adhesion_force(changes['adhesion_force'] or None)
+        if 'contact_model' in changes and self.sim is not None:
+            self.sim.set_contact_model(changes['contact_model'])
         self.pacer.reanchor()
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
     def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
         reference = self.plan.reference if self.plan is not None else None
         sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / self.params['rate_hz'],
-                         t0=t0, gains=self.gains)
+                         t0=t0, gains=self.gains, contact=self.params['contact_model'])
         sim.set_motor_torque(*torque)
         return sim
 
@@ -355,7 +373,7 @@ class DynamicsNode(Node):
         return q0, moving_start(self.robot, self.plan.reference, p['initial_theta'])
 
     def _reset(self) -> None:
-        self.command, self.diverged = None, False
+        self.command, self.diverged, self.detached = None, False, None
         if self.sim is not None:
             self.sim = self._simulation(*self._initial_state(), 0.0)
             self.get_logger().info('reset to the initial state at t = 0')
@@ -383,8 +401,8 @@ class DynamicsNode(Node):
                 self._switch(selection, gains)
         if self.sim is None:
             return False
-        if self.paused or self.diverged:
-            self.status = 'diverged' if self.diverged else 'paused'
+        if self.paused or self.diverged or self.detached:
+            self.status = 'diverged' if self.diverged else (self.detached or 'paused')
             return False
         sim = self.sim
         stop_at = self.params['stop_at']
@@ -519,6 +537,10 @@ class DynamicsNode(Node):
             self.status = 'diverged'
             self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
             return
+        except DetachedError as error:
+            self.detached = self.status = f'detached: {error}'
+            self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
+            return
         step_time = time.perf_counter() - began
         window = self.window
         window.steps += 1
@@ -557,10 +579,12 @@ class DynamicsNode(Node):
         rate = window.steps / elapsed
         dt = sim.dt if sim is not None else 1.0 / self.params['rate_hz']
         command = self._command_state()
-        level = 'error' if self.diverged else ('ok' if self.status in ('running', 'paused')
-                                                or self.status.startswith('stopped') else 'warn')
+        level = 'error' if self.diverged or self.detached else (
+            'ok' if self.status in ('running', 'paused') or self.status.startswith('stopped') else 'warn')
         if level == 'ok' and command.startswith('timed out'):
             level = 'warn'
+        sliding = unheld_slip(self.robot, sim.selection, out) if sim is not None and out is not None else {}
+        slipping = [channel for channel, flag in zip(CHANNELS, out.contact.slipping) if flag] if out is not None else []
         adsorption = self.robot.adsorption
         values = [
             ('status', self.status), ('simulation time', t), ('achieved rate (Hz)', rate),
@@ -575,12 +599,30 @@ class DynamicsNode(Node):
             ('adsorption force (N)', float(adsorption.applied_force)),
             ('adsorption minimum (N)', float(adsorption.minimum_force)),
             ('adsorption margin', float(adsorption.margin)),
+            *self._contact_values(out),
         ]
         message = self.status if level != 'warn' or not command.startswith('timed out') \
             else f'{self.status}; no wheel_torque_cmd: zero torque'
+        if (sliding or slipping) and level != 'error':
+            level = 'warn'
+            message += '; ' + ('sliding: ' + ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in sliding.items())
+                               if sliding else 'slipping: ' + ', '.join(slipping))
         status = conversions.diagnostic_status(f'{self.get_fully_qualified_name()}: simulation', level,
                                                message, values)
         self.diagnostics_pub.publish(conversions.diagnostics_message(t, [status]))
+
+    def _contact_values(self, out) -> list[tuple[str, object]]:
+        """The wheel-wall contact entries of /diagnostics."""
+        model = self.params['contact_model']
+        if self.sim is not None and model != 'ideal' and not self.sim.coulomb_applies:
+            model += ' (ideal while the trajectory task is on)'
+        if out is None:
+            return [('contact model', model)]
+        contact = out.contact
+        return [('contact model', model),
+                ('normal loads (N)', ', '.join(f'{load:.2f}' for load in contact.loads)),
+                ('friction use (left, right, lateral)', ', '.join(f'{use:.3f}' for use in contact.use)),
+                ('slipping', ', '.join(channel for channel, flag in zip(CHANNELS, contact.slipping) if flag) or 'none')]
 
     def close(self) -> None:
         """Stop the loop thread (called by main on shutdown)."""
