@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -113,3 +115,61 @@ def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
                              '--out', str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and 'adhesion_force must be > 0' in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / 'run').exists()
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+CLIMB = ('--heading', str(math.pi / 2), '--torque', '2.0,1.95')
+"""Climbing while turning slowly: every channel sticks, the left traction nears its limit."""
+
+
+def slip_count(path: Path) -> float:
+    header, run = read_csv(path)
+    return sum(row[header.index(name)] for row in run for name in ('slip_L', 'slip_R', 'slip_lat'))
+
+
+def test_motors_least_adhesion_force_is_what_keeps_the_run_sticking(tmp_path):
+    result, run = rest_run(tmp_path, *CLIMB)
+    assert result.returncode == 0 and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    report = cli('motors', str(tmp_path / 'rest.csv'), '--json')
+    assert report.returncode == 0, report.stderr
+    contact = json.loads(report.stdout)['contact']
+    assert contact['peak_use'][0] == pytest.approx(max(run['use_L']))
+    least = contact['least_adhesion']
+    assert contact['least_adhesion_by'] == 'left' and 100.0 < least < 189.0
+    for scale, slips in ((0.98, True), (1.02, False)):
+        out = tmp_path / f'at{scale}.csv'
+        again = simulate('--scenario', 'rest', '--contact', 'coulomb', *CLIMB, '--adhesion-force', str(scale * least),
+                         '--csv', str(out), '--quiet')
+        assert again.returncode == 0, again.stderr
+        assert (slip_count(out) > 0) == slips, f'at {scale} x the least adhesion force'
+    assert 'Least adhesion force' in cli('motors', str(tmp_path / 'rest.csv')).stdout
+
+
+def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
+    from wallbot_sim.bag.summary import format_summary, summarize
+    from wallbot_sim.plots import load_run
+    result, _ = rest_run(tmp_path, '--adhesion-force', '100', '--duration', '0.3', '--bag', str(tmp_path / 'bag'))
+    assert result.returncode == 0, result.stderr
+    text = format_summary(summarize(tmp_path / 'rest.csv'))
+    assert 'first slip at t = 0.000 s (lateral)' in text and 'lifts off' not in text
+    csv_run, bag_run = load_run(tmp_path / 'rest.csv'), load_run(tmp_path / 'bag')
+    assert np.array_equal(csv_run.loads, bag_run.loads) and np.array_equal(csv_run.use, bag_run.use)
+    assert np.array_equal(csv_run.slip, bag_run.slip) and bag_run.slip[:, 2].all()
+    plotted = cli('plot', str(tmp_path / 'bag'), '--out', str(tmp_path / 'plots'))
+    assert plotted.returncode == 0, plotted.stderr
+    assert (tmp_path / 'plots' / 'friction_use.png').stat().st_size > 10_000
+    assert (tmp_path / 'plots' / 'normal_loads.png').stat().st_size > 10_000
+
+    ideal = tmp_path / 'tall_ideal.csv'
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['com_height'] = 0.25
+    robot_file = tmp_path / 'tall.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    assert simulate('--scenario', 'rest', '--robot', str(robot_file), '--adhesion-force', '130', '--duration', '0.1',
+                    '--csv', str(ideal), '--quiet').returncode == 0
+    text = format_summary(summarize(ideal))
+    assert 'no slip' in text and 'lifts off at t = 0.000 s (normal load -13.48 N)' in text
