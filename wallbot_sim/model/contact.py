@@ -13,7 +13,7 @@ row belongs to and which wheels' loads bound it.
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -71,13 +71,28 @@ class _RowSubset:
         return self.velocity_rows(q) @ qd
 
 
-Evaluate = Callable[[Sequence[ConstraintModule], 'Callable[[np.ndarray, np.ndarray], np.ndarray] | None', np.ndarray],
-                    ConstrainedMotion]
-"""(active modules, friction force function or None, qd) -> the constrained motion at this instant."""
+Evaluate = Callable[[Sequence[ConstraintModule], np.ndarray | None, np.ndarray], ConstrainedMotion]
+"""(active modules, Q_f or None, qd) -> the constrained motion at this instant."""
 Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
 """(active modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
 Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse]]
 """(motion, Q_f or None, qd) -> (normal loads, friction use)."""
+
+
+class ContactSolution(NamedTuple):
+    """The motion at a step boundary under a stick/slip state, and what the step integrates."""
+
+    motion: ConstrainedMotion
+    friction: np.ndarray | None
+    """Q_f at the boundary, None while no channel slips."""
+    loads: np.ndarray
+    use: FrictionUse
+    held: np.ndarray
+    """The loads the kinetic friction holds over the step."""
+    active: Sequence[ConstraintModule]
+    """The modules the solver sees over the step."""
+    function: Callable[[np.ndarray, np.ndarray], np.ndarray] | None
+    """Q_f(q, qd) over the step."""
 
 
 class CoulombContact:
@@ -90,6 +105,15 @@ class CoulombContact:
         self.slipping: frozenset[str] = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
         """The loads bounding kinetic friction, held over a step like the motor torques."""
+        self._contacts_of: tuple[Sequence[ConstraintModule] | None, list[ContactConstraint]] = (None, [])
+
+    def contacts(self, modules: Sequence[ConstraintModule]) -> list[ContactConstraint]:
+        """The contact modules among ``modules`` (remembered for the last list: a Protocol check is slow)."""
+        known, contacts = self._contacts_of
+        if modules is not known:
+            contacts = [module for module in modules if isinstance(module, ContactConstraint)]
+            self._contacts_of = (modules, contacts)
+        return contacts
 
     def reset(self, adhesion_force: float) -> None:
         """Every channel sticking, loads at rest on a level share."""
@@ -102,10 +126,11 @@ class CoulombContact:
         """``modules`` without the rows of slipping channels (the same list while none slips)."""
         slipping = self.slipping if slipping is None else slipping
         if not slipping:
-            return list(modules)
+            return modules  # type: ignore[return-value]
+        contacts = {id(module) for module in self.contacts(modules)}
         active: list[ConstraintModule] = []
         for module in modules:
-            if isinstance(module, ContactConstraint):
+            if id(module) in contacts:
                 keep = np.array([i for i, channel in enumerate(module.channels) if channel not in slipping], dtype=int)
                 if len(keep) == len(module.channels):
                     active.append(module)
@@ -124,13 +149,13 @@ class CoulombContact:
         wheel i (N_i, nonslip row) and the lateral friction (F_ad, non-lateral row) of 9.3.
         """
         slipping = self.slipping if slipping is None else slipping
+        if not slipping:
+            return None
         parts = []
-        for module in modules:
-            if isinstance(module, ContactConstraint):
-                rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
-                if rows:
-                    parts.append((module, np.array(rows, dtype=int),
-                                  self.kinetic_friction * (module.row_wheels[rows] @ loads)))
+        for module in self.contacts(modules):
+            rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
+            if rows:
+                parts.append((module, np.array(rows, dtype=int), self.kinetic_friction * (module.row_wheels[rows] @ loads)))
         if not parts:
             return None
         eps2 = self.epsilon ** 2
@@ -148,9 +173,8 @@ class CoulombContact:
         """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
         return float(np.max(np.abs(self._slip(modules, channel, q, qd)), initial=0.0))
 
-    @staticmethod
-    def _slip(modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return np.array([value for module in modules if isinstance(module, ContactConstraint)
+    def _slip(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return np.array([value for module in self.contacts(modules)
                          for value, row_channel in zip(module.violation(q, qd), module.channels)
                          if row_channel == channel])
 
@@ -162,47 +186,45 @@ class CoulombContact:
         step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
         cycle of slip speeds that straddles v_st without ever falling below it.
         """
-        now, then = self._slip(modules, channel, q, qd), self._slip(modules, channel, q, predicted)
-        return bool(np.all((np.abs(now) < self.stick_velocity) | (now * then < 0.0)))
+        now, then = self._slip(modules, channel, q, qd).tolist(), self._slip(modules, channel, q, predicted).tolist()
+        return all(abs(v) < self.stick_velocity or v * w < 0.0 for v, w in zip(now, then))
 
     # --- transitions at a step boundary ------------------------------------------------------
     def settle(self, modules: Sequence[ConstraintModule], q: np.ndarray, qd: np.ndarray, dt: float,
-               evaluate: Evaluate, project: Project, measure: Measure) -> tuple[
-                   np.ndarray, ConstrainedMotion, np.ndarray | None, np.ndarray, FrictionUse]:
+               evaluate: Evaluate, project: Project, measure: Measure) -> tuple[np.ndarray, ContactSolution]:
         """Stick/slip transitions at this boundary, then the motion of the step.
 
         Slipping channels that are stopping (slower than v_st, or reversing within the step ``dt``)
         stick again when the solve with their rows restored keeps their force within the limit
         (their remaining slip removed by the switch projection); then every sticking channel
-        whose force exceeds its limit slips. Returns (qd, motion, Q_f, loads, use).
+        whose force exceeds its limit slips. Returns the velocities (projected if a channel
+        stuck again) and the solution the step integrates.
         """
-        present = {channel for module in modules if isinstance(module, ContactConstraint)
-                   for channel in module.channels}
+        present = {channel for module in self.contacts(modules) for channel in module.channels}
         self.slipping = self.slipping & present
         result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
-        predicted = qd + dt * result[1].acceleration
+        predicted = qd + dt * result.motion.acceleration
         candidates = {channel for channel in self.slipping if self._stopping(modules, channel, q, qd, predicted)}
         while candidates:
             trial = self.slipping - candidates
             trial_qd = project(self.active_modules(modules, trial), qd)
             trial_result = self._solve(modules, trial, q, trial_qd, evaluate, measure)
-            holding = {channel for channel in candidates if _within_limit(trial_result[4], channel)}
+            holding = {channel for channel in candidates if _within_limit(trial_result.use, channel)}
             if holding == candidates:
                 self.slipping, qd, result = trial, trial_qd, trial_result
                 break
             candidates = holding
         while True:
-            held_loads, motion, friction, loads, use = result
-            exceeded = {channel for channel in present - self.slipping if not _within_limit(use, channel)}
+            exceeded = {channel for channel in present - self.slipping if not _within_limit(result.use, channel)}
             if not exceeded:
                 break
             self.slipping = self.slipping | exceeded
             result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
-        self.loads = held_loads
-        return qd, motion, friction, loads, use
+        self.loads = result.held
+        return qd, result
 
     def _solve(self, modules: Sequence[ConstraintModule], slipping: frozenset[str], q: np.ndarray, qd: np.ndarray,
-               evaluate: Evaluate, measure: Measure):
+               evaluate: Evaluate, measure: Measure) -> ContactSolution:
         """The motion with ``slipping`` channels slipping, and the loads their friction holds.
 
         Traction friction depends on the normal loads, which depend on the acceleration: the two
@@ -212,20 +234,20 @@ class CoulombContact:
         held = self.loads
         for _ in range(_LOAD_ITERATIONS):
             function = self.friction_function(modules, held, slipping)
-            motion = evaluate(active, function, qd)
             friction = None if function is None else function(q, qd)
+            motion = evaluate(active, friction, qd)
             loads, use = measure(motion, friction, qd)
-            if function is None or not self._load_dependent(modules, slipping) \
+            if function is None or not self._load_dependent(self.contacts(modules), slipping) \
                     or np.max(np.abs(loads - held)) <= _LOAD_TOLERANCE * np.sum(np.abs(loads)):
-                return held, motion, friction, loads, use
+                return ContactSolution(motion, friction, loads, use, held, active, function)
             held = loads
         raise ModelError('normal loads and kinetic friction found no consistent value in '
                          f'{_LOAD_ITERATIONS} iterations (loads {np.round(loads, 3).tolist()} N)')
 
     @staticmethod
-    def _load_dependent(modules: Sequence[ConstraintModule], slipping: frozenset[str]) -> bool:
+    def _load_dependent(contacts: Sequence[ContactConstraint], slipping: frozenset[str]) -> bool:
         """Whether a slipping row's friction depends on how the load is shared among the wheels."""
-        return any(not module.row_wheels[i].all() for module in modules if isinstance(module, ContactConstraint)
+        return any(not module.row_wheels[i].all() for module in contacts
                    for i, channel in enumerate(module.channels) if channel in slipping)
 
 

@@ -244,12 +244,12 @@ class Simulation:
             q = self._y[:DOF]
             friction = None
             if self.coulomb_applies:
-                qd, motion, friction, loads, use = self._coulomb.settle(
+                qd, solution = self._coulomb.settle(
                     self._modules, q, self._y[DOF:], self.dt, self._evaluate, self._project, self._measure)
                 self._y = np.concatenate((q, qd))
                 q = self._y[:DOF]
-                self._active = self._coulomb.active_modules(self._modules)
-                self._friction = self._coulomb.friction_function(self._modules, self._coulomb.loads)
+                motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
+                self._active, self._friction = solution.active, solution.function
                 slipping = slip_flags(self._coulomb.slipping)
             else:
                 qd = self._y[DOF:]
@@ -263,12 +263,12 @@ class Simulation:
                 ContactOutputs(loads, use, self._limits(loads), slipping, friction))
         return self._cached
 
-    def _evaluate(self, modules: Sequence[ConstraintModule],
-                  friction: Callable[[np.ndarray, np.ndarray], np.ndarray] | None, qd: np.ndarray) -> ConstrainedMotion:
+    def _evaluate(self, modules: Sequence[ConstraintModule], friction: np.ndarray | None,
+                  qd: np.ndarray) -> ConstrainedMotion:
         q = self._y[:DOF]
         force, rows, rhs = stack_problem(self.robot, modules, self._t, q, qd, self.motor_torque)
         if friction is not None:
-            force = force + friction(q, qd)
+            force = force + friction
         return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
 
     def _channel_forces(self, q: np.ndarray, constraint_force: np.ndarray,
