@@ -100,6 +100,8 @@ class ContactFigures:
     """What binds at that instant: 'left', 'right', 'lateral' or a wheel ('wheel 1' .. 'wheel 4')."""
     run_adhesion: float
     """F_ad of the run (the sum of its normal loads) (N)."""
+    slipped: bool
+    """Whether a channel slipped in the run: then least_adhesion is a lower bound."""
 
 
 @dataclass(frozen=True)
@@ -178,7 +180,8 @@ def contact_figures(run: RunData, params: RobotParameters) -> ContactFigures | N
     i, j = np.unravel_index(int(np.argmax(bounds)), bounds.shape)
     peaks = np.argmax(use, axis=0)
     return ContactFigures(tuple(float(use[k, c]) for c, k in enumerate(peaks)), tuple(float(t[k]) for k in peaks),
-                          float(bounds[i, j]), float(t[i]), names[j], float(np.median(run_force)))
+                          float(bounds[i, j]), float(t[i]), names[j], float(np.median(run_force)),
+                          bool(np.nan_to_num(run.slip[valid]).any()))
 
 
 def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
@@ -210,5 +213,6 @@ def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
                                                        zip(('left', 'right', 'lateral'), c.peak_use, c.peak_use_t)),
                   f'Least adhesion force: {c.least_adhesion:.2f} N to keep every channel sticking and every wheel on '
                   f'the wall ({c.least_adhesion_by} binds at t = {c.least_adhesion_t:.3f} s; this run had '
-                  f'{c.run_adhesion:.2f} N)']
+                  f'{c.run_adhesion:.2f} N)' + (' - a lower bound: channels slipped, so the forces are the kinetic '
+                                                'friction they transmitted' if c.slipped else '')]
     return '\n'.join(lines)
