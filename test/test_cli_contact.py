@@ -107,6 +107,12 @@ def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
     specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
                        robot_file=Path('/robots/tall.yaml'))
     assert {spec.name: spec.parameters for spec in specs}['dynamics']['robot_file'] == '/robots/tall.yaml'
+    specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
+                       1.0, contact_model='coulomb', adhesion_force=150.0)
+    dynamics = {spec.name: spec.parameters for spec in specs}['dynamics']
+    assert dynamics['contact_model'] == 'coulomb' and dynamics['adhesion_force'] == 150.0
+    refused = cli('run', 'circle', '--contact', 'coulomb', '--out', str(tmp_path / 'refused'))
+    assert refused.returncode == 2 and '--contact coulomb needs --controller' in refused.stderr
     robot = yaml.safe_load(robot_yaml().read_text())
     robot['adhesion_force'] = -1.0
     robot_file = tmp_path / 'bad.yaml'

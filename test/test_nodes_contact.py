@@ -75,11 +75,13 @@ def test_detachment_pauses_with_an_error(graph, tmp_path):
     """A CoM 0.25 m from the wall tips the robot off at 130 N (MODEL.md 9's detachment case)."""
     robot = yaml.safe_load(robot_yaml().read_text())
     robot['com_height'] = 0.25
+    robot['adhesion_force'] = 400.0
     robot_file = tmp_path / 'tall.yaml'
     robot_file.write_text(yaml.safe_dump(robot))
     start_graph(graph, 'initial_x:=0.0', 'contact_model:=coulomb', f'robot_file:={robot_file}', constraints=DRIVEN,
                 trajectory=None)
-    graph.wait_sim_time(0.05)
+    first = graph.wait_for(lambda: graph.messages('contact'), 15, 'wheel_contact')[0]
+    assert first.effort[6] == pytest.approx(0.7 * 400.0)  # the robot file's force (the parameter is 0)
     assert all(result.successful for result in graph.set_parameters('dynamics', adhesion_force=130.0))
     graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.ERROR, 'detached'), 10, 'ERROR on detachment')
     detached_at = float(re.search(r'lifted off the wall: normal load -?[\d.]+ N at t = ([\d.]+) s',

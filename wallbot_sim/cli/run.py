@@ -25,6 +25,7 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Robot, Scenario
+from wallbot_sim.model.contact import CONTACT_MODELS
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 RECORDER = 'recorder'
@@ -49,6 +50,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--real-time-factor', type=float, default=1.0,
                         help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
+    parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
+                        help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
+    parser.add_argument('--adhesion-force', type=float,
+                        help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
     parser.add_argument('--controller', action='store_true',
@@ -60,7 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: float, factor: float,
-               bag: Path, controller_mass_scale: float | None = None, robot_file: Path | None = None) -> list[NodeSpec]:
+               bag: Path, controller_mass_scale: float | None = None, robot_file: Path | None = None,
+               contact_model: str = 'ideal', adhesion_force: float | None = None) -> list[NodeSpec]:
     """The graph of a run, in start order (the recorder first, so it misses nothing).
 
     With ``controller_mass_scale`` (a closed-loop run) ``selection`` must be the driven set
@@ -95,6 +101,7 @@ def node_specs(scenario: Scenario, selection: ConstraintSelection, duration: flo
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': factor, 'stop_at': duration,
         'wait_for_recorder': True, **({'robot_file': str(robot_file)} if robot_file is not None else {}),
+        'contact_model': contact_model, **({'adhesion_force': adhesion_force} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
     return specs
 
@@ -221,11 +228,18 @@ def main(args: argparse.Namespace) -> int:
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
+    if args.contact == 'coulomb' and not args.controller:
+        raise CliError("--contact coulomb needs --controller: with the trajectory task on, the task's force is a "
+                       'virtual actuator, not friction')
+    if args.adhesion_force is not None and not (math.isfinite(args.adhesion_force) and args.adhesion_force > 0):
+        raise CliError(f'--adhesion-force must be a positive number of newtons, got {args.adhesion_force}')
     robot_file = Path(args.robot).resolve() if args.robot else None
-    robot = Robot(load_robot_parameters(robot_file))
+    params = load_robot_parameters(robot_file)
+    robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
     out = output_directory(args.out, args.scenario)
     bag = out / 'bag'
-    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale, robot_file)
+    specs = node_specs(scenario, selection, duration, factor, bag, mass_scale, robot_file, args.contact,
+                       args.adhesion_force)
     graph = None
     with claim_domain_id() as claim:
         os.environ.update(claim.env())  # the monitor node joins the run's domain

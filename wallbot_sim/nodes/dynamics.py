@@ -165,8 +165,8 @@ class DynamicsNode(Node):
         if reasons:
             raise ValueError('; '.join(reasons))
         self.params = p
-        self.robot = Robot(load_robot_parameters(p['robot_file'] or None).replace(
-            adhesion_force=p['adhesion_force'] or None))
+        self.robot_file_params = load_robot_parameters(p['robot_file'] or None)
+        self.robot = Robot(self._robot_params(p['adhesion_force']))
         sys.setswitchinterval(5e-4)  # executor callbacks yield the GIL to the loop within 0.5 ms
 
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
@@ -350,13 +350,18 @@ class DynamicsNode(Node):
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
         if 'adhesion_force' in changes:
-            self.robot = Robot(self.robot.params.replace(adhesion_force=changes['adhesion_force'] or None))
+            self.robot = Robot(self._robot_params(changes['adhesion_force']))
             if self.sim is not None:
-                self.sim.set_adhesion_force(changes['adhesion_force'] or None)
+                self.sim.set_adhesion_force(self.robot.params.adhesion_force)
         if 'contact_model' in changes and self.sim is not None:
             self.sim.set_contact_model(changes['contact_model'])
         self.pacer.reanchor()
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def _robot_params(self, adhesion_force: float):
+        """The robot file's parameters, with the adhesion_force parameter (N) unless it is 0."""
+        params = self.robot_file_params
+        return params.replace(adhesion_force=adhesion_force) if adhesion_force else params
 
     def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
         reference = self.plan.reference if self.plan is not None else None
