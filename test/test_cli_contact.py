@@ -71,7 +71,8 @@ def test_detachment_ends_the_run_with_status_3(tmp_path):
 
 def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
     out = tmp_path / 'ideal.csv'
-    result = simulate('--scenario', 'rest', '--adhesion-force', '100', '--duration', '0.2', '--csv', str(out), '--quiet')
+    result = simulate('--scenario', 'rest', '--adhesion-force', '100', '--duration', '0.2', '--csv', str(out),
+                      '--quiet')
     assert result.returncode == 0, result.stderr
     header, rows = read_csv(out)
     col = {name: i for i, name in enumerate(header)}

@@ -58,7 +58,8 @@ def test_contact_model_and_adhesion_change_at_run_time(graph):
     slipping = graph.wait_for(lambda: [m for m in graph.messages('contact') if m.velocity[6] == 1.0], 10,
                               'the lateral channel slipping')[0]
     assert slipping.effort[6] == pytest.approx(70.0)  # mu_s F_ad with the new force
-    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.WARN, 'sliding: lateral'), 10, 'WARN while sliding')
+    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.WARN, 'sliding: lateral'), 10,
+                   'WARN while sliding')
 
     assert all(result.successful for result in graph.set_parameters('dynamics', contact_model='ideal'))
     stamp = graph.last_stamp()

@@ -90,7 +90,8 @@ def test_wheels_wrench_drive_forces_and_clock(decode):
     contact = messages[topics.WHEEL_CONTACT]
     assert list(contact.name) == list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
     state = out.contact
-    limits = [0.7 * (state.loads[0] + state.loads[1]), 0.7 * (state.loads[2] + state.loads[3]), 0.7 * 189.19285714285715]
+    loads = state.loads
+    limits = [0.7 * (loads[0] + loads[1]), 0.7 * (loads[2] + loads[3]), 0.7 * 189.19285714285715]
     assert list(contact.effort) == pytest.approx([*state.loads, *limits], rel=1e-12, abs=1e-12)
     assert list(contact.position) == [0.0] * 4 + list(state.use)
     assert list(contact.velocity) == [0.0] * 4 + [float(flag) for flag in state.slipping]

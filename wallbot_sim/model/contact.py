@@ -141,7 +141,8 @@ class CoulombContact:
         return active
 
     def friction_function(self, modules: Sequence[ConstraintModule], loads: np.ndarray,
-                          slipping: frozenset[str] | None = None) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+                          slipping: frozenset[str] | None = None
+                          ) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
         """Q_f(q, qd) of the slipping rows with ``loads`` held; None while none slips.
 
         Each slipping row k with velocity row a_k and slip velocity v_k = a_k qd adds
@@ -155,7 +156,8 @@ class CoulombContact:
         for module in self.contacts(modules):
             rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
             if rows:
-                parts.append((module, np.array(rows, dtype=int), self.kinetic_friction * (module.row_wheels[rows] @ loads)))
+                bounds = self.kinetic_friction * (module.row_wheels[rows] @ loads)
+                parts.append((module, np.array(rows, dtype=int), bounds))
         if not parts:
             return None
         eps2 = self.epsilon ** 2

@@ -75,7 +75,8 @@ THROTTLE = 1.0
 LOCKSTEP_WAIT = 0.25
 """Wall seconds lockstep waits for a controller's command before it gives up (until commands return)."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
-                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState, topics.WHEEL_CONTACT: JointState,
+                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
+                 topics.WHEEL_CONTACT: JointState,
                  topics.CLOCK: ClockMsg}
 """The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
 
@@ -610,8 +611,8 @@ class DynamicsNode(Node):
             else f'{self.status}; no wheel_torque_cmd: zero torque'
         if (sliding or slipping) and level != 'error':
             level = 'warn'
-            message += '; ' + ('sliding: ' + ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in sliding.items())
-                               if sliding else 'slipping: ' + ', '.join(slipping))
+            moving = ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in sliding.items())
+            message += f'; sliding: {moving}' if sliding else '; slipping: ' + ', '.join(slipping)
         status = conversions.diagnostic_status(f'{self.get_fully_qualified_name()}: simulation', level,
                                                message, values)
         self.diagnostics_pub.publish(conversions.diagnostics_message(t, [status]))
