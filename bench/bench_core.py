@@ -8,12 +8,18 @@ and the ratio is printed. Both must end in the same state (a check that the comp
 Both share the model's evaluation (Q, the constraint rows, RK4); "solve ratio" compares the two
 solvers alone on the same inputs (A, b, M, Q at the final state).
 
+Then the wheel-wall contact: the driven robot from rest (docs/model.md 11.4's cases: belt, non-lateral,
+nonslip, no trajectory task) stepped with its outputs at every step, as ``simulate`` and the
+dynamics node do, with ideal and with coulomb contact. "cost" is the coulomb step's extra time
+relative to the ideal step; in the sticking cases it is the stick/slip bookkeeping alone.
+
     python bench/bench_core.py [--seconds 2.0]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import platform
 import time
 
@@ -58,6 +64,38 @@ def steps_per_second(simulation: Simulation, steps: int) -> float:
     return steps / (time.perf_counter() - started)
 
 
+CONTACT_CASES = (  # name, heading, side torques, adhesion force (None: the robot file's), what happens
+    ('hold', 0.0, (0.0, 0.0), None, 'sticks'),
+    ('climb', math.pi / 2, (2.0, 1.95), None, 'sticks, turning'),
+    ('slide', 0.0, (0.0, 0.0), 100.0, 'lateral slip'),
+    ('spin', math.pi / 2, (3.0, 3.0), None, 'both sides slip'),
+)
+
+
+def steps_with_outputs_per_second(simulation: Simulation, steps: int) -> float:
+    """Steps per second of CPU time, the outputs computed at every step."""
+    started = time.process_time()
+    for _ in range(steps):
+        simulation.outputs()
+        simulation.step()
+    return steps / (time.process_time() - started)
+
+
+def contact_table(steps: int) -> None:
+    print(f'\n{"contact case":13s} {"":17s} {"ideal steps/s":>13s} {"coulomb steps/s":>15s} {"cost":>7s}')
+    driven = ConstraintSelection.parse('belt,non_lateral,nonslip', trajectory=False)
+    for name, heading, torque, adhesion, what in CONTACT_CASES:
+        robot = Robot(load_robot_parameters().replace(adhesion_force=adhesion))
+        rates = [0.0, 0.0]
+        for _ in range(5):  # alternating, best of five: load from other processes hits both alike
+            for k, contact in enumerate(('ideal', 'coulomb')):
+                simulation = Simulation(robot, None, driven, np.array([0.0, 0.0, heading, 0, 0, 0, 0]),
+                                        np.zeros(DOF), contact=contact)
+                simulation.set_motor_torque(*torque)
+                rates[k] = max(rates[k], steps_with_outputs_per_second(simulation, steps))
+        print(f'{name:13s} {what:17s} {rates[0]:13.0f} {rates[1]:15.0f} {rates[0] / rates[1] - 1:7.1%}')
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--seconds', type=float, default=2.0, help='simulated seconds per measurement')
@@ -81,6 +119,7 @@ def main() -> None:
             fast_solve, slow_solve = solves_per_second(core)
             print(f'{name:9s} {selection.label():48s} {fast:12.0f} {slow:12.0f} {fast / slow:6.2f} {fast / 1000:11.1f} '
                   f'{fast_solve / slow_solve:11.2f}')
+    contact_table(steps)
 
 
 if __name__ == '__main__':

@@ -9,6 +9,9 @@ Arguments (defaults as ``wallbot-sim run``):
   record:=                             bag directory to record into (empty: no recorder)
   controller:=false                    true: closed loop under tracking_controller_node (driven robot)
   controller_mass_scale:=1.0           the controller's robot mass relative to the simulator's
+  robot:=PATH.yaml                     robot parameter file (default: the installed config/robot.yaml)
+  contact:=ideal|coulomb               wheel-wall contact model (coulomb with controller:=true)
+  adhesion_force:=N                    adhesion force in N (default: the robot file's)
 
 Example:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
@@ -35,6 +38,9 @@ ARGUMENTS = {
     'record': ('', 'bag directory to record into (empty: no recorder)'),
     'controller': ('false', 'true: closed loop under tracking_controller_node'),
     'controller_mass_scale': ('1.0', "the controller's robot mass relative to the simulator's"),
+    'robot': ('', 'robot parameter YAML (empty: the installed config/robot.yaml)'),
+    'contact': ('ideal', 'wheel-wall contact model: ideal or coulomb (coulomb with controller:=true)'),
+    'adhesion_force': ('', "adhesion force in N (empty: the robot file's)"),
 }
 
 
@@ -48,7 +54,9 @@ def _graph(context, *args, **kwargs):
         duration=float(arg('duration')), real_time_factor=float(arg('real_time_factor')),
         bag=Path(arg('record')) if arg('record') else None,
         controller_mass_scale=float(arg('controller_mass_scale')) if closed_loop else None,
-        realtime_priority=int(arg('realtime_priority')))
+        realtime_priority=int(arg('realtime_priority')),
+        robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
+        adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None)
     return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], name=spec.name, namespace=topics.NAMESPACE,
                  output='screen', parameters=[dict(spec.parameters)])
             for spec in specs]

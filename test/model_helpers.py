@@ -11,7 +11,7 @@ from wallbot_sim.model import RobotParameters
 
 def random_parameters(rng: np.random.Generator, com_offset: bool = True) -> RobotParameters:
     """Plausible random robot parameters, with the body CoM off the centre when asked."""
-    return RobotParameters(
+    values = dict(
         body_mass=rng.uniform(3, 15), wheel_mass=rng.uniform(0.1, 0.5),
         body_yaw_inertia=rng.uniform(0.05, 0.3), wheel_yaw_inertia=rng.uniform(5e-5, 5e-4),
         wheel_spin_inertia=rng.uniform(1e-4, 1e-3), wheel_radius=rng.uniform(0.02, 0.08),
@@ -20,6 +20,7 @@ def random_parameters(rng: np.random.Generator, com_offset: bool = True) -> Robo
         com_height=rng.uniform(0.02, 0.08), wall_friction=rng.uniform(0.4, 0.9),
         rolling_resistance=rng.uniform(0.0, 0.05), baumgarte_alpha=rng.uniform(2, 8),
         baumgarte_beta=rng.uniform(2, 8))
+    return RobotParameters(**values, kinetic_friction=0.85 * values['wall_friction'])
 
 
 def wheel_offsets(p: RobotParameters) -> np.ndarray:

@@ -126,6 +126,7 @@ def test_robot_file_changes_the_adsorption_figures(tracking_run, tmp_path):
     csv_path, _bag = tracking_run
     robot = yaml.safe_load(open(paths.robot_yaml()))
     robot['wall_friction'] = 0.35
+    robot['kinetic_friction'] = 0.3
     other = tmp_path / 'robot.yaml'
     other.write_text(yaml.safe_dump(robot))
     base = motors_json(csv_path)['adsorption']

@@ -12,7 +12,8 @@ import pytest
 from wallbot_sim.rundata import CSV_COLUMNS
 
 HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
-          'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual')
+          'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual,'
+          'N1,N2,N3,N4,use_L,use_R,use_lat,slip_L,slip_R,slip_lat')
 
 
 def simulate(*args: str) -> subprocess.CompletedProcess:

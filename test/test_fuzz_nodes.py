@@ -342,7 +342,7 @@ def test_fuzz_parameters_and_commands(process_runner, tmp_path):
 
 # --- issues the fuzz found (docs/robustness.md), fixed: they stay refused --------------------------
 @pytest.mark.parametrize('changes', [{'duration': 1.0, 'stop_time': 1e300}, {'horizon': 1e300},
-                                     {'sample_dt': 5e-324}])
+                                     {'sample_dt': 5e-324}, {'publish_rate_hz': 1e-300}])
 def test_trajectory_refuses_endless_plans(changes):
     from wallbot_sim.nodes.trajectory import check_values
     assert check_values({**TRAJECTORY_DEFAULTS, **changes}), f'{changes} accepted'

@@ -30,6 +30,11 @@ def test_config_file_holds_model_md_defaults():
     ('rolling_resistance', -0.01, 'rolling_resistance must be >= 0'),
     ('com_offset', [0.1], 'com_offset must be a pair'),
     ('com_offset', ['a', 0.0], 'com_offset must be a number'),
+    ('kinetic_friction', 0.8, r'kinetic_friction must be <= wall_friction \(0.7\), got 0.8'),
+    ('kinetic_friction', 0.0, 'kinetic_friction must be > 0'),
+    ('adhesion_force', -5.0, 'adhesion_force must be > 0'),
+    ('adhesion_force', 'strong', 'adhesion_force must be a number'),
+    ('stick_velocity', 0.0, 'stick_velocity must be > 0'),
 ])
 def test_bad_values_are_refused_with_their_name(key, value, words):
     values = defaults()
@@ -73,3 +78,10 @@ def test_scenarios_load_and_bad_ones_are_refused(tmp_path):
                                     'duration': 3, 'initial_state': {'x': 0, 'y': 0, 'theta': 0}}))
     with pytest.raises(ParameterError, match='radius must be a finite number > 0'):
         load_scenario(path)
+
+
+def test_adhesion_force_overrides_the_safety_factor():
+    from wallbot_sim.model import adsorption_analysis
+    default = adsorption_analysis(RobotParameters())
+    assert default.applied_force == pytest.approx(1.5 * default.minimum_force)
+    assert adsorption_analysis(RobotParameters(adhesion_force=100)).applied_force == 100.0

@@ -87,8 +87,16 @@ def test_wheels_wrench_drive_forces_and_clock(decode):
     assert list(drive.name) == list(topics.DRIVE_JOINTS)
     assert list(drive.effort) == [out.drive.left, out.drive.right, out.drive.lateral]
     assert len(drive.position) == len(drive.velocity) == 0
+    contact = messages[topics.WHEEL_CONTACT]
+    assert list(contact.name) == list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
+    state = out.contact
+    loads = state.loads
+    limits = [0.7 * (loads[0] + loads[1]), 0.7 * (loads[2] + loads[3]), 0.7 * 189.19285714285715]
+    assert list(contact.effort) == pytest.approx([*state.loads, *limits], rel=1e-12, abs=1e-12)
+    assert list(contact.position) == [0.0] * 4 + list(state.use)
+    assert list(contact.velocity) == [0.0] * 4 + [float(flag) for flag in state.slipping]
     stamps = [nanoseconds(msg.clock if topic is topics.CLOCK else msg.header.stamp) for topic, msg in messages.items()]
-    assert stamps == [12_503_000_000] * 5
+    assert stamps == [12_503_000_000] * 6
 
 
 def test_publishing_order_ends_with_the_clock_and_bytes_are_not_reused():
@@ -97,6 +105,6 @@ def test_publishing_order_ends_with_the_clock_and_bytes_are_not_reused():
     kept = [data for _, data in first]
     second = encoder.encode(moving_outputs(torque=(-1.0, 1.0), t0=1.0))
     assert [topic for topic, _ in first] == [topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH,
-                                             topics.DRIVE_FORCES, topics.CLOCK]
+                                             topics.DRIVE_FORCES, topics.WHEEL_CONTACT, topics.CLOCK]
     assert [data for _, data in first] == kept  # a later step does not change bytes already handed out
     assert all(a != b for (_, a), (_, b) in zip(first, second))

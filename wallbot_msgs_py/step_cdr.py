@@ -1,6 +1,6 @@
 """The dynamics node's per-step messages as CDR bytes, encoded without ROS.
 
-Every step publishes odom, wheel_states, constraint_wrench, drive_forces and /clock. Their
+Every step publishes odom, wheel_states, constraint_wrench, drive_forces, wheel_contact and /clock. Their
 strings (frames, joint names) and array lengths never change, so each message is a fixed
 byte template whose numbers are overwritten in place: encoding a step costs a few
 ``struct.pack_into`` calls instead of filling rclpy message objects and having rclpy convert
@@ -13,7 +13,8 @@ Field meanings (REP 103/105, as ``codec`` documents them): odom pose of the cent
 ``wall``, twist (v_long, v_lat, thd) in ``base_link``; wheel_states position / velocity /
 effort per wheel in WHEEL_JOINTS order, effort = constraint torque + motor torque;
 constraint_wrench Q_c on the chassis (F_X, F_Y, M_Z) in ``wall``; drive_forces effort
-(F_L, F_R, F_lat) of DRIVE_JOINTS; every stamp the simulation time.
+(F_L, F_R, F_lat) of DRIVE_JOINTS; wheel_contact as topics.WHEEL_CONTACT says; every stamp the
+simulation time.
 """
 
 from __future__ import annotations
@@ -99,7 +100,7 @@ class _Template:
 class StepEncoder:
     """Encodes the messages of one step; ``encode`` returns (Topic, bytes) in publishing order.
 
-    The order is odom, wheel_states, constraint_wrench, drive_forces, /clock (last, so a
+    The order is odom, wheel_states, constraint_wrench, drive_forces, wheel_contact, /clock (last, so a
     subscriber that has seen a clock stamp knows the step's other messages were sent before it).
     """
 
@@ -132,6 +133,15 @@ class StepEncoder:
         drive.double_sequence(0)
         drive.double_sequence(0)
         self._drive_effort = drive.double_sequence(len(topics.DRIVE_JOINTS))
+
+        contact = _Template()
+        self._contact_stamp = contact.header('')
+        contact.strings(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
+        entries = len(topics.WHEEL_JOINTS) + len(topics.DRIVE_JOINTS)
+        self._contact_position = contact.double_sequence(entries)
+        self._contact_velocity = contact.double_sequence(entries)
+        self._contact_effort = contact.double_sequence(entries)
+        self._contact = contact.data
 
         clock = _Template()
         self._clock_stamp = clock.stamp()
@@ -171,7 +181,14 @@ class StepEncoder:
         _STAMP.pack_into(drive, self._drive_stamp, sec, nanosec)
         _THREE.pack_into(drive, self._drive_effort, out.drive.left, out.drive.right, out.drive.lateral)
 
+        contact, state = self._contact, out.contact
+        _STAMP.pack_into(contact, self._contact_stamp, sec, nanosec)
+        _THREE.pack_into(contact, self._contact_position + 32, *state.use)
+        _THREE.pack_into(contact, self._contact_velocity + 32, *(float(flag) for flag in state.slipping))
+        values.pack_into(contact, self._contact_effort, *state.loads.tolist())
+        _THREE.pack_into(contact, self._contact_effort + 32, *state.limits)
+
         _STAMP.pack_into(self._clock, self._clock_stamp, sec, nanosec)
         return [(topics.ODOM, bytes(odom)), (topics.WHEEL_STATES, bytes(wheels)),
                 (topics.CONSTRAINT_WRENCH, bytes(wrench)), (topics.DRIVE_FORCES, bytes(drive)),
-                (topics.CLOCK, bytes(self._clock))]
+                (topics.WHEEL_CONTACT, bytes(contact)), (topics.CLOCK, bytes(self._clock))]

@@ -43,6 +43,11 @@ ODOM = Topic('odom', 'nav_msgs/msg/Odometry')
 WHEEL_STATES = Topic('wheel_states', 'sensor_msgs/msg/JointState')
 CONSTRAINT_WRENCH = Topic('constraint_wrench', 'geometry_msgs/msg/WrenchStamped')
 DRIVE_FORCES = Topic('drive_forces', 'sensor_msgs/msg/JointState')
+WHEEL_CONTACT = Topic('wheel_contact', 'sensor_msgs/msg/JointState')
+"""Wheel-wall contact per step. name: WHEEL_JOINTS then DRIVE_JOINTS (the friction channels);
+effort: each wheel's normal load (N), then each channel's friction limit mu_s N_channel (N);
+position: 0 for the wheels, then each channel's friction use |F| / (mu_s N) (above 1 it slips);
+velocity: 0 for the wheels, then 1 for a slipping channel, 0 for a sticking one."""
 DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
 CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
 WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray', depth=10)
@@ -56,7 +61,7 @@ RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
 At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
 steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
 
-RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, REFERENCE, REFERENCE_TRAJECTORY,
+RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
             REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
 """Topics a run records, in this order."""
 

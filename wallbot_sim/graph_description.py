@@ -35,13 +35,16 @@ class GraphDescriptionError(ValueError):
 
 def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, duration: float = 0.0,
                    real_time_factor: float = 1.0, bag: Path | None = None,
-                   controller_mass_scale: float | None = None, realtime_priority: int = 0) -> list[NodeSpec]:
+                   controller_mass_scale: float | None = None, realtime_priority: int = 0,
+                   robot_file: Path | None = None, contact_model: str = 'ideal',
+                   adhesion_force: float | None = None) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
     not wait for one. With ``controller_mass_scale`` (a closed-loop run) the selection is the driven
     set (no trajectory task); the controller starts before the dynamics, which waits for it
-    (``wait_for_command``) so the loop is closed from t = 0.
+    (``wait_for_command``) so the loop is closed from t = 0. ``robot_file`` None: the installed
+    robot file; ``adhesion_force`` None: the robot file's.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -75,5 +78,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': bag is not None, 'realtime_priority': int(realtime_priority),
+        **({'robot_file': str(robot_file)} if robot_file is not None else {}),
+        'contact_model': contact_model,
+        **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
     return specs

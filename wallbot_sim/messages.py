@@ -10,11 +10,13 @@ use it, so a headless bag holds the graph's messages. No ROS import.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from wallbot_msgs_py import codec, topics
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.constraints import BaumgarteGains
+from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
+from wallbot_sim.model.contact import IDEAL
+from wallbot_sim.model.outputs import ContactOutputs
 from wallbot_sim.model.robot import Adsorption
 from wallbot_sim.model.trajectories import Plan, Reference, ReferenceSample, SampledReference, sample_plan, tangent_heading
 
@@ -182,13 +184,34 @@ class LoopFigures:
     loop_priority: str
 
 
+def contact_values(contact_model: str, coulomb_applies: bool, contact: ContactOutputs | None) -> list[tuple[str, object]]:
+    """The wheel-wall contact entries of the dynamics' status (docs/model.md section 11)."""
+    model = contact_model
+    if model != IDEAL and not coulomb_applies:
+        model += ' (ideal while the trajectory task is on)'
+    if contact is None:
+        return [('contact model', model)]
+    return [('contact model', model),
+            ('normal loads (N)', ', '.join(f'{load:.2f}' for load in contact.loads)),
+            ('friction use (left, right, lateral)', ', '.join(f'{use:.3f}' for use in contact.use)),
+            ('slipping', ', '.join(slipping_channels(contact)) or 'none')]
+
+
+def slipping_channels(contact: ContactOutputs) -> list[str]:
+    """The friction channels slipping in ``contact``."""
+    return [channel for channel, flag in zip(CHANNELS, contact.slipping) if flag]
+
+
 def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,
                       residual: float, residual_max: float, constraints_label: str,
-                      adsorption: Adsorption) -> codec.Status:
+                      adsorption: Adsorption, *, detached: bool = False,
+                      contact: Sequence[tuple[str, object]] = (), sliding: Mapping[str, float] | None = None,
+                      slipping: Sequence[str] = ()) -> codec.Status:
     """The dynamics' status on ``/diagnostics``: OK while running, paused or stopped, WARN while
-    waiting or without torque commands, ERROR once diverged."""
-    level = 'error' if diverged else ('ok' if status in ('running', 'paused') or status.startswith('stopped')
-                                      else 'warn')
+    waiting, without torque commands, slipping or sliding with nothing holding the robot, ERROR once
+    diverged or detached."""
+    level = 'error' if diverged or detached else (
+        'ok' if status in ('running', 'paused') or status.startswith('stopped') else 'warn')
     timed_out = command.startswith('timed out')
     if level == 'ok' and timed_out:
         level = 'warn'
@@ -204,7 +227,12 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
         ('adsorption force (N)', float(adsorption.applied_force)),
         ('adsorption minimum (N)', float(adsorption.minimum_force)),
         ('adsorption margin', float(adsorption.margin)),
+        *contact,
     ]
     message = f'{status}; no wheel_torque_cmd: zero torque' if level == 'warn' and timed_out else status
+    if (sliding or slipping) and level != 'error':
+        level = 'warn'
+        moving = ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in (sliding or {}).items())
+        message += f'; sliding: {moving}' if sliding else '; slipping: ' + ', '.join(slipping)
     return codec.Status(f'{node_name}: simulation', level, message, values)
 

@@ -23,6 +23,7 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.bag.writer import BagWriter
 from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
+from wallbot_sim.model.contact import unheld_slip
 
 DIAGNOSTICS_PERIOD = 0.1
 """Simulation seconds between /diagnostics messages."""
@@ -107,9 +108,11 @@ class HeadlessBagWriter:
                                     1e3 * self._step_time_max, 0.0, 0, 'normal')
         selection = self.simulation.selection
         command = messages.COMMAND_IGNORED if selection.trajectory else messages.applied_command(*out.motor_torque)
-        diagnostics = messages.simulation_status(self._node_name, status, False, command, out.t, loop, out.residual,
-                                                 self._residual_max, selection.label(),
-                                                 self.simulation.robot.adsorption)
+        sim = self.simulation
+        diagnostics = messages.simulation_status(
+            self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max, selection.label(),
+            sim.robot.adsorption, contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
+            sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_channels(out.contact))
         self._put(topics.DIAGNOSTICS, out.t, codec.diagnostics(out.t, [diagnostics]))
         self._next_diagnostics = out.t + DIAGNOSTICS_PERIOD
         self._window_start, self._window_steps, self._step_time_max = time.perf_counter(), 0, 0.0

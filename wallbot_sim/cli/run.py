@@ -26,6 +26,7 @@ from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
 from wallbot_sim.model import ConstraintSelection, Robot
+from wallbot_sim.model.contact import CONTACT_MODELS
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 OPTIONAL = (CONTROLLER,)
@@ -47,6 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--duration', type=float, help="simulated seconds (default: the scenario's)")
     parser.add_argument('--real-time-factor', type=float, default=1.0,
                         help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
+    parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
+    parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
+                        help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
+    parser.add_argument('--adhesion-force', type=float,
+                        help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
     parser.add_argument('--controller', action='store_true',
@@ -189,14 +195,22 @@ def main(args: argparse.Namespace) -> int:
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
+    if args.contact == 'coulomb' and not args.controller:
+        raise CliError("--contact coulomb needs --controller: with the trajectory task on, the task's force is a "
+                       'virtual actuator, not friction')
+    if args.adhesion_force is not None and not (math.isfinite(args.adhesion_force) and args.adhesion_force > 0):
+        raise CliError(f'--adhesion-force must be a positive number of newtons, got {args.adhesion_force}')
+    robot_file = Path(args.robot).resolve() if args.robot else None
+    params = load_robot_parameters(robot_file)
+    robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
     out = output_directory(args.out, args.scenario)
     bag = out / 'bag'
     try:
         specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
-                               controller_mass_scale=mass_scale)
+                               controller_mass_scale=mass_scale, robot_file=robot_file,
+                               contact_model=args.contact, adhesion_force=args.adhesion_force)
     except GraphDescriptionError as error:
         raise CliError(str(error)) from None
-    robot = Robot(load_robot_parameters())
     graph = None
     with claim_domain_id() as claim:
         os.environ.update(claim.env())  # the monitor node joins the run's domain

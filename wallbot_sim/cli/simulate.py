@@ -9,18 +9,38 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
+import numpy as np
+
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 
+REST = 'rest'
+"""The scenario with no trajectory task: at rest at the origin, constant motor torques."""
+REST_DURATION = 1.0
+DRIVEN_CONSTRAINTS = 'belt,non_lateral,nonslip'
+DETACHED_STATUS = 3
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('--scenario', default='circle', help='circle, figure8, or a scenario YAML path')
-    parser.add_argument('--constraints', default='none',
-                        help='comma list of belt, non_lateral, nonslip, or none (trajectory task only)')
+    parser.add_argument('--scenario', default='circle',
+                        help='circle, figure8, a scenario YAML path, or rest (no trajectory task: at rest at the '
+                             'origin under constant motor torques)')
+    parser.add_argument('--heading', type=float, help='with --scenario rest: initial heading in rad (default 0)')
+    parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
+    parser.add_argument('--constraints',
+                        help='comma list of belt, non_lateral, nonslip, or none (default: none, the trajectory '
+                             f'task only; {DRIVEN_CONSTRAINTS} for rest)')
+    parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
+                        help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '
+                             'needs a run without the trajectory task)')
+    parser.add_argument('--adhesion-force', type=float,
+                        help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
     parser.add_argument('--duration', type=float, help='seconds to simulate (default: the scenario\'s)')
@@ -37,12 +57,45 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
         raise CliError(f'--duration must be a positive number of seconds, got {args.duration}')
     if not (math.isfinite(args.dt) and 0 < args.dt <= 0.1):
         raise CliError(f'--dt must be in (0, 0.1] seconds, got {args.dt}')
+    params = load_robot_parameters(args.robot)
+    if args.adhesion_force is not None:
+        if not (math.isfinite(args.adhesion_force) and args.adhesion_force > 0):
+            raise CliError(f'--adhesion-force must be a positive number of newtons, got {args.adhesion_force}')
+        params = params.replace(adhesion_force=args.adhesion_force)
+    robot = Robot(params)
+    rest = args.scenario == REST
+    if not rest and (args.heading is not None or args.torque is not None):
+        raise CliError('--heading and --torque set up --scenario rest; a trajectory scenario starts as its file says')
+    selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
+                                          trajectory=not rest, tangent_heading=args.tangent_heading)
+    if args.contact == 'coulomb' and selection.trajectory:
+        raise CliError(f'--contact coulomb with the trajectory task of scenario {args.scenario!r}: the task\'s force '
+                       'is a virtual actuator, not friction; use --scenario rest (driven by --torque)')
+    if rest:
+        heading = 0.0 if args.heading is None else args.heading
+        if not math.isfinite(heading):
+            raise CliError(f'--heading must be a finite angle in rad, got {args.heading}')
+        q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
+        simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact)
+        simulation.set_motor_torque(*parse_torque(args.torque))
+        return simulation, args.duration if args.duration is not None else REST_DURATION
     scenario = load_scenario(args.scenario)
-    selection = ConstraintSelection.parse(args.constraints, tangent_heading=args.tangent_heading)
-    robot = Robot(load_robot_parameters(args.robot))
     q0, qd0 = scenario.initial_state(robot)
     duration = args.duration if args.duration is not None else scenario.duration
-    return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt), duration
+    return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact), duration
+
+
+def parse_torque(text: str | None) -> tuple[float, float]:
+    """'TL,TR' in N m (None: 0,0)."""
+    if text is None:
+        return 0.0, 0.0
+    try:
+        left, right = (float(part) for part in text.split(','))
+    except ValueError:
+        raise CliError(f'--torque must be two numbers TL,TR in N m, got {text!r}') from None
+    if not (math.isfinite(left) and math.isfinite(right)):
+        raise CliError(f'--torque must be finite, got {text!r}')
+    return left, right
 
 
 def main(args: argparse.Namespace) -> int:
@@ -74,6 +127,10 @@ def main(args: argparse.Namespace) -> int:
 
         try:
             final = simulation.run(duration, on_step)
+        except DetachedError as detached:
+            print(f'detached: wheel {detached.wheel}, normal load {detached.load:.2f} N, t = {detached.t:.3f} s '
+                  f'({detached})', file=sys.stderr)
+            return DETACHED_STATUS
         finally:
             for sink in sinks:
                 sink.close()

@@ -1,4 +1,4 @@
-"""Derived outputs (docs/model.md section 8): chassis wrench, wheel torques, drive forces."""
+"""Derived outputs (docs/model.md sections 8 and 11): chassis wrench, wheel torques, drive forces, contact."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
+from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.trajectories import ReferenceSample
 
 
@@ -49,6 +50,28 @@ def side_motor_torques(drive: DriveForces, wheel_torques: Sequence[float], wheel
 
 
 @dataclass(frozen=True)
+class ContactOutputs:
+    """The contact at one instant."""
+
+    loads: np.ndarray
+    """N_1..N_4 (N)."""
+    use: FrictionUse
+    """Friction use per channel (9.2)."""
+    limits: tuple[float, float, float]
+    """Friction limit per channel: mu_s (N_1 + N_2), mu_s (N_3 + N_4), mu_s F_ad (N)."""
+    slipping: tuple[bool, bool, bool]
+    """Whether each channel (left, right, lateral) slips; always False with ideal contact."""
+    friction_force: np.ndarray | None
+    """Q_f (7,), the kinetic friction of the slipping channels; None while none slips."""
+
+    @property
+    def detached_wheel(self) -> int | None:
+        """The wheel (1..4) with the most negative load, or None while every load is >= 0."""
+        lowest = int(np.argmin(self.loads))
+        return lowest + 1 if self.loads[lowest] < 0.0 else None
+
+
+@dataclass(frozen=True)
 class StepOutputs:
     """Everything the simulation reports at one instant."""
 
@@ -60,7 +83,9 @@ class StepOutputs:
     residual: float
     motor_torque: tuple[float, float]
     drive: DriveForces
+    """The channel forces of the whole contact wrench (constraint force plus kinetic friction)."""
     reference: ReferenceSample | None
+    contact: ContactOutputs
 
     @property
     def chassis_wrench(self) -> np.ndarray:
@@ -69,9 +94,11 @@ class StepOutputs:
 
     @property
     def wheel_torques(self) -> np.ndarray:
-        """Total torque on each wheel: constraint torque plus its share of the motor torque."""
+        """Total torque on each wheel: constraint torque, kinetic friction and its share of the motor torque."""
         tau_left, tau_right = self.motor_torque
-        return self.constraint_force[3:] + 0.5 * np.array([tau_left, tau_left, tau_right, tau_right])
+        torques = self.constraint_force[3:] + 0.5 * np.array([tau_left, tau_left, tau_right, tau_right])
+        friction = self.contact.friction_force
+        return torques if friction is None else torques + friction[3:]
 
     @property
     def tracking_error(self) -> float:

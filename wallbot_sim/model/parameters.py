@@ -11,7 +11,8 @@ from wallbot_sim.model.errors import ParameterError
 _POSITIVE = (
     'body_mass', 'wheel_mass', 'body_yaw_inertia', 'wheel_yaw_inertia', 'wheel_spin_inertia',
     'wheel_radius', 'half_wheelbase', 'half_track', 'com_height', 'wall_friction', 'gravity',
-    'adsorption_safety', 'velocity_epsilon', 'baumgarte_alpha', 'baumgarte_beta',
+    'adsorption_safety', 'velocity_epsilon', 'baumgarte_alpha', 'baumgarte_beta', 'kinetic_friction',
+    'stick_velocity',
 )
 _NON_NEGATIVE = ('rolling_resistance',)
 
@@ -37,6 +38,10 @@ class RobotParameters:
     velocity_epsilon: float = 1.0e-3
     baumgarte_alpha: float = 5.0
     baumgarte_beta: float = 5.0
+    kinetic_friction: float = 0.6
+    adhesion_force: float | None = None
+    """F_ad (N); None applies k_ad F_min (section 3)."""
+    stick_velocity: float = 1.0e-3
 
     def __post_init__(self) -> None:
         for name in _POSITIVE + _NON_NEGATIVE:
@@ -46,6 +51,14 @@ class RobotParameters:
             if name in _NON_NEGATIVE and not value >= 0.0:
                 raise ParameterError(f'{name} must be >= 0, got {value!r}')
             object.__setattr__(self, name, value)
+        if self.kinetic_friction > self.wall_friction:
+            raise ParameterError(f'kinetic_friction must be <= wall_friction ({self.wall_friction!r}), '
+                                 f'got {self.kinetic_friction!r}')
+        if self.adhesion_force is not None:
+            force = _as_float('adhesion_force', self.adhesion_force)
+            if not force > 0.0:
+                raise ParameterError(f'adhesion_force must be > 0 (or null for k_ad F_min), got {force!r}')
+            object.__setattr__(self, 'adhesion_force', force)
         offset = self.com_offset
         if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
             raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')

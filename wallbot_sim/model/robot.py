@@ -29,7 +29,7 @@ class Adsorption:
     minimum_force: float
     """F_min, the larger of the two limits (N)."""
     applied_force: float
-    """F_ad = k_ad F_min (N)."""
+    """F_ad: the robot file's ``adhesion_force``, or k_ad F_min when that is null (N)."""
 
     @property
     def normal_force_per_wheel(self) -> float:
@@ -43,13 +43,14 @@ class Adsorption:
 
 
 def adsorption_analysis(params: RobotParameters) -> Adsorption:
-    """F_min = max(m_t g / mu, m_t g h / min(a, b)) and F_ad = k_ad F_min."""
+    """F_min = max(m_t g / mu, m_t g h / min(a, b)) and F_ad (k_ad F_min unless given)."""
     total_mass = params.body_mass + 4.0 * params.wheel_mass
     weight = total_mass * params.gravity
     sliding = weight / params.wall_friction
     tipping = weight * params.com_height / min(params.half_wheelbase, params.half_track)
     minimum = max(sliding, tipping)
-    return Adsorption(total_mass, sliding, tipping, minimum, params.adsorption_safety * minimum)
+    applied = params.adsorption_safety * minimum if params.adhesion_force is None else params.adhesion_force
+    return Adsorption(total_mass, sliding, tipping, minimum, applied)
 
 
 class Robot:

@@ -9,10 +9,13 @@ from typing import Callable, Sequence
 import numpy as np
 
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
-from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint
+from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, ContactConstraint, VelocityConstraint
+from wallbot_sim.model.contact import IDEAL, CoulombContact, DetachedError, check_contact_model, slip_flags
 from wallbot_sim.model.errors import ModelError, ParameterError
+from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
-from wallbot_sim.model.outputs import StepOutputs, drive_forces
+from wallbot_sim.model.normal_loads import normal_loads
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.trajectories import LastSample, Reference
@@ -32,17 +35,24 @@ class SwitchReport:
     previous: ConstraintSelection
     current: ConstraintSelection
     violation_before: float
-    """|A_v qd| of the newly active velocity constraints before projection."""
+    """|A_v qd| of the newly active velocity constraints (rows) before projection."""
     violation_after: float
     """The same after the impulsive projection."""
 
 
 class Simulation:
-    """A robot, a reference and a set of active constraints, advanced by RK4 at a fixed step."""
+    """A robot, a reference and a set of active constraints, advanced by RK4 at a fixed step.
+
+    With ``contact`` 'coulomb' (docs/model.md 11.3) and no trajectory task, the friction channels stick
+    or slip: the transitions of a step boundary are made when its outputs are computed (``step``
+    computes them), and a wheel lifting off raises DetachedError from ``step`` after the outputs
+    of that instant were available.
+    """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
                  q0: np.ndarray, qd0: np.ndarray, dt: float = DEFAULT_STEP, t0: float = 0.0,
-                 gains: BaumgarteGains | None = None, extra_modules: Sequence[ConstraintModule] = ()) -> None:
+                 gains: BaumgarteGains | None = None, extra_modules: Sequence[ConstraintModule] = (),
+                 contact: str = IDEAL) -> None:
         """``extra_modules``: constraint modules of your own, active beside the selected ones."""
         if not (math.isfinite(dt) and dt > 0.0):
             raise ParameterError(f'time step must be a finite number > 0, got {dt!r}')
@@ -53,6 +63,12 @@ class Simulation:
         self._selection = selection
         self._extra_modules = list(extra_modules)
         self._modules = self._build(selection, reference, self.gains)
+        self._coulomb: CoulombContact | None = None
+        self._active: list[ConstraintModule] = self._modules
+        """The modules the solver sees: those of the sticking channels."""
+        self._friction: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+        """Q_f of the slipping channels over this step, or None."""
+        self.set_contact_model(contact)
         self._initial = (t0, _state_vector(q0, qd0))
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         self.steps = 0
@@ -93,6 +109,19 @@ class Simulation:
         self._t, self._y = t0, y0.copy()
         self.steps = 0
         self._cached: StepOutputs | None = None
+        if self._coulomb is not None:
+            self._coulomb.reset(self.robot.adsorption.applied_force)
+        self._active, self._friction = self._modules, None
+
+    @property
+    def contact_model(self) -> str:
+        """'ideal' or 'coulomb'."""
+        return IDEAL if self._coulomb is None else 'coulomb'
+
+    @property
+    def coulomb_applies(self) -> bool:
+        """Whether friction limits the contact now: coulomb contact and no trajectory task (9.3)."""
+        return self._coulomb is not None and not self._selection.trajectory
 
     # --- configuration -------------------------------------------------------------------
     def set_motor_torque(self, tau_left: float, tau_right: float) -> None:
@@ -100,10 +129,38 @@ class Simulation:
         self.motor_torque = (float(tau_left), float(tau_right))
         self._cached = None
 
+    def set_contact_model(self, name: str) -> None:
+        """'ideal' or 'coulomb' from this step boundary on.
+
+        Going ideal imposes the rows of the channels that slipped (by the switch projection);
+        going coulomb starts with every channel sticking.
+        """
+        if check_contact_model(name) == IDEAL:
+            self._coulomb = None
+            if self._active is not self._modules:
+                self._y = np.concatenate((self._y[:DOF], self._project(self._modules, self._y[DOF:])))
+            self._active, self._friction = self._modules, None
+        elif self._coulomb is None:
+            self._coulomb = CoulombContact(self.robot.params, self.robot.adsorption.applied_force)
+        self._cached = None
+
+    def set_adhesion_force(self, force: float | None) -> None:
+        """F_ad (N; None = k_ad F_min) from this step boundary on: loads, friction limits, rolling resistance.
+
+        Slipping channels keep slipping; the loads their friction holds scale with the force.
+        """
+        previous = self.robot.adsorption.applied_force
+        self.robot = Robot(self.robot.params.replace(adhesion_force=force))
+        if self._coulomb is not None:
+            self._coulomb.loads = self._coulomb.loads * (self.robot.adsorption.applied_force / previous)
+        self._cached = None
+
     def set_reference(self, reference: Reference | None) -> None:
         """A new reference for the trajectory and heading tasks, from the next step on."""
         self._reference = reference
         self._modules = self._build(self._selection, reference, self.gains)
+        self._active = self._coulomb.active_modules(self._modules) if self.coulomb_applies else self._modules
+        self._friction = None  # rebuilt on the new modules by the next outputs()
         self._cached = None
 
     def set_constraints(self, selection: ConstraintSelection, gains: BaumgarteGains | None = None) -> SwitchReport:
@@ -111,28 +168,48 @@ class Simulation:
 
         Velocity constraints that become active are imposed on the velocities at once by the
         impulsive, mass-weighted projection qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd.
+        With coulomb contact a channel that has been sliding faster than v_st keeps slipping
+        instead: its rows are not imposed.
         """
-        previous = self._selection
+        previous, was_constrained = self._selection, _constrained_rows(self._active)
         new_modules = self._build(selection, self._reference, gains or self.gains)
-        added = set(selection.active_names()) - set(previous.active_names())
-        velocity_rows = [m.velocity_rows(self._y[:DOF]) for m in new_modules
-                         if m.name in added and isinstance(m, VelocityConstraint)]
-        before = after = 0.0
-        if velocity_rows:
-            q, qd = self._y[:DOF], self._y[DOF:]
-            rows = np.vstack([m.velocity_rows(q) for m in new_modules if isinstance(m, VelocityConstraint)])
-            new_rows = np.vstack(velocity_rows)
-            before = float(np.linalg.norm(new_rows @ qd))
-            mass_inverse = self.robot.mass_matrix_inverse(q)
-            weighted = mass_inverse @ rows.T
-            qd = qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
-            after = float(np.linalg.norm(new_rows @ qd))
-            self._y = np.concatenate((q, qd))
         if gains is not None:
             self.gains = gains
         self._selection, self._modules = selection, new_modules
+        q, qd = self._y[:DOF], self._y[DOF:]
+        if self.coulomb_applies:
+            sliding = {channel for module in new_modules if isinstance(module, ContactConstraint)
+                       for channel in module.channels
+                       if (module.name, channel) not in was_constrained
+                       and self._coulomb.slip_speed([module], channel, q, qd) >= self._coulomb.stick_velocity}
+            self._coulomb.slipping = (self._coulomb.slipping | sliding)
+            self._active = self._coulomb.active_modules(new_modules)
+        else:
+            if self._coulomb is not None:
+                self._coulomb.reset(self.robot.adsorption.applied_force)
+            self._active = new_modules
+        self._friction = None
+        velocity_rows = [row for module in self._active if isinstance(module, VelocityConstraint)
+                         for row, key in zip(module.velocity_rows(q), _row_keys(module)) if key not in was_constrained]
+        before = after = 0.0
+        if velocity_rows:
+            new_rows = np.vstack(velocity_rows)
+            before = float(np.linalg.norm(new_rows @ qd))
+            qd = self._project(self._active, qd)
+            after = float(np.linalg.norm(new_rows @ qd))
+            self._y = np.concatenate((q, qd))
         self._cached = None
         return SwitchReport(previous, selection, before, after)
+
+    def _project(self, modules: Sequence[ConstraintModule], qd: np.ndarray) -> np.ndarray:
+        """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules``."""
+        q = self._y[:DOF]
+        rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
+        if not rows:
+            return qd
+        rows = np.vstack(rows)
+        weighted = self.robot.mass_matrix_inverse(q) @ rows.T
+        return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
 
     def _build(self, selection: ConstraintSelection, reference: Reference | None,
                gains: BaumgarteGains) -> list[ConstraintModule]:
@@ -141,11 +218,17 @@ class Simulation:
 
     # --- dynamics ------------------------------------------------------------------------
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
-        """The constrained motion at (t, q, qd) with the held motor torques."""
-        return constrained_motion(self.robot, self._modules, t, q, qd, self.motor_torque)
+        """The constrained motion at (t, q, qd) with the held motor torques (and contact state)."""
+        if self._friction is None:
+            return constrained_motion(self.robot, self._active, t, q, qd, self.motor_torque)
+        force, rows, rhs = self._problem(t, q, qd)
+        return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
 
     def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return stack_problem(self.robot, self._modules, t, q, qd, self.motor_torque)
+        force, rows, rhs = stack_problem(self.robot, self._active, t, q, qd, self.motor_torque)
+        if self._friction is not None:
+            force = force + self._friction(q, qd)
+        return force, rows, rhs
 
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:DOF], y[DOF:]
@@ -153,19 +236,68 @@ class Simulation:
         return np.concatenate((qd, constrained_acceleration(self.robot.mass_inverse_factor(q), force, rows, rhs)))
 
     def outputs(self) -> StepOutputs:
-        """The outputs at the current state (computed once; the next step reuses their solve)."""
+        """The outputs at the current state (computed once; the next step reuses their solve).
+
+        With coulomb contact this is where the stick/slip transitions of the boundary are made.
+        """
         if self._cached is None:
-            q, qd = self._y[:DOF], self._y[DOF:]
-            motion = self.solve(self._t, q, qd)
+            q = self._y[:DOF]
+            friction = None
+            if self.coulomb_applies:
+                qd, solution = self._coulomb.settle(
+                    self._modules, q, self._y[DOF:], self.dt, self._evaluate, self._project, self._measure)
+                self._y = np.concatenate((q, qd))
+                q = self._y[:DOF]
+                motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
+                self._active, self._friction = solution.active, solution.function
+                slipping = slip_flags(self._coulomb.slipping)
+            else:
+                qd = self._y[DOF:]
+                motion = self.solve(self._t, q, qd)
+                loads, use = self._measure(motion, None, qd)
+                slipping = (False, False, False)
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
-                self.motor_torque, drive_forces(q[2], motion.constraint_force[:3], self.robot.params.half_track),
-                reference)
+                self.motor_torque, self._channel_forces(q, motion.constraint_force, friction), reference,
+                ContactOutputs(loads, use, self._limits(loads), slipping, friction))
         return self._cached
 
+    def _evaluate(self, modules: Sequence[ConstraintModule], friction: np.ndarray | None,
+                  qd: np.ndarray) -> ConstrainedMotion:
+        q = self._y[:DOF]
+        force, rows, rhs = stack_problem(self.robot, modules, self._t, q, qd, self.motor_torque)
+        if friction is not None:
+            force = force + friction
+        return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
+
+    def _channel_forces(self, q: np.ndarray, constraint_force: np.ndarray,
+                        friction: np.ndarray | None) -> DriveForces:
+        wrench = constraint_force[:3] if friction is None else constraint_force[:3] + friction[:3]
+        return drive_forces(q[2], wrench, self.robot.params.half_track)
+
+    def _measure(self, motion: ConstrainedMotion, friction: np.ndarray | None,
+                 qd: np.ndarray) -> tuple[np.ndarray, FrictionUse]:
+        """Normal loads (9.1) and friction use (9.2) of a motion at the current q and velocities ``qd``."""
+        q = self._y[:DOF]
+        loads = normal_loads(self.robot, q, qd, motion.acceleration)
+        drive = self._channel_forces(q, motion.constraint_force, friction)
+        adsorption = self.robot.adsorption
+        return loads, friction_use((drive.left, drive.right, drive.lateral), loads, adsorption.applied_force,
+                                   self.robot.params.wall_friction)
+
+    def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
+        static = self.robot.params.wall_friction
+        return tuple(static * load for load in channel_loads(loads, self.robot.adsorption.applied_force))
+
     def step(self) -> None:
-        """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite."""
+        """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite, and
+        DetachedError (state unchanged) if coulomb contact finds a wheel lifted off at this instant."""
+        if self.coulomb_applies:
+            contact = self.outputs().contact
+            wheel = contact.detached_wheel
+            if wheel is not None:
+                raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
         with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
             cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
             k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
@@ -204,6 +336,18 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
     force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
     return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
+
+
+def _row_keys(module: ConstraintModule) -> list[tuple[str, str | None]]:
+    channels = module.channels if isinstance(module, ContactConstraint) else None
+    if channels is None:
+        return [(module.name, None)] * len(module.velocity_rows(np.zeros(DOF)))
+    return [(module.name, channel) for channel in channels]
+
+
+def _constrained_rows(modules: Sequence[ConstraintModule]) -> set[tuple[str, str | None]]:
+    """(module name, friction channel or None) of every velocity-constraint row ``modules`` impose."""
+    return {key for module in modules if isinstance(module, VelocityConstraint) for key in _row_keys(module)}
 
 
 def _state_vector(q: np.ndarray, qd: np.ndarray) -> np.ndarray:

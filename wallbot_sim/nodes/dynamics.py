@@ -63,6 +63,7 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError, unheld_slip
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.pacing import Pacer
@@ -75,6 +76,7 @@ THROTTLE = 1.0
 """Seconds between repeated warnings of one kind."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
+                 topics.WHEEL_CONTACT: JointState,
                  topics.CLOCK: ClockMsg}
 """The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
 
@@ -157,6 +159,11 @@ class DynamicsNode(Node):
                                          'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
                                          '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
                                          low=0, high=99),
+            'contact_model': declare(self, 'contact_model', 'ideal',
+                                     'wheel-wall contact: ideal, or coulomb (channels stick or slip, a wheel lifting '
+                                     'off pauses the run; acts while the trajectory task is off)'),
+            'adhesion_force': declare(self, 'adhesion_force', 0.0,
+                                      "force pressing the robot to the wall (N); 0 = the robot file's"),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'max steps ahead of a recorder\'s record_progress (any factor)',
                                            low=1, high=1000000),
@@ -165,7 +172,8 @@ class DynamicsNode(Node):
         if reasons:
             raise ValueError('; '.join(reasons))
         self.params = p
-        self.robot = Robot(load_robot_parameters(p['robot_file'] or None))
+        self.robot_file_params = load_robot_parameters(p['robot_file'] or None)
+        self.robot = Robot(self._robot_params(p['adhesion_force']))
         sys.setswitchinterval(5e-4)  # executor callbacks yield the GIL to the loop within 0.5 ms
 
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
@@ -195,6 +203,8 @@ class DynamicsNode(Node):
         self.selection = self.gains = None
         self.pending_constraints = None
         self.paused = self.diverged = False
+        self.detached: str | None = None
+        """Why the robot left the wall (coulomb contact), until a reset."""
         self.status = 'waiting for constraints'
         self.command: tuple[tuple[float, float], float] | None = None
         self.command_expired = False
@@ -263,7 +273,9 @@ class DynamicsNode(Node):
         for name in ('command_timeout', 'max_wheel_torque'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
-        for name in ('real_time_factor', 'stop_at'):
+        if 'contact_model' in values and values['contact_model'] not in CONTACT_MODELS:
+            reasons.append(f'contact_model must be one of {", ".join(CONTACT_MODELS)}, got {values["contact_model"]!r}')
+        for name in ('real_time_factor', 'stop_at', 'adhesion_force'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0))
         factor = values.get('real_time_factor')
@@ -345,13 +357,24 @@ class DynamicsNode(Node):
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+        if 'adhesion_force' in changes:
+            self.robot = Robot(self._robot_params(changes['adhesion_force']))
+            if self.sim is not None:
+                self.sim.set_adhesion_force(self.robot.params.adhesion_force)
+        if 'contact_model' in changes and self.sim is not None:
+            self.sim.set_contact_model(changes['contact_model'])
         self.pacer.reanchor()
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def _robot_params(self, adhesion_force: float):
+        """The robot file's parameters, with the adhesion_force parameter (N) unless it is 0."""
+        params = self.robot_file_params
+        return params.replace(adhesion_force=adhesion_force) if adhesion_force else params
 
     def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
         reference = self.plan.reference if self.plan is not None else None
         sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / self.params['rate_hz'],
-                         t0=t0, gains=self.gains)
+                         t0=t0, gains=self.gains, contact=self.params['contact_model'])
         sim.set_motor_torque(*torque)
         return sim
 
@@ -363,7 +386,7 @@ class DynamicsNode(Node):
         return q0, moving_start(self.robot, self.plan.reference, p['initial_theta'])
 
     def _reset(self) -> None:
-        self.command, self.diverged = None, False
+        self.command, self.diverged, self.detached = None, False, None
         if self.sim is not None:
             self.sim = self._simulation(*self._initial_state(), 0.0)
             self.get_logger().info('reset to the initial state at t = 0')
@@ -391,8 +414,8 @@ class DynamicsNode(Node):
                 self._switch(selection, gains)
         if self.sim is None:
             return False
-        if self.paused or self.diverged:
-            self.status = 'diverged' if self.diverged else 'paused'
+        if self.paused or self.diverged or self.detached:
+            self.status = 'diverged' if self.diverged else (self.detached or 'paused')
             return False
         sim = self.sim
         stop_at = self.params['stop_at']
@@ -531,6 +554,10 @@ class DynamicsNode(Node):
             self.status = 'diverged'
             self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
             return
+        except DetachedError as error:
+            self.detached = self.status = f'detached: {error}'
+            self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
+            return
         step_time = time.perf_counter() - began
         window = self.window
         window.steps += 1
@@ -582,7 +609,12 @@ class DynamicsNode(Node):
         status = messages.simulation_status(
             self.get_fully_qualified_name(), self.status, self.diverged, self._command_state(), t, loop,
             float(out.residual) if out is not None else math.nan, window.residual_max,
-            sim.selection.label() if sim is not None else 'none yet', self.robot.adsorption)
+            sim.selection.label() if sim is not None else 'none yet', self.robot.adsorption,
+            detached=self.detached is not None,
+            contact=messages.contact_values(self.params['contact_model'], sim is None or sim.coulomb_applies,
+                                            out.contact if out is not None else None),
+            sliding=unheld_slip(self.robot, sim.selection, out) if sim is not None and out is not None else {},
+            slipping=messages.slipping_channels(out.contact) if out is not None else ())
         self.diagnostics_pub.publish(codec.diagnostics(t, [status]))
 
     def close(self) -> None:

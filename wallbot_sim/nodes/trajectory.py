@@ -41,6 +41,8 @@ LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4, 'stop_time': 
 """Upper bounds (m, Hz, s) on sizes that no wall, no subscriber and no smooth stop needs beyond."""
 MIN_PERIOD = 0.01
 """A lap shorter than this (s) is no reference a robot can follow, and overflows its derivatives."""
+MIN_PUBLISH_RATE = 1e-3
+"""Hz; below it the timer period 1 / rate is no usable period (at 1e-300 Hz it overflows rclpy's timer)."""
 
 
 def make_reference(values: dict):
@@ -73,6 +75,8 @@ def check_values(values: dict) -> list[str]:
     for name, limit in LIMITS.items():
         if values[name] > limit:
             reasons.append(f'{name} must be <= {limit:g}, got {values[name]!r}')
+    if values['publish_rate_hz'] < MIN_PUBLISH_RATE:
+        reasons.append(f'publish_rate_hz must be >= {MIN_PUBLISH_RATE:g}, got {values["publish_rate_hz"]!r}')
     if values['period'] < MIN_PERIOD:
         reasons.append(f'period must be >= {MIN_PERIOD:g} s, got {values["period"]!r}')
     if values['horizon'] < 10 * values['sample_dt']:

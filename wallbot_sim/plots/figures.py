@@ -9,6 +9,8 @@
 | wheel_tracks.png | 8, 11, 16, 24: tracks of the four wheel axle centres |
 | constraint_forces.png | 9, 12, 17, 25: F_X, F_Y and M_Z |
 | drive_forces.png | 18, 19, 26, 27: left and right drive (traction) forces, and the lateral force |
+| normal_loads.png | (wheel-wall contact) normal load of each wheel; below 0 a wheel lifts off |
+| friction_use.png | (wheel-wall contact) friction use of each channel against the limit 1, slip shaded |
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from wallbot_msgs_py import topics
 from wallbot_sim.plots.errors import PlotError
 from wallbot_sim.rundata import RunData
 
-FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'constraint_forces', 'drive_forces')
+FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'constraint_forces', 'drive_forces',
+           'normal_loads', 'friction_use')
 """Base names of the PNG files written, in this order."""
 
 WHEEL_OFFSETS = {  # body-frame axle centres in units of (a, b): x forward, y to the left
@@ -164,4 +167,38 @@ def write_figures(runs: Sequence[RunData], out_dir: Path | str, half_wheelbase: 
         ax.grid(True, alpha=0.3)
         ax.legend(loc='best', fontsize='small')
     save(fig, 'drive_forces')
+    # normal loads
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for run in runs:
+        for i, name in enumerate(topics.WHEEL_JOINTS):
+            if len(run.loads):
+                ax.plot(run.t, run.loads[:, i], lw=1.2, label=label(run, name.replace('wheel_', '').replace('_', ' ')))
+    ax.axhline(0.0, color='k', lw=0.8)
+    ax.set(xlabel='time (s)', ylabel='normal load N_i (N)',
+           title='Normal loads of the wheels (below 0: lifts off)' + title_suffix)
+    _note_missing(ax, runs)
+    save(fig, 'normal_loads')
+    # friction use
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+    for k, (ax, channel) in enumerate(zip(axes, ('left traction', 'right traction', 'lateral'))):
+        for run in runs:
+            if len(run.use):
+                ax.plot(run.t, run.use[:, k], lw=1.2, label=label(run, f'{channel} use'))
+                ax.fill_between(run.t, 0, 1, where=run.slip[:, k] > 0.5, transform=ax.get_xaxis_transform(),
+                                alpha=0.2, color='tab:red', lw=0, label=label(run, 'slipping'))
+        ax.axhline(1.0, color='k', ls='--', lw=1.0, label='limit |F| = mu_s N')
+        ax.set(ylabel=f'{channel} use')
+        _note_missing(ax, runs)
+    axes[0].set_title('Friction use |F| / (mu_s N) per channel' + title_suffix)
+    axes[2].set_xlabel('time (s)')
+    save(fig, 'friction_use')
     return written
+
+
+def _note_missing(ax, runs: Sequence[RunData]) -> None:
+    """Grid and legend; a note when no run recorded the contact (a bag from before wheel_contact)."""
+    ax.grid(True, alpha=0.3)
+    if any(len(run.loads) and np.isfinite(run.loads).any() for run in runs):
+        ax.legend(loc='best', fontsize='small')
+    else:
+        ax.text(0.5, 0.5, 'no wheel-wall contact recorded', transform=ax.transAxes, ha='center', va='center')

@@ -3,7 +3,8 @@
 COLUMN_GROUPS is the one description of the columns: each group's names and how its values come
 from a step's outputs, in order. Velocities are in the wall frame; ``err`` is the distance of the
 centre from the reference point; ``Fx..tau4`` are the constraint force Q_c; ``F_left, F_right,
-F_lateral`` the drive forces (docs/model.md section 8).
+F_lateral`` the drive forces (docs/model.md section 8); ``N1..N4`` the normal loads, ``use_*`` the
+friction use and ``slip_*`` the slip flags of the contact (docs/model.md section 11).
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ COLUMN_GROUPS: tuple[tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[flo
     (('Fx', 'Fy', 'Mz', 'tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.constraint_force),
     (('F_left', 'F_right', 'F_lateral'), lambda out: (out.drive.left, out.drive.right, out.drive.lateral)),
     (('residual',), lambda out: (out.residual,)),
+    (('N1', 'N2', 'N3', 'N4'), lambda out: out.contact.loads),
+    (('use_L', 'use_R', 'use_lat'), lambda out: out.contact.use),
+    (('slip_L', 'slip_R', 'slip_lat'), lambda out: [int(flag) for flag in out.contact.slipping]),
 )
 
 CSV_COLUMNS = tuple(name for names, _values in COLUMN_GROUPS for name in names)
@@ -34,5 +38,5 @@ CSV_COLUMNS = tuple(name for names, _values in COLUMN_GROUPS for name in names)
 
 
 def csv_row(out: StepOutputs) -> list[float]:
-    """One CSV row in the order of CSV_COLUMNS."""
-    return [float(value) for _names, values in COLUMN_GROUPS for value in values(out)]
+    """One CSV row in the order of CSV_COLUMNS (flags as the integers 0 and 1)."""
+    return [value if isinstance(value, int) else float(value) for _names, values in COLUMN_GROUPS for value in values(out)]

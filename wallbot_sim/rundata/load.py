@@ -54,6 +54,12 @@ class RunData:
     """The full reference path if recorded (reference_path), else empty."""
     restarts: int = 0
     """How often odometry time jumped back in the bag (earlier runs are not in these arrays)."""
+    loads: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    """(N, 4) normal load of each wheel (N); NaN where not recorded."""
+    use: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    """(N, 3) friction use of the left, right and lateral channels."""
+    slip: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    """(N, 3) 1 where a channel slips, 0 where it sticks."""
 
     def __len__(self) -> int:
         return len(self.t)
@@ -90,7 +96,10 @@ def _load_csv(path: Path, label: str) -> RunData:
                    np.column_stack([col[f'dphi{i}'] for i in range(1, 5)]),
                    np.column_stack([col[f'tau{i}'] for i in range(1, 5)]),
                    col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
-                   col['F_left'], col['F_right'], col['F_lateral'], col['residual'])
+                   col['F_left'], col['F_right'], col['F_lateral'], col['residual'],
+                   loads=np.column_stack([col[f'N{i}'] for i in range(1, 5)]),
+                   use=np.column_stack([col[name] for name in ('use_L', 'use_R', 'use_lat')]),
+                   slip=np.column_stack([col[name] for name in ('slip_L', 'slip_R', 'slip_lat')]))
 
 
 class _LastRun(dict):
@@ -128,12 +137,12 @@ def _load_bag(path: Path, label: str) -> RunData:
     bag = info(path)
     by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics}
     want = {leaf: by_leaf.get(leaf) for leaf in ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces',
-                                                 'reference', 'reference_path', 'reference_trajectory',
-                                                 'diagnostics')}
+                                                 'wheel_contact', 'reference', 'reference_path',
+                                                 'reference_trajectory', 'diagnostics')}
     if want['odom'] is None:
         raise RunDataError(f'{path} has no odom topic: not a wallbot run')
     names = {v: k for k, v in want.items() if v is not None}
-    odom, wheels, wrench, drive, ref, diag = (_LastRun() for _ in range(6))
+    odom, wheels, wrench, drive, contact, ref, diag = (_LastRun() for _ in range(7))
     plan: dict = {}
     path_xy: tuple[list[float], list[float]] = ([], [])
     for raw in messages(path, list(names)):
@@ -153,6 +162,10 @@ def _load_bag(path: Path, label: str) -> RunData:
             wrench.put(stamp, codec.wrench_values(msg))
         elif leaf == 'drive_forces':
             drive.put(stamp, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort'))
+        elif leaf == 'wheel_contact':  # topics.WHEEL_CONTACT: loads as effort, use as position, slip as velocity
+            joints = topics.WHEEL_JOINTS + topics.DRIVE_JOINTS
+            contact.put(stamp, codec.joint_values(msg, joints, 'effort')[:4]
+                        + codec.joint_values(msg, joints, 'position')[4:] + codec.joint_values(msg, joints, 'velocity')[4:])
         elif leaf == 'reference':
             ref.put(stamp, (msg.pose.pose.position.x, msg.pose.pose.position.y))
         elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
@@ -184,6 +197,7 @@ def _load_bag(path: Path, label: str) -> RunData:
     w = matched(wheels, 12)
     c = matched(wrench, 3)
     d = matched(drive, 3)
+    k = matched(contact, 10)
     plan_reference = _plan_reference(plan)
     if plan_reference is not None:  # what the dynamics node followed: the plan, quintic Hermite
         samples = [plan_reference.sample(ti).position for ti in t]
@@ -201,4 +215,5 @@ def _load_bag(path: Path, label: str) -> RunData:
     residual = matched({k: (v,) for k, v in diag.items()}, 1)[:, 0]
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
                    w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, err, c[:, 0], c[:, 1], c[:, 2],
-                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]), odom.restarts)
+                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]), odom.restarts,
+                   loads=k[:, 0:4], use=k[:, 4:7], slip=k[:, 7:10])

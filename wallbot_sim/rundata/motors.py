@@ -15,6 +15,15 @@ F_needed = max(m_t g h / min(a, b), |(F_L + F_R, F_lat)| / mu), compared with th
 F_ad = k_ad F_min of ``wallbot_sim.model.adsorption_analysis``. This is the whole robot's
 friction budget (F_ad shared equally by the four wheels), not a per-wheel check.
 
+Wheel-wall contact (docs/model.md 11), when the run recorded it: the peak friction use of each channel,
+and the least adhesion force F that would have kept every channel sticking and every wheel on the
+wall. The loads are affine in F for the same motion, N_i(F) = N_i + (F - F_run) / 4 with
+F_run = sum N_i, so per sample: F >= F_run - 4 N_i (wheel on the wall), |F_k| <= mu_s N_k(F) for
+each side k (N_k(F) = N_k + (F - F_run) / 2) and |F_lat| <= mu_s F; the least F is the largest
+bound over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F,
+which changes with F; in a run that slipped, the channel forces are what friction transmitted,
+so the figure is a lower bound.
+
 Samples where the run has no wheel or drive data (a bag row with NaN) are left out; the RMS is
 over samples, which are uniform in time in a 1 kHz run.
 """
@@ -79,6 +88,24 @@ class AdsorptionFigures:
 
 
 @dataclass(frozen=True)
+class ContactFigures:
+    """Friction use and the adhesion force the run needed by its per-channel loads."""
+
+    peak_use: tuple[float, float, float]
+    """max friction use of the left, right and lateral channels."""
+    peak_use_t: tuple[float, float, float]
+    least_adhesion: float
+    """The least F_ad keeping every channel sticking and every wheel on the wall (N)."""
+    least_adhesion_t: float
+    least_adhesion_by: str
+    """What binds at that instant: 'left', 'right', 'lateral' or a wheel ('wheel 1' .. 'wheel 4')."""
+    run_adhesion: float
+    """F_ad of the run (the sum of its normal loads) (N)."""
+    slipped: bool
+    """Whether a channel slipped in the run: then least_adhesion is a lower bound."""
+
+
+@dataclass(frozen=True)
 class MotorReport:
     label: str
     samples: int
@@ -88,6 +115,8 @@ class MotorReport:
     left: SideFigures
     right: SideFigures
     adsorption: AdsorptionFigures
+    contact: ContactFigures | None = None
+    """None when the run did not record the wheel-wall contact."""
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -129,7 +158,31 @@ def motor_report(run: RunData, params: RobotParameters) -> MotorReport:
                                    float(np.max(friction)), float(analysis.applied_force),
                                    float(analysis.minimum_force), float(analysis.applied_force / needed[i]))
     return MotorReport(run.label, int(valid.sum()), float(t[0]), float(t[-1]), radius,
-                       sides['left'], sides['right'], adsorption)
+                       sides['left'], sides['right'], adsorption, contact_figures(run, params))
+
+
+def contact_figures(run: RunData, params: RobotParameters) -> ContactFigures | None:
+    """Peak friction use and least adhesion force of ``run``; None without contact data."""
+    if not len(run.loads):
+        return None
+    valid = np.all(np.isfinite(run.loads), axis=1) & np.all(np.isfinite(run.use), axis=1) & np.isfinite(run.F_lateral)
+    if not valid.any():
+        return None
+    t, loads, use = run.t[valid], run.loads[valid], run.use[valid]
+    forces = np.column_stack((run.F_left[valid], run.F_right[valid], run.F_lateral[valid]))
+    run_force = loads.sum(axis=1)
+    static = params.wall_friction
+    bounds = np.column_stack((
+        run_force - 2.0 * (loads[:, 0] + loads[:, 1]) + 2.0 * np.abs(forces[:, 0]) / static,
+        run_force - 2.0 * (loads[:, 2] + loads[:, 3]) + 2.0 * np.abs(forces[:, 1]) / static,
+        np.abs(forces[:, 2]) / static,
+        run_force[:, None] - 4.0 * loads))
+    names = ('left', 'right', 'lateral', 'wheel 1', 'wheel 2', 'wheel 3', 'wheel 4')
+    i, j = np.unravel_index(int(np.argmax(bounds)), bounds.shape)
+    peaks = np.argmax(use, axis=0)
+    return ContactFigures(tuple(float(use[k, c]) for c, k in enumerate(peaks)), tuple(float(t[k]) for k in peaks),
+                          float(bounds[i, j]), float(t[i]), names[j], float(np.median(run_force)),
+                          bool(np.nan_to_num(run.slip[valid]).any()))
 
 
 def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
@@ -154,4 +207,13 @@ def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
               f'margin applied/needed {a.margin:.2f}']
     if a.margin < 1.0:
         lines.append('WARNING: the run needed more adsorption than the robot applies: on a real wall it would slip')
+    c = report.contact
+    if c is not None:
+        lines += ['',
+                  'Friction use (peak):  ' + ', '.join(f'{name} {use:.3f} at t = {t:.3f} s' for name, use, t in
+                                                       zip(('left', 'right', 'lateral'), c.peak_use, c.peak_use_t)),
+                  f'Least adhesion force: {c.least_adhesion:.2f} N to keep every channel sticking and every wheel on '
+                  f'the wall ({c.least_adhesion_by} binds at t = {c.least_adhesion_t:.3f} s; this run had '
+                  f'{c.run_adhesion:.2f} N)' + (' - a lower bound: channels slipped, so the forces are the kinetic '
+                                                'friction they transmitted' if c.slipped else '')]
     return '\n'.join(lines)

@@ -1,6 +1,7 @@
 """Constraint modules: each contributes its rows A_k qdd = b_k; the solver stacks them."""
 
-from wallbot_sim.model.constraints.base import BaumgarteGains, ConstraintModule, VelocityConstraint
+from wallbot_sim.model.constraints.base import (
+    CHANNELS, LATERAL, LEFT, RIGHT, BaumgarteGains, ConstraintModule, ContactConstraint, VelocityConstraint)
 from wallbot_sim.model.constraints.belt import SynchronousBelt
 from wallbot_sim.model.constraints.look_ahead import LookAheadPointTask
 from wallbot_sim.model.constraints.non_lateral import NonLateral
@@ -8,6 +9,7 @@ from wallbot_sim.model.constraints.nonslip import Nonslip
 from wallbot_sim.model.constraints.trajectory import TangentHeadingTask, TrajectoryTask, wrap_angle
 
 __all__ = [
-    'BaumgarteGains', 'ConstraintModule', 'LookAheadPointTask', 'NonLateral', 'Nonslip', 'SynchronousBelt',
+    'CHANNELS', 'LATERAL', 'LEFT', 'RIGHT', 'BaumgarteGains', 'ConstraintModule', 'ContactConstraint',
+    'LookAheadPointTask', 'NonLateral', 'Nonslip', 'SynchronousBelt',
     'TangentHeadingTask', 'TrajectoryTask', 'VelocityConstraint', 'wrap_angle',
 ]

@@ -1,4 +1,9 @@
-"""What a constraint module is: rows A_k(q, qd, t) qdd = b_k(q, qd, t)."""
+"""What a constraint module is: rows A_k(q, qd, t) qdd = b_k(q, qd, t).
+
+A wheel-wall contact constraint also says which friction channel each of its rows belongs to
+(docs/model.md 11.3: ``left`` and ``right`` traction, ``lateral``), and which wheels' normal loads bound
+that row's friction, so a contact model can drop a slipping channel's rows without knowing modules.
+"""
 
 from __future__ import annotations
 
@@ -41,6 +46,11 @@ class ConstraintModule(Protocol):
         ...
 
 
+LEFT, RIGHT, LATERAL = 'left', 'right', 'lateral'
+CHANNELS = (LEFT, RIGHT, LATERAL)
+"""The friction channels of the wheel-wall contact, in output order."""
+
+
 @runtime_checkable
 class VelocityConstraint(Protocol):
     """A constraint on velocities, A_v(q) qd = 0 (nonholonomic or a belt)."""
@@ -54,3 +64,13 @@ class VelocityConstraint(Protocol):
     def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """A_v qd: how far the velocities are from satisfying the constraint."""
         ...
+
+
+@runtime_checkable
+class ContactConstraint(VelocityConstraint, Protocol):
+    """A velocity constraint held by wheel-wall friction: one channel per row."""
+
+    channels: tuple[str, ...]
+    """The friction channel (one of CHANNELS) of each row."""
+    row_wheels: np.ndarray
+    """(rows x 4) 0/1 weights: the normal load bounding a row's friction is row_wheels @ N."""

@@ -6,13 +6,19 @@ import math
 
 import numpy as np
 
-from wallbot_sim.model.constraints.base import BaumgarteGains
+from wallbot_sim.model.constraints.base import LATERAL, BaumgarteGains
+
+_ALL_WHEELS = np.ones((1, 4))
+_ALL_WHEELS.flags.writeable = False
 
 
 class NonLateral:
     """Row [-sin th, cos th, 0, ...], b = thd v_long - gam v_lat."""
 
     name = 'non_lateral'
+    channels = (LATERAL,)
+    row_wheels = _ALL_WHEELS
+    """Lateral friction is bounded by the whole adhesion force, the sum of the four loads."""
 
     def __init__(self, gains: BaumgarteGains) -> None:
         self.gains = gains

@@ -1,0 +1,182 @@
+"""``wallbot-sim simulate --scenario rest --contact coulomb``: docs/model.md 11.4's analytic cases through the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from test_cli_simulate import read_csv, simulate
+from wallbot_sim.cli.run import node_specs
+from wallbot_sim.config import load_scenario
+from wallbot_sim.model import ConstraintSelection
+from wallbot_sim.paths import robot_yaml
+
+
+def rest_run(tmp_path, *args: str) -> tuple[object, dict[str, list[float]]]:
+    out = tmp_path / 'rest.csv'
+    result = simulate('--scenario', 'rest', '--contact', 'coulomb', '--csv', str(out), '--quiet', *args)
+    header, rows = read_csv(out) if out.exists() else ([], [])
+    return result, {name: [row[i] for row in rows] for i, name in enumerate(header)}
+
+
+def test_hold(tmp_path):
+    result, run = rest_run(tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert len(run['t']) == 1001 and run['t'][-1] == pytest.approx(1.0)  # rest runs 1 s by default
+    assert run['use_lat'][0] == pytest.approx(0.667, abs=5e-4)
+    assert max(abs(v) for v in run['y']) < 1e-12
+    assert not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    assert run['N1'][0] == pytest.approx(38.10, abs=0.005) and run['N3'][0] == pytest.approx(56.50, abs=0.005)
+
+
+def test_slide(tmp_path):
+    result, run = rest_run(tmp_path, '--adhesion-force', '100')
+    assert result.returncode == 0, result.stderr
+    assert all(run['slip_lat']) and not any(run['slip_L'] + run['slip_R'])
+    ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
+    assert ydd == pytest.approx(-2.81, abs=1e-4)
+    assert run['y'][-1] == pytest.approx(-1.405, abs=3e-3)
+    assert run['N1'][-1] == pytest.approx(18.44, abs=0.005) and run['N2'][-1] == pytest.approx(18.44, abs=0.005)
+
+
+def test_spinning_climb(tmp_path):
+    result, run = rest_run(tmp_path, '--heading', str(math.pi / 2), '--torque', '3,3')
+    assert result.returncode == 0, result.stderr
+    assert run['slip_L'][0] == run['slip_R'][0] == 1 and all(run['slip_L']) and all(run['slip_R'])
+    assert not any(run['slip_lat'])
+    ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
+    assert ydd == pytest.approx(2.172, abs=5e-4)
+
+
+def test_detachment_ends_the_run_with_status_3(tmp_path):
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['com_height'] = 0.25
+    robot_file = tmp_path / 'tall.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    result, run = rest_run(tmp_path, '--robot', str(robot_file), '--adhesion-force', '130')
+    assert result.returncode == 3
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('detached: wheel ')
+    assert '-13.48 N' in lines[0] and 't = 0.000 s' in lines[0]
+    assert run['t'] == [0.0]  # the rows up to the detachment
+    assert run['N1'][0] == pytest.approx(-13.48, abs=0.005)
+
+
+def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
+    out = tmp_path / 'ideal.csv'
+    result = simulate('--scenario', 'rest', '--adhesion-force', '100', '--duration', '0.2', '--csv', str(out),
+                      '--quiet')
+    assert result.returncode == 0, result.stderr
+    header, rows = read_csv(out)
+    col = {name: i for i, name in enumerate(header)}
+    assert all(row[col['slip_lat']] == 0 for row in rows)
+    assert rows[-1][col['use_lat']] == pytest.approx(9.0 * 9.81 / 70.0, rel=1e-6)  # what friction would need
+    assert rows[-1][col['y']] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize('args, words', [
+    (('--scenario', 'circle', '--contact', 'coulomb'), '--contact coulomb with the trajectory task'),
+    (('--scenario', 'rest', '--adhesion-force', '-5'), '--adhesion-force must be a positive number'),
+    (('--scenario', 'rest', '--torque', '3'), '--torque must be two numbers'),
+    (('--scenario', 'circle', '--torque', '1,1'), '--heading and --torque set up --scenario rest'),
+    (('--scenario', 'rest', '--contact', 'sticky'), "invalid choice: 'sticky'"),
+])
+def test_bad_values_are_one_line_errors(tmp_path, args, words):
+    result = simulate(*args, '--csv', str(tmp_path / 'x.csv'))
+    assert result.returncode == 2
+    assert len(result.stderr.strip().splitlines()) == 1 and words in result.stderr
+
+
+def test_kinetic_above_static_friction_in_the_robot_file(tmp_path):
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['kinetic_friction'] = 0.9
+    robot_file = tmp_path / 'bad.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    result = simulate('--scenario', 'rest', '--robot', str(robot_file), '--csv', str(tmp_path / 'x.csv'))
+    assert result.returncode == 2 and 'kinetic_friction must be <= wall_friction' in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
+    specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
+                       robot_file=Path('/robots/tall.yaml'))
+    assert {spec.name: spec.parameters for spec in specs}['dynamics']['robot_file'] == '/robots/tall.yaml'
+    specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
+                       1.0, contact_model='coulomb', adhesion_force=150.0)
+    dynamics = {spec.name: spec.parameters for spec in specs}['dynamics']
+    assert dynamics['contact_model'] == 'coulomb' and dynamics['adhesion_force'] == 150.0
+    refused = cli('run', 'circle', '--contact', 'coulomb', '--out', str(tmp_path / 'refused'))
+    assert refused.returncode == 2 and '--contact coulomb needs --controller' in refused.stderr
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['adhesion_force'] = -1.0
+    robot_file = tmp_path / 'bad.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--robot', str(robot_file),
+                             '--out', str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and 'adhesion_force must be > 0' in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / 'run').exists()
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+CLIMB = ('--heading', str(math.pi / 2), '--torque', '2.0,1.95')
+"""Climbing while turning slowly: every channel sticks, the left traction nears its limit."""
+
+
+def slip_count(path: Path) -> float:
+    header, run = read_csv(path)
+    return sum(row[header.index(name)] for row in run for name in ('slip_L', 'slip_R', 'slip_lat'))
+
+
+def test_motors_least_adhesion_force_is_what_keeps_the_run_sticking(tmp_path):
+    result, run = rest_run(tmp_path, *CLIMB)
+    assert result.returncode == 0 and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    report = cli('motors', str(tmp_path / 'rest.csv'), '--json')
+    assert report.returncode == 0, report.stderr
+    contact = json.loads(report.stdout)['contact']
+    assert contact['peak_use'][0] == pytest.approx(max(run['use_L']))
+    least = contact['least_adhesion']
+    assert contact['least_adhesion_by'] == 'left' and 100.0 < least < 189.0
+    for scale, slips in ((0.98, True), (1.02, False)):
+        out = tmp_path / f'at{scale}.csv'
+        again = simulate('--scenario', 'rest', '--contact', 'coulomb', *CLIMB, '--adhesion-force', str(scale * least),
+                         '--csv', str(out), '--quiet')
+        assert again.returncode == 0, again.stderr
+        assert (slip_count(out) > 0) == slips, f'at {scale} x the least adhesion force'
+    assert 'Least adhesion force' in cli('motors', str(tmp_path / 'rest.csv')).stdout
+
+
+def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
+    from wallbot_sim.rundata import format_summary, summarize
+    from wallbot_sim.rundata import load_run
+    result, _ = rest_run(tmp_path, '--adhesion-force', '100', '--duration', '0.3', '--bag', str(tmp_path / 'bag'))
+    assert result.returncode == 0, result.stderr
+    text = format_summary(summarize(tmp_path / 'rest.csv'))
+    assert 'first slip at t = 0.000 s (lateral)' in text and 'lifts off' not in text
+    csv_run, bag_run = load_run(tmp_path / 'rest.csv'), load_run(tmp_path / 'bag')
+    assert np.array_equal(csv_run.loads, bag_run.loads) and np.array_equal(csv_run.use, bag_run.use)
+    assert np.array_equal(csv_run.slip, bag_run.slip) and bag_run.slip[:, 2].all()
+    plotted = cli('plot', str(tmp_path / 'bag'), '--out', str(tmp_path / 'plots'))
+    assert plotted.returncode == 0, plotted.stderr
+    assert (tmp_path / 'plots' / 'friction_use.png').stat().st_size > 10_000
+    assert (tmp_path / 'plots' / 'normal_loads.png').stat().st_size > 10_000
+
+    ideal = tmp_path / 'tall_ideal.csv'
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['com_height'] = 0.25
+    robot_file = tmp_path / 'tall.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    assert simulate('--scenario', 'rest', '--robot', str(robot_file), '--adhesion-force', '130', '--duration', '0.1',
+                    '--csv', str(ideal), '--quiet').returncode == 0
+    text = format_summary(summarize(ideal))
+    assert 'no slip' in text and 'lifts off at t = 0.000 s (normal load -13.48 N)' in text

@@ -1,0 +1,101 @@
+"""Wheel-wall contact in the node graph over DDS: contact_model and adhesion_force changed while
+running, per-step wheel_contact messages, WARN while slipping, ERROR and a pause on detachment."""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from test_nodes_graph import Graph, start_graph  # noqa: E402
+from wallbot_msgs_py import topics  # noqa: E402
+from wallbot_msgs_py.qos import qos_profile  # noqa: E402
+from wallbot_sim.paths import robot_yaml  # noqa: E402
+
+DRIVEN = ('trajectory_task:=false', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
+
+
+@pytest.fixture
+def graph(process_runner):
+    g = Graph(process_runner)
+    g.received['contact'] = []
+    g.node.create_subscription(JointState, topics.WHEEL_CONTACT.resolve(g.namespace), g._keeper('contact'),
+                               qos_profile(topics.WHEEL_CONTACT))
+    try:
+        yield g
+    finally:
+        g.close()
+
+
+def simulation_status(graph: Graph, level: int, words: str):
+    """The newest dynamics status at ``level`` whose message holds ``words``, or None."""
+    for array in reversed(graph.messages(topics.DIAGNOSTICS.name)):
+        for status in array.status:
+            if 'simulation' in status.name and status.level == level and words in status.message:
+                return status
+    return None
+
+
+def test_contact_model_and_adhesion_change_at_run_time(graph):
+    start_graph(graph, 'initial_x:=0.0', 'contact_model:=coulomb', constraints=DRIVEN, trajectory=None)
+    first = graph.wait_for(lambda: graph.messages('contact'), 15, 'wheel_contact')[0]
+    assert list(first.name) == list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
+    assert list(first.effort[:4]) == pytest.approx([38.10, 38.10, 56.50, 56.50], abs=0.01)
+    assert first.position[6] == pytest.approx(0.667, abs=5e-4) and list(first.velocity) == [0.0] * 7
+
+    refused = graph.set_parameters('dynamics', contact_model='sticky', adhesion_force=-1.0)
+    assert not any(result.successful for result in refused)
+    assert 'contact_model must be one of ideal, coulomb' in refused[0].reason
+
+    assert all(result.successful for result in graph.set_parameters('dynamics', adhesion_force=100.0))
+    slipping = graph.wait_for(lambda: [m for m in graph.messages('contact') if m.velocity[6] == 1.0], 10,
+                              'the lateral channel slipping')[0]
+    assert slipping.effort[6] == pytest.approx(70.0)  # mu_s F_ad with the new force
+    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.WARN, 'sliding: lateral'), 10,
+                   'WARN while sliding')
+
+    assert all(result.successful for result in graph.set_parameters('dynamics', contact_model='ideal'))
+    stamp = graph.last_stamp()
+    held = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name)
+                                   if m.header.stamp.sec * 10**9 + m.header.stamp.nanosec > stamp
+                                   and abs(m.twist.twist.linear.y) < 1e-9], 10, 'the ideal contact holding')
+    assert held
+    graph.clear('contact')
+    newest = graph.wait_for(lambda: graph.messages('contact'), 5, 'wheel_contact after the switch')[-1]
+    assert list(newest.velocity) == [0.0] * 7 and newest.position[6] > 1.0  # ideal: what friction would need
+
+
+def test_detachment_pauses_with_an_error(graph, tmp_path):
+    """A CoM 0.25 m from the wall tips the robot off at 130 N (docs/model.md 11.4's detachment case)."""
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['com_height'] = 0.25
+    robot['adhesion_force'] = 400.0
+    robot_file = tmp_path / 'tall.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    start_graph(graph, 'initial_x:=0.0', 'contact_model:=coulomb', f'robot_file:={robot_file}', constraints=DRIVEN,
+                trajectory=None)
+    first = graph.wait_for(lambda: graph.messages('contact'), 15, 'wheel_contact')[0]
+    assert first.effort[6] == pytest.approx(0.7 * 400.0)  # the robot file's force (the parameter is 0)
+    assert all(result.successful for result in graph.set_parameters('dynamics', adhesion_force=130.0))
+    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.ERROR, 'detached'), 10, 'ERROR on detachment')
+    detached_at = float(re.search(r'lifted off the wall: normal load -?[\d.]+ N at t = ([\d.]+) s',
+                                  graph.runner.output('dynamics')).group(1))
+    seen = {'stamp': graph.last_stamp(), 'since': time.monotonic()}
+
+    def drained() -> bool:
+        """No odometry for 0.5 s: what was sent before the pause has arrived."""
+        stamp = graph.last_stamp()
+        if stamp != seen['stamp']:
+            seen.update(stamp=stamp, since=time.monotonic())
+        return time.monotonic() - seen['since'] > 0.5
+
+    graph.wait_for(drained, 10, 'the odometry backlog')
+    assert graph.last_stamp() <= round(detached_at * 1e9), 'a detached robot is paused'
+    assert graph.procs['dynamics'].poll() is None

@@ -1,0 +1,284 @@
+"""Wheel-wall contact (docs/model.md 11): the ideal model, and Coulomb friction with stick and slip.
+
+``ideal``: every constraint holds whatever force it needs; the normal loads and friction use are
+reported. ``coulomb``: the friction channels (left and right traction, lateral) stick while
+friction can supply their force; a slipping channel's rows leave the solve and kinetic friction
+against its slip velocity enters as a generalized force Q_f. Transitions happen at step
+boundaries; a wheel whose normal load goes negative has lifted off and ends the run.
+
+The contact model knows constraint modules only through ContactConstraint: which channel each
+row belongs to and which wheels' loads bound it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, NamedTuple, Sequence
+
+import numpy as np
+
+from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.constraints import CHANNELS, LATERAL, LEFT, RIGHT, ConstraintModule, ContactConstraint
+from wallbot_sim.model.errors import ModelError, ParameterError
+from wallbot_sim.model.friction import FrictionUse
+from wallbot_sim.model.outputs import StepOutputs
+from wallbot_sim.model.parameters import RobotParameters
+from wallbot_sim.model.robot import Robot
+from wallbot_sim.model.solver import ConstrainedMotion
+
+IDEAL, COULOMB = 'ideal', 'coulomb'
+CONTACT_MODELS = (IDEAL, COULOMB)
+WHEEL_POSITIONS = ('left front', 'left rear', 'right front', 'right rear')
+"""Wheels 1..4 in the order of the generalized coordinates."""
+_LOAD_TOLERANCE = 1e-9
+"""Relative change of the held loads below which the loads-friction fixed point has converged."""
+_LOAD_ITERATIONS = 50
+
+
+def check_contact_model(name: str) -> str:
+    """``name`` if it is a contact model, else a ParameterError naming it."""
+    if name not in CONTACT_MODELS:
+        raise ParameterError(f'unknown contact model {name!r} (use {" or ".join(CONTACT_MODELS)})')
+    return name
+
+
+class DetachedError(ModelError):
+    """A wheel's normal load went negative: the robot peels off the wall."""
+
+    def __init__(self, wheel: int, load: float, t: float) -> None:
+        super().__init__(f'wheel {wheel} ({WHEEL_POSITIONS[wheel - 1]}) lifted off the wall: '
+                         f'normal load {load:.2f} N at t = {t:.3f} s')
+        self.wheel, self.load, self.t = wheel, load, t
+
+
+class _RowSubset:
+    """A contact module restricted to the rows of its sticking channels."""
+
+    def __init__(self, module: ContactConstraint, keep: np.ndarray) -> None:
+        self.module, self.keep = module, keep
+        self.name = module.name
+        self.channels = tuple(module.channels[i] for i in keep)
+        self.row_wheels = module.row_wheels[keep]
+
+    def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rows, rhs = self.module.rows(t, q, qd)
+        return rows[self.keep], rhs[self.keep]
+
+    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        return self.module.velocity_rows(q)[self.keep]
+
+    def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return self.velocity_rows(q) @ qd
+
+
+Evaluate = Callable[[Sequence[ConstraintModule], np.ndarray | None, np.ndarray], ConstrainedMotion]
+"""(active modules, Q_f or None, qd) -> the constrained motion at this instant."""
+Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
+"""(active modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
+Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse]]
+"""(motion, Q_f or None, qd) -> (normal loads, friction use)."""
+
+
+class ContactSolution(NamedTuple):
+    """The motion at a step boundary under a stick/slip state, and what the step integrates."""
+
+    motion: ConstrainedMotion
+    friction: np.ndarray | None
+    """Q_f at the boundary, None while no channel slips."""
+    loads: np.ndarray
+    use: FrictionUse
+    held: np.ndarray
+    """The loads the kinetic friction holds over the step."""
+    active: Sequence[ConstraintModule]
+    """The modules the solver sees over the step."""
+    function: Callable[[np.ndarray, np.ndarray], np.ndarray] | None
+    """Q_f(q, qd) over the step."""
+
+
+class CoulombContact:
+    """The stick/slip state of the channels and the kinetic friction of the slipping ones."""
+
+    def __init__(self, params: RobotParameters, adhesion_force: float) -> None:
+        self.kinetic_friction = params.kinetic_friction
+        self.epsilon = params.velocity_epsilon
+        self.stick_velocity = params.stick_velocity
+        self.slipping: frozenset[str] = frozenset()
+        self.loads = np.full(4, 0.25 * adhesion_force)
+        """The loads bounding kinetic friction, held over a step like the motor torques."""
+        self._contacts_of: tuple[Sequence[ConstraintModule] | None, list[ContactConstraint]] = (None, [])
+
+    def contacts(self, modules: Sequence[ConstraintModule]) -> list[ContactConstraint]:
+        """The contact modules among ``modules`` (remembered for the last list: a Protocol check is slow)."""
+        known, contacts = self._contacts_of
+        if modules is not known:
+            contacts = [module for module in modules if isinstance(module, ContactConstraint)]
+            self._contacts_of = (modules, contacts)
+        return contacts
+
+    def reset(self, adhesion_force: float) -> None:
+        """Every channel sticking, loads at rest on a level share."""
+        self.slipping = frozenset()
+        self.loads = np.full(4, 0.25 * adhesion_force)
+
+    # --- the problem the solver sees ---------------------------------------------------------
+    def active_modules(self, modules: Sequence[ConstraintModule],
+                       slipping: frozenset[str] | None = None) -> list[ConstraintModule]:
+        """``modules`` without the rows of slipping channels (the same list while none slips)."""
+        slipping = self.slipping if slipping is None else slipping
+        if not slipping:
+            return modules  # type: ignore[return-value]
+        contacts = {id(module) for module in self.contacts(modules)}
+        active: list[ConstraintModule] = []
+        for module in modules:
+            if id(module) in contacts:
+                keep = np.array([i for i, channel in enumerate(module.channels) if channel not in slipping], dtype=int)
+                if len(keep) == len(module.channels):
+                    active.append(module)
+                elif len(keep):
+                    active.append(_RowSubset(module, keep))
+            else:
+                active.append(module)
+        return active
+
+    def friction_function(self, modules: Sequence[ConstraintModule], loads: np.ndarray,
+                          slipping: frozenset[str] | None = None
+                          ) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+        """Q_f(q, qd) of the slipping rows with ``loads`` held; None while none slips.
+
+        Each slipping row k with velocity row a_k and slip velocity v_k = a_k qd adds
+        Q_f -= mu_k N_k v_k / sqrt(v_k^2 + eps^2) a_k, N_k its bounding load: the traction of
+        wheel i (N_i, nonslip row) and the lateral friction (F_ad, non-lateral row) of 9.3.
+        """
+        slipping = self.slipping if slipping is None else slipping
+        if not slipping:
+            return None
+        parts = []
+        for module in self.contacts(modules):
+            rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
+            if rows:
+                bounds = self.kinetic_friction * (module.row_wheels[rows] @ loads)
+                parts.append((module, np.array(rows, dtype=int), bounds))
+        if not parts:
+            return None
+        eps2 = self.epsilon ** 2
+
+        def friction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+            total = np.zeros(qd.shape[0])
+            for module, rows, bound in parts:
+                velocity_rows = module.velocity_rows(q)[rows]
+                slip = velocity_rows @ qd
+                total -= (bound * slip / np.sqrt(slip * slip + eps2)) @ velocity_rows
+            return total
+        return friction
+
+    def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
+        """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
+        return float(np.max(np.abs(self._slip(modules, channel, q, qd)), initial=0.0))
+
+    def _slip(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return np.array([value for module in self.contacts(modules)
+                         for value, row_channel in zip(module.violation(q, qd), module.channels)
+                         if row_channel == channel])
+
+    def _stopping(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray,
+                  predicted: np.ndarray) -> bool:
+        """Whether every slip velocity of the channel is below v_st or changes sign within the step.
+
+        The second test catches a slip that the regularized kinetic friction would reverse in one
+        step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
+        cycle of slip speeds that straddles v_st without ever falling below it.
+        """
+        now, then = self._slip(modules, channel, q, qd).tolist(), self._slip(modules, channel, q, predicted).tolist()
+        return all(abs(v) < self.stick_velocity or v * w < 0.0 for v, w in zip(now, then))
+
+    # --- transitions at a step boundary ------------------------------------------------------
+    def settle(self, modules: Sequence[ConstraintModule], q: np.ndarray, qd: np.ndarray, dt: float,
+               evaluate: Evaluate, project: Project, measure: Measure) -> tuple[np.ndarray, ContactSolution]:
+        """Stick/slip transitions at this boundary, then the motion of the step.
+
+        Slipping channels that are stopping (slower than v_st, or reversing within the step ``dt``)
+        stick again when the solve with their rows restored keeps their force within the limit
+        (their remaining slip removed by the switch projection); then every sticking channel
+        whose force exceeds its limit slips. Returns the velocities (projected if a channel
+        stuck again) and the solution the step integrates.
+        """
+        present = {channel for module in self.contacts(modules) for channel in module.channels}
+        self.slipping = self.slipping & present
+        result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
+        predicted = qd + dt * result.motion.acceleration
+        candidates = {channel for channel in self.slipping if self._stopping(modules, channel, q, qd, predicted)}
+        while candidates:
+            trial = self.slipping - candidates
+            trial_qd = project(self.active_modules(modules, trial), qd)
+            trial_result = self._solve(modules, trial, q, trial_qd, evaluate, measure)
+            holding = {channel for channel in candidates if _within_limit(trial_result.use, channel)}
+            if holding == candidates:
+                self.slipping, qd, result = trial, trial_qd, trial_result
+                break
+            candidates = holding
+        while True:
+            exceeded = {channel for channel in present - self.slipping if not _within_limit(result.use, channel)}
+            if not exceeded:
+                break
+            self.slipping = self.slipping | exceeded
+            result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
+        self.loads = result.held
+        return qd, result
+
+    def _solve(self, modules: Sequence[ConstraintModule], slipping: frozenset[str], q: np.ndarray, qd: np.ndarray,
+               evaluate: Evaluate, measure: Measure) -> ContactSolution:
+        """The motion with ``slipping`` channels slipping, and the loads their friction holds.
+
+        Traction friction depends on the normal loads, which depend on the acceleration: the two
+        are iterated to their fixed point (a lateral slip is bounded by sum N_i = F_ad, which needs none).
+        """
+        active = self.active_modules(modules, slipping)
+        held = self.loads
+        for _ in range(_LOAD_ITERATIONS):
+            function = self.friction_function(modules, held, slipping)
+            friction = None if function is None else function(q, qd)
+            motion = evaluate(active, friction, qd)
+            loads, use = measure(motion, friction, qd)
+            if function is None or not self._load_dependent(self.contacts(modules), slipping) \
+                    or np.max(np.abs(loads - held)) <= _LOAD_TOLERANCE * np.sum(np.abs(loads)):
+                return ContactSolution(motion, friction, loads, use, held, active, function)
+            held = loads
+        raise ModelError('normal loads and kinetic friction found no consistent value in '
+                         f'{_LOAD_ITERATIONS} iterations (loads {np.round(loads, 3).tolist()} N)')
+
+    @staticmethod
+    def _load_dependent(contacts: Sequence[ContactConstraint], slipping: frozenset[str]) -> bool:
+        """Whether a slipping row's friction depends on how the load is shared among the wheels."""
+        return any(not module.row_wheels[i].all() for module in contacts
+                   for i, channel in enumerate(module.channels) if channel in slipping)
+
+
+def _within_limit(use: FrictionUse, channel: str) -> bool:
+    return not use[CHANNELS.index(channel)] > 1.0
+
+
+def slip_flags(slipping: frozenset[str]) -> tuple[bool, bool, bool]:
+    """(left, right, lateral) slipping flags."""
+    return tuple(channel in slipping for channel in CHANNELS)  # type: ignore[return-value]
+
+
+def unheld_slip(robot: Robot, selection: ConstraintSelection, out: StepOutputs) -> dict[str, float]:
+    """Channels moving faster than v_st with no friction holding them, and their slip speed (m/s).
+
+    A channel is held while its rows are active and it sticks; otherwise it slides when its slip
+    velocity (|h_i| of a side's wheels, |v_lat|) exceeds v_st: a slipping channel, or a robot
+    without the non-lateral or nonslip constraint sliding down the wall. None with the
+    trajectory task on: the task holds the robot.
+    """
+    if selection.trajectory:
+        return {}
+    theta = float(out.q[2])
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    xd, yd, thd = out.qd[:3].tolist()
+    v_long, v_lat = cos_t * xd + sin_t * yd, -sin_t * xd + cos_t * yd
+    wheel_slip = np.abs(robot.params.wheel_radius * out.qd[3:] - v_long + robot.lateral_offsets * thd)
+    speeds = {LEFT: float(max(wheel_slip[:2])), RIGHT: float(max(wheel_slip[2:])), LATERAL: abs(v_lat)}
+    rows = {LEFT: selection.nonslip, RIGHT: selection.nonslip, LATERAL: selection.non_lateral}
+    slipping = dict(zip(CHANNELS, out.contact.slipping))
+    return {channel: speed for channel, speed in speeds.items()
+            if speed > robot.params.stick_velocity and (slipping[channel] or not rows[channel])}

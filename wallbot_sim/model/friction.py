@@ -1,0 +1,44 @@
+"""Friction use of the three contact channels (docs/model.md 11.2), friction pyramid.
+
+The channel forces are the drive forces of the whole contact wrench on the chassis (the
+constraint wrench plus the kinetic friction of slipping channels). Each direction is limited
+on its own: left and right traction by mu_s times their side's load, lateral by mu_s F_ad.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+
+class FrictionUse(NamedTuple):
+    """|force| / (mu_s N) per channel, in the order of CHANNELS: above 1 the channel would slip."""
+
+    left: float
+    right: float
+    lateral: float
+
+
+def channel_loads(loads: np.ndarray, adhesion_force: float) -> tuple[float, float, float]:
+    """The normal load bounding each channel: N_1 + N_2, N_3 + N_4, F_ad (N)."""
+    return float(loads[0] + loads[1]), float(loads[2] + loads[3]), adhesion_force
+
+
+def friction_use(forces: Sequence[float], loads: np.ndarray, adhesion_force: float,
+                 static_friction: float) -> FrictionUse:
+    """u_L = |F_L| / (mu_s N_L), u_R = |F_R| / (mu_s N_R), u_lat = |F_lat| / (mu_s F_ad).
+
+    ``forces``: the channel forces (F_L, F_R, F_lat).
+
+    A channel whose load is not positive can transmit nothing: its use is infinite unless its force is 0.
+    """
+    return FrictionUse(*(_ratio(abs(force), static_friction * load)
+                         for force, load in zip(forces, channel_loads(loads, adhesion_force))))
+
+
+def _ratio(force: float, limit: float) -> float:
+    if limit > 0.0:
+        return float(force / limit)
+    return 0.0 if force == 0.0 else math.inf

@@ -1,0 +1,38 @@
+"""Normal loads of the four wheels (docs/model.md 11.1).
+
+The adhesion force F_ad presses the robot to the wall at the geometric centre; the wall pushes
+back at the wheels with N_1..N_4. Gravity and inertia act on the whole mass m_t at the CoM
+height h, so the loads also balance their moment about the wall plane:
+
+    sum N_i = F_ad,  sum x_i N_i = h F_bx,  sum y_i N_i = h F_by,
+
+with F_b = R(th)^T m_t (g_vec - a_G) in the body frame. Four loads, three equations: the
+least-norm solution (a rigid chassis on four equal springs), in closed form for the rectangle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wallbot_sim.model.robot import Robot
+
+
+def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2), wheels in order 1..4 (N)."""
+    params = robot.params
+    theta, thd, thdd = float(q[2]), float(qd[2]), float(qdd[2])
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    sx, sy = robot.first_moment.tolist()
+    # m_t a_G = m_t (xdd, ydd) + thdd R S s - thd^2 R s
+    rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
+    mass = robot.total_mass
+    inertial_x = mass * float(qdd[0]) - thdd * rsy - thd * thd * rsx
+    inertial_y = mass * float(qdd[1]) + thdd * rsx - thd * thd * rsy
+    fx, fy = -inertial_x, -mass * params.gravity - inertial_y  # F_gi = m_t (g_vec - a_G), wall frame
+    body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
+    a, b, h = params.half_wheelbase, params.half_track, params.com_height
+    offsets = robot.wheel_offsets
+    return (0.25 * robot.adsorption.applied_force + (0.25 * h * body_x / (a * a)) * offsets[:, 0]
+            + (0.25 * h * body_y / (b * b)) * offsets[:, 1])
