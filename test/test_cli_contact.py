@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from test_cli_simulate import read_csv, simulate
-from wallbot_sim.cli.run import node_specs
 from wallbot_sim.config import load_scenario
+from wallbot_sim.graph_description import describe_graph
 from wallbot_sim.model import ConstraintSelection
 from wallbot_sim.paths import robot_yaml
 
@@ -105,11 +105,12 @@ def test_kinetic_above_static_friction_in_the_robot_file(tmp_path):
 
 
 def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
-    specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
-                       robot_file=Path('/robots/tall.yaml'))
+    specs = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt'), duration=1.0,
+                           real_time_factor=0.0, bag=tmp_path / 'bag', robot_file=Path('/robots/tall.yaml'))
     assert {spec.name: spec.parameters for spec in specs}['dynamics']['robot_file'] == '/robots/tall.yaml'
-    specs = node_specs(load_scenario('circle'), ConstraintSelection.parse('belt'), 1.0, 0.0, tmp_path / 'bag',
-                       1.0, contact_model='coulomb', adhesion_force=150.0)
+    specs = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt'), duration=1.0,
+                           real_time_factor=0.0, bag=tmp_path / 'bag', controller_mass_scale=1.0,
+                           contact_model='coulomb', adhesion_force=150.0)
     dynamics = {spec.name: spec.parameters for spec in specs}['dynamics']
     assert dynamics['contact_model'] == 'coulomb' and dynamics['adhesion_force'] == 150.0
     refused = cli('run', 'circle', '--contact', 'coulomb', '--out', str(tmp_path / 'refused'))
