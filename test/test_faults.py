@@ -7,19 +7,21 @@ One run (circle, trajectory task + belt + non_lateral + nonslip, factor 1) with 
    reference_path) planned from the current simulation time;
 2. constraint_config killed and restarted: nothing changes for the dynamics; the restarted node
    republishes ``constraints`` (the dynamics re-applies the same set);
-3. dynamics killed and restarted: the new process starts again from its initial state at t = 0
-   (there is no state hand-over), /clock jumps back, the trajectory node sees the jump and replans
-   from 0, and the run continues.
+3. dynamics killed and restarted: the new process resumes from the state snapshot the recorder
+   keeps (``resume_state``), recomputes unpublished the steps the recorder saw after that snapshot,
+   and publishes from the first state the recorder has not seen; /clock continues, the trajectory
+   node sees no jump, and the run continues.
 
 The recorder runs throughout (one process, never restarted) and its bag shows the faults as they
-were: odometry stamps consecutive (1 ms) within each dynamics life, a gap in receive time while
-the dynamics was dead, then stamps starting again at 0 - so the stamps 0 .. t_kill appear twice in
-the bag, once per dynamics life, each life told apart by receive time. Nothing is invented: no
-message is received while the dynamics process is dead.
+were: odometry stamps strictly increasing across the kill (none repeats, none is missing: the
+recorder is the keeper, so the resumed node continues right after the last state it recorded), a
+gap in receive time while the dynamics was dead, and the state continuous across it. Nothing is
+invented: no message is received while the dynamics process is dead.
 """
 
 from __future__ import annotations
 
+import math
 import signal
 import sys
 import time
@@ -29,8 +31,8 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from test_nodes_graph import Graph, ns, start_graph  # noqa: E402
-from wallbot_msgs_py import bagio, topics  # noqa: E402
+from test_nodes_graph import MS, Graph, ns, start_graph  # noqa: E402
+from wallbot_msgs_py import bagio, conversions, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 
 DOWN = 1.0
@@ -96,15 +98,16 @@ def test_each_node_killed_and_restarted_once(process_runner, tmp_path):
         t_killed = graph.last_stamp()
         time.sleep(DOWN)
         graph.clear(topics.ODOM.name)
-        restart(graph, 'dynamics', 'real_time_factor:=1.0', 'wait_for_recorder:=true')  # recorded from t = 0, as in run
+        restart(graph, 'dynamics', 'real_time_factor:=1.0', 'wait_for_recorder:=true')
         events['dynamics_restarted'] = time.time_ns()
-        graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) >= 1_000_000_000], 30,
-                       'the restarted dynamics at t = 1 s')
-        # that the restart begins at t = 0 is checked on the bag (bag_figures): this test's own
+        graph.wait_for(lambda: graph.last_stamp() >= t_killed + 1_000_000_000, 30,
+                       'the restarted dynamics 1 s past the kill')
+        # the stamps across the kill are checked on the bag (bag_figures): this test's own
         # subscriber may discover the new publisher after its first messages, the recorder may not
         for name, proc in [*graph.procs.items(), ('recorder', recorder)]:
             assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-2000:]}'
-        assert 'simulation time went back' in process_runner.output('trajectory-2'), 'the trajectory saw the jump'
+        assert 'resuming from the kept snapshot' in process_runner.output('dynamics-2')
+        assert 'simulation time went back' not in process_runner.output('trajectory-2'), 'time jumped back'
         for name in ('dynamics', 'trajectory', 'constraint_config'):
             assert process_runner.stop(graph.procs[name]) == 0
         events['stopped'] = time.time_ns()
@@ -131,47 +134,53 @@ def restart(graph: Graph, name: str, *params: str):
 def bag_figures(bag, events: dict, t_killed: int) -> dict:
     names = {t.name.rsplit('/', 1)[-1]: t.name for t in info(bag).topics}
     wanted = {names[k]: k for k in ('odom', 'clock', 'reference_trajectory', 'reference_path', 'constraints')}
-    odom, received = [], {k: [] for k in wanted.values()}
+    odom, clock, received = [], [], {k: [] for k in wanted.values()}
     for raw in messages(bag, list(wanted)):
         leaf = wanted[raw.topic]
         received[leaf].append(raw.timestamp)
         if leaf == 'odom':
-            odom.append((raw.timestamp, ns(bagio.deserialize(raw.data, raw.type))))
-    odom.sort()
+            odom.append((raw.timestamp, conversions.odometry_to_state(bagio.deserialize(raw.data, raw.type))))
+        elif leaf == 'clock':
+            clock.append((raw.timestamp, conversions.stamp_nanoseconds(bagio.deserialize(raw.data, raw.type).clock)))
+    odom.sort(key=lambda pair: pair[0])
     receive = np.array([r for r, _ in odom])
-    stamps = np.array([s for _, s in odom])
-    back = np.flatnonzero(np.diff(stamps) < 0)
-    assert len(back) == 1, f'odom stamps go back {len(back)} times (one dynamics restart expected)'
-    lives = [stamps[:back[0] + 1], stamps[back[0] + 1:]]
-    for life in lives:
-        assert np.all(np.diff(life) == 1_000_000), 'consecutive 1 ms stamps within each dynamics life'
-    # messages still in flight from a SIGKILLed publisher can be lost (seen: 0.23 s under load);
-    # the bag must still hold the first life up to at most a second before the kill
-    assert lives[1][0] == 0 and lives[0][-1] >= t_killed - 1_000_000_000
-    # nothing from a live dynamics while it was dead: no second-life message before the restart,
-    # and first-life messages received after the kill only as the backlog of what was sent before it
-    # (a recorder behind by 0.16 s at the kill was seen)
-    assert receive[back[0] + 1:].min() > events['dynamics_restarted'], 'a second life before the restart'
-    backlog = (receive[:back[0] + 1].max() - events['dynamics_killed']) * 1e-9
+    stamps = np.array([s.stamp_ns for _, s in odom])
+    assert np.all(np.diff(stamps) > 0), f'odom stamps repeat or go back {int(np.sum(np.diff(stamps) <= 0))} times'
+    clock_stamps = np.array([c for _, c in sorted(clock)])
+    assert np.all(np.diff(clock_stamps) > 0), '/clock repeats or goes back'
+    # the dynamics' outage is the one receive-time gap longer than it was dead
+    kill = int(np.argmax(np.diff(receive)))
+    gap = (receive[kill + 1] - receive[kill]) * 1e-9
+    assert gap >= DOWN, 'the bag shows the dynamics outage as a receive-time gap'
+    lost = int((stamps[kill + 1] - stamps[kill]) // MS) - 1
+    assert np.all(np.diff(stamps) == MS), f'{lost} odometry stamps missing across the kill (the keeper is the recorder)'
+    # the messages in flight at the kill (this test's subscriber may be behind the recorder)
+    assert stamps[kill] >= t_killed - 1_000_000_000
+    # nothing from a live dynamics while it was dead: the resumed life only after the restart, and
+    # first-life messages received after the kill only as the backlog of what was sent before it
+    assert receive[kill + 1] > events['dynamics_restarted'], 'odometry of a resumed life before the restart'
+    backlog = (receive[kill] - events['dynamics_killed']) * 1e-9
     assert backlog < 1.0, f'first-life odometry received {backlog:.3f} s after the kill'
-    gap = (receive[back[0] + 1] - receive[back[0]]) * 1e-9
-    first_life_receive = receive[:back[0] + 1]
-    outage_gap = np.diff(first_life_receive).max() * 1e-9
-    duplicated = int(np.intersect1d(lives[0], lives[1]).size)
+    # continuous state: across the kill, the position moves as the velocities say (trapezoid rule)
+    before, after = odom[kill][1], odom[kill + 1][1]
+    dt = (after.stamp_ns - before.stamp_ns) * 1e-9
+    jump = math.hypot(after.x - before.x - 0.5 * (before.xd + after.xd) * dt,
+                      after.y - before.y - 0.5 * (before.yd + after.yd) * dt)
+    assert jump < 1e-8, f'the resumed state is {jump:.3e} m off the continuation of the last recorded one'
 
-    def after(leaf, key):
+    def after_event(leaf, key):
         return sum(1 for r in received[leaf] if r > events[key])
-    figures = {'odom_recorded': len(odom), 'lost_at_kill_s': round(max(0, t_killed - int(lives[0][-1])) * 1e-9, 3),
-               'first_life_s': float(lives[0][-1] - lives[0][0]) * 1e-9,
-               'second_life_s': float(lives[1][-1] - lives[1][0]) * 1e-9, 'dynamics_receive_gap_s': round(float(gap), 3),
+    figures = {'odom_recorded': len(odom), 'first_life_last_stamp_s': round(float(stamps[kill]) * 1e-9, 3),
+               'stamps_lost_at_kill': lost, 'resume_position_jump_m': float(f'{jump:.3e}'),
+               'dynamics_receive_gap_s': round(float(gap), 3),
                'dynamics_down_s': round((events['dynamics_restarted'] - events['dynamics_killed']) * 1e-9, 3),
-               'stamps_recorded_twice': duplicated, 'max_receive_gap_first_life_s': round(float(outage_gap), 3),
-               'plans_after_trajectory_restart': after('reference_trajectory', 'trajectory_restarted'),
-               'paths_after_trajectory_restart': after('reference_path', 'trajectory_restarted'),
-               'constraints_after_restart': after('constraints', 'constraint_config_restarted')}
+               'backlog_after_kill_s': round(float(backlog), 3),
+               'max_receive_gap_before_kill_s': round(float(np.diff(receive[:kill + 1]).max() * 1e-9), 3),
+               'plans_after_trajectory_restart': after_event('reference_trajectory', 'trajectory_restarted'),
+               'paths_after_trajectory_restart': after_event('reference_path', 'trajectory_restarted'),
+               'constraints_after_restart': after_event('constraints', 'constraint_config_restarted')}
     assert figures['plans_after_trajectory_restart'] >= 1 and figures['paths_after_trajectory_restart'] >= 1
     assert figures['constraints_after_restart'] >= 1
-    assert gap >= DOWN, 'the bag shows the dynamics outage as a receive-time gap'
     for node in ('trajectory', 'constraint_config'):  # their outages do not stall the dynamics
         dead = (receive > events[f'{node}_killed']) & (receive < events[f'{node}_restarted'])
         simulated = (stamps[dead].max() - stamps[dead].min()) * 1e-9 if dead.any() else 0.0

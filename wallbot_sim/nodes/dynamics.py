@@ -30,6 +30,12 @@ namespace) the newest /clock stamp up to which it has taken every message. At fa
 while at least one publisher exists on that topic, the loop never runs more than
 ``backpressure_window`` steps (default 200, well below the recorded topics' depth of 1000)
 ahead of the reported progress; without a recorder it runs free.
+
+Resume. Every ``snapshot_period`` of simulation time and at every event (start, reset, pause,
+constraint switch, new plan) the loop publishes its full state on ``state_snapshot``
+(``wallbot_msgs_py.snapshot``); the recorder keeps the newest and republishes it, transient-local,
+on ``resume_state``. A node started again after a SIGKILL takes that snapshot at start and
+continues the run bit for bit (``resume``), ``~/reset`` being the explicit way back to t = 0.
 """
 
 from __future__ import annotations
@@ -57,12 +63,14 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import conversions, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.snapshot import DynamicsSnapshot, snapshot_from_message, snapshot_message
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.model import DOF, BaumgarteGains, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.nodes.resume import ResumeGate
 
 SLOWEST_FACTOR = 1e-3
 """Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
@@ -153,6 +161,14 @@ class DynamicsNode(Node):
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'at factor 0, max steps ahead of a recorder\'s record_progress',
                                            low=1, high=1000000),
+            'snapshot_period': declare(self, 'snapshot_period', 0.01,
+                                       'simulation seconds between state snapshots (kept by the recorder for a '
+                                       'restart); 0 = only at events (start, reset, pause, switch, plan)',
+                                       low=0.0, high=1e6),
+            'resume_wait': declare(self, 'resume_wait', 1.0,
+                                   'at start, wall seconds to wait for a kept snapshot (resume_state) to continue '
+                                   'from; 0 = always start from the initial state', low=0.0, high=60.0,
+                                   read_only=True),
         }
         reasons = self._check(p)
         if reasons:
@@ -173,6 +189,10 @@ class DynamicsNode(Node):
                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
                                  qos_profile(topics.RECORD_PROGRESS))
+        self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
+                                                  qos_profile(topics.STATE_SNAPSHOT))
+        self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
+                                 qos_profile(topics.RESUME_STATE))
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -201,6 +221,8 @@ class DynamicsNode(Node):
         self.window = Window()
         self.encoder = StepEncoder()
         self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
+        self.resume = ResumeGate(p['resume_wait'])
+        self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
         self.stopping = threading.Event()
         self.wake = threading.Event()
         # Everything allocated so far (rclpy, numpy, the model) lives for the whole run: move it
@@ -235,6 +257,14 @@ class DynamicsNode(Node):
     def _on_progress(self, msg: ClockMsg) -> None:
         self.progress_ns = conversions.stamp_nanoseconds(msg.clock)
 
+    def _on_resume_state(self, msg: Float64MultiArray) -> None:
+        if self.resume.settled:  # read by the executor thread: at worst one more message is decoded
+            return
+        try:
+            self._post('resume', snapshot_from_message(msg))
+        except ValueError as error:
+            self.get_logger().error(f'ignoring resume_state: {error}')
+
     def _on_reset(self, _request, response):
         self._post('reset', None)
         response.success, response.message = True, 'reset to the initial state at t = 0 at the next step boundary'
@@ -255,7 +285,7 @@ class DynamicsNode(Node):
         for name in ('command_timeout', 'max_wheel_torque'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
-        for name in ('real_time_factor', 'stop_at'):
+        for name in ('real_time_factor', 'stop_at', 'snapshot_period'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0))
         factor = values.get('real_time_factor')
@@ -316,6 +346,7 @@ class DynamicsNode(Node):
                     f'{" (ends at rest)" if payload.final else ""} at t = {self.sim.t if self.sim else 0.0:.3f} s')
                 if self.sim is not None:
                     self.sim.set_reference(payload.reference)
+                    self._snapshot()
             elif kind == 'command':
                 self.command = (payload, self.sim.t if self.sim is not None else 0.0)
                 self.command_expired = False
@@ -327,7 +358,10 @@ class DynamicsNode(Node):
                 self._reset()
             elif kind == 'pause':
                 self.paused = payload
-                self.get_logger().info('paused' if payload else 'resumed')
+                self.get_logger().info('paused' if payload else 'running again')
+                self._snapshot()
+            elif kind == 'resume':
+                self.resume.offer(payload)
             elif kind == 'params':
                 self._apply_params(payload)
         # not reached
@@ -337,6 +371,7 @@ class DynamicsNode(Node):
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+            self._snapshot()
         self.pacer.reanchor()
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
@@ -356,20 +391,51 @@ class DynamicsNode(Node):
 
     def _reset(self) -> None:
         self.command, self.diverged = None, False
+        self.resume.stop_catch_up()
         if self.sim is not None:
             self.sim = self._simulation(*self._initial_state(), 0.0)
             self.get_logger().info('reset to the initial state at t = 0')
             self._publish(self.sim.outputs())
+            self._snapshot()
         self.pacer.reanchor()
+
+    def _restore(self, kept: DynamicsSnapshot, selection, gains) -> None:
+        """Continue from a kept snapshot; then apply the constraint set in force now, if it differs."""
+        self.selection = conversions.selection_from_switches(*kept.switches)
+        self.gains = BaumgarteGains(*kept.gains)
+        if kept.dt == 1.0 / self.params['rate_hz']:
+            self.sim = self._simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
+            self.sim.restore(kept.steps, kept.q, kept.qd)
+        else:  # another rate_hz: a new run segment from the kept time, as a rate change makes
+            self.sim = self._simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
+        self.command = (kept.command, kept.command_since) if kept.command is not None else None
+        self.command_expired = kept.command_expired
+        self.paused = kept.paused
+        self.resume.catch_up_to(kept.seen_until_ns)
+        behind = max(0, kept.seen_until_ns - kept.stamp_ns) * 1e-9
+        self.get_logger().info(
+            f'resuming from the kept snapshot at t = {kept.t:.3f} s (step {kept.steps}, constraints '
+            f'{self.selection.label()}{", paused" if kept.paused else ""}); the graph has seen up to '
+            f't = {kept.seen_until_ns * 1e-9:.3f} s: {behind:.3f} s recomputed unpublished')
+        if (selection, gains) != (self.selection, self.gains):
+            self._switch(selection, gains)
+        out = self.sim.outputs()  # the solve the first step reuses, as after every step of the first life
+        if self.resume.publishes(conversions.to_nanoseconds(self.sim.t)):
+            self._publish(out)
+        self._snapshot()
 
     def _ready(self) -> bool:
         """Apply a pending constraint set if possible; say whether the next step may run."""
         if self.sim is None and self.params['wait_for_recorder'] and not self._recorder_listening():
             self.status = 'waiting for a recorder'
             return False
+        if self.sim is None and not self.resume.settle(time.monotonic(),
+                                                         self.count_publishers(self.resume_topic) > 0):
+            self.status = 'waiting for a kept snapshot to resume from (resume_state)'
+            return False
         if self.pending_constraints is not None:
             selection, gains = self.pending_constraints
-            if self.sim is None and not selection.trajectory:
+            if self.sim is None and not selection.trajectory and self.resume.snapshot is None:
                 waiting = self._driven_start_blocked()
                 if waiting:
                     self.status = waiting
@@ -392,6 +458,13 @@ class DynamicsNode(Node):
             self.status = f'stopped at t = {sim.t:.3f} s (stop_at)'
             return False
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
+            if self.resume.catching_up and self.plan.start > sim.t + 1e-9:
+                # the plan of the kept state was replaced before the kill: publishing this earlier
+                # state makes the trajectory node replan from it (its clock went back)
+                self.get_logger().warning(f'the newest plan starts at {self.plan.start:.3f} s, after the kept '
+                                          f'state at {sim.t:.3f} s: publishing from there')
+                self.resume.stop_catch_up()
+                self._publish(sim.outputs())
             self.status = f'waiting for a reference_trajectory covering t = {sim.t:.3f} s'
             return False
         if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
@@ -402,17 +475,23 @@ class DynamicsNode(Node):
         return True
 
     def _switch(self, selection, gains) -> None:
+        if self.sim is None and self.resume.snapshot is not None:
+            self._restore(self.resume.snapshot, selection, gains)
+            return
         if self.sim is None:
             self.selection, self.gains = selection, gains
             self.sim = self._simulation(*self._initial_state(), 0.0)
-            self.get_logger().info(f'starting with constraints {selection.label()}')
+            fresh = f' from the initial state ({self.resume.timed_out})' if self.resume.timed_out else ''
+            self.get_logger().info(f'starting with constraints {selection.label()}{fresh}')
             self._publish(self.sim.outputs())
+            self._snapshot()
             return
         report = self.sim.set_constraints(selection, gains)
         self.selection, self.gains = selection, gains
         self.get_logger().info(
             f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
             f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+        self._snapshot()
 
     def _driven_start_blocked(self) -> str | None:
         """Why a driven run may not create its simulation yet (None: it may).
@@ -520,6 +599,9 @@ class DynamicsNode(Node):
             self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
             return
         step_time = time.perf_counter() - began
+        if self.resume.catching_up and not self.resume.publishes(conversions.to_nanoseconds(sim.t)):
+            self.last_outputs = out  # the graph has this state: recomputed, not published nor paced
+            return
         window = self.window
         window.steps += 1
         window.step_time_sum += step_time
@@ -532,6 +614,9 @@ class DynamicsNode(Node):
             for topic, data in encoded:
                 self.publishers_[topic].publish(data)
             self._mark_sync()
+            every = round(self.params['snapshot_period'] / sim.dt)
+            if every > 0 and sim.steps % every == 0:
+                self._snapshot()
         self.last_outputs = out
 
     def _pace(self, step: int, dt: float) -> None:
@@ -540,6 +625,23 @@ class DynamicsNode(Node):
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
             window.late += 1
+
+    def _snapshot(self) -> None:
+        """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
+        sim = self.sim
+        if sim is None:
+            return
+        command, since = self.command if self.command is not None else (None, 0.0)
+        selection = sim.selection
+        kept = DynamicsSnapshot(
+            anchor=sim.initial_time, steps=sim.steps, dt=sim.dt, q=tuple(sim.q), qd=tuple(sim.qd),
+            motor_torque=sim.motor_torque, command=command, command_since=since,
+            command_expired=self.command_expired,
+            switches=(selection.trajectory, selection.belt, selection.non_lateral, selection.nonslip,
+                      selection.tangent_heading is not False),
+            gains=(float(sim.gains.alpha), float(sim.gains.beta)), paused=self.paused,
+            seen_until_ns=conversions.to_nanoseconds(sim.t))
+        self.snapshot_pub.publish(snapshot_message(kept.to_values()))
 
     def _publish(self, out) -> None:
         """Publish the messages of the current state (start, reset)."""
