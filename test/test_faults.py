@@ -22,6 +22,7 @@ invented: no message is received while the dynamics process is dead.
 from __future__ import annotations
 
 import math
+import re
 import signal
 import sys
 import time
@@ -30,6 +31,8 @@ import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
+
+from std_srvs.srv import Trigger  # noqa: E402
 
 from test_nodes_graph import MS, Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, conversions, topics  # noqa: E402
@@ -188,3 +191,78 @@ def bag_figures(bag, events: dict, t_killed: int) -> dict:
         figures[f'simulated_while_{node}_down_s'] = round(float(simulated), 3)
         assert simulated > 0.5 * down, f'the dynamics stalled while {node} was down ({simulated:.3f} s of {down:.3f} s)'
     return figures
+
+
+RESET_AT = 1.5
+"""Simulation time (s) of the reset; the run after it is followed as far."""
+
+
+def test_reset_goes_back_to_t0_and_every_node_carries_on(process_runner, tmp_path):
+    """``~/reset`` in a closed loop (controller in lockstep, recorder, trajectory): every node carries on.
+
+    The trajectory node replans from 0, the controller restarts (integral cleared) when the
+    odometry stamps go back, the recorder keeps recording: the bag holds both runs, the stamps
+    going back once. With lockstep the loop is deterministic, so the run after the reset repeats
+    the run before it state for state (see bag_figures for the fault test's bag).
+    """
+    bag = tmp_path / 'bag'
+    recorded = ','.join(t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD))
+    recorder = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                     '-p', f'output:={bag}', '-p', f'topics:=[{recorded}]'], 'recorder')
+    graph = Graph(process_runner)
+    try:
+        graph.start('trajectory')
+        controller = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args',
+                                           '-p', 'wait_for_recorder:=true'], 'controller')
+        graph.procs['controller'] = controller
+        graph.start('constraint_config', 'trajectory_task:=false', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
+        graph.start('dynamics', 'real_time_factor:=1.0', 'wait_for_recorder:=true', 'wait_for_command:=true',
+                    'lockstep_every:=5')
+        graph.wait_sim_time(RESET_AT, 60)
+        assert 'from the initial state' not in process_runner.output('dynamics'), 'the recorder was not heard'
+        reset_wall = time.time_ns()
+        assert graph.call(Trigger, '/wallbot/dynamics/reset', Trigger.Request()).success
+        graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 0], 10, 'odometry at t = 0')
+        graph.clear(topics.ODOM.name)
+        graph.wait_for(lambda: graph.last_stamp() >= round(RESET_AT * 1e9), 30, 'the run after the reset')
+        graph.wait_for(lambda: 'controller restarted' in process_runner.output('controller'), 5,
+                       'the controller restarting')
+        assert re.search(r'simulation time went back to 0\.0\d\d s: replanning', process_runner.output('trajectory'))
+        for name, proc in [*graph.procs.items(), ('recorder', recorder)]:
+            assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-2000:]}'
+        for name in ('dynamics', 'controller', 'trajectory', 'constraint_config'):
+            assert process_runner.stop(graph.procs[name]) == 0
+    finally:
+        graph.close()
+    process_runner.stop_timeout = 30.0
+    assert process_runner.stop(recorder) == 0, process_runner.output('recorder')[-2000:]
+
+    odom, commands = [], []
+    for raw in messages(bag):
+        leaf = raw.topic.rsplit('/', 1)[-1]
+        if leaf == 'odom':
+            odom.append((raw.timestamp, conversions.odometry_to_state(bagio.deserialize(raw.data, raw.type))))
+        elif leaf == 'wheel_torque_cmd':
+            commands.append(raw.timestamp)
+    odom.sort(key=lambda pair: pair[0])
+    stamps = np.array([s.stamp_ns for _, s in odom])
+    back = np.flatnonzero(np.diff(stamps) < 0)
+    assert len(back) == 1, f'odom stamps go back {len(back)} times (one reset)'
+    runs = [odom[:back[0] + 1], odom[back[0] + 1:]]
+    for run in runs:
+        assert np.all(np.diff([s.stamp_ns for _, s in run]) == MS), 'consecutive 1 ms stamps in each run'
+    assert runs[0][0][1].stamp_ns == runs[1][0][1].stamp_ns == 0, 'both runs start at t = 0'
+    # the controller answers the run after the reset as the first: commands keep coming
+    after = np.array([c for c in commands if c > reset_wall])
+    span = (runs[1][-1][1].stamp_ns - runs[1][0][1].stamp_ns) * 1e-9
+    assert len(after) >= 0.9 * 200 * span, f'{len(after)} commands in {span:.3f} s after the reset'
+    first = {s.stamp_ns: (s.x, s.y, s.theta) for _, s in runs[0]}
+    repeated = [(first[s.stamp_ns], (s.x, s.y, s.theta)) for _, s in runs[1] if s.stamp_ns in first]
+    difference = np.max(np.abs(np.subtract(*zip(*repeated))))
+    print(f'\nreset: {len(repeated)} states repeated, largest difference {difference:.3e}; '
+          f'{len(after)} commands after the reset')
+    assert len(repeated) >= RESET_AT * 1000
+    # exact while lockstep held; a controller that lagged 0.25 s (wall) under load lets the loop
+    # step on without its answer, and the commands then come a few steps late
+    lockstep_held = 'without lockstep' not in process_runner.output('dynamics')
+    assert difference <= (0.0 if lockstep_held else 1e-3), 'the run after the reset differs from the run before it'
