@@ -32,7 +32,7 @@ while at least one publisher exists on that topic, the loop never runs more than
 ahead of the reported progress; without a recorder it runs free.
 
 Resume. Every ``snapshot_period`` of simulation time and at every event (start, reset, pause,
-constraint switch, new plan) the loop publishes its full state on ``state_snapshot``
+constraint switch, new plan, command) the loop publishes its full state on ``state_snapshot``
 (``wallbot_msgs_py.snapshot``); the recorder keeps the newest and republishes it, transient-local,
 on ``resume_state``. A node started again after a SIGKILL takes that snapshot at start and
 continues the run bit for bit (``resume``), ``~/reset`` being the explicit way back to t = 0.
@@ -354,6 +354,7 @@ class DynamicsNode(Node):
                 if self.lockstep_lost:
                     self.lockstep_lost = False
                     self.get_logger().info('wheel_torque_cmd again: lockstep resumed')
+                self._snapshot()  # so a resume recomputes the steps after it with the commands they had
             elif kind == 'reset':
                 self._reset()
             elif kind == 'pause':
@@ -403,6 +404,8 @@ class DynamicsNode(Node):
         """Continue from a kept snapshot; then apply the constraint set in force now, if it differs."""
         self.selection = conversions.selection_from_switches(*kept.switches)
         self.gains = BaumgarteGains(*kept.gains)
+        if self.selection.trajectory and self.plan is None:  # the task was switched off meanwhile, no plan here
+            self.selection, self.gains = selection, gains
         if kept.dt == 1.0 / self.params['rate_hz']:
             self.sim = self._simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
             self.sim.restore(kept.steps, kept.q, kept.qd)
@@ -525,7 +528,7 @@ class DynamicsNode(Node):
         """
         every, sim = self.params['lockstep_every'], self.sim
         if (every <= 0 or sim.selection.trajectory or self.lockstep_lost or sim.steps % every != 0
-                or self.command_serial != self.sync_serial):
+                or self.command_serial != self.sync_serial or self.resume.catching_up):
             self.lockstep_since = None
             return False
         now = time.monotonic()
