@@ -165,9 +165,10 @@ class DynamicsNode(Node):
                                        'simulation seconds between state snapshots (kept by the recorder for a '
                                        'restart); 0 = only at events (start, reset, pause, switch, plan)',
                                        low=0.0, high=1e6),
-            'resume_wait': declare(self, 'resume_wait', 1.0,
-                                   'at start, wall seconds to wait for a kept snapshot (resume_state) to continue '
-                                   'from; 0 = always start from the initial state', low=0.0, high=60.0,
+            'resume_wait': declare(self, 'resume_wait', 2.0,
+                                   'wall seconds from the first constraint set to wait for a keeper of snapshots '
+                                   '(resume_state) to continue from; 0 = always start from the initial state',
+                                   low=0.0, high=60.0,
                                    read_only=True),
         }
         reasons = self._check(p)
@@ -214,6 +215,7 @@ class DynamicsNode(Node):
         self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
         self.lockstep_since: float | None = None
         self.lockstep_lost = False
+        self.reset_requested: float | None = None  # monotonic time of a ~/reset not yet applied
         self.progress_ns: int | None = None
         self.recorder_present = False
         self.recorder_checked = 0.0
@@ -311,6 +313,10 @@ class DynamicsNode(Node):
         try:
             while not self.stopping.is_set():
                 self._apply_events()
+                if self.reset_requested is not None and (
+                        not self._answer_pending() or time.monotonic() - self.reset_requested > LOCKSTEP_WAIT):
+                    self.reset_requested = None
+                    self._reset()
                 if not self._ready():
                     self.pacer.reanchor()
                     self.wake.wait(0.005)
@@ -356,7 +362,7 @@ class DynamicsNode(Node):
                     self.get_logger().info('wheel_torque_cmd again: lockstep resumed')
                 self._snapshot()  # so a resume recomputes the steps after it with the commands they had
             elif kind == 'reset':
-                self._reset()
+                self.reset_requested = time.monotonic()
             elif kind == 'pause':
                 self.paused = payload
                 self.get_logger().info('paused' if payload else 'running again')
@@ -432,8 +438,9 @@ class DynamicsNode(Node):
         if self.sim is None and self.params['wait_for_recorder'] and not self._recorder_listening():
             self.status = 'waiting for a recorder'
             return False
-        if self.sim is None and not self.resume.settle(time.monotonic(),
-                                                         self.count_publishers(self.resume_topic) > 0):
+        # the wait counts from the constraint set's arrival: by then discovery is under way
+        if (self.sim is None and self.pending_constraints is not None
+                and not self.resume.settle(time.monotonic(), self.count_publishers(self.resume_topic) > 0)):
             self.status = 'waiting for a kept snapshot to resume from (resume_state)'
             return False
         if self.pending_constraints is not None:
@@ -540,6 +547,17 @@ class DynamicsNode(Node):
         self.get_logger().warning(f'no wheel_torque_cmd within {LOCKSTEP_WAIT:g} s (wall) of the state at '
                                   f't = {sim.t:.3f} s: stepping on without lockstep until commands return')
         return False
+
+    def _answer_pending(self) -> bool:
+        """Lockstep: whether the controller's answer to the last published state is still to come.
+
+        A reset waits for it (at most LOCKSTEP_WAIT): arriving after the reset, that answer to a
+        state of the old run would be taken for the answer to the reset state.
+        """
+        every, sim = self.params['lockstep_every'], self.sim
+        return (sim is not None and every > 0 and not sim.selection.trajectory and not self.lockstep_lost
+                and sim.steps % every == 0 and self.command_serial == self.sync_serial
+                and not self.resume.catching_up)
 
     def _mark_sync(self) -> None:
         """The current state was just published: lockstep waits for a command newer than this."""

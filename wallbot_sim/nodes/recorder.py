@@ -49,6 +49,14 @@ DRAIN_LIMIT = 5.0
 """Longest drain at shutdown (s)."""
 
 
+def leading_stamp_ns(data: bytes) -> int:
+    """The time (ns) a serialized message starts with: rosgraph_msgs/Clock, or any message whose
+    first field is a std_msgs/Header. CDR: 4-byte encapsulation (byte 1: 1 = little endian), then
+    int32 sec, uint32 nanosec."""
+    sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
 def message_class(type_name: str) -> Any:
     """The rclpy message class of a rosbag2 type name like ``nav_msgs/msg/Odometry``."""
     package, kind, name = type_name.split('/')
@@ -140,12 +148,10 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
             self.writer.write(connection, self.get_clock().now().nanoseconds, data)
             self.received += 1
-            if name in self._stamped and len(data) >= 12:  # a std_msgs/Header first: its stamp
-                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
-                self.keeper.stamp(name, sec * 1_000_000_000 + nanosec)
+            if name in self._stamped and len(data) >= 12:
+                self.keeper.stamp(name, leading_stamp_ns(data))
             if topic.name == topics.CLOCK.name and self._progress_pub is not None and len(data) >= 12:
-                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
-                self.progress_ns = sec * 1_000_000_000 + nanosec
+                self.progress_ns = leading_stamp_ns(data)
                 self._clocks += 1
                 if self._clocks % PROGRESS_EVERY == 0:
                     self._publish_progress()

@@ -4,8 +4,9 @@ A keeper (the recorder) republishes the dynamics' newest snapshot on ``resume_st
 (``wallbot_msgs_py.snapshot``). Once the loop could start, it waits for that message: a
 snapshot means "continue from here", an empty message means "the keeper holds nothing: start
 fresh" (so a fresh start beside a recorder does not wait). Without a keeper in the graph the
-wait ends after ``resume_wait`` wall seconds; once a keeper is discovered (its publisher seen)
-its transient-local message is on the way, so the wait lasts up to KEEPER_ANSWER from then.
+wait ends after ``resume_wait`` wall seconds (counted from the constraint set's arrival, so
+discovery is under way); once a keeper is discovered (its publisher seen) its transient-local
+message is on the way, so the wait lasts up to KEEPER_ANSWER from then.
 
 Snapshots are taken every ``snapshot_period``, so the rest of the graph usually saw a few steps
 past the snapshot before the kill (the keeper reports the newest stamp it received as
