@@ -40,10 +40,10 @@ from dataclasses import dataclass, replace
 from typing import Sequence
 
 LABEL = 'wallbot_dynamics_snapshot_v1'
-DOF = 7
 LENGTH = 33
+"""Values in a snapshot."""
 SWITCHES = ('trajectory_task', 'belt', 'non_lateral', 'nonslip', 'tangent_heading')
-NS_PER_S = 1_000_000_000
+"""The order of the constraint switches at indices 24 .. 28."""
 
 
 @dataclass(frozen=True)
