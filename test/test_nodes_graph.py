@@ -299,8 +299,16 @@ def test_pause_and_reset(graph):
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=True)).success
     graph.wait_for(lambda: any(s.message == 'paused' for a in graph.messages(topics.DIAGNOSTICS.name)
                                for s in a.status), 3, 'paused diagnostics')
-    held = graph.last_stamp()  # the pause applied before that diagnostics went out
-    time.sleep(0.5)  # an absence is observed over a window, not polled for
+    # this test's subscriber may still be taking what was sent before the pause: wait until it is quiet
+    seen = {'stamp': graph.last_stamp(), 'since': time.monotonic()}
+
+    def quiet() -> bool:
+        if graph.last_stamp() != seen['stamp']:
+            seen.update(stamp=graph.last_stamp(), since=time.monotonic())
+        return time.monotonic() - seen['since'] > 0.3
+    graph.wait_for(quiet, 10, 'no odometry while paused')
+    held = graph.last_stamp()
+    time.sleep(0.5)
     assert graph.last_stamp() == held, 'a paused simulation must not advance'
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=False)).success
     graph.wait_sim_time(held * 1e-9 + 0.2)

@@ -81,6 +81,11 @@ class Simulation:
         return self._t
 
     @property
+    def initial_time(self) -> float:
+        """Simulation time of step 0 (s); t = initial_time + steps * dt."""
+        return self._initial[0]
+
+    @property
     def q(self) -> np.ndarray:
         """Generalized coordinates [x, y, th, p1..p4] (copy)."""
         return self._y[:DOF].copy()
@@ -122,6 +127,19 @@ class Simulation:
     def coulomb_applies(self) -> bool:
         """Whether friction limits the contact now: coulomb contact and no trajectory task (9.3)."""
         return self._coulomb is not None and not self._selection.trajectory
+
+    def restore(self, steps: int, q: np.ndarray, qd: np.ndarray) -> None:
+        """Continue from the state (q, qd) a run reached after ``steps`` steps from the initial time.
+
+        Time is computed as ``step`` computes it (from the initial time and the step count), so a
+        run restored from a saved state continues bit for bit.
+        """
+        if steps < 0:
+            raise ParameterError(f'steps must be >= 0, got {steps}')
+        self._y = _state_vector(q, qd)
+        self.steps = int(steps)
+        self._t = self._initial[0] + self.steps * self.dt
+        self._cached = None
 
     # --- configuration -------------------------------------------------------------------
     def set_motor_torque(self, tau_left: float, tau_right: float) -> None:

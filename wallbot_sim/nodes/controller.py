@@ -13,7 +13,10 @@ Timing is simulation time taken from the odometry stamps, not from a ROS timer: 
 controller acts on the first ``odom`` stamped at or after each multiple of 1 / ``rate_hz``
 (every 5th message of the 1 kHz dynamics at 200 Hz). So its control instants are the same
 at any real-time factor or CPU load, and no ``/clock`` subscription is needed. A stamp that
-goes back (the dynamics' ``~/reset``) restarts the controller (integral cleared).
+goes back into the first control period (the dynamics' ``~/reset``, or a dynamics started afresh)
+restarts the controller (integral cleared); one that goes back less is a dynamics resumed after a
+kill, publishing again states this node saw but the recorder had not: the controller carries on,
+acting again from the next control instant at or after it.
 
 The wheel spin rates are not read: the driven robot's wheels roll on the wall (nonslip),
 so the controller takes their rolling values from the odometry twist.
@@ -203,9 +206,14 @@ class ControllerNode(Node):
             self.get_logger().error('ignoring a malformed odom message', throttle_duration_sec=THROTTLE)
             return
         if self.last_stamp_ns is not None and stamp_ns < self.last_stamp_ns:
-            self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: controller restarted')
-            self.controller.reset()
-            self.next_due_ns = None
+            if stamp_ns < self.period_ns:
+                self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: controller restarted')
+                self.controller.reset()
+                self.next_due_ns = None
+            else:
+                self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s (a resumed dynamics): '
+                                       'carrying on')
+                self.next_due_ns = -(-stamp_ns // self.period_ns) * self.period_ns
         self.last_stamp_ns = stamp_ns
         if self.next_due_ns is not None and stamp_ns < self.next_due_ns:
             return

@@ -32,6 +32,12 @@ one publisher exists on that topic, the loop never runs more than ``backpressure
 factor 0 that paces the loop to the recorder; at factor 1 it only acts when the recorder falls
 behind (a loaded machine, or the burst of a loop catching up after a stall), which then slows the
 simulation instead of losing messages. Without a recorder it runs free.
+
+Resume. Every ``snapshot_period`` of simulation time and at every event (start, reset, pause,
+constraint switch, new plan, command) the loop publishes its full state on ``state_snapshot``
+(``wallbot_msgs_py.snapshot``); the recorder keeps the newest and republishes it, transient-local,
+on ``resume_state``. A node started again after a SIGKILL takes that snapshot at start and
+continues the run bit for bit (``resume``), ``~/reset`` being the explicit way back to t = 0.
 """
 
 from __future__ import annotations
@@ -59,14 +65,16 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.snapshot import SWITCHES, DynamicsSnapshot, snapshot_from_message, snapshot_message
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.model import DOF, DivergedError, ModelError, Robot, SampledReference, Simulation
+from wallbot_sim.model import DOF, BaumgarteGains, DivergedError, ModelError, Robot, SampledReference, Simulation
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError, unheld_slip
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.nodes.resume import ResumeGate
 
 SLOWEST_FACTOR = 1e-3
 """Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
@@ -167,6 +175,15 @@ class DynamicsNode(Node):
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'max steps ahead of a recorder\'s record_progress (any factor)',
                                            low=1, high=1000000),
+            'snapshot_period': declare(self, 'snapshot_period', 0.01,
+                                       'simulation seconds between state snapshots (kept by the recorder for a '
+                                       'restart); 0 = only at events (start, reset, pause, switch, plan)',
+                                       low=0.0, high=1e6),
+            'resume_wait': declare(self, 'resume_wait', 2.0,
+                                   'wall seconds from the first constraint set to wait for a keeper of snapshots '
+                                   '(resume_state) to continue from; 0 = always start from the initial state',
+                                   low=0.0, high=60.0,
+                                   read_only=True),
         }
         reasons = self._check(p)
         if reasons:
@@ -188,6 +205,10 @@ class DynamicsNode(Node):
                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
                                  qos_profile(topics.RECORD_PROGRESS))
+        self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
+                                                  qos_profile(topics.STATE_SNAPSHOT))
+        self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
+                                 qos_profile(topics.RESUME_STATE))
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
         self.create_service(Trigger, '~/reset', self._on_reset)
@@ -211,6 +232,7 @@ class DynamicsNode(Node):
         self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
         self.lockstep_since: float | None = None
         self.lockstep_lost = False
+        self.reset_requested: float | None = None  # monotonic time of a ~/reset not yet applied
         self.progress_ns: int | None = None
         self.recorder_present = False
         self.recorder_checked = 0.0
@@ -219,6 +241,8 @@ class DynamicsNode(Node):
         self.window_lock = threading.Lock()
         self.encoder = StepEncoder()
         self.pacer = Pacer(p['realtime_priority'], self.get_logger().warning)
+        self.resume = ResumeGate(p['resume_wait'])
+        self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
         self.stopping = threading.Event()
         self.wake = threading.Event()
         # Everything allocated so far (rclpy, numpy, the model) lives for the whole run: move it
@@ -253,6 +277,14 @@ class DynamicsNode(Node):
     def _on_progress(self, msg: ClockMsg) -> None:
         self.progress_ns = codec.stamp_nanoseconds(msg.clock)
 
+    def _on_resume_state(self, msg: Float64MultiArray) -> None:
+        if self.resume.settled:  # read by the executor thread: at worst one more message is decoded
+            return
+        try:
+            self._post('resume', snapshot_from_message(msg))
+        except ValueError as error:
+            self.get_logger().error(f'ignoring resume_state: {error}')
+
     def _on_reset(self, _request, response):
         self._post('reset', None)
         response.success, response.message = True, 'reset to the initial state at t = 0 at the next step boundary'
@@ -275,7 +307,7 @@ class DynamicsNode(Node):
                 reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
         if 'contact_model' in values and values['contact_model'] not in CONTACT_MODELS:
             reasons.append(f'contact_model must be one of {", ".join(CONTACT_MODELS)}, got {values["contact_model"]!r}')
-        for name in ('real_time_factor', 'stop_at', 'adhesion_force'):
+        for name in ('real_time_factor', 'stop_at', 'adhesion_force', 'snapshot_period'):
             if name in values:
                 reasons.append(check_number(name, values[name], minimum=0.0))
         factor = values.get('real_time_factor')
@@ -301,6 +333,10 @@ class DynamicsNode(Node):
         try:
             while not self.stopping.is_set():
                 self._apply_events()
+                if self.reset_requested is not None and (
+                        not self._answer_pending() or time.monotonic() - self.reset_requested > self.params['lockstep_timeout']):
+                    self.reset_requested = None
+                    self._reset()
                 if not self._ready():
                     self.pacer.reanchor()
                     self.wake.wait(0.005)
@@ -336,6 +372,7 @@ class DynamicsNode(Node):
                     f'{" (ends at rest)" if payload.final else ""} at t = {self.sim.t if self.sim else 0.0:.3f} s')
                 if self.sim is not None:
                     self.sim.set_reference(payload.reference)
+                    self._snapshot()
             elif kind == 'command':
                 self.command = (payload, self.sim.t if self.sim is not None else 0.0)
                 self.command_expired = False
@@ -343,11 +380,15 @@ class DynamicsNode(Node):
                 if self.lockstep_lost:
                     self.lockstep_lost = False
                     self.get_logger().info(f'wheel_torque_cmd again at t = {self.sim.t:.3f} s: lockstep resumed')
+                self._snapshot()  # so a resume recomputes the steps after it with the commands they had
             elif kind == 'reset':
-                self._reset()
+                self.reset_requested = time.monotonic()
             elif kind == 'pause':
                 self.paused = payload
-                self.get_logger().info('paused' if payload else 'resumed')
+                self.get_logger().info('paused' if payload else 'running again')
+                self._snapshot()
+            elif kind == 'resume':
+                self.resume.offer(payload)
             elif kind == 'params':
                 self._apply_params(payload)
         # not reached
@@ -357,6 +398,7 @@ class DynamicsNode(Node):
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+            self._snapshot()
         if 'adhesion_force' in changes:
             self.robot = Robot(self._robot_params(changes['adhesion_force']))
             if self.sim is not None:
@@ -387,20 +429,54 @@ class DynamicsNode(Node):
 
     def _reset(self) -> None:
         self.command, self.diverged, self.detached = None, False, None
+        self.resume.stop_catch_up()
         if self.sim is not None:
             self.sim = self._simulation(*self._initial_state(), 0.0)
             self.get_logger().info('reset to the initial state at t = 0')
             self._publish(self.sim.outputs())
+            self._snapshot()
         self.pacer.reanchor()
+
+    def _restore(self, kept: DynamicsSnapshot, selection, gains) -> None:
+        """Continue from a kept snapshot; then apply the constraint set in force now, if it differs."""
+        self.selection = messages.selection_from_switches(dict(zip(SWITCHES, kept.switches)))
+        self.gains = BaumgarteGains(*kept.gains)
+        if self.selection.trajectory and self.plan is None:  # the task was switched off meanwhile, no plan here
+            self.selection, self.gains = selection, gains
+        if kept.dt == 1.0 / self.params['rate_hz']:
+            self.sim = self._simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
+            self.sim.restore(kept.steps, kept.q, kept.qd)
+        else:  # another rate_hz: a new run segment from the kept time, as a rate change makes
+            self.sim = self._simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
+        self.command = (kept.command, kept.command_since) if kept.command is not None else None
+        self.command_expired = kept.command_expired
+        self.paused = kept.paused
+        self.resume.catch_up_to(kept.seen_until_ns)
+        behind = max(0, kept.seen_until_ns - kept.stamp_ns) * 1e-9
+        self.get_logger().info(
+            f'resuming from the kept snapshot at t = {kept.t:.3f} s (step {kept.steps}, constraints '
+            f'{self.selection.label()}{", paused" if kept.paused else ""}); the graph has seen up to '
+            f't = {kept.seen_until_ns * 1e-9:.3f} s: {behind:.3f} s recomputed unpublished')
+        if (selection, gains) != (self.selection, self.gains):
+            self._switch(selection, gains)
+        out = self.sim.outputs()  # the solve the first step reuses, as after every step of the first life
+        if self.resume.publishes(codec.to_nanoseconds(self.sim.t)):
+            self._publish(out)
+        self._snapshot()
 
     def _ready(self) -> bool:
         """Apply a pending constraint set if possible; say whether the next step may run."""
         if self.sim is None and self.params['wait_for_recorder'] and not self._recorder_listening():
             self.status = 'waiting for a recorder'
             return False
+        # the wait counts from the constraint set's arrival: by then discovery is under way
+        if (self.sim is None and self.pending_constraints is not None
+                and not self.resume.settle(time.monotonic(), self.count_publishers(self.resume_topic) > 0)):
+            self.status = 'waiting for a kept snapshot to resume from (resume_state)'
+            return False
         if self.pending_constraints is not None:
             selection, gains = self.pending_constraints
-            if self.sim is None and not selection.trajectory:
+            if self.sim is None and not selection.trajectory and self.resume.snapshot is None:
                 waiting = self._driven_start_blocked()
                 if waiting:
                     self.status = waiting
@@ -423,6 +499,13 @@ class DynamicsNode(Node):
             self.status = messages.stopped_status(sim.t)
             return False
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
+            if self.resume.catching_up and self.plan.start > sim.t + 1e-9:
+                # the plan of the kept state was replaced before the kill: publishing this earlier
+                # state makes the trajectory node replan from it (its clock went back)
+                self.get_logger().warning(f'the newest plan starts at {self.plan.start:.3f} s, after the kept '
+                                          f'state at {sim.t:.3f} s: publishing from there')
+                self.resume.stop_catch_up()
+                self._publish(sim.outputs())
             self.status = f'waiting for a reference_trajectory covering t = {sim.t:.3f} s'
             return False
         if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
@@ -433,17 +516,23 @@ class DynamicsNode(Node):
         return True
 
     def _switch(self, selection, gains) -> None:
+        if self.sim is None and self.resume.snapshot is not None:
+            self._restore(self.resume.snapshot, selection, gains)
+            return
         if self.sim is None:
             self.selection, self.gains = selection, gains
             self.sim = self._simulation(*self._initial_state(), 0.0)
-            self.get_logger().info(f'starting with constraints {selection.label()}')
+            fresh = f' from the initial state ({self.resume.timed_out})' if self.resume.timed_out else ''
+            self.get_logger().info(f'starting with constraints {selection.label()}{fresh}')
             self._publish(self.sim.outputs())
+            self._snapshot()
             return
         report = self.sim.set_constraints(selection, gains)
         self.selection, self.gains = selection, gains
         self.get_logger().info(
             f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
             f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+        self._snapshot()
 
     def _driven_start_blocked(self) -> str | None:
         """Why a driven run may not create its simulation yet (None: it may).
@@ -479,7 +568,7 @@ class DynamicsNode(Node):
         """
         every, sim = self.params['lockstep_every'], self.sim
         if (every <= 0 or sim.selection.trajectory or self.lockstep_lost or sim.steps % every != 0
-                or self.command_serial != self.sync_serial):
+                or self.command_serial != self.sync_serial or self.resume.catching_up):
             self.lockstep_since = None
             return False
         now = time.monotonic()
@@ -492,6 +581,17 @@ class DynamicsNode(Node):
         self.get_logger().warning(f'no wheel_torque_cmd within {self.params["lockstep_timeout"]:g} s (wall) of the state at '
                                   f't = {sim.t:.3f} s: stepping on without lockstep until commands return')
         return False
+
+    def _answer_pending(self) -> bool:
+        """Lockstep: whether the controller's answer to the last published state is still to come.
+
+        A reset waits for it (at most lockstep_timeout): arriving after the reset, that answer to a
+        state of the old run would be taken for the answer to the reset state.
+        """
+        every, sim = self.params['lockstep_every'], self.sim
+        return (sim is not None and every > 0 and not sim.selection.trajectory and not self.lockstep_lost
+                and sim.steps % every == 0 and self.command_serial == self.sync_serial
+                and not self.resume.catching_up)
 
     def _mark_sync(self) -> None:
         """The current state was just published: lockstep waits for a command newer than this."""
@@ -559,6 +659,9 @@ class DynamicsNode(Node):
             self.get_logger().error(f'{error}: simulation paused (reset with ~/reset)')
             return
         step_time = time.perf_counter() - began
+        if self.resume.catching_up and not self.resume.publishes(codec.to_nanoseconds(sim.t)):
+            self.last_outputs = out  # the graph has this state: recomputed, not published nor paced
+            return
         window = self.window
         window.steps += 1
         window.step_time_sum += step_time
@@ -571,6 +674,9 @@ class DynamicsNode(Node):
             for topic, data in encoded:
                 self.publishers_[topic].publish(data)
             self._mark_sync()
+            every = round(self.params['snapshot_period'] / sim.dt)
+            if every > 0 and sim.steps % every == 0:
+                self._snapshot()
         self._note_residual(out.residual)
         self.last_outputs = out
 
@@ -580,6 +686,23 @@ class DynamicsNode(Node):
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
             window.late += 1
+
+    def _snapshot(self) -> None:
+        """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
+        sim = self.sim
+        if sim is None:
+            return
+        command, since = self.command if self.command is not None else (None, 0.0)
+        selection = sim.selection
+        kept = DynamicsSnapshot(
+            anchor=sim.initial_time, steps=sim.steps, dt=sim.dt, q=tuple(sim.q), qd=tuple(sim.qd),
+            motor_torque=sim.motor_torque, command=command, command_since=since,
+            command_expired=self.command_expired,
+            switches=(selection.trajectory, selection.belt, selection.non_lateral, selection.nonslip,
+                      selection.tangent_heading is not False),
+            gains=(float(sim.gains.alpha), float(sim.gains.beta)), paused=self.paused,
+            seen_until_ns=codec.to_nanoseconds(sim.t))
+        self.snapshot_pub.publish(snapshot_message(kept.to_values()))
 
     def _publish(self, out) -> None:
         """Publish the messages of the current state (start, reset)."""

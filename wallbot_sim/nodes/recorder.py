@@ -16,6 +16,10 @@ Design (see docs/bags.md):
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
+* the dynamics' keeper: it holds the newest ``state_snapshot`` and republishes it (transient-local,
+  every KEEP_PERIOD when it changed) on ``resume_state``, with the newest step stamp it received as
+  ``seen_until``, so a dynamics restarted after a SIGKILL continues where the bag ends
+  (``wallbot_msgs_py.snapshot``);
 * SIGINT/SIGTERM: stop taking new work, drain what DDS already delivered, close the bag
   (metadata.yaml + MCAP summary), exit 0. The writer flushes a closed chunk at least every 0.5 s,
   so after a SIGKILL ``wallbot-sim bag reindex`` recovers all but the last half second.
@@ -32,14 +36,25 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
 
 NODE_NAME = topics.NODE_RECORDER
 PROGRESS_EVERY = 20
 """Publish record_progress every this many /clock messages (and from a 50 ms timer)."""
+KEEP_PERIOD = 0.05
+"""Wall seconds between republications of the kept snapshot (when it changed)."""
 DRAIN_QUIET = 0.3
 """Seconds without a new message that end the drain at shutdown."""
 DRAIN_LIMIT = 5.0
 """Longest drain at shutdown (s)."""
+
+
+def leading_stamp_ns(data: bytes) -> int:
+    """The time (ns) a serialized message starts with: rosgraph_msgs/Clock, or any message whose
+    first field is a std_msgs/Header. CDR: 4-byte encapsulation (byte 1: 1 = little endian), then
+    int32 sec, uint32 nanosec."""
+    sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
+    return sec * 1_000_000_000 + nanosec
 
 
 def message_class(type_name: str) -> Any:
@@ -101,7 +116,31 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
                 self._progress_pub = self.create_publisher(Clock, topics.RECORD_PROGRESS.name,
                                                            qos_profile(topics.RECORD_PROGRESS))
                 self.create_timer(0.05, self._publish_progress)
+            self._keep_dynamics_state(recorded)
             self.get_logger().info(f'recording {len(recorded)} topics to {writer.path}')
+
+        def _keep_dynamics_state(self, recorded: list[topics.Topic]) -> None:
+            from std_msgs.msg import Float64MultiArray
+
+            from wallbot_msgs_py.qos import qos_profile
+            self.keeper = SnapshotKeeper()
+            self._stamped = {self.resolve_topic_name(t.name) for t in topics.STEP_STAMPED if t in recorded}
+            self.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
+                                     qos_profile(topics.STATE_SNAPSHOT))
+            self._resume_pub = self.create_publisher(Float64MultiArray, topics.RESUME_STATE.name,
+                                                     qos_profile(topics.RESUME_STATE))
+            self.create_timer(KEEP_PERIOD, self._publish_kept)
+
+        def _on_snapshot(self, msg: Any) -> None:
+            try:
+                self.keeper.snapshot(msg.data)
+            except ValueError as error:
+                self.get_logger().error(f'ignoring state_snapshot: {error}')
+
+        def _publish_kept(self) -> None:
+            values = self.keeper.due()
+            if values is not None:
+                self._resume_pub.publish(snapshot_message(values))
 
         def _on_message(self, topic: topics.Topic, name: str, data: bytes) -> None:
             connection = self.writer.connection(name)
@@ -109,9 +148,10 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
             self.writer.write(connection, self.get_clock().now().nanoseconds, data)
             self.received += 1
+            if name in self._stamped and len(data) >= 12:
+                self.keeper.stamp(name, leading_stamp_ns(data))
             if topic.name == topics.CLOCK.name and self._progress_pub is not None and len(data) >= 12:
-                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
-                self.progress_ns = sec * 1_000_000_000 + nanosec
+                self.progress_ns = leading_stamp_ns(data)
                 self._clocks += 1
                 if self._clocks % PROGRESS_EVERY == 0:
                     self._publish_progress()

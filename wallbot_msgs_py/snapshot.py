@@ -1,0 +1,162 @@
+"""The dynamics node's state snapshot: what a restarted dynamics needs to continue a run.
+
+The dynamics publishes it on ``state_snapshot`` and a keeper (the recorder) republishes the
+newest one on ``resume_state``, both std_msgs/Float64MultiArray, RELIABLE, TRANSIENT_LOCAL,
+KEEP_LAST(1). A dynamics killed with SIGKILL takes its own transient-local sample with it; the
+keeper's copy outlives it, and a restarted dynamics reads that copy at start.
+
+Layout: ``layout.dim[0].label`` = LABEL, ``size`` = ``stride`` = LENGTH, then ``data``:
+
+=========  ======================================================================
+index      meaning
+=========  ======================================================================
+0          anchor (s): simulation time of step 0 of the run segment
+1          steps: RK4 steps since the anchor (a whole number); t = anchor + steps * dt
+2          dt (s): the step
+3 .. 9     q = x, y, theta (unwrapped), phi1 .. phi4 (wheel spin angles)
+10 .. 16   qd, the time derivatives of q (wall frame)
+17, 18     motor torque (tau_L, tau_R) applied in the step that reached this state (N m)
+19         1 if a wheel_torque_cmd is held, else 0
+20, 21     the held command (tau_L, tau_R) (N m)
+22         simulation time the held command arrived (s)
+23         1 if the held command has timed out, else 0
+24 .. 28   constraint switches in force, 1/0: trajectory_task, belt, non_lateral, nonslip,
+           tangent_heading (the constraint_config vocabulary)
+29, 30     Baumgarte gains alpha, beta (1/s)
+31         1 if the simulation is paused, else 0
+32         seen until (ns): the newest step stamp the rest of the graph has received; the
+           dynamics writes the snapshot's own stamp, a keeper the newest it received
+=========  ======================================================================
+
+A keeper that holds nothing yet publishes the LABEL with empty ``data`` ("nothing to resume
+from"), so a dynamics starting fresh beside it need not wait. This module imports no ROS
+package except std_msgs for the two message functions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+LABEL = 'wallbot_dynamics_snapshot_v1'
+LENGTH = 33
+"""Values in a snapshot."""
+SWITCHES = ('trajectory_task', 'belt', 'non_lateral', 'nonslip', 'tangent_heading')
+"""The order of the constraint switches at indices 24 .. 28."""
+
+
+@dataclass(frozen=True)
+class DynamicsSnapshot:
+    """The state of the dynamics loop at a step boundary (see the module's layout table)."""
+
+    anchor: float
+    steps: int
+    dt: float
+    q: tuple[float, ...]
+    qd: tuple[float, ...]
+    motor_torque: tuple[float, float]
+    command: tuple[float, float] | None
+    command_since: float
+    command_expired: bool
+    switches: tuple[bool, ...]
+    gains: tuple[float, float]
+    paused: bool
+    seen_until_ns: int
+
+    @property
+    def t(self) -> float:
+        """Simulation time of the state (s), computed as the simulation computes it."""
+        return self.anchor + self.steps * self.dt
+
+    @property
+    def stamp_ns(self) -> int:
+        """Simulation time as the step messages stamp it (ns)."""
+        return round(self.t * 1e9)
+
+    def to_values(self) -> list[float]:
+        """The ``data`` of the message."""
+        command = self.command or (0.0, 0.0)
+        return [float(self.anchor), float(self.steps), float(self.dt), *map(float, self.q), *map(float, self.qd),
+                *map(float, self.motor_torque), float(self.command is not None), *map(float, command),
+                float(self.command_since), float(self.command_expired), *(float(s) for s in self.switches),
+                *map(float, self.gains), float(self.paused), float(self.seen_until_ns)]
+
+    @classmethod
+    def from_values(cls, values: Sequence[float]) -> DynamicsSnapshot:
+        """The snapshot in a message's ``data``; ValueError naming what is wrong."""
+        values = [float(v) for v in values]
+        if len(values) != LENGTH:
+            raise ValueError(f'a dynamics snapshot has {LENGTH} values, got {len(values)}')
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError('a dynamics snapshot holds a value that is not finite')
+        steps, dt, seen = values[1], values[2], values[32]
+        if steps < 0 or steps != int(steps) or seen != int(seen):
+            raise ValueError(f'dynamics snapshot: steps and seen until must be whole numbers, got {steps}, {seen}')
+        if dt <= 0.0:
+            raise ValueError(f'dynamics snapshot: dt must be > 0, got {dt}')
+        flags = [values[i] for i in (19, 23, 24, 25, 26, 27, 28, 31)]
+        if any(flag not in (0.0, 1.0) for flag in flags):
+            raise ValueError('dynamics snapshot: a flag is neither 0 nor 1')
+        return cls(anchor=values[0], steps=int(steps), dt=dt, q=tuple(values[3:10]), qd=tuple(values[10:17]),
+                   motor_torque=(values[17], values[18]),
+                   command=(values[20], values[21]) if values[19] else None, command_since=values[22],
+                   command_expired=bool(values[23]), switches=tuple(bool(v) for v in values[24:29]),
+                   gains=(values[29], values[30]), paused=bool(values[31]), seen_until_ns=int(seen))
+
+
+class SnapshotKeeper:
+    """What a keeper node republishes: the newest snapshot, its seen-until the newest step stamp received.
+
+    ``stamp`` takes the header stamp of every step message the keeper receives, per topic: one
+    writer per topic delivers in order, so each topic's last stamp is where that stream is,
+    across a reset too (time going back), and their maximum is the newest state the keeper saw.
+    """
+
+    def __init__(self) -> None:
+        self._snapshot: DynamicsSnapshot | None = None
+        self._last_ns: dict[str, int] = {}
+        self._changed = True  # a keeper announces at start that it holds nothing yet
+
+    def snapshot(self, values: Sequence[float]) -> None:
+        """A snapshot from the dynamics; ValueError (and nothing kept) if it is malformed."""
+        self._snapshot = DynamicsSnapshot.from_values(values)
+        self._changed = True
+
+    def stamp(self, topic: str, stamp_ns: int) -> None:
+        """The header stamp of a step message received on ``topic``."""
+        if self._last_ns.get(topic) != stamp_ns:
+            self._last_ns[topic] = stamp_ns
+            self._changed = self._changed or self._snapshot is not None
+
+    def held(self) -> list[float]:
+        """The values to republish: the snapshot with seen-until set, or [] (nothing held yet)."""
+        if self._snapshot is None:
+            return []
+        seen = max(self._last_ns.values(), default=self._snapshot.seen_until_ns)
+        return replace(self._snapshot, seen_until_ns=seen).to_values()
+
+    def due(self) -> list[float] | None:
+        """``held()`` if it changed since the last call, else None."""
+        if not self._changed:
+            return None
+        self._changed = False
+        return self.held()
+
+
+def snapshot_message(values: Sequence[float]):
+    """A std_msgs/Float64MultiArray with LABEL and ``values`` ([] = nothing held)."""
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+    msg = Float64MultiArray(data=[float(v) for v in values])
+    msg.layout.dim = [MultiArrayDimension(label=LABEL, size=len(values), stride=len(values))]
+    return msg
+
+
+def snapshot_from_message(msg) -> DynamicsSnapshot | None:
+    """The snapshot in a message (None: the keeper holds nothing); ValueError if it is no snapshot."""
+    labels = [dim.label for dim in msg.layout.dim]
+    if labels != [LABEL]:
+        raise ValueError(f'not a dynamics snapshot: layout labels {labels}, expected [{LABEL!r}]')
+    if len(msg.data) == 0:
+        return None
+    return DynamicsSnapshot.from_values(msg.data)
