@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -81,26 +82,26 @@ class Graph:
             if status is not None:
                 raise NodeDied(name, status, self.log(name))
 
-    def stop(self, name: str, sig: int = signal.SIGTERM, timeout: float = 10.0) -> int | None:
-        """Signal node ``name`` and wait for it; SIGKILL after ``timeout``. Its exit status."""
-        process = self.processes.get(name)
-        if process is None:
-            return None
-        if process.poll() is None:
-            _signal(process, sig)
+    def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
+        """Signal every running node, ``first`` with SIGINT (in that order) and then the rest with
+        SIGTERM, and wait for them together; SIGKILL whatever is left after ``timeout``.
+
+        All are signalled before any is waited for: each node needs a few hundred milliseconds to
+        leave DDS, and one after another the launcher would take seconds to stop.
+        """
+        order = [*first, *(name for name in reversed(list(self.processes)) if name not in first)]
+        running = [self.processes[name] for name in order
+                   if name in self.processes and self.processes[name].poll() is None]
+        for process in running:
+            first_ones = [self.processes.get(name) for name in first]
+            _signal(process, signal.SIGINT if process in first_ones else signal.SIGTERM)
+        deadline = time.monotonic() + timeout
+        for process in running:
             try:
-                process.wait(timeout)
+                process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 _signal(process, signal.SIGKILL)
                 process.wait()
-        return process.returncode
-
-    def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
-        """Stop ``first`` with SIGINT in that order (each waited for), then the rest with SIGTERM."""
-        for name in first:
-            self.stop(name, signal.SIGINT, timeout)
-        for name in reversed(list(self.processes)):
-            self.stop(name, signal.SIGTERM, timeout)
 
 
 def child_processes(pid: int) -> dict[int, str]:
