@@ -56,6 +56,9 @@ RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
 At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
 steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
 
+STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES)
+"""The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
+
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, REFERENCE, REFERENCE_TRAJECTORY,
             REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
 """Topics a run records, in this order."""

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+import os
 import signal
 import sys
+import threading
 import time
 from typing import Callable, Iterable
 
@@ -59,8 +61,13 @@ class StopSignals:
     A background job of a non-interactive shell (``cmd &`` in a script) starts with SIGINT
     ignored, and Python then installs no SIGINT handler of its own; ``ros2 run`` and ``ros2
     launch`` deliver SIGINT (Ctrl-C to the process group) and SIGTERM. Both handlers are
-    installed explicitly and only note the first signal and when it came (``time.time_ns``);
-    the caller's loop acts on it. ``restore()`` puts the previous handlers back.
+    installed explicitly and only note the first signal and when it came (``time.time_ns``).
+
+    A Python handler runs only when the main thread runs Python, not while it waits inside an
+    executor; so the signal is also written to a wakeup pipe, and a thread reading it calls the
+    functions in :attr:`wakers` (e.g. a guard condition's ``trigger``; clear them before it goes):
+    the wait returns, the handler runs, the caller's loop sees :attr:`requested`. ``restore()``
+    puts the previous handlers back.
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -68,11 +75,22 @@ class StopSignals:
     def __init__(self) -> None:
         self.signum: int | None = None
         self.at_ns: int | None = None
+        self.wakers: list[Callable[[], None]] = []
+        self._pipe_out, self._pipe_in = os.pipe()
+        os.set_blocking(self._pipe_in, False)
+        self._previous_wakeup_fd = signal.set_wakeup_fd(self._pipe_in)
         self._previous = {signum: signal.signal(signum, self._note) for signum in self.SIGNALS}
+        threading.Thread(target=self._watch, name='stop-signals', daemon=True).start()
 
     def _note(self, signum: int, _frame: object) -> None:
         if self.signum is None:
             self.signum, self.at_ns = signum, time.time_ns()
+
+    def _watch(self) -> None:
+        while os.read(self._pipe_out, 16):  # empty once restore() closed the pipe
+            for wake in list(self.wakers):
+                wake()
+        os.close(self._pipe_out)
 
     @property
     def requested(self) -> bool:
@@ -86,10 +104,9 @@ class StopSignals:
     def restore(self) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
-
-
-SPIN_PERIOD = 0.05
-"""Seconds the executor waits at most before the loop looks at the stop request again."""
+        signal.set_wakeup_fd(self._previous_wakeup_fd)
+        self.wakers.clear()
+        os.close(self._pipe_in)
 
 
 def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
@@ -98,8 +115,8 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     The signals are handled by :class:`StopSignals`, not by rclpy's handlers: those shut the
     context down from another thread, which raced with the node's construction (a publisher
     created on an invalid context) and with the executor's wait (a node that never woke up).
-    Here a signal during construction lets the node finish building and exit 0, and the loop
-    notices a signal within SPIN_PERIOD. A configuration error while building the node (e.g. a
+    Here a signal during construction lets the node finish building and exit 0, and a signal
+    while it spins wakes the executor at once. A configuration error while building the node (e.g. a
     bad robot file) is logged on one line and gives exit status 1.
     """
     stop = StopSignals()
@@ -110,12 +127,17 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
         node = factory()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
+        # a triggered guard condition with a callback ends spin_once (executor.wake() would only
+        # make it rebuild its wait set and wait again); the callback itself has nothing to do
+        wake = node.create_guard_condition(lambda: None)
+        stop.wakers.append(wake.trigger)
         while not stop.requested and rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_PERIOD)
+            executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         status = 1
     finally:
+        stop.wakers.clear()
         if executor is not None:
             executor.shutdown()
         if node is not None:

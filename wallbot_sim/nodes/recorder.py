@@ -40,6 +40,10 @@ from wallbot_msgs_py import bagio, topics
 NODE_NAME = topics.NODE_RECORDER
 PROGRESS_EVERY = 20
 """Publish record_progress every this many /clock messages (and from a 50 ms timer)."""
+SPIN_PERIOD = 0.05
+"""Longest wait of the executor (s). The EventsExecutor cannot be woken from another thread (its
+wake() does not end spin_once, guard conditions are not supported), so a signal is handled at the
+next callback or after this. Either way before any message taken after it is written."""
 
 
 def message_class(type_name: str) -> Any:
@@ -81,6 +85,7 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self.stop = stop
             self.received = 0
             self.refused = 0
+            self.last_log_ns = 0
             self._subscriptions_by_name = {}
             self._topics_by_name = {}
             self._taken_after_stop: dict[str, list[bytes]] = {}
@@ -93,8 +98,13 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                     subscription_qos(topic), raw=True)
             self.create_timer(0.2, writer.flush_if_due)
             # back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock
-            # stamp up to which every message has been written
+            # stamp up to which every message has been written. The per-step topics arrive on
+            # readers of their own and may lag /clock (seen: odometry 0.48 s behind under load), so
+            # it is the oldest of the newest stamps of /clock and each per-step topic
             self.progress_ns: int | None = None
+            self._newest_stamps: dict[str, int] = {}
+            self._stamped = {self.resolve_topic_name(t.name) for t in (*topics.STEP_STAMPED, topics.CLOCK)
+                             if t in recorded}
             self._progress_sent: int | None = None
             self._clocks = 0
             self._progress_pub = None
@@ -118,10 +128,13 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
             self.writer.write(connection, received_ns, data)
+            self.last_log_ns = received_ns
             self.received += 1
-            if topic.name == topics.CLOCK.name and self._progress_pub is not None and len(data) >= 12:
-                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
-                self.progress_ns = sec * 1_000_000_000 + nanosec
+            if name in self._stamped and self._progress_pub is not None and len(data) >= 12:
+                sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)  # header / clock first
+                self._newest_stamps[name] = sec * 1_000_000_000 + nanosec
+                self.progress_ns = min(self._newest_stamps.values())
+            if topic.name == topics.CLOCK.name and self._progress_pub is not None:
                 self._clocks += 1
                 if self._clocks % PROGRESS_EVERY == 0:
                     self._publish_progress()
@@ -149,11 +162,19 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                 held = self._taken_after_stop.pop(name, [])
                 if queued:
                     for data in held:  # received no later than the first queued one
-                        self._on_message(topic, name, data, queued[0][0])
+                        self._on_message(topic, name, data, self._log_time(queued[0][0]))
                 else:
                     self.refused += len(held)
                 for received_ns, data in queued:
-                    self._on_message(topic, name, data, received_ns)
+                    self._on_message(topic, name, data, self._log_time(received_ns))
+
+        def _log_time(self, received_ns: int) -> int:
+            """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
+            before the last log time written: a message written by its callback carries the later
+            callback time, and readers take a bag in log-time order (a step back would read as a
+            second life of the dynamics)."""
+            clock = self.get_clock()
+            return max(clock.now().nanoseconds if clock.ros_time_is_active else received_ns, self.last_log_ns)
 
         def _publish_progress(self) -> None:
             if self.progress_ns is None or self.progress_ns == self._progress_sent:
@@ -192,7 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from wallbot_sim.bag.errors import BagError
     from wallbot_sim.bag.writer import BagWriter
-    from wallbot_sim.nodes.common import SPIN_PERIOD, StopSignals
+    from wallbot_sim.nodes.common import StopSignals
 
     argv = list(sys.argv if argv is None else argv)
     stop = StopSignals()
