@@ -83,20 +83,24 @@ class Graph:
                 raise NodeDied(name, status, self.log(name))
 
     def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
-        """Signal every running node, ``first`` with SIGINT (in that order) and then the rest with
-        SIGTERM, and wait for them together; SIGKILL whatever is left after ``timeout``.
+        """Signal every running node (:meth:`signal_all`) and wait for them (:meth:`wait_all`)."""
+        self.signal_all(first)
+        self.wait_all(timeout)
 
-        All are signalled before any is waited for: each node needs a few hundred milliseconds to
-        leave DDS, and one after another the launcher would take seconds to stop.
-        """
+    def signal_all(self, first: tuple[str, ...] = ()) -> None:
+        """Signal every running node, ``first`` with SIGINT (in that order) and then the rest with
+        SIGTERM, without waiting: each node needs a few hundred milliseconds to leave DDS, and one
+        after another the launcher would take seconds to stop."""
         order = [*first, *(name for name in reversed(list(self.processes)) if name not in first)]
-        running = [self.processes[name] for name in order
-                   if name in self.processes and self.processes[name].poll() is None]
-        for process in running:
-            first_ones = [self.processes.get(name) for name in first]
-            _signal(process, signal.SIGINT if process in first_ones else signal.SIGTERM)
+        for name in order:
+            process = self.processes.get(name)
+            if process is not None and process.poll() is None:
+                _signal(process, signal.SIGINT if name in first else signal.SIGTERM)
+
+    def wait_all(self, timeout: float = 10.0) -> None:
+        """Wait for every node to exit; SIGKILL whatever is left after ``timeout``."""
         deadline = time.monotonic() + timeout
-        for process in running:
+        for process in self.processes.values():
             try:
                 process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
