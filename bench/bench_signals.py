@@ -6,7 +6,8 @@ of ``wallbot-sim run --controller`` records for a second, then the recorder and 
 get the signal one after another, and the time from ``kill`` to the job's exit is taken; then a
 ``wallbot-sim run`` gets SIGINT once it has simulated a second. For the recorder it also prints
 how long after the kill it handled the signal (``wallbot.recorder.stop_time_ns`` in the bag) and
-how far the bag's last receive time lies before that.
+how far the bag's last receive time lies before that, and when it had written the last message
+and began to close the bag (its log line).
 
     python bench/bench_signals.py [--rounds 3]
 """
@@ -85,8 +86,10 @@ def graph_round(sig: int, work: Path, env: dict[str, str]) -> dict[str, float]:
                 custom = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']['custom_data']
                 stop_ns = int(custom['wallbot.recorder.stop_time_ns'])
                 last_ns = max(raw.timestamp for raw in messages(bag))
+                logged = re.search(r'\[(\d+\.\d+)\] \[wallbot\.recorder\]: stopped by', jobs[name].log.read_text())
                 times['recorder: signal handled after'] = (stop_ns - sent_ns) * 1e-9
                 times['recorder: last receive before that'] = (stop_ns - last_ns) * 1e-9
+                times['recorder: bag complete, closing after'] = float(logged.group(1)) - sent_ns * 1e-9
         return times
     finally:
         for job in jobs.values():
