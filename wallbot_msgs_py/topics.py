@@ -52,7 +52,8 @@ REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiD
 REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
 CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
 RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
-"""Published by a recorder: the newest /clock stamp up to which it has taken every message.
+"""Published by a recorder: the newest stamp up to which it has written /clock and every message
+of STEP_STAMPED.
 At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
 steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
 

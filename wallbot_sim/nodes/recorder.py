@@ -11,8 +11,9 @@ Design (see docs/bags.md):
   KEEP_ALL is what makes it lossless at real-time factor 0: a reader whose history is full stops
   acknowledging, so the publisher's ``wait_for_all_acked`` back-pressure holds the simulation
   instead of the DDS history overwriting unread samples;
-* record_progress (rosgraph_msgs/Clock): the newest /clock stamp written, every PROGRESS_EVERY
-  clock messages and from a 50 ms timer; at real-time factor 0 the dynamics node stays within its
+* record_progress (rosgraph_msgs/Clock): the newest stamp up to which /clock and every per-step
+  topic (topics.STEP_STAMPED) have been written, every PROGRESS_EVERY clock messages and from a
+  50 ms timer; at real-time factor 0 the dynamics node stays within its
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
