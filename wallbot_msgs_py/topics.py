@@ -57,7 +57,8 @@ REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiD
 REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
 CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
 RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
-"""Published by a recorder: the newest /clock stamp up to which it has taken every message.
+"""Published by a recorder: the newest stamp up to which it has written /clock and every message
+of STEP_STAMPED.
 At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
 steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
 STATE_SNAPSHOT = Topic('state_snapshot', 'std_msgs/msg/Float64MultiArray', Durability.TRANSIENT_LOCAL, depth=1)
@@ -66,6 +67,9 @@ RESUME_STATE = Topic('resume_state', 'std_msgs/msg/Float64MultiArray', Durabilit
 """Published by a keeper (the recorder): the newest snapshot it holds, which outlives a killed dynamics;
 a restarted dynamics continues from it."""
 STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES)
+"""The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
+
+STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT)
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,

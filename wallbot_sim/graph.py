@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -81,26 +82,30 @@ class Graph:
             if status is not None:
                 raise NodeDied(name, status, self.log(name))
 
-    def stop(self, name: str, sig: int = signal.SIGTERM, timeout: float = 10.0) -> int | None:
-        """Signal node ``name`` and wait for it; SIGKILL after ``timeout``. Its exit status."""
-        process = self.processes.get(name)
-        if process is None:
-            return None
-        if process.poll() is None:
-            _signal(process, sig)
+    def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
+        """Signal every running node (:meth:`signal_all`) and wait for them (:meth:`wait_all`)."""
+        self.signal_all(first)
+        self.wait_all(timeout)
+
+    def signal_all(self, first: tuple[str, ...] = ()) -> None:
+        """Signal every running node, ``first`` with SIGINT (in that order) and then the rest with
+        SIGTERM, without waiting: each node needs a few hundred milliseconds to leave DDS, and one
+        after another the launcher would take seconds to stop."""
+        order = [*first, *(name for name in reversed(list(self.processes)) if name not in first)]
+        for name in order:
+            process = self.processes.get(name)
+            if process is not None and process.poll() is None:
+                _signal(process, signal.SIGINT if name in first else signal.SIGTERM)
+
+    def wait_all(self, timeout: float = 10.0) -> None:
+        """Wait for every node to exit; SIGKILL whatever is left after ``timeout``."""
+        deadline = time.monotonic() + timeout
+        for process in self.processes.values():
             try:
-                process.wait(timeout)
+                process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 _signal(process, signal.SIGKILL)
                 process.wait()
-        return process.returncode
-
-    def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
-        """Stop ``first`` with SIGINT in that order (each waited for), then the rest with SIGTERM."""
-        for name in first:
-            self.stop(name, signal.SIGINT, timeout)
-        for name in reversed(list(self.processes)):
-            self.stop(name, signal.SIGTERM, timeout)
 
 
 def child_processes(pid: int) -> dict[int, str]:

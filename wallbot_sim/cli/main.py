@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import signal
 import sys
 from typing import NoReturn, Sequence
 
 from wallbot_sim.bag.errors import BagError
+from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.model.errors import ModelError
 from wallbot_sim.plots.errors import PlotError
@@ -65,8 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Parse, run the subcommand, turn user errors into one line and exit status 2."""
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    """Parse, run the subcommand, turn user errors into one line and exit status 2; Ctrl-C (SIGINT)
+    gives 130 and SIGTERM 143."""
+    signals.install()
     args = build_parser().parse_args(argv)
     try:
         return int(args.handler(args) or 0)

@@ -71,6 +71,20 @@ def publisher_qos(offered: tuple[Any, ...], topic_name: str) -> Any:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=reliability, durability=durability)
 
 
+ACK_SLICE = 0.05
+"""Seconds of one wait for acknowledgements: a signal is handled between two (not during one)."""
+
+
+def wait_acked(publisher: Any, seconds: float) -> bool:
+    """Whether every reader of ``publisher`` acknowledged within ``seconds``."""
+    from rclpy.duration import Duration
+    deadline = time.monotonic() + seconds
+    while not publisher.wait_for_all_acked(Duration(seconds=ACK_SLICE)):
+        if time.monotonic() >= deadline:
+            return False
+    return True
+
+
 def main(args: argparse.Namespace) -> int:
     from wallbot_sim.bag.reader import info, messages, resolve_topics
 
@@ -87,7 +101,6 @@ def main(args: argparse.Namespace) -> int:
     install_fast_heartbeat()  # so the final wait_for_all_acked does not wait a 3 s heartbeat
 
     import rclpy
-    from rclpy.duration import Duration
     from rclpy.signals import SignalHandlerOptions
 
     from wallbot_sim.nodes.recorder import message_class
@@ -141,11 +154,11 @@ def main(args: argparse.Namespace) -> int:
                 total += 1
                 sent[raw.topic] += 1
                 if sent[raw.topic] % windows[raw.topic] == 0:  # back-pressure: never overrun a reader
-                    publisher.wait_for_all_acked(Duration(seconds=1.0))
+                    wait_acked(publisher, 1.0)
             if not args.loop:
                 break
         for publisher in publishers.values():
-            publisher.wait_for_all_acked(Duration(seconds=2.0))
+            wait_acked(publisher, 2.0)
         if not args.quiet:
             print(f'played {total} messages on {len(publishers)} topics from {bag.path}', file=sys.stderr)
         return 0

@@ -140,8 +140,8 @@ def check_nodes(graph: Graph, reported: set[str]) -> None:
 
 
 def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
-    """Start the graph and return once the recorder holds ``duration`` seconds; NodeDied if an
-    essential node exits."""
+    """Start the graph, return once the recorder holds ``duration`` seconds, and stop it (also
+    when interrupted); NodeDied if an essential node exits."""
     monitor = Monitor()
     reported: set[str] = set()
     try:
@@ -169,7 +169,9 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             check_nodes(graph, reported)
             monitor.spin(0.1)
     finally:
-        monitor.close()
+        graph.signal_all(first=(RECORDER,))  # the recorder's bag ends at its signal
+        monitor.close()  # while the nodes leave DDS too
+        graph.wait_all()
 
 
 def main(args: argparse.Namespace) -> int:
@@ -221,14 +223,10 @@ def main(args: argparse.Namespace) -> int:
         try:
             run_graph(graph, specs, duration, Progress(duration, sys.stderr))
         except NodeDied as died:
-            graph.stop_all(first=(RECORDER,))
             raise CliError(f'{died}; partial bag kept in {bag}', code=1) from None
         except KeyboardInterrupt:
-            graph.stop_all(first=(RECORDER,))
             print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
             return 130
-        finally:
-            graph.stop_all(first=(RECORDER,))  # no-op for nodes already stopped
     return report(bag, out, robot, plots=not args.no_plots)
 
 

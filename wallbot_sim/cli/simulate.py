@@ -11,6 +11,7 @@ from typing import TextIO
 
 import numpy as np
 
+from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -119,10 +120,11 @@ def main(args: argparse.Namespace) -> int:
             writer.writerow(CSV_COLUMNS)
 
         def on_step(out: StepOutputs) -> None:
-            if writer is not None:
-                writer.writerow(csv_row(out))
-            for sink in sinks:
-                sink.write(out)
+            with signals.deferred():  # a signal ends the run between two complete steps
+                if writer is not None:
+                    writer.writerow(csv_row(out))
+                for sink in sinks:
+                    sink.write(out)
             progress.update(out.t)
 
         try:

@@ -1,17 +1,22 @@
-"""Small helpers shared by the nodes: parameter declaration with descriptors, a clean main()."""
+"""Small helpers shared by the nodes: parameter declaration with descriptors, signal handling, a clean main()."""
 
 from __future__ import annotations
 
 import math
+import os
+import signal
 import sys
+import threading
+import time
 from typing import Callable, Iterable
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions
 
 from wallbot_sim.model import ModelError
 
@@ -50,35 +55,98 @@ def parameter_result(reasons: Iterable[str | None]) -> SetParametersResult:
     return SetParametersResult(successful=not problems, reason='; '.join(problems))
 
 
-def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Create the node and spin it until Ctrl-C or SIGTERM; exit 0 without a traceback.
+class StopSignals:
+    """SIGINT and SIGTERM as a request to stop, whatever disposition the process inherited.
 
-    A configuration error while building the node (e.g. a bad robot file) is logged on one
-    line and gives exit status 1.
+    A background job of a non-interactive shell (``cmd &`` in a script) starts with SIGINT
+    ignored, and Python then installs no SIGINT handler of its own; ``ros2 run`` and ``ros2
+    launch`` deliver SIGINT (Ctrl-C to the process group) and SIGTERM. Both handlers are
+    installed explicitly and only note the first signal and when it came (``time.time_ns``).
+
+    A Python handler runs only when the main thread runs Python, not while it waits inside an
+    executor; so the signal is also written to a wakeup pipe, and a thread reading it calls the
+    functions in :attr:`wakers` (e.g. a guard condition's ``trigger``; clear them before it goes):
+    the wait returns, the handler runs, the caller's loop sees :attr:`requested`. ``restore()``
+    puts the previous handlers back.
     """
-    rclpy.init(args=args)  # installs SIGINT and SIGTERM handlers that shut the context down
-    node = None
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.at_ns: int | None = None
+        self.wakers: list[Callable[[], None]] = []
+        self._pipe_out, self._pipe_in = os.pipe()
+        os.set_blocking(self._pipe_in, False)
+        self._previous_wakeup_fd = signal.set_wakeup_fd(self._pipe_in)
+        self._previous = {signum: signal.signal(signum, self._note) for signum in self.SIGNALS}
+        threading.Thread(target=self._watch, name='stop-signals', daemon=True).start()
+
+    def _note(self, signum: int, _frame: object) -> None:
+        if self.signum is None:
+            self.signum, self.at_ns = signum, time.time_ns()
+
+    def _watch(self) -> None:
+        while os.read(self._pipe_out, 16):  # empty once restore() closed the pipe
+            for wake in list(self.wakers):
+                wake()
+        os.close(self._pipe_out)
+
+    @property
+    def requested(self) -> bool:
+        return self.signum is not None
+
+    @property
+    def name(self) -> str:
+        """The signal's name (SIGINT, SIGTERM), or '' before one came."""
+        return signal.Signals(self.signum).name if self.signum is not None else ''
+
+    def restore(self) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        signal.set_wakeup_fd(self._previous_wakeup_fd)
+        self.wakers.clear()
+        os.close(self._pipe_in)
+
+
+def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
+    """Create the node and spin it until SIGINT or SIGTERM; exit 0 without a traceback.
+
+    The signals are handled by :class:`StopSignals`, not by rclpy's handlers: those shut the
+    context down from another thread, which raced with the node's construction (a publisher
+    created on an invalid context) and with the executor's wait (a node that never woke up).
+    Here a signal during construction lets the node finish building and exit 0, and a signal
+    while it spins wakes the executor at once. A configuration error while building the node (e.g. a
+    bad robot file) is logged on one line and gives exit status 1.
+    """
+    stop = StopSignals()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = executor = None
     status = 0
     try:
         node = factory()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        # a triggered guard condition with a callback ends spin_once (executor.wake() would only
+        # make it rebuild its wait set and wait again); the callback itself has nothing to do
+        wake = node.create_guard_condition(lambda: None)
+        stop.wakers.append(wake.trigger)
+        while not stop.requested and rclpy.ok():
+            executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         status = 1
-    except Exception:  # noqa: BLE001
-        # A signal that shuts the context down while the executor builds its wait set makes rclpy
-        # raise RCLError ('the given context is not valid') instead of ExternalShutdownException.
-        if node is None or node.context.ok():
-            raise
     finally:
+        stop.wakers.clear()
+        if executor is not None:
+            executor.shutdown()
         if node is not None:
             close = getattr(node, 'close', None)
             if close is not None:
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+        stop.restore()
     return status
 
 

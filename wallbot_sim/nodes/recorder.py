@@ -11,8 +11,9 @@ Design (see docs/bags.md):
   KEEP_ALL is what makes it lossless at real-time factor 0: a reader whose history is full stops
   acknowledging, so the publisher's ``wait_for_all_acked`` back-pressure holds the simulation
   instead of the DDS history overwriting unread samples;
-* record_progress (rosgraph_msgs/Clock): the newest /clock stamp written, every PROGRESS_EVERY
-  clock messages and from a 50 ms timer; at real-time factor 0 the dynamics node stays within its
+* record_progress (rosgraph_msgs/Clock): the newest stamp up to which /clock and every per-step
+  topic (topics.STEP_STAMPED) have been written, every PROGRESS_EVERY clock messages and from a
+  50 ms timer; at real-time factor 0 the dynamics node stays within its
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
@@ -20,18 +21,22 @@ Design (see docs/bags.md):
   every KEEP_PERIOD when it changed) on ``resume_state``, with the newest step stamp it received as
   ``seen_until``, so a dynamics restarted after a SIGKILL continues where the bag ends
   (``wallbot_msgs_py.snapshot``);
-* SIGINT/SIGTERM: stop taking new work, drain what DDS already delivered, close the bag
-  (metadata.yaml + MCAP summary), exit 0. The writer flushes a closed chunk at least every 0.5 s,
-  so after a SIGKILL ``wallbot-sim bag reindex`` recovers all but the last half second.
+* SIGINT/SIGTERM (handled however the process was started, see ``common.StopSignals``): the
+  moment the signal is handled is the end of the recording. No message taken after it is written
+  as it comes; what DDS had received before it and the executor had not taken yet is taken
+  directly from the subscriptions with its DDS receive time and written with that time, and
+  everything received later is left unwritten. Then the bag is closed (metadata.yaml with
+  ``wallbot.recorder.stop_signal`` and ``wallbot.recorder.stop_time_ns``, MCAP summary) and the
+  node exits 0, within a second whatever the rest of the graph still publishes. The writer
+  flushes a closed chunk at least every 0.5 s, so after a SIGKILL ``wallbot-sim bag reindex``
+  recovers all but the last half second.
 """
 
 from __future__ import annotations
 
 import importlib
-import signal
 import struct
 import sys
-import time
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -43,10 +48,10 @@ PROGRESS_EVERY = 20
 """Publish record_progress every this many /clock messages (and from a 50 ms timer)."""
 KEEP_PERIOD = 0.05
 """Wall seconds between republications of the kept snapshot (when it changed)."""
-DRAIN_QUIET = 0.3
-"""Seconds without a new message that end the drain at shutdown."""
-DRAIN_LIMIT = 5.0
-"""Longest drain at shutdown (s)."""
+SPIN_PERIOD = 0.05
+"""Longest wait of the executor (s). The EventsExecutor cannot be woken from another thread (its
+wake() does not end spin_once, guard conditions are not supported), so a signal is handled at the
+next callback or after this. Either way before any message taken after it is written."""
 
 
 def leading_stamp_ns(data: bytes) -> int:
@@ -84,7 +89,7 @@ def graph_topics(names: Sequence[str]) -> list[topics.Topic]:
     return found
 
 
-def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
+def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
     from rclpy.node import Node
 
     class Recorder(Node):
@@ -93,18 +98,29 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
         def __init__(self) -> None:
             super().__init__(NODE_NAME, namespace=topics.NAMESPACE)
             self.writer = writer
+            self.stop = stop
             self.received = 0
+            self.refused = 0
+            self.last_log_ns = 0
             self._subscriptions_by_name = {}
+            self._topics_by_name = {}
+            self._taken_after_stop: dict[str, list[bytes]] = {}
             for topic in recorded:
                 name = self.resolve_topic_name(topic.name)
+                self._topics_by_name[name] = topic
                 self._subscriptions_by_name[name] = self.create_subscription(
                     message_class(topic.type), name,
                     lambda data, topic=topic, name=name: self._on_message(topic, name, data),
                     subscription_qos(topic), raw=True)
             self.create_timer(0.2, writer.flush_if_due)
             # back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock
-            # stamp up to which every message has been written
+            # stamp up to which every message has been written. The per-step topics arrive on
+            # readers of their own and may lag /clock (seen: odometry 0.48 s behind under load), so
+            # it is the oldest of the newest stamps of /clock and each per-step topic
             self.progress_ns: int | None = None
+            self._newest_stamps: dict[str, int] = {}
+            self._stamped = {self.resolve_topic_name(t.name) for t in (*topics.STEP_STAMPED, topics.CLOCK)
+                             if t in recorded}
             self._progress_sent: int | None = None
             self._clocks = 0
             self._progress_pub = None
@@ -124,7 +140,7 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
 
             from wallbot_msgs_py.qos import qos_profile
             self.keeper = SnapshotKeeper()
-            self._stamped = {self.resolve_topic_name(t.name) for t in topics.STEP_STAMPED if t in recorded}
+            self._keeper_stamped = {self.resolve_topic_name(t.name) for t in topics.STEP_STAMPED if t in recorded}
             self.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
                                      qos_profile(topics.STATE_SNAPSHOT))
             self._resume_pub = self.create_publisher(Float64MultiArray, topics.RESUME_STATE.name,
@@ -142,19 +158,64 @@ def _make_node(writer: Any, recorded: list[topics.Topic]) -> Any:
             if values is not None:
                 self._resume_pub.publish(snapshot_message(values))
 
-        def _on_message(self, topic: topics.Topic, name: str, data: bytes) -> None:
+        def _on_message(self, topic: topics.Topic, name: str, data: bytes, received_ns: int | None = None) -> None:
+            if received_ns is None:  # from the executor
+                if self.stop.requested:  # taken after the stop: finish() decides, knowing more
+                    self._taken_after_stop.setdefault(name, []).append(data)
+                    return
+                received_ns = self.get_clock().now().nanoseconds
             connection = self.writer.connection(name)
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
-            self.writer.write(connection, self.get_clock().now().nanoseconds, data)
+            self.writer.write(connection, received_ns, data)
+            self.last_log_ns = received_ns
             self.received += 1
-            if name in self._stamped and len(data) >= 12:
+            if name in self._keeper_stamped and len(data) >= 12:
                 self.keeper.stamp(name, leading_stamp_ns(data))
-            if topic.name == topics.CLOCK.name and self._progress_pub is not None and len(data) >= 12:
-                self.progress_ns = leading_stamp_ns(data)
+            if name in self._stamped and self._progress_pub is not None and len(data) >= 12:
+                self._newest_stamps[name] = leading_stamp_ns(data)
+                self.progress_ns = min(self._newest_stamps.values())
+            if topic.name == topics.CLOCK.name and self._progress_pub is not None:
                 self._clocks += 1
                 if self._clocks % PROGRESS_EVERY == 0:
                     self._publish_progress()
+
+        def finish(self) -> None:
+            """After the stop: write what DDS received up to the stop and nobody took yet.
+
+            Taken directly from each subscription, oldest first, with its DDS receive time, until
+            one received after the stop (the rest of that queue is later still). A message the
+            executor took after the stop was received before every message still queued behind
+            it: it is written if one of those was received before the stop, else refused.
+            """
+            for name, subscription in self._subscriptions_by_name.items():
+                topic, queued = self._topics_by_name[name], []
+                while True:
+                    with subscription.handle:
+                        taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+                    if taken is None:
+                        break
+                    data, info = taken
+                    if info['received_timestamp'] > self.stop.at_ns:
+                        self.refused += 1  # the queue behind it is later still: left there
+                        break
+                    queued.append((info['received_timestamp'], data))
+                held = self._taken_after_stop.pop(name, [])
+                if queued:
+                    for data in held:  # received no later than the first queued one
+                        self._on_message(topic, name, data, self._log_time(queued[0][0]))
+                else:
+                    self.refused += len(held)
+                for received_ns, data in queued:
+                    self._on_message(topic, name, data, self._log_time(received_ns))
+
+        def _log_time(self, received_ns: int) -> int:
+            """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
+            before the last log time written: a message written by its callback carries the later
+            callback time, and readers take a bag in log-time order (a step back would read as a
+            second life of the dynamics)."""
+            clock = self.get_clock()
+            return max(clock.now().nanoseconds if clock.ros_time_is_active else received_ns, self.last_log_ns)
 
         def _publish_progress(self) -> None:
             if self.progress_ns is None or self.progress_ns == self._progress_sent:
@@ -193,16 +254,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from wallbot_sim.bag.errors import BagError
     from wallbot_sim.bag.writer import BagWriter
+    from wallbot_sim.nodes.common import StopSignals
 
     argv = list(sys.argv if argv is None else argv)
-    stop = {'signal': None}
-
-    def request_stop(signum: int, _frame: Any) -> None:
-        stop['signal'] = signum
-
+    stop = StopSignals()
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGINT, request_stop)
-    signal.signal(signal.SIGTERM, request_stop)
     writer = node = executor = None
     try:
         from rclpy.node import Node
@@ -227,18 +283,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f'recorder_node: error: {error}', file=sys.stderr)
             return 2
         writer.set_custom_data('wallbot.recorder', 'recorder_node')
-        node = _make_node(writer, recorded)
+        node = _make_node(writer, recorded, stop)
         executor = _executor()
         executor.add_node(node)
-        while stop['signal'] is None and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        # drain what DDS delivered before the stop
-        deadline, quiet_since, seen = time.monotonic() + DRAIN_LIMIT, time.monotonic(), node.received
-        while time.monotonic() < deadline and time.monotonic() - quiet_since < DRAIN_QUIET and rclpy.ok():
-            executor.spin_once(timeout_sec=0.05)
-            if node.received != seen:
-                seen, quiet_since = node.received, time.monotonic()
-        node.get_logger().info(f'stopping: {node.received} messages recorded to {writer.path}')
+        while not stop.requested and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+        if stop.requested:
+            node.finish()
+            writer.set_custom_data('wallbot.recorder.stop_signal', stop.name)
+            writer.set_custom_data('wallbot.recorder.stop_time_ns', str(stop.at_ns))
+        node.get_logger().info(f'stopped by {stop.name or "shutdown"}: {node.received} messages recorded to '
+                               f'{writer.path}, {node.refused} taken after the signal left out')
         return 0
     finally:
         if writer is not None:
@@ -248,6 +303,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        stop.restore()
 
 
 if __name__ == '__main__':
