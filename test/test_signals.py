@@ -28,11 +28,11 @@ pytest.importorskip('rclpy')
 from wallbot_msgs_py import bagio  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.cli.main import main as cli  # noqa: E402
-from wallbot_sim.cli.run import node_specs  # noqa: E402
-from wallbot_sim.cli.simulate import CSV_COLUMNS  # noqa: E402
 from wallbot_sim.config import load_scenario  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
 from wallbot_sim.graph import child_processes  # noqa: E402
+from wallbot_sim.graph_description import describe_graph  # noqa: E402
+from wallbot_sim.rundata import CSV_COLUMNS  # noqa: E402
 
 STOP_BOUND = 3.0
 """Seconds from the signal to the exit, asserted only to catch a stall (a process that ignores the
@@ -124,7 +124,8 @@ def test_every_node_of_a_running_graph_stops_at_once(process_runner, tmp_path, s
     """The closed-loop graph of ``wallbot-sim run --controller``, each node a background job; the
     recorder is stopped first while the dynamics still publishes at 1 kHz, then each other node."""
     bag = tmp_path / 'bag'
-    specs = node_specs(load_scenario('circle'), DRIVEN, 600.0, 1.0, bag, controller_mass_scale=1.0)
+    specs = describe_graph(load_scenario('circle'), DRIVEN, duration=600.0, real_time_factor=1.0, bag=bag,
+                           controller_mass_scale=1.0)
     jobs = {spec.name: BackgroundJob(process_runner, spec.command(), spec.name, tmp_path) for spec in specs}
     assert set(jobs) == {'recorder', 'constraint_config', 'trajectory', 'controller', 'dynamics'}
     wait_for(lambda: bag_bytes(bag) > 200_000, 90, 'a second of recording')
