@@ -56,11 +56,12 @@ REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiD
                              Durability.TRANSIENT_LOCAL, depth=1)
 REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
 CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
-RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', depth=10)
+RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a recorder: the newest stamp up to which it has written /clock and every message
 of STEP_STAMPED.
-At real_time_factor 0 the dynamics node never runs more than its ``backpressure_window``
-steps ahead of it, so a recorder that falls behind slows the simulation instead of losing data."""
+The dynamics node does not run more than its ``backpressure_window`` steps ahead of it (waiting a
+bounded time for it to move), so a recorder that falls behind slows the simulation instead of
+losing data. Transient-local, so a restarted dynamics learns the progress at once."""
 STATE_SNAPSHOT = Topic('state_snapshot', 'std_msgs/msg/Float64MultiArray', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by the dynamics: its state every ``snapshot_period`` and at every event (layout: snapshot.py)."""
 RESUME_STATE = Topic('resume_state', 'std_msgs/msg/Float64MultiArray', Durability.TRANSIENT_LOCAL, depth=1)

@@ -76,6 +76,10 @@ from wallbot_sim.nodes.common import check_number, declare, heard_by_every, para
 from wallbot_sim.nodes.pacing import Pacer
 from wallbot_sim.nodes.resume import ResumeGate
 
+BACKPRESSURE_TIMEOUT = 2.0
+"""Wall seconds the loop waits for a recorder's progress to move before stepping on without it: a
+recorder that was killed, restarted or starved must not stop the simulation for ever (a restarted
+dynamics, or one beside a restarted recorder, would otherwise wait for a report that never comes)."""
 SLOWEST_FACTOR = 1e-3
 """Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
 LATE_LIMIT = 2e-3
@@ -236,6 +240,7 @@ class DynamicsNode(Node):
         self.progress_ns: int | None = None
         self.recorder_present = False
         self.recorder_checked = 0.0
+        self.held_since: tuple[float, int | None] | None = None  # wall time a back-pressure wait began, progress then
         self.last_outputs = None
         self.window = Window()
         self.window_lock = threading.Lock()
@@ -608,7 +613,18 @@ class DynamicsNode(Node):
             return False
         window = self.params['backpressure_window'] * self.sim.dt
         progress = -math.inf if self.progress_ns is None else self.progress_ns * 1e-9
-        return self.sim.t - progress > window
+        if self.sim.t - progress <= window:
+            self.held_since = None
+            return False
+        if self.held_since is None or self.held_since[1] != self.progress_ns:  # a new wait, or progress moved
+            self.held_since = (now, self.progress_ns)
+        if now - self.held_since[0] <= BACKPRESSURE_TIMEOUT:
+            return True
+        if self.held_since[0] > 0.0:  # once per stalled progress value
+            self.get_logger().warning(f'no record_progress for {BACKPRESSURE_TIMEOUT:g} s (wall) at t = {self.sim.t:.3f} s: '
+                                      'stepping on until the recorder reports again')
+            self.held_since = (-math.inf, self.progress_ns)
+        return False
 
     def _command_state(self) -> str:
         """The 'command' value of /diagnostics."""
