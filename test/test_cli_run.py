@@ -158,8 +158,13 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
     assert [fields(m) for m in references] == [by_stamp[stamp_ns(m)] for m in references]
     for topic in (topics.REFERENCE_TRAJECTORY, topics.REFERENCE_PATH, topics.CONSTRAINTS):
         name = topic.resolve()
-        assert len(graph[name]) == 1
-        assert [fields(m) for m in graph[name]] == [fields(m) for m in alone[name]], name
+        # latched (transient-local): DDS may deliver the sample again when a match is re-established
+        # on a loaded machine (seen: the constraints twice, 2 s apart); the same message either way
+        distinct = []
+        for m in graph[name]:
+            if fields(m) not in distinct:
+                distinct.append(fields(m))
+        assert distinct == [fields(m) for m in alone[name]], name
 
     def running(messages):
         return {diagnostics_without_wall_clock(m, same_moments=False) for m in messages
