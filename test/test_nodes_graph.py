@@ -432,7 +432,13 @@ def test_a_headless_bag_played_into_a_live_dynamics_node_drives_it(graph, tmp_pa
     graph.start('dynamics', 'initial_x:=0.8')
     odom = topics.ODOM.resolve(graph.namespace)
     graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
-    time.sleep(0.3)  # as start_graph: let the match complete both ways, so this test sees t = 0
+    # a message of the dynamics received here: matched both ways, so this test sees t = 0
+    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 15, 'the first diagnostics (1 Hz)')
+    # play waits for a subscriber on each topic: let that be the dynamics, not this test's own reader
+    # (play's latched messages end with it; acknowledged by this test alone they never reached the node)
+    played_topics = {topics.CONSTRAINTS.resolve(graph.namespace), topics.REFERENCE_TRAJECTORY.resolve(graph.namespace)}
+    for subscription in [sub for sub in graph.node.subscriptions if sub.topic_name in played_topics]:
+        graph.node.destroy_subscription(subscription)
     player = graph.runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(bag), '--topics',
                                  'constraints', 'reference_trajectory', '--wait-subscribers', '20', '--delay', '0'],
                                 'play')
