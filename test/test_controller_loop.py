@@ -78,11 +78,11 @@ def test_closed_loop_tracks_through_the_graph(tmp_path, process_runner, scenario
 # --- 2: controller killed --------------------------------------------------------------------------
 def test_killed_controller_falls_back_to_zero_torque_and_the_robot_rolls_down_as_the_model_says(
         tmp_path, process_runner):
-    duration = 6.0  # about 3 s of zero torque: several 1 Hz diagnostics even when the machine is slow
+    duration = 8.0  # 2-4 s of zero torque: several 1 Hz diagnostics even when the machine is slow
     out = tmp_path / 'run'
     process = start_run(process_runner, out, 'circle', duration)
     deadline = time.monotonic() + 90
-    while True:  # kill once about 2 s are simulated
+    while True:  # kill once more than 2 s are recorded (run prints a line every 2 s outside a terminal)
         assert process.poll() is None, process_runner.output('run')
         assert time.monotonic() < deadline, 'the graph did not come up: ' + process_runner.output('run')
         shown = re.findall(r't = +([0-9.]+) /', process_runner.output('run'))
@@ -110,7 +110,7 @@ def test_killed_controller_falls_back_to_zero_torque_and_the_robot_rolls_down_as
     # the last command was held command_timeout of simulation time, then zero torque
     held_for = run.t[first_zero] - run.t[last_change]
     assert COMMAND_TIMEOUT - 2e-3 <= held_for <= COMMAND_TIMEOUT + 2e-3, held_for
-    assert 2.0 < run.t[last_change] < 4.0
+    assert 2.0 < run.t[last_change] < 6.0  # killed when the run's line showed > 2 s: up to 2 s later
 
     # /diagnostics said so (1 Hz wall: the zero-torque segment lasts > 1 s)
     statuses = [s for m in recorded(out / 'bag', 'diagnostics') for s in m.status if s.name.endswith('simulation')]
