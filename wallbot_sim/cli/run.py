@@ -34,7 +34,7 @@ OPTIONAL = (CONTROLLER,)
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
-FINAL_DIAGNOSTICS_WAIT = 3.0
+FINAL_DIAGNOSTICS_WAIT = 10.0
 """Wall seconds to wait, after the last step is recorded, for the dynamics' diagnostics of the stop
 (they are published once a second)."""
 
