@@ -13,7 +13,7 @@ Design (see docs/bags.md):
   instead of the DDS history overwriting unread samples;
 * record_progress (rosgraph_msgs/Clock): the newest stamp up to which /clock and every per-step
   topic (topics.STEP_STAMPED) have been written, every PROGRESS_EVERY clock messages and from a
-  50 ms timer; at real-time factor 0 the dynamics node stays within its
+  50 ms timer; at every real-time factor the dynamics node stays within its
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
@@ -170,11 +170,13 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self.writer.write(connection, received_ns, data)
             self.last_log_ns = received_ns
             self.received += 1
-            if name in self._keeper_stamped and len(data) >= 12:
-                self.keeper.stamp(name, leading_stamp_ns(data))
-            if name in self._stamped and self._progress_pub is not None and len(data) >= 12:
-                self._newest_stamps[name] = leading_stamp_ns(data)
-                self.progress_ns = min(self._newest_stamps.values())
+            if name in self._stamped and len(data) >= 12:  # one parse feeds the keeper and the progress
+                stamp = leading_stamp_ns(data)
+                if name in self._keeper_stamped:
+                    self.keeper.stamp(name, stamp)
+                if self._progress_pub is not None:
+                    self._newest_stamps[name] = stamp
+                    self.progress_ns = min(self._newest_stamps.values())
             if topic.name == topics.CLOCK.name and self._progress_pub is not None:
                 self._clocks += 1
                 if self._clocks % PROGRESS_EVERY == 0:
