@@ -18,6 +18,7 @@ from datetime import datetime
 from pathlib import Path
 
 from wallbot_msgs_py import codec, topics
+from wallbot_sim import messages
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
@@ -34,9 +35,10 @@ OPTIONAL = (CONTROLLER,)
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
-FINAL_DIAGNOSTICS_WAIT = 10.0
-"""Wall seconds to wait, after the last step is recorded, for the dynamics' diagnostics of the stop
-(they are published once a second)."""
+FINAL_WAIT = 10.0
+"""Wall seconds to wait, after the last step is recorded, for the other nodes' last messages: the
+dynamics' diagnostics of the stop (published once a second) and the trajectory node's reference
+pose at the end (it follows /clock, and lags it on a loaded machine)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -84,6 +86,7 @@ class Monitor:
     def __init__(self, namespace: str = topics.NAMESPACE) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
+        from nav_msgs.msg import Odometry
         from rosgraph_msgs.msg import Clock
 
         from wallbot_msgs_py.qos import qos_profile
@@ -95,14 +98,20 @@ class Monitor:
         self.executor.add_node(self.node)
         self.recorded = -math.inf
         self.diagnostics: dict[str, str] = {}
+        self.reference_time = -math.inf
         self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
                                       qos_profile(topics.RECORD_PROGRESS))
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
                                       qos_profile(topics.DIAGNOSTICS))
+        self.node.create_subscription(Odometry, topics.REFERENCE.name, self._on_reference,
+                                      qos_profile(topics.REFERENCE))
 
     def _on_progress(self, msg) -> None:
         self.recorded = max(self.recorded, codec.seconds(msg.clock))
+
+    def _on_reference(self, msg) -> None:
+        self.reference_time = max(self.reference_time, codec.seconds(msg.header.stamp))
 
     def _on_diagnostics(self, msg) -> None:
         for status in msg.status:
@@ -112,6 +121,10 @@ class Monitor:
     def dynamics_stopped(self) -> bool:
         """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
         return self.diagnostics.get('status', '').startswith('stopped')
+
+    def reference_reached(self, duration: float) -> bool:
+        """Whether the trajectory node has published its last reference pose of a run of ``duration``."""
+        return self.reference_time >= duration - 1.0 / messages.PUBLISH_RATE_HZ - 1e-9
 
     def spin(self, seconds: float) -> None:
         self.executor.spin_once(timeout_sec=seconds)
@@ -164,8 +177,9 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         progress.update(duration, force=True)
         # The summary's residual is the maximum the diagnostics carry for each window of steps:
         # wait for the window that holds the last steps, published after the dynamics stopped.
-        deadline = time.monotonic() + FINAL_DIAGNOSTICS_WAIT
-        while not monitor.dynamics_stopped() and time.monotonic() < deadline:
+        deadline = time.monotonic() + FINAL_WAIT
+        while (not (monitor.dynamics_stopped() and monitor.reference_reached(duration))
+               and time.monotonic() < deadline):
             check_nodes(graph, reported)
             monitor.spin(0.1)
     finally:

@@ -104,7 +104,6 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self.last_log_ns = 0
             self._subscriptions_by_name = {}
             self._topics_by_name = {}
-            self._taken_after_stop: dict[str, list[bytes]] = {}
             for topic in recorded:
                 name = self.resolve_topic_name(topic.name)
                 self._topics_by_name[name] = topic
@@ -160,10 +159,11 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
 
         def _on_message(self, topic: topics.Topic, name: str, data: bytes, received_ns: int | None = None) -> None:
             if received_ns is None:  # from the executor
-                if self.stop.requested:  # taken after the stop: finish() decides, knowing more
-                    self._taken_after_stop.setdefault(name, []).append(data)
-                    return
-                received_ns = self.get_clock().now().nanoseconds
+                # A callback that finds the stop requested is the one the signal handler ran in
+                # front of (one callback per spin_once, and the loop ends after it): its message
+                # was taken, so received, before the handler noted the stop
+                received_ns = (self._log_time(self.stop.at_ns) if self.stop.requested
+                               else self.get_clock().now().nanoseconds)
             connection = self.writer.connection(name)
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
@@ -186,12 +186,10 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             """After the stop: write what DDS received up to the stop and nobody took yet.
 
             Taken directly from each subscription, oldest first, with its DDS receive time, until
-            one received after the stop (the rest of that queue is later still). A message the
-            executor took after the stop was received before every message still queued behind
-            it: it is written if one of those was received before the stop, else refused.
+            one received after the stop (the rest of that queue is later still).
             """
             for name, subscription in self._subscriptions_by_name.items():
-                topic, queued = self._topics_by_name[name], []
+                topic = self._topics_by_name[name]
                 while True:
                     with subscription.handle:
                         taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
@@ -201,15 +199,7 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                     if info['received_timestamp'] > self.stop.at_ns:
                         self.refused += 1  # the queue behind it is later still: left there
                         break
-                    queued.append((info['received_timestamp'], data))
-                held = self._taken_after_stop.pop(name, [])
-                if queued:
-                    for data in held:  # received no later than the first queued one
-                        self._on_message(topic, name, data, self._log_time(queued[0][0]))
-                else:
-                    self.refused += len(held)
-                for received_ns, data in queued:
-                    self._on_message(topic, name, data, self._log_time(received_ns))
+                    self._on_message(topic, name, data, self._log_time(info['received_timestamp']))
 
         def _log_time(self, received_ns: int) -> int:
             """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
@@ -295,7 +285,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             writer.set_custom_data('wallbot.recorder.stop_signal', stop.name)
             writer.set_custom_data('wallbot.recorder.stop_time_ns', str(stop.at_ns))
         node.get_logger().info(f'stopped by {stop.name or "shutdown"}: {node.received} messages recorded to '
-                               f'{writer.path}, {node.refused} taken after the signal left out')
+                               f'{writer.path}, {node.refused} received after the signal left out')
         return 0
     finally:
         if writer is not None:
