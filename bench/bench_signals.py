@@ -29,10 +29,10 @@ from pathlib import Path
 import yaml
 
 from wallbot_sim.bag.reader import messages
-from wallbot_sim.cli.run import node_specs
 from wallbot_sim.config import load_scenario
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.graph_description import describe_graph
 
 NODES = ('recorder', 'controller', 'trajectory', 'constraint_config', 'dynamics')
 
@@ -73,7 +73,8 @@ class Job:
 
 def graph_round(sig: int, work: Path, env: dict[str, str]) -> dict[str, float]:
     bag = work / 'bag'
-    specs = node_specs(load_scenario('circle'), DRIVEN, 600.0, 1.0, bag, controller_mass_scale=1.0)
+    specs = describe_graph(load_scenario('circle'), DRIVEN, duration=600.0, real_time_factor=1.0, bag=bag,
+                           controller_mass_scale=1.0)
     jobs = {spec.name: Job(spec.command(), work / f'{spec.name}.log', env) for spec in specs}
     try:
         wait_for(lambda: sum(f.stat().st_size for f in bag.glob('*.mcap')) > 200_000, 90)
