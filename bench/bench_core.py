@@ -1,7 +1,7 @@
 """Steps per second of the model core, against a straightforward section-6 solver in the same process.
 
 For each scenario and constraint set, the same simulation is stepped with
-  * the core (Udwadia-Kalaba form with the closed-form M^-1, one small eigen-decomposition), and
+  * the core (Udwadia-Kalaba form with a factor W of M^-1, one small LAPACK least-squares call), and
   * a straightforward Udwadia-Phohomsiri evaluation: two numpy.linalg.pinv per evaluation, no
     structure exploited (wallbot_sim.model.solve),
 and the ratio is printed. Both must end in the same state (a check that the comparison is fair).

@@ -48,7 +48,7 @@ for i in range(count):
     msg.pose.pose.position.x = float(i)
     odom.publish(msg)
     if i % 200 == 199:
-        odom.wait_for_all_acked(Duration(seconds=5))  # back-pressure, as the dynamics node does
+        odom.wait_for_all_acked(Duration(seconds=5))  # back-pressure: this publisher waits for the recorder
     if period:
         time.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
 odom.wait_for_all_acked(Duration(seconds=5))

@@ -7,10 +7,7 @@ Parameters
 Design (see docs/bags.md):
 * raw subscriptions: the CDR bytes are written as they came, never decoded on the hot path;
 * every subscription is RELIABLE with KEEP_ALL history (depth from topics.py as the resource hint),
-  transient-local topics are subscribed transient-local so their latched sample is recorded.
-  KEEP_ALL is what makes it lossless at real-time factor 0: a reader whose history is full stops
-  acknowledging, so the publisher's ``wait_for_all_acked`` back-pressure holds the simulation
-  instead of the DDS history overwriting unread samples;
+  transient-local topics are subscribed transient-local so their latched sample is recorded;
 * record_progress (rosgraph_msgs/Clock): the newest stamp up to which /clock and every per-step
   topic (topics.STEP_STAMPED) have been written, every PROGRESS_EVERY clock messages and from a
   50 ms timer; at every real-time factor the dynamics node stays within its
@@ -22,10 +19,10 @@ Design (see docs/bags.md):
   ``seen_until``, so a dynamics restarted after a SIGKILL continues where the bag ends
   (``wallbot_msgs_py.snapshot``);
 * SIGINT/SIGTERM (handled however the process was started, see ``common.StopSignals``): the
-  moment the signal is handled is the end of the recording. No message taken after it is written
-  as it comes; what DDS had received before it and the executor had not taken yet is taken
-  directly from the subscriptions with its DDS receive time and written with that time, and
-  everything received later is left unwritten. Then the bag is closed (metadata.yaml with
+  moment the signal is handled is the end of the recording. The message whose callback the
+  handler ran in front of was received before it and is written; what DDS had received before it
+  and the executor had not taken yet is taken directly from the subscriptions with its DDS receive
+  time and written with that time, and everything received later is left unwritten. Then the bag is closed (metadata.yaml with
   ``wallbot.recorder.stop_signal`` and ``wallbot.recorder.stop_time_ns``, MCAP summary) and the
   node exits 0, within a second whatever the rest of the graph still publishes. The writer
   flushes a closed chunk at least every 0.5 s, so after a SIGKILL ``wallbot-sim bag reindex``
