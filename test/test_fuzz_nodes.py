@@ -212,12 +212,13 @@ def check_recorded(bag, phase_a_end_ns: int,  # wall clock (the recorder's recei
     wanted = {names[leaf]: leaf for leaf in STEP_TOPICS if leaf in names}
     assert set(wanted.values()) == set(STEP_TOPICS), f'recorded topics: {sorted(names)}'
     counts = dict.fromkeys(STEP_TOPICS, 0)
-    wheels, drive = {}, {}
+    wheels, drive, odom_stamps = {}, {}, []
     for raw in messages(bag, list(wanted)):
         leaf = wanted[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
         counts[leaf] += 1
         if leaf == 'odom':
+            odom_stamps.append(ns(msg))
             p, tw = msg.pose.pose, msg.twist.twist
             values = [p.position.x, p.position.y, p.position.z, p.orientation.x, p.orientation.y, p.orientation.z,
                       p.orientation.w, tw.linear.x, tw.linear.y, tw.linear.z, tw.angular.x, tw.angular.y,
@@ -233,6 +234,9 @@ def check_recorded(bag, phase_a_end_ns: int,  # wall clock (the recorder's recei
         else:
             values = [msg.clock.sec + msg.clock.nanosec * 1e-9]
         assert all(math.isfinite(v) for v in values), f'non-finite {leaf} recorded: {msg}'
+    after_reset = odom_stamps[max(i for i, stamp in enumerate(odom_stamps) if stamp == 0):]
+    assert len(after_reset) > 1000 and np.all(np.diff(after_reset) == 1_000_000), \
+        'consecutive 1 ms odometry steps recorded after the restore and reset'
     allowed = np.array([(0.0, 0.0)] + valid_commands)
     checked = 0
     for stamp, wheel in wheels.items():
@@ -313,7 +317,9 @@ def test_fuzz_parameters_and_commands(process_runner, tmp_path):
             return stamps[zero:] if zero is not None and stamps[-1] >= 1_000_000_000 else None
 
         odom = graph.wait_for(since_reset, 20, 'odometry from t = 0 to 1 s after the restore and reset')
-        assert np.all(np.diff([s for s in odom if s <= 1_000_000_000]) == 1_000_000), 'steps of 1 ms again'
+        # this test's subscriber may drop messages on a loaded machine; the bag (lossless) is checked
+        # for consecutive 1 ms steps after the reset
+        assert np.all(np.diff([s for s in odom if s <= 1_000_000_000]) > 0), 'time runs on from 0 after the reset'
         graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 10, 10, 'reference again')
         for name, proc in graph.procs.items():
             assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-3000:]}'
