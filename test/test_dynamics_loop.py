@@ -213,6 +213,18 @@ def test_pause_resume_and_reset_transitions():
     np.testing.assert_array_equal(graph.published[published][1], graph.published[0][1])
 
 
+def test_a_diverged_run_holds_until_a_reset():
+    loop, graph, log, _clock = make_loop()
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1e308, -1e308)))  # the node refuses such a command; the loop must survive it
+    assert ticks(loop, 3) == [Decision.STEPPED, Decision.NOT_READY, Decision.NOT_READY]
+    assert str(loop.status) == 'diverged' and loop.diverged and graph.times == [0.0]
+    assert log.said('simulation paused (reset with ~/reset)')
+    loop.post(Reset())
+    assert loop.tick() is Decision.STEPPED and not loop.diverged and loop.status.state is RunState.RUNNING
+    assert graph.times == pytest.approx([0.0, 0.0, DT])
+
+
 def test_a_reset_waits_for_lockstep_s_pending_answer():
     loop, graph, _log, _clock = make_loop(lockstep_every=1)
     loop.post(DRIVEN)

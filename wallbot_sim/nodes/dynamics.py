@@ -49,6 +49,7 @@ import sys
 import threading
 import time
 import traceback
+from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
@@ -254,7 +255,7 @@ class DynamicsNode(Node):
             self.loop.post(ParameterChange(changes))
 
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
-    def prepare(self, out: StepOutputs):
+    def prepare(self, out: StepOutputs) -> Callable[[], None]:
         encoded = self.encoder.encode(out)
 
         def send() -> None:
