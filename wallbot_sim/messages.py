@@ -164,9 +164,13 @@ def applied_command(tau_left: float, tau_right: float) -> str:
     return f'applied ({tau_left:.4g}, {tau_right:.4g}) N m'
 
 
+STOPPED = 'stopped at t = {t:.3f} s (stop_at)'
+"""The dynamics' status once simulation time ``t`` reached its stop (a format string)."""
+
+
 def stopped_status(t: float) -> str:
     """The dynamics' status once simulation time reached its stop."""
-    return f'stopped at t = {t:.3f} s (stop_at)'
+    return STOPPED.format(t=t)
 
 
 @dataclass(frozen=True)

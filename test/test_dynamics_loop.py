@@ -1,0 +1,287 @@
+"""The dynamics loop without DDS: events in, decisions and published states out.
+
+A fake graph records what the loop publishes, a fake clock stands for the wall clock of the
+waits (lockstep, back-pressure, reset), and the loop runs at factor 0 (no pacing sleeps).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from wallbot_msgs_py import codec
+from wallbot_sim import messages
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import BaumgarteGains, SampledReference
+from wallbot_sim.model.trajectories import Circle, sample_plan
+from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, ConstraintSwitch, Decision, DynamicsLoop, NewPlan,
+                                             ParameterChange, Pause, RecordProgress, Reset, ResumeSnapshot, RunState,
+                                             TorqueCommand)
+from wallbot_sim.nodes.pacing import Pacer
+
+DT = 1e-3
+PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
+              real_time_factor=0.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
+              wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
+              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, snapshot_period=0.01,
+              resume_wait=0.0)
+GAINS = BaumgarteGains(5.0, 5.0)
+SWITCHES = dict(belt=False, non_lateral=True, nonslip=True, tangent_heading=True)
+DRIVEN = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': False}), GAINS)
+TRACKING = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': True}), GAINS)
+
+
+class FakeGraph:
+    def __init__(self) -> None:
+        self.published: list[tuple[float, np.ndarray]] = []
+        self.snapshots = []
+        self.recorder = self.keeper = False
+        self.controller = True
+
+    def prepare(self, out):
+        return lambda: self.published.append((out.t, out.q.copy()))
+
+    def publish_snapshot(self, snapshot) -> None:
+        self.snapshots.append(snapshot)
+
+    def recorder_present(self) -> bool:
+        return self.recorder
+
+    def recorder_listening(self) -> bool:
+        return self.recorder
+
+    def keeper_seen(self) -> bool:
+        return self.keeper
+
+    def controller_listening(self) -> bool:
+        return self.controller
+
+    @property
+    def times(self) -> list[float]:
+        return [round(t / DT) * DT for t, _q in self.published]
+
+
+class FakeLog:
+    def __init__(self) -> None:
+        self.lines: list[tuple[str, str]] = []
+
+    def info(self, message: str, **_kwargs) -> None:
+        self.lines.append(('info', message))
+
+    def warning(self, message: str, **_kwargs) -> None:
+        self.lines.append(('warning', message))
+
+    def error(self, message: str, **_kwargs) -> None:
+        self.lines.append(('error', message))
+
+    def said(self, text: str) -> list[str]:
+        return [message for _level, message in self.lines if text in message]
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def make_loop(**params):
+    graph, log, clock = FakeGraph(), FakeLog(), FakeClock()
+    loop = DynamicsLoop({**PARAMS, **params}, load_robot_parameters(None), graph, log,
+                        Pacer(0, log.warning), clock=clock)
+    return loop, graph, log, clock
+
+
+def plan(start: float, end: float) -> NewPlan:
+    sampled = sample_plan(Circle(radius=0.8, period=20.0), start, end, 0.001)
+    return NewPlan(SampledReference(*sampled), sampled.times[0], sampled.times[-1], messages.plan_is_final(sampled))
+
+
+def ticks(loop: DynamicsLoop, count: int) -> list[Decision]:
+    return [loop.tick() for _ in range(count)]
+
+
+def test_nothing_steps_before_a_constraint_set_and_the_start_publishes_t0():
+    loop, graph, _log, _clock = make_loop()
+    assert ticks(loop, 3) == [Decision.NOT_READY] * 3
+    assert str(loop.status) == 'waiting for constraints' and loop.sim is None and not graph.published
+    loop.post(DRIVEN)
+    assert ticks(loop, 2) == [Decision.STEPPED] * 2
+    assert graph.times == pytest.approx([0.0, DT, 2 * DT]) and loop.status.state is RunState.RUNNING
+    assert loop.command_state() == 'none yet, zero torque'
+
+
+def test_lockstep_waits_for_the_command_answering_each_published_state():
+    loop, graph, log, clock = make_loop(lockstep_every=1)
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.LOCKSTEP  # t = 0 went out: its answer is awaited
+    assert ticks(loop, 5) == [Decision.LOCKSTEP] * 5 and graph.times == [0.0]
+    loop.post(TorqueCommand((0.2, 0.2)))
+    assert ticks(loop, 3) == [Decision.STEPPED, Decision.LOCKSTEP, Decision.LOCKSTEP]
+    assert loop.sim.motor_torque == (0.2, 0.2) and loop.sim.steps == 1
+    clock.now += PARAMS['lockstep_timeout'] + 0.01  # a dead controller: lockstep gives up once
+    assert ticks(loop, 3) == [Decision.STEPPED] * 3
+    assert len(log.said('stepping on without lockstep until commands return')) == 1
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 2) == [Decision.STEPPED, Decision.LOCKSTEP]
+    assert log.said('lockstep resumed')
+
+
+def test_back_pressure_holds_the_loop_within_the_window_of_the_recorders_progress():
+    loop, graph, log, clock = make_loop(backpressure_window=5)
+    graph.recorder = True
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.HELD_BACK  # no progress reported yet
+    # half-step progress stamps keep float ties out: a step starting at t runs if t - progress <= 5 dt
+    loop.post(RecordProgress(500_000))
+    decisions = ticks(loop, 10)
+    assert decisions[:6] == [Decision.STEPPED] * 6 and set(decisions[6:]) == {Decision.HELD_BACK}
+    assert loop.sim.steps == 6
+    loop.post(RecordProgress(3_500_000))
+    assert ticks(loop, 5) == [Decision.STEPPED] * 3 + [Decision.HELD_BACK] * 2
+    assert loop.sim.steps == 9
+    clock.now += BACKPRESSURE_TIMEOUT + 0.01  # the recorder stalled: step on without it
+    assert ticks(loop, 3) == [Decision.STEPPED] * 3
+    assert len(log.said('no record_progress for')) == 1
+    graph.recorder = False  # no recorder left (seen at the next graph look): it runs free
+    clock.now += 1.0
+    assert ticks(loop, 2) == [Decision.STEPPED] * 2
+
+
+def test_a_command_is_held_for_command_timeout_then_zero_torque():
+    loop, _graph, log, _clock = make_loop(command_timeout=0.005)
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1.0, -1.0)))
+    applied = []
+    for _ in range(8):
+        assert loop.tick() is Decision.STEPPED
+        applied.append(loop.sim.motor_torque)
+    # the command came at t = 0; the steps from t = 0 .. 0.005 use it, the later ones do not
+    assert applied == [(1.0, -1.0)] * 6 + [(0.0, 0.0)] * 2
+    assert loop.command_state() == 'timed out, zero torque' and loop.command_expired
+    assert len(log.said('zero torque from t = 0.006 s')) == 1
+    loop.post(TorqueCommand((0.5, 0.5)))
+    loop.tick()
+    assert loop.sim.motor_torque == (0.5, 0.5) and loop.command_state() == messages.applied_command(0.5, 0.5)
+
+
+def test_the_trajectory_task_waits_for_a_plan_covering_the_next_step():
+    loop, graph, log, _clock = make_loop()
+    loop.post(TRACKING)
+    assert loop.tick() is Decision.NOT_READY and str(loop.status) == 'waiting for reference_trajectory'
+    loop.post(plan(0.0, 0.01))  # ends moving: no step may end at or past its end
+    decisions = ticks(loop, 12)
+    assert decisions[:9] == [Decision.STEPPED] * 9 and set(decisions[9:]) == {Decision.NOT_READY}
+    assert str(loop.status) == 'waiting for a reference_trajectory covering t = 0.009 s'
+    assert log.said('reference plan 0.000 .. 0.010 s at t = 0.000 s')
+    assert loop.command_state() == messages.COMMAND_IGNORED
+    loop.post(plan(0.005, 0.02))
+    assert loop.tick() is Decision.STEPPED and graph.times[-1] == pytest.approx(0.01)
+
+
+def test_stop_at_stops_the_loop_until_it_moves():
+    loop, _graph, log, _clock = make_loop(stop_at=0.003)
+    loop.post(DRIVEN)
+    assert ticks(loop, 5) == [Decision.STEPPED] * 3 + [Decision.NOT_READY] * 2
+    assert str(loop.status) == 'stopped at t = 0.003 s (stop_at)' == messages.stopped_status(0.003)
+    assert str(loop.status).startswith('stopped')
+    loop.post(ParameterChange({'stop_at': 0.0}))
+    assert loop.tick() is Decision.STEPPED and loop.sim.steps == 4
+    assert log.said('parameters: stop_at = 0.0')
+
+
+def test_pause_resume_and_reset_transitions():
+    loop, graph, log, _clock = make_loop()
+    loop.post(DRIVEN)
+    ticks(loop, 4)
+    loop.post(Pause(True))
+    assert ticks(loop, 2) == [Decision.NOT_READY] * 2 and str(loop.status) == 'paused'
+    assert graph.snapshots[-1].paused and loop.sim.steps == 4
+    loop.post(Pause(False))
+    assert loop.tick() is Decision.STEPPED and loop.sim.steps == 5 and not graph.snapshots[-1].paused
+    loop.post(TorqueCommand((0.3, 0.3)))
+    loop.post(Reset())
+    published = len(graph.published)
+    assert loop.tick() is Decision.STEPPED  # the reset state went out, then the first step from it
+    assert graph.times[published:] == pytest.approx([0.0, DT])
+    assert loop.command is None and log.said('reset to the initial state at t = 0')
+    np.testing.assert_array_equal(graph.published[published][1], graph.published[0][1])
+
+
+def test_a_diverged_run_holds_until_a_reset():
+    loop, graph, log, _clock = make_loop()
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1e308, -1e308)))  # the node refuses such a command; the loop must survive it
+    assert ticks(loop, 3) == [Decision.STEPPED, Decision.NOT_READY, Decision.NOT_READY]
+    assert str(loop.status) == 'diverged' and loop.diverged and graph.times == [0.0]
+    assert log.said('simulation paused (reset with ~/reset)')
+    loop.post(Reset())
+    assert loop.tick() is Decision.STEPPED and not loop.diverged and loop.status.state is RunState.RUNNING
+    assert graph.times == pytest.approx([0.0, 0.0, DT])
+
+
+def test_a_reset_waits_for_lockstep_s_pending_answer():
+    loop, graph, _log, _clock = make_loop(lockstep_every=1)
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((0.2, 0.2)))  # came before the t = 0 state: not its answer
+    assert loop.tick() is Decision.LOCKSTEP
+    loop.post(TorqueCommand((0.2, 0.2)))
+    assert ticks(loop, 2) == [Decision.STEPPED, Decision.LOCKSTEP]
+    loop.post(Reset())
+    assert ticks(loop, 3) == [Decision.LOCKSTEP] * 3 and loop.sim.steps == 1  # the answer to t = 0.001 is due
+    loop.post(TorqueCommand((0.2, 0.2)))  # that answer: the reset comes after it
+    loop.tick()
+    assert loop.sim.t == 0.0 and graph.times[-1] == 0.0 and loop.command is None
+
+
+def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph_saw():
+    first, first_graph, _log, _clock = make_loop(snapshot_period=0.005)
+    first.post(DRIVEN)
+    first.post(TorqueCommand((0.4, -0.2)))
+    ticks(first, 12)
+    kept = next(s for s in first_graph.snapshots if s.steps == 5)
+    seen = replace(kept, seen_until_ns=codec.to_nanoseconds(8 * DT))  # the graph saw up to step 8
+
+    second, graph, log, _clock = make_loop(snapshot_period=0.005, resume_wait=2.0)
+    second.post(DRIVEN)
+    assert second.tick() is Decision.NOT_READY
+    assert str(second.status) == 'waiting for a kept snapshot to resume from (resume_state)'
+    second.post(ResumeSnapshot(seen))
+    ticks(second, 7)
+    assert log.said('resuming from the kept snapshot at t = 0.005 s (step 5')
+    assert graph.times == pytest.approx([0.009, 0.010, 0.011, 0.012])
+    for (t, q), (t_first, q_first) in zip(graph.published, first_graph.published[9:13]):
+        assert t == t_first
+        np.testing.assert_array_equal(q, q_first)
+
+
+def test_a_driven_start_waits_for_a_controller_and_its_first_command():
+    loop, graph, _log, _clock = make_loop(wait_for_command=True)
+    graph.controller = False
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.NOT_READY and loop.sim is None
+    assert loop.status.state is RunState.WAITING_CONTROLLER
+    graph.controller = True
+    assert ticks(loop, 2) == [Decision.NOT_READY] * 2 and graph.times == [0.0]
+    assert str(loop.status) == 'waiting for the first wheel_torque_cmd'
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert loop.tick() is Decision.STEPPED
+
+
+def test_the_loop_thread_wakes_on_a_posted_event_and_stops():
+    loop, graph, _log, _clock = make_loop(stop_at=0.05)
+    thread = threading.Thread(target=loop.run, daemon=True)
+    thread.start()
+    loop.post(DRIVEN)
+    deadline = time.monotonic() + 10.0
+    while loop.status.state is not RunState.STOPPED and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert loop.status.state is RunState.STOPPED and len(graph.published) == 51
+    loop.stop()
+    thread.join(timeout=5.0)
+    assert not thread.is_alive()

@@ -1,0 +1,671 @@
+"""The dynamics loop's state and decisions, free of ROS (the node only wires it to the graph).
+
+Everything that reaches the loop from outside is a typed event (a constraint switch, a plan, a
+torque command, a reset, a pause, a kept snapshot, a parameter change, a recorder's progress)
+posted to one thread-safe queue; the loop thread applies the queued events at each step boundary
+(:meth:`DynamicsLoop.tick`), so no physics runs in a callback and the state sequence depends on
+the events' order, not on their timing. What the loop needs of the graph (publishing, the
+discovery of a recorder, keeper or controller) goes through a :class:`Graph`, and its wall-clock
+waits through an injected clock, so it is tested without DDS (test_dynamics_loop.py).
+
+Each tick ends in a :class:`Decision`: a step was taken, or why not (the run state, see
+:class:`RunState`, says which wait it is), lockstep waits for the controller, or back-pressure
+waits for a recorder. The node's module docstring explains determinism, pacing, back-pressure
+and resume.
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from enum import Enum, auto
+from typing import Callable, Mapping, Protocol, Union
+
+import numpy as np
+
+from wallbot_msgs_py import codec
+from wallbot_msgs_py.snapshot import SWITCHES, DynamicsSnapshot
+from wallbot_sim import messages
+from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
+                               SampledReference, Simulation, StepOutputs)
+from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.scenario import moving_start
+from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.nodes.resume import ResumeGate
+
+BACKPRESSURE_TIMEOUT = 2.0
+"""Wall seconds the loop waits for a recorder's progress to move before stepping on without it: a
+recorder that was killed, restarted or starved must not stop the simulation for ever (a restarted
+dynamics, or one beside a restarted recorder, would otherwise wait for a report that never comes)."""
+RECORDER_CHECK = 0.2
+"""Wall seconds between two looks for a record_progress publisher (a graph query costs time)."""
+LATE_LIMIT = 2e-3
+"""A step published more than this after its due time counts as late (s)."""
+THROTTLE = 1.0
+"""Seconds between repeated warnings of one kind."""
+
+
+# --- events: posted from any thread, applied by the loop thread at a step boundary ----------------
+@dataclass(frozen=True)
+class ConstraintSwitch:
+    """A constraint set to run with (applied once it can be: the trajectory task needs a plan)."""
+
+    selection: ConstraintSelection
+    gains: BaumgarteGains
+
+
+@dataclass(frozen=True)
+class NewPlan:
+    """A received plan: its reference and the span it covers."""
+
+    reference: SampledReference
+    start: float
+    end: float
+    final: bool
+
+    def covers(self, t0: float, t1: float) -> bool:
+        """Whether a step from t0 to t1 may use this plan.
+
+        A plan that ends moving must extend strictly past t1: at its last sample time the
+        quintic is evaluated at the segment's far end, which equals the sample only to
+        rounding, while the next plan evaluates it exactly; the step waits for that plan.
+        """
+        return self.start <= t0 + 1e-9 and (self.final or t1 < self.end - 1e-9)
+
+
+@dataclass(frozen=True)
+class TorqueCommand:
+    """A validated wheel_torque_cmd (tau_L, tau_R) in N m."""
+
+    torque: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Reset:
+    """Back to the initial state at t = 0 (once lockstep's pending answer arrived)."""
+
+
+@dataclass(frozen=True)
+class Pause:
+    """Pause (True) or run again (False)."""
+
+    paused: bool
+
+
+@dataclass(frozen=True)
+class ResumeSnapshot:
+    """A keeper's answer at start: the snapshot to continue from, or None (it holds nothing)."""
+
+    snapshot: DynamicsSnapshot | None
+
+
+@dataclass(frozen=True)
+class ParameterChange:
+    """Accepted parameter values, by name."""
+
+    changes: Mapping[str, object]
+
+
+@dataclass(frozen=True)
+class RecordProgress:
+    """A recorder has taken every message up to this /clock stamp (ns)."""
+
+    stamp_ns: int
+
+
+Event = Union[ConstraintSwitch, NewPlan, TorqueCommand, Reset, Pause, ResumeSnapshot, ParameterChange, RecordProgress]
+
+
+# --- what the loop reports ------------------------------------------------------------------------
+class RunState(Enum):
+    """The loop's run state; the value is the diagnostics' ``status`` text ({t}: simulation time,
+    {reason}: why the robot left the wall)."""
+
+    WAITING_CONSTRAINTS = 'waiting for constraints'
+    WAITING_RECORDER = 'waiting for a recorder'
+    WAITING_KEEPER = 'waiting for a kept snapshot to resume from (resume_state)'
+    WAITING_START_PLAN = 'waiting for reference_trajectory (the moving start takes its velocity)'
+    WAITING_CONTROLLER = 'waiting for a controller (a wheel_torque_cmd publisher that hears odom)'
+    WAITING_PLAN = 'waiting for reference_trajectory'
+    WAITING_COVERING_PLAN = 'waiting for a reference_trajectory covering t = {t:.3f} s'
+    WAITING_FIRST_COMMAND = 'waiting for the first wheel_torque_cmd'
+    RUNNING = 'running'
+    PAUSED = 'paused'
+    STOPPED = messages.STOPPED
+    DIVERGED = 'diverged'
+    DETACHED = 'detached: {reason}'
+    FAILED = 'internal error'
+
+
+@dataclass(frozen=True)
+class Status:
+    """A run state with what its text names (set once, read by the diagnostics thread)."""
+
+    state: RunState
+    t: float = 0.0
+    reason: str = ''
+
+    def __str__(self) -> str:
+        return self.state.value.format(t=self.t, reason=self.reason)
+
+
+class Decision(Enum):
+    """How a tick ended."""
+
+    STEPPED = auto()
+    NOT_READY = auto()
+    """Nothing to step yet or now: see the status."""
+    LOCKSTEP = auto()
+    """Waiting for the controller's answer to the last published state."""
+    HELD_BACK = auto()
+    """Waiting for a recorder's progress (back-pressure)."""
+
+
+WAIT_AFTER = {Decision.NOT_READY: 0.005, Decision.LOCKSTEP: 0.0005, Decision.HELD_BACK: 0.0005}
+"""Longest wall wait (s) before the next tick; any posted event ends it early."""
+
+
+@dataclass
+class Window:
+    """Loop statistics since the last diagnostics message."""
+
+    started: float = field(default_factory=time.perf_counter)
+    steps: int = 0
+    step_time_sum: float = 0.0
+    step_time_max: float = 0.0
+    lateness_max: float = 0.0
+    late: int = 0
+    residual_max: float = 0.0
+    """Largest constraint residual of every state of the window (not a sample of one)."""
+
+
+class Graph(Protocol):
+    """What the loop needs of the ROS graph around it (the node implements it)."""
+
+    def prepare(self, out: StepOutputs) -> Callable[[], None]:
+        """Encode a state's per-step messages; calling the result publishes them."""
+
+    def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
+
+    def recorder_present(self) -> bool:
+        """Whether some node publishes record_progress."""
+
+    def recorder_listening(self) -> bool:
+        """Whether a recorder publishes record_progress and every step topic has a subscriber."""
+
+    def keeper_seen(self) -> bool:
+        """Whether some node publishes resume_state."""
+
+    def controller_listening(self) -> bool:
+        """Whether a wheel_torque_cmd publisher exists and hears odom (see ``heard_by_every``)."""
+
+
+class Log(Protocol):
+    def info(self, message: str, **kwargs: object) -> object: ...
+
+    def warning(self, message: str, **kwargs: object) -> object: ...
+
+    def error(self, message: str, **kwargs: object) -> object: ...
+
+
+class DynamicsLoop:
+    """The simulation and the state around it; every attribute is written by the loop thread only.
+
+    ``params`` holds the node's parameter values (those of the node's declarations); a
+    :class:`ParameterChange` updates them at the next step boundary.
+    """
+
+    def __init__(self, params: Mapping[str, object], robot_file: RobotParameters, graph: Graph, log: Log,
+                 pacer: Pacer, clock: Callable[[], float] = time.monotonic) -> None:
+        self.params = dict(params)
+        self._robot_file = robot_file
+        self.robot = Robot(self._robot_params(self.params['adhesion_force']))
+        self._graph, self._log, self.pacer, self._clock = graph, log, pacer, clock
+        self._events: queue.SimpleQueue[Event] = queue.SimpleQueue()
+        self._wake = threading.Event()
+        self.stopping = threading.Event()
+        self._factor = float(self.params['real_time_factor'])  # read by the pacer while it sleeps
+
+        self.sim: Simulation | None = None
+        self.plan: NewPlan | None = None
+        self.selection: ConstraintSelection | None = None
+        self.gains: BaumgarteGains | None = None
+        self.pending_constraints: ConstraintSwitch | None = None
+        self.paused = self.diverged = False
+        self.detached: str | None = None
+        """Why the robot left the wall (coulomb contact), until a reset."""
+        self.status = Status(RunState.WAITING_CONSTRAINTS)
+        self.command: tuple[tuple[float, float], float] | None = None  # (torque, simulation time it came)
+        self.command_expired = False
+        self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
+        self.lockstep_since: float | None = None
+        self.lockstep_lost = False
+        self.reset_requested: float | None = None  # clock time of a reset not yet applied
+        self.progress_ns: int | None = None
+        self.recorder_present = False
+        self.recorder_checked = -math.inf
+        self.held_since: tuple[float, int | None] | None = None  # clock time a back-pressure wait began, progress then
+        self.last_outputs: StepOutputs | None = None
+        self.resume = ResumeGate(float(self.params['resume_wait']))
+        self._window = Window()
+        self._window_lock = threading.Lock()
+
+    # --- any thread ---------------------------------------------------------------------------------
+    def post(self, event: Event) -> None:
+        """Queue an event for the next step boundary and end the loop's wait."""
+        if isinstance(event, ParameterChange) and 'real_time_factor' in event.changes:
+            self._factor = float(event.changes['real_time_factor'])  # a sleeping step sees it at once
+        self._events.put(event)
+        self._wake.set()
+
+    def stop(self) -> None:
+        self.stopping.set()
+        self._wake.set()
+
+    def take_window(self) -> Window:
+        """The statistics since the last call; a new window starts."""
+        with self._window_lock:
+            window, self._window = self._window, Window()
+        return window
+
+    def command_state(self) -> str:
+        """The 'command' value of /diagnostics."""
+        sim = self.sim
+        if sim is None:
+            return 'no simulation yet'
+        if sim.selection.trajectory:
+            return messages.COMMAND_IGNORED
+        if self.command is None:
+            return 'none yet, zero torque'
+        if self.command_expired:
+            return 'timed out, zero torque'
+        (left, right), _since = self.command
+        return messages.applied_command(left, right)
+
+    # --- loop thread --------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Tick until :meth:`stop`."""
+        while not self.stopping.is_set():
+            wait = WAIT_AFTER.get(self.tick())
+            if wait is not None:
+                self._wake.wait(wait)
+                self._wake.clear()
+
+    def fail(self) -> None:
+        """The loop crashed (the caller logged why)."""
+        self.status, self.diverged = Status(RunState.FAILED), True
+
+    def tick(self) -> Decision:
+        """Apply the queued events, then take one step if nothing holds it back."""
+        self._apply_events()
+        if self.reset_requested is not None and (
+                not self._answer_pending() or self._clock() - self.reset_requested > self.params['lockstep_timeout']):
+            self.reset_requested = None
+            self._reset()
+        if not self._ready():
+            self.pacer.reanchor()
+            return Decision.NOT_READY
+        if self._lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
+            return Decision.LOCKSTEP
+        if self._held_back():
+            return Decision.HELD_BACK
+        self._step()
+        return Decision.STEPPED
+
+    def _apply_events(self) -> None:
+        while True:
+            try:
+                event = self._events.get_nowait()
+            except queue.Empty:
+                return
+            self._apply(event)
+
+    def _apply(self, event: Event) -> None:
+        match event:
+            case ConstraintSwitch():
+                self.pending_constraints = event
+            case NewPlan():
+                self.plan = event
+                self._log.info(
+                    f'reference plan {event.start:.3f} .. {event.end:.3f} s'
+                    f'{" (ends at rest)" if event.final else ""} at t = {self.sim.t if self.sim else 0.0:.3f} s')
+                if self.sim is not None:
+                    self.sim.set_reference(event.reference)
+                    self._snapshot()
+            case TorqueCommand():
+                self.command = (event.torque, self.sim.t if self.sim is not None else 0.0)
+                self.command_expired = False
+                self.command_serial += 1
+                if self.lockstep_lost:
+                    self.lockstep_lost = False
+                    self._log.info(f'wheel_torque_cmd again at t = {self.sim.t:.3f} s: lockstep resumed')
+                self._snapshot()  # so a resume recomputes the steps after it with the commands they had
+            case Reset():
+                self.reset_requested = self._clock()
+            case Pause():
+                self.paused = event.paused
+                self._log.info('paused' if event.paused else 'running again')
+                self._snapshot()
+            case ResumeSnapshot():
+                self.resume.offer(event.snapshot)
+            case ParameterChange():
+                self._apply_params(event.changes)
+            case RecordProgress():
+                self.progress_ns = event.stamp_ns
+
+    def _apply_params(self, changes: Mapping[str, object]) -> None:
+        self.params.update(changes)
+        if 'realtime_priority' in changes:
+            self.pacer.priority = changes['realtime_priority']
+        if 'rate_hz' in changes and self.sim is not None:
+            self.sim = self._simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+            self._snapshot()
+        if 'adhesion_force' in changes:
+            self.robot = Robot(self._robot_params(changes['adhesion_force']))
+            if self.sim is not None:
+                self.sim.set_adhesion_force(self.robot.params.adhesion_force)
+        if 'contact_model' in changes and self.sim is not None:
+            self.sim.set_contact_model(changes['contact_model'])
+        self.pacer.reanchor()
+        self._log.info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def _robot_params(self, adhesion_force: float) -> RobotParameters:
+        """The robot file's parameters, with the adhesion_force parameter (N) unless it is 0."""
+        params = self._robot_file
+        return params.replace(adhesion_force=adhesion_force) if adhesion_force else params
+
+    def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
+        reference = self.plan.reference if self.plan is not None else None
+        sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / self.params['rate_hz'],
+                         t0=t0, gains=self.gains, contact=self.params['contact_model'])
+        sim.set_motor_torque(*torque)
+        return sim
+
+    def _initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        p = self.params
+        q0 = np.array([p['initial_x'], p['initial_y'], p['initial_theta'], 0, 0, 0, 0], dtype=float)
+        if p['initial_at_rest'] or self.plan is None:
+            return q0, np.zeros(DOF)
+        return q0, moving_start(self.robot, self.plan.reference, p['initial_theta'])
+
+    def _reset(self) -> None:
+        self.command, self.diverged, self.detached = None, False, None
+        self.resume.stop_catch_up()
+        if self.sim is not None:
+            self.sim = self._simulation(*self._initial_state(), 0.0)
+            self._log.info('reset to the initial state at t = 0')
+            self._publish(self.sim.outputs())
+            self._snapshot()
+        self.pacer.reanchor()
+
+    def _restore(self, kept: DynamicsSnapshot, switch: ConstraintSwitch) -> None:
+        """Continue from a kept snapshot; then apply the constraint set in force now, if it differs."""
+        self.selection = messages.selection_from_switches(dict(zip(SWITCHES, kept.switches)))
+        self.gains = BaumgarteGains(*kept.gains)
+        if self.selection.trajectory and self.plan is None:  # the task was switched off meanwhile, no plan here
+            self.selection, self.gains = switch.selection, switch.gains
+        if kept.dt == 1.0 / self.params['rate_hz']:
+            self.sim = self._simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
+            self.sim.restore(kept.steps, kept.q, kept.qd)
+        else:  # another rate_hz: a new run segment from the kept time, as a rate change makes
+            self.sim = self._simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
+        self.command = (kept.command, kept.command_since) if kept.command is not None else None
+        self.command_expired = kept.command_expired
+        self.paused = kept.paused
+        self.resume.catch_up_to(kept.seen_until_ns)
+        behind = max(0, kept.seen_until_ns - kept.stamp_ns) * 1e-9
+        self._log.info(
+            f'resuming from the kept snapshot at t = {kept.t:.3f} s (step {kept.steps}, constraints '
+            f'{self.selection.label()}{", paused" if kept.paused else ""}); the graph has seen up to '
+            f't = {kept.seen_until_ns * 1e-9:.3f} s: {behind:.3f} s recomputed unpublished')
+        if (switch.selection, switch.gains) != (self.selection, self.gains):
+            self._switch(switch)
+        out = self.sim.outputs()  # the solve the first step reuses, as after every step of the first life
+        if self.resume.publishes(codec.to_nanoseconds(self.sim.t)):
+            self._publish(out)
+        self._snapshot()
+
+    def _switch(self, switch: ConstraintSwitch) -> None:
+        selection, gains = switch.selection, switch.gains
+        if self.sim is None and self.resume.snapshot is not None:
+            self._restore(self.resume.snapshot, switch)
+            return
+        if self.sim is None:
+            self.selection, self.gains = selection, gains
+            self.sim = self._simulation(*self._initial_state(), 0.0)
+            fresh = f' from the initial state ({self.resume.timed_out})' if self.resume.timed_out else ''
+            self._log.info(f'starting with constraints {selection.label()}{fresh}')
+            self._publish(self.sim.outputs())
+            self._snapshot()
+            return
+        report = self.sim.set_constraints(selection, gains)
+        self.selection, self.gains = selection, gains
+        self._log.info(
+            f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
+            f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+        self._snapshot()
+
+    def _ready(self) -> bool:
+        """Apply a pending constraint set if possible; say whether the next step may run."""
+        if self.sim is None and self.params['wait_for_recorder'] and not self._graph.recorder_listening():
+            self.status = Status(RunState.WAITING_RECORDER)
+            return False
+        # the wait counts from the constraint set's arrival: by then discovery is under way
+        if (self.sim is None and self.pending_constraints is not None
+                and not self.resume.settle(self._clock(), self._graph.keeper_seen())):
+            self.status = Status(RunState.WAITING_KEEPER)
+            return False
+        pending = self.pending_constraints
+        if pending is not None:
+            if self.sim is None and not pending.selection.trajectory and self.resume.snapshot is None:
+                waiting = self._driven_start_blocked()
+                if waiting is not None:
+                    self.status = Status(waiting)
+                    return False
+            if pending.selection.trajectory and self.plan is None:
+                self.status = Status(RunState.WAITING_PLAN)
+                if self.sim is None:
+                    return False
+            else:
+                self.pending_constraints = None
+                self._switch(pending)
+        sim = self.sim
+        if sim is None:
+            return False
+        if self.paused or self.diverged or self.detached:
+            self.status = (Status(RunState.DIVERGED) if self.diverged else
+                           Status(RunState.DETACHED, reason=self.detached) if self.detached else Status(RunState.PAUSED))
+            return False
+        stop_at = self.params['stop_at']
+        if stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt:
+            self.status = Status(RunState.STOPPED, t=sim.t)
+            return False
+        if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
+            if self.resume.catching_up and self.plan.start > sim.t + 1e-9:
+                # the plan of the kept state was replaced before the kill: publishing this earlier
+                # state makes the trajectory node replan from it (its clock went back)
+                self._log.warning(f'the newest plan starts at {self.plan.start:.3f} s, after the kept '
+                                  f'state at {sim.t:.3f} s: publishing from there')
+                self.resume.stop_catch_up()
+                self._publish(sim.outputs())
+            self.status = Status(RunState.WAITING_COVERING_PLAN, t=sim.t)
+            return False
+        if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
+                and self.command is None):
+            self.status = Status(RunState.WAITING_FIRST_COMMAND)
+            return False
+        self.status = Status(RunState.RUNNING)
+        return True
+
+    def _driven_start_blocked(self) -> RunState | None:
+        """Why a driven run may not create its simulation yet (None: it may).
+
+        A moving start (initial_at_rest false) takes the reference velocity at t = 0, so it
+        needs the plan. With wait_for_command, a controller must be there to hear the initial
+        state: a wheel_torque_cmd publisher exists, its node subscribes odom, and every
+        discovered odom subscription is matched (odom is volatile: a subscriber matched later
+        would miss the t = 0 state, and the first step would wait for ever).
+        """
+        if not self.params['initial_at_rest'] and self.plan is None:
+            return RunState.WAITING_START_PLAN
+        if self.params['wait_for_command'] and not self._graph.controller_listening():
+            return RunState.WAITING_CONTROLLER
+        return None
+
+    def _answer_awaited(self) -> bool:
+        """Lockstep (driven mode, lockstep_every N > 0): whether the last published state was a
+        sync state whose answer (a command that arrived after it) is still to come."""
+        every, sim = self.params['lockstep_every'], self.sim
+        return (every > 0 and not sim.selection.trajectory and not self.lockstep_lost
+                and sim.steps % every == 0 and self.command_serial == self.sync_serial
+                and not self.resume.catching_up)
+
+    def _lockstep_blocked(self) -> bool:
+        """Lockstep: whether to wait for the controller.
+
+        After the state of every Nth step is published, the next step waits for a command that
+        arrived after it: the controller's answer to that very state, so the loop behaves like
+        a controller sampling every N steps with no delay, at any pace or CPU load. Without an
+        answer within ``lockstep_timeout`` (wall) it steps on, free-running until commands return
+        (then command_timeout brings zero torque, as without lockstep). The timeout is long
+        against a loaded machine's scheduling delays (a 0.25 s one was exceeded under load, and
+        the loop then no longer equalled the model's), short against a controller's death.
+        """
+        if not self._answer_awaited():
+            self.lockstep_since = None
+            return False
+        now = self._clock()
+        if self.lockstep_since is None:
+            self.lockstep_since = now
+        if now - self.lockstep_since <= self.params['lockstep_timeout']:
+            return True
+        self.lockstep_since, self.lockstep_lost = None, True
+        self.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
+        self._log.warning(f'no wheel_torque_cmd within {self.params["lockstep_timeout"]:g} s (wall) of the state at '
+                          f't = {self.sim.t:.3f} s: stepping on without lockstep until commands return')
+        return False
+
+    def _answer_pending(self) -> bool:
+        """Whether lockstep's answer to the last published state is still to come.
+
+        A reset waits for it (at most lockstep_timeout): arriving after the reset, that answer to a
+        state of the old run would be taken for the answer to the reset state.
+        """
+        return self.sim is not None and self._answer_awaited()
+
+    def _mark_sync(self) -> None:
+        """The current state was just published: lockstep waits for a command newer than this."""
+        self.sync_serial = self.command_serial
+
+    def _held_back(self) -> bool:
+        """Whether a recorder's progress is more than the window behind (at any factor: a recorder
+        that falls behind on a loaded machine slows the simulation down instead of losing messages)."""
+        now = self._clock()
+        if now - self.recorder_checked > RECORDER_CHECK:
+            self.recorder_checked = now
+            self.recorder_present = self._graph.recorder_present()
+        if not self.recorder_present:
+            return False
+        window = self.params['backpressure_window'] * self.sim.dt
+        progress = -math.inf if self.progress_ns is None else self.progress_ns * 1e-9
+        if self.sim.t - progress <= window:
+            self.held_since = None
+            return False
+        if self.held_since is None or self.held_since[1] != self.progress_ns:  # a new wait, or progress moved
+            self.held_since = (now, self.progress_ns)
+        if now - self.held_since[0] <= BACKPRESSURE_TIMEOUT:
+            return True
+        if self.held_since[0] > -math.inf:  # once per stalled progress value
+            self._log.warning(f'no record_progress for {BACKPRESSURE_TIMEOUT:g} s (wall) at t = {self.sim.t:.3f} s: '
+                              'stepping on until the recorder reports again')
+            self.held_since = (-math.inf, self.progress_ns)
+        return False
+
+    def _motor_torque(self) -> tuple[float, float]:
+        sim = self.sim
+        if sim.selection.trajectory or self.command is None:
+            return (0.0, 0.0)
+        torque, since = self.command
+        if sim.t - since > self.params['command_timeout'] + 1e-12:
+            if not self.command_expired:
+                self.command_expired = True
+                self._log.warning(
+                    f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time (the last '
+                    f'at t = {since:.3f} s): zero torque from t = {sim.t:.3f} s', throttle_duration_sec=THROTTLE)
+            return (0.0, 0.0)
+        return torque
+
+    def _step(self) -> None:
+        sim = self.sim
+        torque = self._motor_torque()
+        if torque != sim.motor_torque:
+            sim.set_motor_torque(*torque)
+        began = time.perf_counter()
+        try:
+            sim.step()
+            out = sim.outputs()
+            if not (math.isfinite(float(np.sum(out.constraint_force))) and math.isfinite(out.residual)):
+                raise DivergedError(f'constraint force is no longer finite at t = {sim.t:.3f} s')
+        except DivergedError as error:
+            self.diverged = True
+            self.status = Status(RunState.DIVERGED)
+            self._log.error(f'{error}: simulation paused (reset with ~/reset)')
+            return
+        except DetachedError as error:
+            self.detached = str(error)
+            self.status = Status(RunState.DETACHED, reason=self.detached)
+            self._log.error(f'{error}: simulation paused (reset with ~/reset)')
+            return
+        step_time = time.perf_counter() - began
+        if self.resume.catching_up and not self.resume.publishes(codec.to_nanoseconds(sim.t)):
+            self.last_outputs = out  # the graph has this state: recomputed, not published nor paced
+            return
+        window = self._window
+        window.steps += 1
+        window.step_time_sum += step_time
+        window.step_time_max = max(window.step_time_max, step_time)
+        publish = sim.steps % self.params['publish_every'] == 0
+        if publish:
+            send = self._graph.prepare(out)
+        lateness = self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)
+        window.lateness_max = max(window.lateness_max, lateness)
+        if lateness > LATE_LIMIT:
+            window.late += 1
+        if publish:
+            send()
+            self._mark_sync()
+            every = round(self.params['snapshot_period'] / sim.dt)
+            if every > 0 and sim.steps % every == 0:
+                self._snapshot()
+        self._note_residual(out.residual)
+        self.last_outputs = out
+
+    def _snapshot(self) -> None:
+        """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
+        sim = self.sim
+        if sim is None:
+            return
+        command, since = self.command if self.command is not None else (None, 0.0)
+        selection = sim.selection
+        self._graph.publish_snapshot(DynamicsSnapshot(
+            anchor=sim.initial_time, steps=sim.steps, dt=sim.dt, q=tuple(sim.q), qd=tuple(sim.qd),
+            motor_torque=sim.motor_torque, command=command, command_since=since,
+            command_expired=self.command_expired,
+            switches=(selection.trajectory, selection.belt, selection.non_lateral, selection.nonslip,
+                      selection.tangent_heading is not False),
+            gains=(float(sim.gains.alpha), float(sim.gains.beta)), paused=self.paused,
+            seen_until_ns=codec.to_nanoseconds(sim.t)))
+
+    def _publish(self, out: StepOutputs) -> None:
+        """Publish the messages of the current state (start, reset)."""
+        self.last_outputs = out
+        self._note_residual(out.residual)
+        self._graph.prepare(out)()
+        self._mark_sync()
+
+    def _note_residual(self, residual: float) -> None:
+        with self._window_lock:  # the diagnostics swap windows on the executor thread: lose no step
+            self._window.residual_max = max(self._window.residual_max, residual)
