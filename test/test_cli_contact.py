@@ -83,7 +83,7 @@ def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
 
 @pytest.mark.parametrize('args, words', [
     (('--scenario', 'circle', '--contact', 'coulomb'), '--contact coulomb with the trajectory task'),
-    (('--scenario', 'rest', '--adhesion-force', '-5'), '--adhesion-force must be a positive number'),
+    (('--scenario', 'rest', '--adhesion-force', '-5'), 'argument --adhesion-force: must be > 0, got -5.0'),
     (('--scenario', 'rest', '--torque', '3'), '--torque must be two numbers'),
     (('--scenario', 'circle', '--torque', '1,1'), '--heading and --torque set up --scenario rest'),
     (('--scenario', 'rest', '--contact', 'sticky'), "invalid choice: 'sticky'"),

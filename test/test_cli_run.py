@@ -109,8 +109,9 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
 
 @pytest.mark.parametrize('args, message', [
     (['square'], "unknown scenario 'square'"),
-    (['circle', '--real-time-factor', '-1'], '--real-time-factor must be >= 0'),
-    (['circle', '--duration', '0'], '--duration must be a positive number'),
+    (['circle', '--real-time-factor', '-1'], 'argument --real-time-factor: must be 0 (as fast as possible) or in'),
+    (['circle', '--real-time-factor', '0.0005'], 'argument --real-time-factor: must be 0'),
+    (['circle', '--duration', '0'], 'argument --duration: must be > 0, got 0.0'),
     (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
     (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
     (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),

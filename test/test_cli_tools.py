@@ -71,7 +71,7 @@ def test_bad_inputs_get_one_line_errors(runs, tmp_path):
     assert_one_line_error(wallbot('info', tmp_path / 'missing'), 'does not exist')
     assert_one_line_error(wallbot('info', not_a_bag), 'not a rosbag2 bag')
     assert_one_line_error(wallbot('plot', blocker), 'not a rosbag2 bag')
-    assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'rate must be a positive number')
+    assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'argument --rate: must be > 0, got -1.0')
     assert_one_line_error(wallbot('play', runs['traj'], '--topics', 'no_such_topic'), 'no_such_topic')
     assert_one_line_error(wallbot('play', tmp_path / 'missing'), 'does not exist')
     assert_one_line_error(wallbot('plot', runs['traj'], '--out', blocker / 'sub'), 'output directory')

@@ -15,7 +15,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import BaumgarteGains, ModelError
-from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
 
 SWITCH_HELP = {
     'trajectory_task': 'the centre follows the reference trajectory (off = driven by wheel_torque_cmd)',
@@ -64,8 +65,7 @@ class ConstraintConfigNode(Node):
 
     @staticmethod
     def _check(values: dict) -> str | None:
-        reasons = [check_number(name, values[name], minimum=0.0, exclusive=True)
-                   for name in codec.GAINS if name in values]
+        reasons = [POSITIVE.reason(name, values[name]) for name in codec.GAINS if name in values]
         return '; '.join(r for r in reasons if r) or None
 
     def _on_set(self, parameters):
