@@ -27,12 +27,13 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
-from wallbot_sim.model import ConstraintSelection, Robot
+from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
+ALL_STRUCTURAL = ','.join(STRUCTURAL)
 OPTIONAL = (CONTROLLER,)
 """Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
@@ -46,8 +47,8 @@ pose at the end (it follows /clock, and lags it on a loaded machine)."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scenario', help='circle, figure8, or a scenario YAML path')
-    parser.add_argument('--constraints', default='belt,non_lateral,nonslip',
-                        help='comma list of belt, non_lateral, nonslip, or none (default: all three)')
+    parser.add_argument('--constraints', default=ALL_STRUCTURAL,
+                        help=f'comma list of {", ".join(STRUCTURAL)}, or none (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
     parser.add_argument('--duration', type=number(POSITIVE), help="simulated seconds (default: the scenario's)")
@@ -61,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
     parser.add_argument('--controller', action='store_true',
-                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with '
+                        help='closed loop: driven mode (no trajectory task; '
+                             f'{", ".join(DRIVEN.active_names())}) with '
                              'tracking_controller_node commanding the wheel torques; wheel_torque_cmd is recorded')
     parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
@@ -201,9 +203,9 @@ def main(args: argparse.Namespace) -> int:
     factor = args.real_time_factor
     mass_scale = None
     if args.controller:
-        if args.constraints != 'belt,non_lateral,nonslip' or args.tangent_heading is not None:
-            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
-                           'drop --constraints and --tangent-heading')
+        if args.constraints != ALL_STRUCTURAL or args.tangent_heading is not None:
+            raise CliError(f'--controller runs the driven robot ({", ".join(DRIVEN.active_names())}, no trajectory '
+                           'task): drop --constraints and --tangent-heading')
         mass_scale = args.controller_mass_scale
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:

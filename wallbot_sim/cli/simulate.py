@@ -15,7 +15,7 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
@@ -25,7 +25,7 @@ HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 REST = 'rest'
 """The scenario with no trajectory task: at rest at the origin, constant motor torques."""
 REST_DURATION = 1.0
-DRIVEN_CONSTRAINTS = 'belt,non_lateral,nonslip'
+DRIVEN_CONSTRAINTS = ','.join(STRUCTURAL)
 TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
 """RK4 steps --dt accepts (s)."""
 DETACHED_STATUS = 3
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--heading', type=number(FINITE), help='with --scenario rest: initial heading in rad (default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
     parser.add_argument('--constraints',
-                        help='comma list of belt, non_lateral, nonslip, or none (default: none, the trajectory '
+                        help=f'comma list of {", ".join(STRUCTURAL)}, or none (default: none, the trajectory '
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '

@@ -24,7 +24,7 @@ from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE
 from wallbot_sim.model.outputs import drive_forces, side_motor_torques
 from wallbot_sim.model.simulation import constrained_motion
 
-DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
+DRIVEN = ConstraintSelection.structural(trajectory=False)
 """The constraints of the driven robot: belts, no side slip, wheels rolling on the wall."""
 
 
