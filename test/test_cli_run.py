@@ -6,7 +6,6 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -14,13 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
+from cli_helpers import WALLBOT
 from wallbot_msgs_py import bagio, codec
 from wallbot_sim.rundata import summarize
 from wallbot_sim.graph import child_processes
 from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
-WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 
 
 def odometry(bag: Path) -> np.ndarray:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import io
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from cli_helpers import assert_one_line_error, wallbot
 from wallbot_sim.cli.main import main as cli
 from wallbot_sim.plots.figures import FIGURES
 
@@ -23,20 +22,6 @@ def runs(tmp_path_factory) -> dict[str, Path]:
                     '--bag', str(bag), '--csv', str(table), '--quiet']) == 0
         out[name], out[f'{name}_csv'] = bag, table
     return out
-
-
-def wallbot(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *map(str, args)],
-                          capture_output=True, text=True, timeout=120)
-
-
-def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
-    assert result.returncode != 0
-    assert 'Traceback' not in result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def test_info_lists_topics_types_counts_rates(runs):
