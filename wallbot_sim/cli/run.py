@@ -163,7 +163,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
     monitor = Monitor()
     reported: set[str] = set()
     try:
-        graph.start(specs[0])
+        graph.start_node(specs[0])
         deadline = time.monotonic() + START_TIMEOUT
         while not monitor.recorder_ready():
             check_nodes(graph, reported)
@@ -171,7 +171,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
                 raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(RECORDER)}')
             monitor.spin(0.05)
         for spec in specs[1:]:
-            graph.start(spec)
+            graph.start_node(spec)
         while monitor.recorded < duration - 1e-9:
             check_nodes(graph, reported)
             if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
