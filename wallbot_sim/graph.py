@@ -130,7 +130,7 @@ class ChildProcesses:
 
     def wait_all(self) -> None:
         """Wait up to ``stop_timeout`` for every process to exit; SIGKILL whatever is left, and what is
-        left of their process groups."""
+        left of their process groups. Their exit statuses stay in :attr:`processes`."""
         deadline = time.monotonic() + self.stop_timeout
         for _name, process in self._started:
             try:
@@ -139,6 +139,7 @@ class ChildProcesses:
                 _signal(process.pid, signal.SIGKILL)
                 process.wait()
             _kill_group(process.pid)
+        self._started.clear()  # reaped: their ids may belong to other processes from now on
 
 
 class Graph(ChildProcesses):
