@@ -76,5 +76,6 @@ def test_no_test_module_imports_another():
 
 
 def test_the_test_import_check_finds_them():
-    source = 'import os, test_pacing\nfrom test_nodes_graph import Graph\nfrom graph_helpers import ns\nfrom . import x\n'
+    source = ('import os, test_pacing\nfrom test_nodes_graph import Graph\n'
+              'from graph_helpers import ns\nfrom . import x\n')
     assert imported_test_modules(source) == ['test_pacing', 'test_nodes_graph']

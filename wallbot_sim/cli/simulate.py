@@ -35,7 +35,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scenario', default='circle',
                         help='circle, figure8, a scenario YAML path, or rest (no trajectory task: at rest at the '
                              'origin under constant motor torques)')
-    parser.add_argument('--heading', type=number(FINITE), help='with --scenario rest: initial heading in rad (default 0)')
+    parser.add_argument('--heading', type=number(FINITE),
+                        help='with --scenario rest: initial heading in rad (default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
     parser.add_argument('--constraints',
                         help=f'comma list of {", ".join(STRUCTURAL)}, or none (default: none, the trajectory '
