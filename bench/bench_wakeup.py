@@ -19,6 +19,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from wallbot_sim.graph import ChildProcesses
+
 
 def sleep_loop(seconds: float, period: float = 1e-3) -> list[float]:
     """Lateness (s) of each wake-up of a loop due every ``period``."""
