@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import gc
 import math
 import re
+import sys
 
 import pytest
 
@@ -55,6 +57,7 @@ def dynamics_node():
     from wallbot_sim.nodes.dynamics import DynamicsNode
     context = rclpy.Context()
     rclpy.init(context=context)
+    switch_interval = sys.getswitchinterval()
     node = None
     try:
         node = DynamicsNode(context=context)  # no constraints arrive: it never steps
@@ -64,6 +67,8 @@ def dynamics_node():
             node.close()
             node.destroy_node()
         rclpy.shutdown(context=context)
+        sys.setswitchinterval(switch_interval)  # process-wide settings the node may make for its loop
+        gc.unfreeze()
 
 
 @pytest.mark.parametrize('factor', FACTORS, ids=repr)
