@@ -27,7 +27,7 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
-from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
@@ -48,7 +48,7 @@ pose at the end (it follows /clock, and lags it on a loaded machine)."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scenario', help='circle, figure8, or a scenario YAML path')
     parser.add_argument('--constraints', default=ALL_STRUCTURAL,
-                        help=f'comma list of {", ".join(STRUCTURAL)}, or none (default: all of them)')
+                        help=f'{SELECTION_SYNTAX} (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
     parser.add_argument('--duration', type=number(POSITIVE), help="simulated seconds (default: the scenario's)")

@@ -15,7 +15,7 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
@@ -39,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='with --scenario rest: initial heading in rad (default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
     parser.add_argument('--constraints',
-                        help=f'comma list of {", ".join(STRUCTURAL)}, or none (default: none, the trajectory '
+                        help=f'{SELECTION_SYNTAX} (default: none, the trajectory '
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '

@@ -34,6 +34,8 @@ names are the ones the command line, the nodes and the ``constraints`` message u
 (``wallbot_msgs_py.topics.CONSTRAINT_MODULES`` gives each its constraint_config switch)."""
 STRUCTURAL = tuple(name for name, kind in MODULES.items() if not kind.task)
 """Names of the structural and environmental constraints, in the paper's order."""
+SELECTION_SYNTAX = f'comma list of {", ".join(STRUCTURAL)}, or none'
+"""How a selection is written (:meth:`ConstraintSelection.parse`; ``--constraints``, ``constraints:=``)."""
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ class ConstraintSelection:
         unknown = [name for name in names if name not in STRUCTURAL]
         if unknown or not text.strip():
             bad = unknown[0] if unknown else text
-            raise ParameterError(f'unknown constraint {bad!r}: use a comma list of {", ".join(STRUCTURAL)}, or none')
+            raise ParameterError(f'unknown constraint {bad!r}: use a {SELECTION_SYNTAX}')
         return cls(trajectory=trajectory, tangent_heading=tangent_heading,
                    **{name: name in names for name in STRUCTURAL})
 
