@@ -28,6 +28,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from wallbot_sim.graph import ChildProcesses
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -107,8 +109,9 @@ def main() -> int:
 
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix='bench_load_'))
     busy = None
+    busy_loops = ChildProcesses(out / 'busy', os.environ)
     if not args.no_busy:
-        busy = subprocess.Popen([sys.executable, '-c', 'while True: pass'], start_new_session=True)
+        busy = busy_loops.start([sys.executable, '-c', 'while True: pass'], 'busy')
     try:
         cmd = [sys.executable, '-m', 'wallbot_sim.cli.main', 'run', args.scenario, '--duration', str(args.duration),
                '--no-plots', '--out', str(out / 'run')] + ([] if args.no_controller else ['--controller'])
@@ -118,9 +121,7 @@ def main() -> int:
         wall = time.monotonic() - began
         busy_share = (cpu_seconds(busy.pid) - busy_cpu0) / wall if busy else None
     finally:
-        if busy is not None:
-            os.killpg(busy.pid, 9)
-            busy.wait()
+        busy_loops.stop_all()
     if run.returncode != 0:
         print(run.stdout[-3000:], run.stderr[-3000:], file=sys.stderr)
         return 1

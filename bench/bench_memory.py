@@ -10,15 +10,14 @@ with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end,
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from wallbot_sim.graph import child_processes, resident_mib
+from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
 
@@ -28,8 +27,9 @@ def main() -> int:
     parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_mem_'))
-    run = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
-                            '--no-plots', '--out', str(work / 'run')], stderr=subprocess.DEVNULL)
+    launcher = ChildProcesses(work / 'logs', os.environ, stop_timeout=120.0)
+    run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
+                          '--no-plots', '--out', str(work / 'run')], 'run')
     try:
         pids: dict[str, int] = {}
         while len(pids) < len(NODES):
@@ -52,8 +52,7 @@ def main() -> int:
             print(f'  {name:9s} RSS after 10 s {at_10[name]:6.1f} MiB, at the end {end[name]:6.1f} MiB, '
                   f'growth {end[name] - at_10[name]:+.1f} MiB')
     finally:
-        run.send_signal(signal.SIGINT)
-        run.wait(timeout=120)
+        launcher.stop_all(first=('run',))  # SIGINT, as at a terminal
         shutil.rmtree(work, ignore_errors=True)
     return 0
 

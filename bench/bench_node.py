@@ -18,10 +18,13 @@ import argparse
 import os
 import subprocess
 import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 
 from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.graph import ChildProcesses
 
 
 def cpu_seconds(pid: int) -> float:
@@ -45,15 +48,13 @@ def main() -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
-    procs = []
+    nodes = ChildProcesses(Path(tempfile.mkdtemp(prefix='wallbot_bench_node_')), os.environ, stop_timeout=5.0)
 
     def start(module: str, *params: str) -> subprocess.Popen:
         cmd = [sys.executable, '-m', f'wallbot_sim.nodes.{module}', '--ros-args']
         for param in params:
             cmd += ['-p', param]
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-        procs.append(proc)
-        return proc
+        return nodes.start(cmd, module)
 
     rclpy.init()
     node = rclpy.create_node('bench_node')
@@ -133,16 +134,10 @@ def main() -> int:
             print(f'real_time_factor 0, publish_every {publish_every}, {args.fast_seconds:g} s:')
             print(f'  factor reached         {factor:8.2f}      (target >= 5)')
             print('  CPU share (one core)   ' + ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items()))
-        print(f'machine: {os.cpu_count()} CPUs, Python {sys.version.split()[0]}')
+        print(f'machine: {os.cpu_count()} CPUs, Python {sys.version.split()[0]}; node logs in {nodes.log_dir}')
     finally:
         spinning = False
-        for proc in procs:
-            proc.terminate()
-        for proc in procs:
-            try:
-                proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        nodes.stop_all()
         spinner.join(timeout=1)
         node.destroy_node()
         rclpy.try_shutdown()

@@ -13,8 +13,6 @@ Runs in its own ROS domain (claim_domain_id) on localhost discovery; kills what 
 from __future__ import annotations
 
 import argparse
-import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -22,7 +20,7 @@ import time
 from pathlib import Path
 
 from wallbot_sim.domain import claim_domain_id, isolated_ros_env
-from wallbot_sim.graph import resident_mib
+from wallbot_sim.graph import ChildProcesses, resident_mib
 
 
 def main() -> int:
@@ -34,16 +32,14 @@ def main() -> int:
     subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', '--scenario', 'circle',
                     '--duration', str(args.duration), '--bag', str(source), '--quiet'], check=True)
     with claim_domain_id() as claim:
-        env = {**os.environ, **isolated_ros_env(claim.domain_id)}
-        recorder = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
-                                     '-p', f'output:={work / "recorded"}'], env=env, start_new_session=True,
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-        player = None
+        processes = ChildProcesses(work / 'logs', isolated_ros_env(claim.domain_id), stop_timeout=30.0)
+        recorder = processes.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                    '-p', f'output:={work / "recorded"}'], 'recorder')
         try:
             time.sleep(2.0)
             idle = resident_mib(recorder.pid)
-            player = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(source), '--quiet',
-                                       '--delay', '2'], env=env, start_new_session=True)
+            player = processes.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(source), '--quiet',
+                                      '--delay', '2'], 'play')
             started = time.monotonic()
             samples = []
             while player.poll() is None:
@@ -53,11 +49,7 @@ def main() -> int:
             final = samples[-1][1] if samples else float('nan')
             peak = max((r for _, r in samples), default=float('nan'))
         finally:
-            if player is not None and player.poll() is None:
-                os.kill(player.pid, signal.SIGKILL)
-            if recorder.poll() is None:
-                os.kill(recorder.pid, signal.SIGTERM)
-            recorder.wait(timeout=30)
+            processes.stop_all()  # the recorder's bag closes at its SIGTERM
     out = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'info', str(work / 'recorded')],
                          capture_output=True, text=True)
     print(out.stdout)

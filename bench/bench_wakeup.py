@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
+
+from wallbot_sim.graph import ChildProcesses
 
 
 def sleep_loop(seconds: float, period: float = 1e-3) -> list[float]:
@@ -44,7 +47,9 @@ def main() -> int:
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--busy', type=int, default=3, help='busy processes beside the loop')
     args = parser.parse_args()
-    busy = [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(args.busy)]
+    busy = ChildProcesses(Path(tempfile.mkdtemp(prefix='wallbot_bench_wakeup_')), os.environ)
+    for index in range(args.busy):
+        busy.start([sys.executable, '-c', 'while True: pass'], f'busy-{index}')
     try:
         time.sleep(0.5)
         report('normal scheduling', sleep_loop(args.seconds))
@@ -56,9 +61,7 @@ def main() -> int:
             report('SCHED_FIFO 50', sleep_loop(args.seconds))
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     finally:
-        for process in busy:
-            process.kill()
-            process.wait()
+        busy.stop_all()
     print(f'machine: {os.cpu_count()} CPUs, {args.busy} busy processes, Python {sys.version.split()[0]}')
     return 0
 

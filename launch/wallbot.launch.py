@@ -26,12 +26,12 @@ from launch_ros.actions import Node
 from wallbot_msgs_py import topics
 from wallbot_sim.config import load_scenario
 from wallbot_sim.graph_description import EXECUTABLES, describe_graph
-from wallbot_sim.model import ConstraintSelection
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection
 
 PACKAGE = 'wallbot_sim'
 ARGUMENTS = {
     'scenario': ('circle', 'circle, figure8, or a scenario YAML path'),
-    'constraints': ('belt,non_lateral,nonslip', 'comma list of belt, non_lateral, nonslip, or none'),
+    'constraints': (','.join(STRUCTURAL), SELECTION_SYNTAX),
     'duration': ('0', 'simulated seconds before the dynamics stops (0 = until stopped)'),
     'real_time_factor': ('1.0', 'simulation speed relative to wall clock (0 = as fast as possible)'),
     'realtime_priority': ('0', 'SCHED_FIFO priority of the dynamics loop thread (0 = normal scheduling)'),

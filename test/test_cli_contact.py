@@ -5,14 +5,13 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from test_cli_simulate import read_csv, simulate
+from cli_helpers import WALLBOT, read_csv, simulate, wallbot
 from wallbot_sim.config import load_scenario
 from wallbot_sim.graph_description import describe_graph
 from wallbot_sim.model import ConstraintSelection
@@ -83,7 +82,7 @@ def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
 
 @pytest.mark.parametrize('args, words', [
     (('--scenario', 'circle', '--contact', 'coulomb'), '--contact coulomb with the trajectory task'),
-    (('--scenario', 'rest', '--adhesion-force', '-5'), '--adhesion-force must be a positive number'),
+    (('--scenario', 'rest', '--adhesion-force', '-5'), 'argument --adhesion-force: must be > 0, got -5.0'),
     (('--scenario', 'rest', '--torque', '3'), '--torque must be two numbers'),
     (('--scenario', 'circle', '--torque', '1,1'), '--heading and --torque set up --scenario rest'),
     (('--scenario', 'rest', '--contact', 'sticky'), "invalid choice: 'sticky'"),
@@ -113,21 +112,16 @@ def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
                            contact_model='coulomb', adhesion_force=150.0)
     dynamics = {spec.name: spec.parameters for spec in specs}['dynamics']
     assert dynamics['contact_model'] == 'coulomb' and dynamics['adhesion_force'] == 150.0
-    refused = cli('run', 'circle', '--contact', 'coulomb', '--out', str(tmp_path / 'refused'))
+    refused = wallbot('run', 'circle', '--contact', 'coulomb', '--out', str(tmp_path / 'refused'))
     assert refused.returncode == 2 and '--contact coulomb needs --controller' in refused.stderr
     robot = yaml.safe_load(robot_yaml().read_text())
     robot['adhesion_force'] = -1.0
     robot_file = tmp_path / 'bad.yaml'
     robot_file.write_text(yaml.safe_dump(robot))
-    result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--robot', str(robot_file),
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--robot', str(robot_file),
                              '--out', str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and 'adhesion_force must be > 0' in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and not (tmp_path / 'run').exists()
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *args], capture_output=True, text=True,
-                          timeout=120)
 
 
 CLIMB = ('--heading', str(math.pi / 2), '--torque', '2.0,1.95')
@@ -142,7 +136,7 @@ def slip_count(path: Path) -> float:
 def test_motors_least_adhesion_force_is_what_keeps_the_run_sticking(tmp_path):
     result, run = rest_run(tmp_path, *CLIMB)
     assert result.returncode == 0 and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
-    report = cli('motors', str(tmp_path / 'rest.csv'), '--json')
+    report = wallbot('motors', str(tmp_path / 'rest.csv'), '--json')
     assert report.returncode == 0, report.stderr
     contact = json.loads(report.stdout)['contact']
     assert contact['peak_use'][0] == pytest.approx(max(run['use_L']))
@@ -154,7 +148,7 @@ def test_motors_least_adhesion_force_is_what_keeps_the_run_sticking(tmp_path):
                          '--csv', str(out), '--quiet')
         assert again.returncode == 0, again.stderr
         assert (slip_count(out) > 0) == slips, f'at {scale} x the least adhesion force'
-    assert 'Least adhesion force' in cli('motors', str(tmp_path / 'rest.csv')).stdout
+    assert 'Least adhesion force' in wallbot('motors', str(tmp_path / 'rest.csv')).stdout
 
 
 def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
@@ -167,7 +161,7 @@ def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
     csv_run, bag_run = load_run(tmp_path / 'rest.csv'), load_run(tmp_path / 'bag')
     assert np.array_equal(csv_run.loads, bag_run.loads) and np.array_equal(csv_run.use, bag_run.use)
     assert np.array_equal(csv_run.slip, bag_run.slip) and bag_run.slip[:, 2].all()
-    plotted = cli('plot', str(tmp_path / 'bag'), '--out', str(tmp_path / 'plots'))
+    plotted = wallbot('plot', str(tmp_path / 'bag'), '--out', str(tmp_path / 'plots'))
     assert plotted.returncode == 0, plotted.stderr
     assert (tmp_path / 'plots' / 'friction_use.png').stat().st_size > 10_000
     assert (tmp_path / 'plots' / 'normal_loads.png').stat().st_size > 10_000

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import yaml
 
+from cli_helpers import wallbot
 from wallbot_sim import paths
 from wallbot_sim.bag.headless import HeadlessBagWriter
 from wallbot_sim.config import load_robot_parameters
@@ -18,13 +17,8 @@ from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import Robot, Simulation
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *args],
-                          capture_output=True, text=True, timeout=180)
-
-
 def motors_json(path) -> dict:
-    result = cli('motors', str(path), '--json')
+    result = wallbot('motors', str(path), '--json')
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
 
@@ -33,7 +27,7 @@ def motors_json(path) -> dict:
 def tracking_run(tmp_path_factory):
     """A figure-8 tracking run with all constraints, as a CSV and a bag from the same simulate."""
     out = tmp_path_factory.mktemp('motors')
-    result = cli('simulate', '--scenario', 'figure8', '--constraints', 'belt,non_lateral,nonslip',
+    result = wallbot('simulate', '--scenario', 'figure8', '--constraints', 'belt,non_lateral,nonslip',
                  '--duration', '2.0', '--csv', str(out / 'run.csv'), '--bag', str(out / 'bag'), '--quiet')
     assert result.returncode == 0, result.stderr
     return out / 'run.csv', out / 'bag'
@@ -84,7 +78,7 @@ def test_tracking_run_figures_match_an_independent_computation(tracking_run, whi
 
 def test_table_names_every_figure(tracking_run):
     csv_path, _bag = tracking_run
-    result = cli('motors', str(csv_path))
+    result = wallbot('motors', str(csv_path))
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert any(line.startswith('left ') for line in lines) and any(line.startswith('right ') for line in lines)
@@ -130,7 +124,7 @@ def test_robot_file_changes_the_adsorption_figures(tracking_run, tmp_path):
     other = tmp_path / 'robot.yaml'
     other.write_text(yaml.safe_dump(robot))
     base = motors_json(csv_path)['adsorption']
-    result = cli('motors', str(csv_path), '--json', '--robot', str(other))
+    result = wallbot('motors', str(csv_path), '--json', '--robot', str(other))
     assert result.returncode == 0, result.stderr
     changed = json.loads(result.stdout)['adsorption']
     # friction halves: the friction requirement and the static minimum double
@@ -145,7 +139,7 @@ def test_robot_file_changes_the_adsorption_figures(tracking_run, tmp_path):
     (lambda tmp: (tmp / 'bad.csv').write_text('a,b\n1,2\n') and tmp / 'bad.csv', 'not a wallbot-sim simulate CSV'),
 ])
 def test_bad_input_is_one_line(tmp_path, make, message):
-    result = cli('motors', str(make(tmp_path)))
+    result = wallbot('motors', str(make(tmp_path)))
     assert result.returncode == 2
     assert message in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
@@ -154,6 +148,6 @@ def test_bad_input_is_one_line(tmp_path, make, message):
 
 def test_bad_robot_file_is_one_line(tracking_run, tmp_path):
     csv_path, _bag = tracking_run
-    result = cli('motors', str(csv_path), '--robot', str(tmp_path / 'nope.yaml'))
+    result = wallbot('motors', str(csv_path), '--robot', str(tmp_path / 'nope.yaml'))
     assert result.returncode == 2
     assert 'cannot read' in result.stderr and len(result.stderr.strip().splitlines()) == 1

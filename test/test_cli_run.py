@@ -6,7 +6,6 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -14,13 +13,13 @@ import numpy as np
 import pytest
 import yaml
 
+from cli_helpers import WALLBOT
 from wallbot_msgs_py import bagio, codec
 from wallbot_sim.rundata import summarize
 from wallbot_sim.graph import child_processes
 from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
-WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 
 
 def odometry(bag: Path) -> np.ndarray:
@@ -109,8 +108,9 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
 
 @pytest.mark.parametrize('args, message', [
     (['square'], "unknown scenario 'square'"),
-    (['circle', '--real-time-factor', '-1'], '--real-time-factor must be >= 0'),
-    (['circle', '--duration', '0'], '--duration must be a positive number'),
+    (['circle', '--real-time-factor', '-1'], 'argument --real-time-factor: must be 0 (as fast as possible) or in'),
+    (['circle', '--real-time-factor', '0.0005'], 'argument --real-time-factor: must be 0'),
+    (['circle', '--duration', '0'], 'argument --duration: must be > 0, got 0.0'),
     (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
     (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
     (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),

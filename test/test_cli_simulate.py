@@ -2,29 +2,17 @@
 
 from __future__ import annotations
 
-import csv
 import math
 import subprocess
-import sys
 
 import pytest
 
+from cli_helpers import WALLBOT, read_csv, simulate
 from wallbot_sim.rundata import CSV_COLUMNS
 
 HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
           'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual,'
           'N1,N2,N3,N4,use_L,use_R,use_lat,slip_L,slip_R,slip_lat')
-
-
-def simulate(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', *args],
-                          capture_output=True, text=True, timeout=120)
-
-
-def read_csv(path):
-    with open(path, newline='') as stream:
-        rows = list(csv.reader(stream))
-    return rows[0], [[float(v) for v in row] for row in rows[1:]]
 
 
 def test_csv_has_the_contract_header_and_one_row_per_step(tmp_path):
@@ -67,16 +55,16 @@ def test_every_paper_scenario_runs(tmp_path, scenario, constraints, heading):
 @pytest.mark.parametrize('args, message', [
     (['--scenario', 'square', '--csv', 'x.csv'], "unknown scenario 'square'"),
     (['--constraints', 'belt,sideways', '--csv', 'x.csv'], "unknown constraint 'sideways'"),
-    (['--duration', '-1', '--csv', 'x.csv'], '--duration must be a positive number'),
-    (['--duration', 'nan', '--csv', 'x.csv'], '--duration must be a positive number'),
-    (['--dt', '0', '--csv', 'x.csv'], '--dt must be in'),
-    (['--duration', 'abc', '--csv', 'x.csv'], "invalid float value: 'abc'"),
+    (['--duration', '-1', '--csv', 'x.csv'], 'argument --duration: must be > 0, got -1.0'),
+    (['--duration', 'nan', '--csv', 'x.csv'], 'argument --duration: must be a finite number, got nan'),
+    (['--dt', '0', '--csv', 'x.csv'], 'argument --dt: must be in (0, 0.1], got 0.0'),
+    (['--duration', 'abc', '--csv', 'x.csv'], "argument --duration: must be a finite number, got 'abc'"),
     ([], 'nothing to write'),
     (['--constraints', 'belt', '--tangent-heading', '--bag', 'b', '--duration', '0.01'], 'a bag cannot hold it'),
     (['--csv', '/nonexistent-dir/x.csv', '--duration', '0.01'], 'cannot write /nonexistent-dir/x.csv'),
 ])
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, message):
-    result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', *args],
+    result = subprocess.run([*WALLBOT, 'simulate', *args],
                             capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()

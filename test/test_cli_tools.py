@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import io
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from cli_helpers import assert_one_line_error, wallbot
 from wallbot_sim.cli.main import main as cli
 from wallbot_sim.plots.figures import FIGURES
 
@@ -23,20 +22,6 @@ def runs(tmp_path_factory) -> dict[str, Path]:
                     '--bag', str(bag), '--csv', str(table), '--quiet']) == 0
         out[name], out[f'{name}_csv'] = bag, table
     return out
-
-
-def wallbot(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', *map(str, args)],
-                          capture_output=True, text=True, timeout=120)
-
-
-def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
-    assert result.returncode != 0
-    assert 'Traceback' not in result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    for fragment in fragments:
-        assert fragment in lines[0]
 
 
 def test_info_lists_topics_types_counts_rates(runs):
@@ -71,7 +56,7 @@ def test_bad_inputs_get_one_line_errors(runs, tmp_path):
     assert_one_line_error(wallbot('info', tmp_path / 'missing'), 'does not exist')
     assert_one_line_error(wallbot('info', not_a_bag), 'not a rosbag2 bag')
     assert_one_line_error(wallbot('plot', blocker), 'not a rosbag2 bag')
-    assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'rate must be a positive number')
+    assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'argument --rate: must be > 0, got -1.0')
     assert_one_line_error(wallbot('play', runs['traj'], '--topics', 'no_such_topic'), 'no_such_topic')
     assert_one_line_error(wallbot('play', tmp_path / 'missing'), 'does not exist')
     assert_one_line_error(wallbot('plot', runs['traj'], '--out', blocker / 'sub'), 'output directory')

@@ -20,6 +20,7 @@ import pytest
 
 pytest.importorskip('rclpy')
 
+from cli_helpers import WALLBOT  # noqa: E402
 from closed_loop import (COMMAND_TIMEOUT, ROBOT, applied_torques, check_commands, check_complete,  # noqa: E402
                          model_closed_loop, recorded)
 from wallbot_msgs_py import topics  # noqa: E402
@@ -28,7 +29,6 @@ from wallbot_sim.graph import child_processes  # noqa: E402
 from wallbot_sim.model import Simulation  # noqa: E402
 from wallbot_sim.rundata import load_run  # noqa: E402
 
-WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 
 
 def start_run(process_runner, out: Path, scenario: str, duration: float, *extra: str):

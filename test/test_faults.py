@@ -35,7 +35,7 @@ rclpy = pytest.importorskip('rclpy')
 
 from std_srvs.srv import Trigger  # noqa: E402
 
-from test_nodes_graph import MS, Graph, ns, start_graph  # noqa: E402
+from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 
@@ -136,12 +136,7 @@ def steps_on(graph: Graph, what: str) -> None:
 
 def restart(graph: Graph, name: str, *params: str):
     """Start node ``name`` again, its output in ``NAME-2.log`` (the first life's log is kept)."""
-    from test_nodes_graph import NODES
-    args = [sys.executable, '-m', NODES[name], '--ros-args']
-    for param in params:
-        args += ['-p', param]
-    graph.procs[name] = graph.runner.start(args, f'{name}-2')
-    return graph.procs[name]
+    return graph.start(name, *params, log=f'{name}-2')
 
 
 def bag_figures(bag, events: dict, t_killed: int) -> dict:

@@ -43,7 +43,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension  # noqa: E402
 from rclpy.parameter import parameter_value_to_python  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from test_nodes_graph import Graph, ns, start_graph  # noqa: E402
+from graph_helpers import Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques  # noqa: E402

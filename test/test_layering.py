@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import os
 import shutil
 import subprocess
@@ -53,3 +54,29 @@ def test_a_broken_contract_fails(linter, tmp_path, module, line, contract):
     assert result.returncode != 0
     broken = result.stdout[result.stdout.index('Broken contracts'):]
     assert contract in broken.replace('\n', ' ')
+
+
+def imported_test_modules(source: str) -> list[str]:
+    """The test modules (``test_*``) that Python ``source`` imports."""
+    names = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.append(node.module)
+    return [name for name in names if name.split('.')[0].startswith('test_')]
+
+
+def test_no_test_module_imports_another():
+    """Shared helpers live in helper modules (graph_helpers, cli_helpers, ...), never in a test module:
+    importing one would run its module-level code and tie the two files' tests together."""
+    files = sorted([*(REPO_ROOT / 'test').glob('*.py'), *(REPO_ROOT / 'bench').glob('*.py')])
+    assert len(files) > 30
+    offenders = {path.name: imported_test_modules(path.read_text()) for path in files}
+    assert {name: imported for name, imported in offenders.items() if imported} == {}
+
+
+def test_the_test_import_check_finds_them():
+    source = ('import os, test_pacing\nfrom test_nodes_graph import Graph\n'
+              'from graph_helpers import ns\nfrom . import x\n')
+    assert imported_test_modules(source) == ['test_pacing', 'test_nodes_graph']

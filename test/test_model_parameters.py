@@ -23,17 +23,17 @@ def test_config_file_holds_model_md_defaults():
 @pytest.mark.parametrize('key, value, words', [
     ('body_mass', -1.0, 'body_mass must be > 0'),
     ('wheel_radius', 0.0, 'wheel_radius must be > 0'),
-    ('wheel_spin_inertia', math.nan, 'wheel_spin_inertia must be finite'),
-    ('gravity', math.inf, 'gravity must be finite'),
-    ('half_track', 'wide', 'half_track must be a number'),
-    ('wall_friction', True, 'wall_friction must be a number'),
+    ('wheel_spin_inertia', math.nan, 'wheel_spin_inertia must be a finite number, got nan'),
+    ('gravity', math.inf, 'gravity must be a finite number, got inf'),
+    ('half_track', 'wide', 'half_track must be a finite number'),
+    ('wall_friction', True, 'wall_friction must be a finite number'),
     ('rolling_resistance', -0.01, 'rolling_resistance must be >= 0'),
     ('com_offset', [0.1], 'com_offset must be a pair'),
-    ('com_offset', ['a', 0.0], 'com_offset must be a number'),
+    ('com_offset', ['a', 0.0], 'com_offset must be a finite number'),
     ('kinetic_friction', 0.8, r'kinetic_friction must be <= wall_friction \(0.7\), got 0.8'),
     ('kinetic_friction', 0.0, 'kinetic_friction must be > 0'),
     ('adhesion_force', -5.0, 'adhesion_force must be > 0'),
-    ('adhesion_force', 'strong', 'adhesion_force must be a number'),
+    ('adhesion_force', 'strong', 'adhesion_force must be a finite number'),
     ('stick_velocity', 0.0, 'stick_velocity must be > 0'),
 ])
 def test_bad_values_are_refused_with_their_name(key, value, words):
@@ -76,7 +76,7 @@ def test_scenarios_load_and_bad_ones_are_refused(tmp_path):
     path = tmp_path / 'bad.yaml'
     path.write_text(yaml.safe_dump({'name': 'x', 'reference': {'shape': 'circle', 'radius': -1, 'period': 5},
                                     'duration': 3, 'initial_state': {'x': 0, 'y': 0, 'theta': 0}}))
-    with pytest.raises(ParameterError, match='radius must be a finite number > 0'):
+    with pytest.raises(ParameterError, match='radius must be > 0, got -1'):
         load_scenario(path)
 
 

@@ -14,7 +14,7 @@ rclpy = pytest.importorskip('rclpy')
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from test_nodes_graph import Graph, start_graph  # noqa: E402
+from graph_helpers import Graph, start_graph  # noqa: E402
 from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim.paths import robot_yaml  # noqa: E402

@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -18,135 +17,18 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from nav_msgs.msg import Odometry, Path  # noqa: E402
-from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
-from rclpy.parameter import Parameter, parameter_value_to_python  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
-from trajectory_msgs.msg import MultiDOFJointTrajectory  # noqa: E402
 
-from test_pacing import may_use_fifo  # noqa: E402
-from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
-from wallbot_msgs_py.qos import qos_profile  # noqa: E402
+from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
+from scheduling_helpers import may_use_fifo  # noqa: E402
+from wallbot_msgs_py import bagio, topics  # noqa: E402
 from wallbot_sim import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
 from wallbot_sim.model import ConstraintSelection, FigureEight, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
-
-NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
-         'constraint_config': 'wallbot_sim.nodes.constraint_config'}
-MS = 1_000_000
-
-
-def ns(msg) -> int:
-    return codec.stamp_nanoseconds(msg.header.stamp)
-
-
-class Graph:
-    """Starts node processes and observes them through an in-process rclpy node."""
-
-    def __init__(self, runner, namespace: str = topics.NAMESPACE) -> None:
-        self.runner, self.namespace = runner, namespace
-        self.procs = {}
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context)
-        self.node = rclpy.create_node('graph_test', context=self.context)
-        self.lock = threading.Lock()
-        self.received: dict[str, list] = {}
-        for topic, kind in ((topics.ODOM, Odometry), (topics.WHEEL_STATES, JointState),
-                            (topics.DIAGNOSTICS, DiagnosticArray), (topics.CONSTRAINTS, DiagnosticStatus),
-                            (topics.REFERENCE_TRAJECTORY, MultiDOFJointTrajectory),
-                            (topics.REFERENCE_PATH, Path), (topics.REFERENCE, Odometry)):
-            self.received[topic.name] = []
-            self.node.create_subscription(kind, topic.resolve(namespace), self._keeper(topic.name),
-                                          qos_profile(topic))
-        self.torque_pub = self.node.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.resolve(namespace),
-                                                     qos_profile(topics.WHEEL_TORQUE_CMD))
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.spinner = threading.Thread(target=self._spin, daemon=True)
-        self.spinner.start()
-
-    def _keeper(self, name):
-        def keep(msg):
-            with self.lock:
-                self.received[name].append(msg)
-        return keep
-
-    def _spin(self):
-        while self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.05)
-            except Exception:  # noqa: BLE001 - shutting down
-                return
-
-    def start(self, name: str, *params: str, remap: str | None = None):
-        args = [sys.executable, '-m', NODES[name], '--ros-args']
-        for param in params:
-            args += ['-p', param]
-        if remap:
-            args += ['-r', remap]
-        self.procs[name] = self.runner.start(args, name)
-        return self.procs[name]
-
-    def messages(self, name: str) -> list:
-        with self.lock:
-            return list(self.received[name])
-
-    def clear(self, name: str) -> None:
-        with self.lock:
-            self.received[name].clear()
-
-    def wait_for(self, predicate, timeout: float = 10.0, what: str = 'condition'):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            value = predicate()
-            if value:
-                return value
-            for name, proc in self.procs.items():
-                if proc.poll() is not None:
-                    pytest.fail(f'{name} exited with {proc.returncode}:\n{self.runner.output(name)}')
-            time.sleep(0.02)
-        logs = '\n'.join(f'--- {n}\n{self.runner.output(n)[-3000:]}' for n in self.procs)
-        pytest.fail(f'timed out waiting for {what}\n{logs}')
-
-    def last_stamp(self) -> int:
-        odom = self.messages(topics.ODOM.name)
-        return ns(odom[-1]) if odom else -1
-
-    def wait_sim_time(self, t: float, timeout: float = 10.0):
-        self.wait_for(lambda: self.last_stamp() >= round(t * 1e9), timeout, f'simulation time {t} s')
-
-    def call(self, kind, name: str, request, timeout: float = 5.0):
-        client = self.node.create_client(kind, name)
-        try:
-            assert client.wait_for_service(timeout_sec=timeout), f'service {name} not available'
-            future = client.call_async(request)
-            self.wait_for(future.done, timeout, f'response of {name}')
-            return future.result()
-        finally:
-            self.node.destroy_client(client)
-
-    def set_parameters(self, node: str, **values):
-        """Through the SetParameters service, like ``ros2 param set``; the per-parameter results."""
-        request = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
-                                                    for k, v in values.items()])
-        return self.call(SetParameters, f'{self.namespace}/{node}/set_parameters', request).results
-
-    def get_parameters(self, node: str, *names: str):
-        response = self.call(GetParameters, f'{self.namespace}/{node}/get_parameters',
-                             GetParameters.Request(names=list(names)))
-        return [parameter_value_to_python(v) for v in response.values]
-
-    def close(self):
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-        self.spinner.join(timeout=2.0)
 
 
 @pytest.fixture
@@ -156,25 +38,6 @@ def graph(process_runner):
         yield g
     finally:
         g.close()
-
-
-def start_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),
-                trajectory: tuple[str, ...] | None = ()):
-    """Start the nodes; constraint_config last, once this test's subscriptions see the dynamics node.
-
-    The dynamics node integrates nothing before it has a constraint set, and DDS discovery
-    between freshly started processes can take a few seconds, so waiting for the match first
-    lets the test see the run from t = 0.
-    """
-    if trajectory is not None:
-        graph.start('trajectory', *trajectory)
-    proc = graph.start('dynamics', *dynamics)
-    odom = topics.ODOM.resolve(graph.namespace)
-    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
-    # a message of the dynamics received here: its endpoints and this test's are matched both ways
-    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 15, 'the first diagnostics (1 Hz)')
-    graph.start('constraint_config', *constraints)
-    return proc
 
 
 def start_tracking_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),

@@ -7,11 +7,11 @@ scheduling policy of a thread, so nothing here depends on how busy the machine i
 from __future__ import annotations
 
 import os
-import resource
 import threading
 
 import pytest
 
+from scheduling_helpers import may_use_fifo
 from wallbot_sim.nodes import pacing
 from wallbot_sim.nodes.pacing import Pacer
 
@@ -141,11 +141,6 @@ def test_policy_states_the_decision_before_any_step_sleeps(clock, scheduler):
     assert pacer.policy == 'SCHED_FIFO 50 while paced' and pacer.applied_priority == 0
     run_steps(pacer, clock, range(1, 5), factor=0.0)  # nothing sleeps at factor 0: the decision stands
     assert pacer.policy == 'SCHED_FIFO 50 while paced' and scheduler.calls == []
-
-
-def may_use_fifo() -> bool:
-    soft, _hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
-    return os.geteuid() == 0 or soft == resource.RLIM_INFINITY or soft >= 10
 
 
 def test_real_policy_applies_to_the_loop_thread_only():

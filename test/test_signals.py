@@ -25,6 +25,7 @@ import yaml
 
 pytest.importorskip('rclpy')
 
+from cli_helpers import WALLBOT  # noqa: E402
 from wallbot_msgs_py import bagio  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.cli.main import main as cli  # noqa: E402
@@ -39,7 +40,6 @@ STOP_BOUND = 3.0
 signal, or keeps recording for seconds). The requirement is 1 s, met on an unloaded machine
 (bench/bench_signals.py, docs/robustness.md); beside other test runs on 2 cores (load average 11)
 the interpreter's and Fast DDS's teardown after the bag was closed alone took up to 1.7 s."""
-WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
 MS = 1_000_000
 SIGNALS = [signal.SIGINT, signal.SIGTERM]
 

@@ -223,8 +223,6 @@ def path(stamped_poses: Iterable[tuple[float, float, float, float]], t: float) -
 
 # --- the constraint set ----------------------------------------------------------------------------
 CONSTRAINTS_STATUS_NAME = 'wallbot constraints'
-SWITCHES = ('trajectory_task', 'belt', 'non_lateral', 'nonslip', 'tangent_heading')
-"""The switches of the ``constraints`` message, as the constraint_config node's parameters."""
 GAINS = ('baumgarte_alpha', 'baumgarte_beta')
 
 
@@ -240,7 +238,7 @@ def constraints(switches: Mapping[str, bool], alpha: float, beta: float, active:
     """``constraints``: a DiagnosticStatus whose values hold every switch ('true'/'false'), the
     gains (repr of the float) and 'active' (the active modules, comma-separated); its message
     is ``label``, e.g. 'trajectory+belt'."""
-    values = {name: 'true' if switches[name] else 'false' for name in SWITCHES}
+    values = {name: 'true' if switches[name] else 'false' for name in topics.CONSTRAINT_SWITCHES}
     values.update({'baumgarte_alpha': repr(float(alpha)), 'baumgarte_beta': repr(float(beta)),
                    'active': ','.join(active)})
     return _serialize(_status(Status(CONSTRAINTS_STATUS_NAME, 'ok', label, list(values.items()))), topics.CONSTRAINTS)
@@ -250,7 +248,7 @@ def constraint_switches(msg: Any) -> ConstraintSwitches:
     """The switches and gains of a ``constraints`` message; ValueError naming what is wrong."""
     values = {kv.key: kv.value for kv in msg.values}
     switches = {}
-    for name in SWITCHES:
+    for name in topics.CONSTRAINT_SWITCHES:
         text = values.get(name, '').strip().lower()
         if text not in ('true', 'false'):
             raise ValueError(f'constraints message: {name} must be true or false, got {values.get(name)!r}')

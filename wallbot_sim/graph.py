@@ -1,13 +1,14 @@
-"""The node graph as child processes: start each node with its parameters, watch, stop in order.
+"""Child processes and the node graph as child processes: start each with its log, watch, stop in order.
 
-Used by ``wallbot-sim run``. Every node runs as ``python -m MODULE --ros-args ...`` in its own
-session (so a Ctrl-C at the terminal reaches only the launcher, which then stops the nodes in
-order), with its output in ``LOG_DIR/NAME.log``.
+Used by ``wallbot-sim run``, the tests and the benches. Every node runs as ``python -m MODULE
+--ros-args ...`` in its own session (so a Ctrl-C at the terminal reaches only the launcher, which
+then stops the nodes in order), with its output in ``LOG_DIR/NAME.log``.
 """
 
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import signal
 import subprocess
@@ -15,7 +16,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
+from typing import Callable, Mapping, Sequence
 
 
 @dataclass(frozen=True)
@@ -56,56 +57,97 @@ class NodeDied(Exception):
         self.name, self.status, self.log = name, status, log
 
 
-class Graph:
-    """Child node processes, started in order and stopped in reverse (or as asked)."""
+class ChildProcesses:
+    """Child processes, each in a session of its own with its output in ``LOG_DIR/NAME.log``.
 
-    def __init__(self, log_dir: Path, env: Mapping[str, str]) -> None:
-        self.log_dir = log_dir
+    The one way the project starts processes: ``wallbot-sim run``'s nodes (:class:`Graph`), the
+    tests' ``process_runner`` and the benches. Its own session keeps a terminal's Ctrl-C away from
+    a child (the parent stops its children in order); on Linux a child gets SIGTERM if the parent
+    dies without stopping it. Stopping signals the child itself, SIGKILLs it after
+    ``stop_timeout`` and then SIGKILLs whatever is left in its process group.
+    """
+
+    def __init__(self, log_dir: Path, env: Mapping[str, str], stop_timeout: float = 10.0) -> None:
+        self.log_dir = Path(log_dir)
         self.env = dict(env)
+        self.stop_timeout = stop_timeout
         self.processes: dict[str, subprocess.Popen] = {}
-        log_dir.mkdir(parents=True, exist_ok=True)
+        """The newest process started under each name."""
+        self._started: list[tuple[str, subprocess.Popen]] = []
+        self.log_dir.mkdir(parents=True, exist_ok=True)
 
     def log(self, name: str) -> Path:
-        """Where node ``name`` writes its output."""
+        """Where the process started as ``name`` writes its output."""
         return self.log_dir / f'{name}.log'
 
-    def start(self, spec: NodeSpec) -> None:
-        with open(self.log(spec.name), 'wb') as log:
-            self.processes[spec.name] = subprocess.Popen(
-                spec.command(), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                env=self.env, start_new_session=True, preexec_fn=_end_with_parent)
+    def output(self, name: str) -> str:
+        """Everything the process ``name`` has written so far."""
+        return self.log(name).read_text(errors='replace')
 
-    def check(self) -> None:
-        """Raise NodeDied for the first node that has exited."""
-        for name, process in self.processes.items():
-            status = process.poll()
-            if status is not None:
-                raise NodeDied(name, status, self.log(name))
+    def start(self, command: Sequence[object], name: str, *, cwd: str | os.PathLike | None = None,
+              env: Mapping[str, str] | None = None) -> subprocess.Popen:
+        """Start ``command`` (each item as a string) as ``name``; ``env`` adds to the environment."""
+        prctl = _prctl()  # resolved here: the child only calls it (no loader lock after the fork)
+        with open(self.log(name), 'wb') as log:
+            process = subprocess.Popen(
+                [str(part) for part in command], stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                cwd=cwd, env={**self.env, **(env or {})}, start_new_session=True,
+                preexec_fn=None if prctl is None else lambda: prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM)))
+        self.processes[name] = process
+        self._started.append((name, process))
+        return process
 
-    def stop_all(self, first: tuple[str, ...] = (), timeout: float = 10.0) -> None:
-        """Signal every running node (:meth:`signal_all`) and wait for them (:meth:`wait_all`)."""
+    def stop(self, process: subprocess.Popen) -> int | None:
+        """SIGTERM ``process``, SIGKILL it after ``stop_timeout``, then SIGKILL what is left of its
+        process group; its exit status (None if it could not be reaped)."""
+        if process.poll() is None:
+            _signal(process.pid, signal.SIGTERM)
+            try:
+                process.wait(self.stop_timeout)
+            except subprocess.TimeoutExpired:
+                _signal(process.pid, signal.SIGKILL)
+                try:
+                    process.wait(self.stop_timeout)
+                except subprocess.TimeoutExpired:
+                    pass
+        _kill_group(process.pid)
+        return process.returncode
+
+    def stop_all(self, first: tuple[str, ...] = ()) -> None:
+        """Signal every running process (:meth:`signal_all`) and wait for them (:meth:`wait_all`)."""
         self.signal_all(first)
-        self.wait_all(timeout)
+        self.wait_all()
 
     def signal_all(self, first: tuple[str, ...] = ()) -> None:
-        """Signal every running node, ``first`` with SIGINT (in that order) and then the rest with
-        SIGTERM, without waiting: each node needs a few hundred milliseconds to leave DDS, and one
-        after another the launcher would take seconds to stop."""
-        order = [*first, *(name for name in reversed(list(self.processes)) if name not in first)]
-        for name in order:
-            process = self.processes.get(name)
-            if process is not None and process.poll() is None:
-                _signal(process, signal.SIGINT if name in first else signal.SIGTERM)
+        """Signal every running process, those named in ``first`` with SIGINT (in that order), then the
+        rest with SIGTERM, newest first, without waiting: each node needs a few hundred milliseconds
+        to leave DDS, and one after another the launcher would take seconds to stop."""
+        named = [process for name in first for started, process in self._started if started == name]
+        rest = [process for name, process in reversed(self._started) if name not in first]
+        for process in named + rest:
+            if process.poll() is None:
+                _signal(process.pid, signal.SIGINT if process in named else signal.SIGTERM)
 
-    def wait_all(self, timeout: float = 10.0) -> None:
-        """Wait for every node to exit; SIGKILL whatever is left after ``timeout``."""
-        deadline = time.monotonic() + timeout
-        for process in self.processes.values():
+    def wait_all(self) -> None:
+        """Wait up to ``stop_timeout`` for every process to exit; SIGKILL whatever is left, and what is
+        left of their process groups. Their exit statuses stay in :attr:`processes`."""
+        deadline = time.monotonic() + self.stop_timeout
+        for _name, process in self._started:
             try:
                 process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                _signal(process, signal.SIGKILL)
+                _signal(process.pid, signal.SIGKILL)
                 process.wait()
+            _kill_group(process.pid)
+        self._started.clear()  # reaped: their ids may belong to other processes from now on
+
+
+class Graph(ChildProcesses):
+    """The nodes of a graph as child processes, started in order and stopped together."""
+
+    def start_node(self, spec: NodeSpec) -> subprocess.Popen:
+        """Start the node ``spec`` describes, its output in ``LOG_DIR/NAME.log``."""
+        return self.start(spec.command(), spec.name)
 
 
 def child_processes(pid: int) -> dict[int, str]:
@@ -129,17 +171,25 @@ def resident_mib(pid: int) -> float:
     return float('nan')
 
 
-def _end_with_parent() -> None:
-    """In the child: have Linux send SIGTERM if the launcher dies without stopping the graph."""
-    if sys.platform.startswith('linux'):
-        ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-
-
 _PR_SET_PDEATHSIG = 1
 
 
-def _signal(process: subprocess.Popen, sig: int) -> None:
+@functools.cache
+def _prctl() -> Callable[..., int] | None:
+    """libc's prctl on Linux (None elsewhere)."""
+    return ctypes.CDLL(None).prctl if sys.platform.startswith('linux') else None
+
+
+def _signal(pid: int, sig: int) -> None:
     try:
-        os.killpg(process.pid, sig)
+        os.kill(pid, sig)
     except ProcessLookupError:
+        pass
+
+
+def _kill_group(pid: int) -> None:
+    """SIGKILL what is left of the process group ``pid`` leads (children it started in it)."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
         pass

@@ -12,6 +12,7 @@ from pathlib import Path
 from wallbot_msgs_py import topics
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.graph import NodeSpec
+from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
 
 RECORDER = 'recorder'
@@ -57,9 +58,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     if closed_loop:
         selection = DRIVEN
     pose = scenario.initial
-    switches = {'trajectory_task': selection.trajectory, 'belt': selection.belt,
-                'non_lateral': selection.non_lateral, 'nonslip': selection.nonslip,
-                'tangent_heading': selection.tangent_heading is not False}
+    switches = switches_from_selection(selection)
     specs = []
     if bag is not None:
         recorder: dict[str, object] = {'output': str(bag)}

@@ -126,16 +126,17 @@ def selection_from_switches(switches: Mapping[str, bool]) -> ConstraintSelection
     ``tangent_heading`` true keeps the model's default (heading task on whenever non_lateral is
     active with the trajectory task); false switches it off (the paper's inconsistent set).
     """
-    return ConstraintSelection(bool(switches['trajectory_task']), bool(switches['belt']),
-                               bool(switches['non_lateral']), bool(switches['nonslip']),
-                               None if switches['tangent_heading'] else False)
+    on = {module: bool(switches[switch.parameter]) for module, switch in topics.CONSTRAINT_MODULES.items()}
+    heading = on.pop('tangent_heading')
+    return ConstraintSelection(**on, tangent_heading=None if heading else False)
 
 
 def switches_from_selection(selection: ConstraintSelection) -> dict[str, bool]:
     """The constraint_config switches that give ``selection`` (a heading task forced on without
-    non_lateral has no switch: the graph runs its default there)."""
-    return {'trajectory_task': selection.trajectory, 'belt': selection.belt, 'non_lateral': selection.non_lateral,
-            'nonslip': selection.nonslip, 'tangent_heading': selection.tangent_heading is not False}
+    non_lateral has no switch: the graph runs its default there), in the order of the switches."""
+    return {switch.parameter: (selection.tangent_heading is not False if module == 'tangent_heading'
+                               else getattr(selection, module))
+            for module, switch in topics.CONSTRAINT_MODULES.items()}
 
 
 def constraints_message(switches: Mapping[str, bool], gains: BaumgarteGains) -> bytes:

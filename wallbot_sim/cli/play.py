@@ -19,30 +19,22 @@ from typing import Any
 
 from wallbot_msgs_py import topics as graph
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.options import number
+from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE
 
 HELP = 'publish a recorded bag again with its recorded timing (serialized bytes as stored)'
 
 
-def _positive_rate(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'rate must be a number, got {text!r}') from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f'rate must be a positive number, got {text}')
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('bag', metavar='BAG', help='rosbag2 bag directory')
-    parser.add_argument('--rate', type=_positive_rate, default=1.0, help='playback speed factor (> 0, default 1)')
+    parser.add_argument('--rate', type=number(POSITIVE), default=1.0, help='playback speed factor (> 0, default 1)')
     parser.add_argument('--loop', action='store_true', help='start again at the end, until interrupted')
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics (default: all)')
     parser.add_argument('--clock', action='store_true', help='publish /clock with the bag time')
-    parser.add_argument('--clock-rate', type=_positive_rate, default=100.0, help='/clock rate in Hz (default 100)')
-    parser.add_argument('--delay', type=float, default=1.0,
+    parser.add_argument('--clock-rate', type=number(POSITIVE), default=100.0, help='/clock rate in Hz (default 100)')
+    parser.add_argument('--delay', type=number(NON_NEGATIVE), default=1.0,
                         help='seconds to wait after creating the publishers, for discovery (default 1)')
-    parser.add_argument('--wait-subscribers', type=float, default=0.0, metavar='S',
+    parser.add_argument('--wait-subscribers', type=number(NON_NEGATIVE), default=0.0, metavar='S',
                         help='wait up to S seconds until every played topic has a subscriber (default: don\'t)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
 
@@ -88,8 +80,6 @@ def wait_acked(publisher: Any, seconds: float) -> bool:
 def main(args: argparse.Namespace) -> int:
     from wallbot_sim.bag.reader import info, messages, resolve_topics
 
-    if not (math.isfinite(args.delay) and args.delay >= 0):
-        raise CliError(f'--delay must be >= 0 seconds, got {args.delay}')
     bag = info(args.bag)
     names = resolve_topics(bag, args.topics)
     if args.clock:
@@ -123,8 +113,6 @@ def main(args: argparse.Namespace) -> int:
             from rosgraph_msgs.msg import Clock
             clock_pub = node.create_publisher(Clock, graph.CLOCK.name, QoSProfile(depth=graph.CLOCK.depth))
             clock_msg = Clock()
-        if not (math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0):
-            raise CliError(f'--wait-subscribers must be >= 0 seconds, got {args.wait_subscribers}')
         deadline = time.monotonic() + args.wait_subscribers
         while args.wait_subscribers and time.monotonic() < deadline and \
                 not all(p.get_subscription_count() > 0 for p in publishers.values()):

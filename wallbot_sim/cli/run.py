@@ -20,16 +20,20 @@ from pathlib import Path
 from wallbot_msgs_py import codec, topics
 from wallbot_sim import messages
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
-from wallbot_sim.model import ConstraintSelection, Robot
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
+from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
+ALL_STRUCTURAL = ','.join(STRUCTURAL)
 OPTIONAL = (CONTROLLER,)
 """Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
 torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
@@ -43,24 +47,25 @@ pose at the end (it follows /clock, and lags it on a loaded machine)."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('scenario', help='circle, figure8, or a scenario YAML path')
-    parser.add_argument('--constraints', default='belt,non_lateral,nonslip',
-                        help='comma list of belt, non_lateral, nonslip, or none (default: all three)')
+    parser.add_argument('--constraints', default=ALL_STRUCTURAL,
+                        help=f'{SELECTION_SYNTAX} (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
-    parser.add_argument('--duration', type=float, help="simulated seconds (default: the scenario's)")
-    parser.add_argument('--real-time-factor', type=float, default=1.0,
-                        help='1 = wall-clock pace, 0 = as fast as possible (default 1)')
+    parser.add_argument('--duration', type=number(POSITIVE), help="simulated seconds (default: the scenario's)")
+    parser.add_argument('--real-time-factor', type=number(REAL_TIME_FACTOR), default=1.0,
+                        help=f'simulated seconds per wall second, {REAL_TIME_FACTOR.describe()} (default 1)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
-    parser.add_argument('--adhesion-force', type=float,
+    parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
     parser.add_argument('--controller', action='store_true',
-                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with '
+                        help='closed loop: driven mode (no trajectory task; '
+                             f'{", ".join(DRIVEN.active_names())}) with '
                              'tracking_controller_node commanding the wheel torques; wheel_torque_cmd is recorded')
-    parser.add_argument('--controller-mass-scale', type=float, default=1.0,
+    parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
                              '(model mismatch; default 1.0)')
 
@@ -158,7 +163,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
     monitor = Monitor()
     reported: set[str] = set()
     try:
-        graph.start(specs[0])
+        graph.start_node(specs[0])
         deadline = time.monotonic() + START_TIMEOUT
         while not monitor.recorder_ready():
             check_nodes(graph, reported)
@@ -166,7 +171,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
                 raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(RECORDER)}')
             monitor.spin(0.05)
         for spec in specs[1:]:
-            graph.start(spec)
+            graph.start_node(spec)
         while monitor.recorded < duration - 1e-9:
             check_nodes(graph, reported)
             if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
@@ -195,27 +200,19 @@ def main(args: argparse.Namespace) -> int:
         raise CliError('--tangent-heading acts with non_lateral in the graph (constraint_config); '
                        'add non_lateral to --constraints, or use simulate for a heading task without it')
     duration = scenario.duration if args.duration is None else args.duration
-    if not (math.isfinite(duration) and duration > 0):
-        raise CliError(f'--duration must be a positive number of seconds, got {duration}')
     factor = args.real_time_factor
-    if not (math.isfinite(factor) and factor >= 0):
-        raise CliError(f'--real-time-factor must be >= 0, got {factor}')
     mass_scale = None
     if args.controller:
-        if args.constraints != 'belt,non_lateral,nonslip' or args.tangent_heading is not None:
-            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
-                           'drop --constraints and --tangent-heading')
+        if args.constraints != ALL_STRUCTURAL or args.tangent_heading is not None:
+            raise CliError(f'--controller runs the driven robot ({", ".join(DRIVEN.active_names())}, no trajectory '
+                           'task): drop --constraints and --tangent-heading')
         mass_scale = args.controller_mass_scale
-        if not (math.isfinite(mass_scale) and mass_scale > 0):
-            raise CliError(f'--controller-mass-scale must be a positive number, got {mass_scale}')
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
     if args.contact == 'coulomb' and not args.controller:
         raise CliError("--contact coulomb needs --controller: with the trajectory task on, the task's force is a "
                        'virtual actuator, not friction')
-    if args.adhesion_force is not None and not (math.isfinite(args.adhesion_force) and args.adhesion_force > 0):
-        raise CliError(f'--adhesion-force must be a positive number of newtons, got {args.adhesion_force}')
     robot_file = Path(args.robot).resolve() if args.robot else None
     params = load_robot_parameters(robot_file)
     robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))

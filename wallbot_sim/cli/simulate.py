@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 import sys
 from pathlib import Path
 from typing import TextIO
@@ -13,10 +12,12 @@ import numpy as np
 
 from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
+from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
@@ -24,7 +25,9 @@ HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 REST = 'rest'
 """The scenario with no trajectory task: at rest at the origin, constant motor torques."""
 REST_DURATION = 1.0
-DRIVEN_CONSTRAINTS = 'belt,non_lateral,nonslip'
+DRIVEN_CONSTRAINTS = ','.join(STRUCTURAL)
+TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
+"""RK4 steps --dt accepts (s)."""
 DETACHED_STATUS = 3
 
 
@@ -32,20 +35,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scenario', default='circle',
                         help='circle, figure8, a scenario YAML path, or rest (no trajectory task: at rest at the '
                              'origin under constant motor torques)')
-    parser.add_argument('--heading', type=float, help='with --scenario rest: initial heading in rad (default 0)')
+    parser.add_argument('--heading', type=number(FINITE),
+                        help='with --scenario rest: initial heading in rad (default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
     parser.add_argument('--constraints',
-                        help='comma list of belt, non_lateral, nonslip, or none (default: none, the trajectory '
+                        help=f'{SELECTION_SYNTAX} (default: none, the trajectory '
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '
                              'needs a run without the trajectory task)')
-    parser.add_argument('--adhesion-force', type=float,
+    parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
-    parser.add_argument('--duration', type=float, help='seconds to simulate (default: the scenario\'s)')
-    parser.add_argument('--dt', type=float, default=1e-3, help='RK4 step in seconds (default 0.001)')
+    parser.add_argument('--duration', type=number(POSITIVE), help='seconds to simulate (default: the scenario\'s)')
+    parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
@@ -54,14 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     """The simulation and duration the arguments ask for (shared with the bag writer)."""
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise CliError(f'--duration must be a positive number of seconds, got {args.duration}')
-    if not (math.isfinite(args.dt) and 0 < args.dt <= 0.1):
-        raise CliError(f'--dt must be in (0, 0.1] seconds, got {args.dt}')
     params = load_robot_parameters(args.robot)
     if args.adhesion_force is not None:
-        if not (math.isfinite(args.adhesion_force) and args.adhesion_force > 0):
-            raise CliError(f'--adhesion-force must be a positive number of newtons, got {args.adhesion_force}')
         params = params.replace(adhesion_force=args.adhesion_force)
     robot = Robot(params)
     rest = args.scenario == REST
@@ -74,8 +72,6 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
                        'is a virtual actuator, not friction; use --scenario rest (driven by --torque)')
     if rest:
         heading = 0.0 if args.heading is None else args.heading
-        if not math.isfinite(heading):
-            raise CliError(f'--heading must be a finite angle in rad, got {args.heading}')
         q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
         simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact)
         simulation.set_motor_torque(*parse_torque(args.torque))
@@ -94,8 +90,9 @@ def parse_torque(text: str | None) -> tuple[float, float]:
         left, right = (float(part) for part in text.split(','))
     except ValueError:
         raise CliError(f'--torque must be two numbers TL,TR in N m, got {text!r}') from None
-    if not (math.isfinite(left) and math.isfinite(right)):
-        raise CliError(f'--torque must be finite, got {text!r}')
+    problem = FINITE.problem(left) or FINITE.problem(right)
+    if problem is not None:
+        raise CliError(f'--torque {problem}')
     return left, right
 
 

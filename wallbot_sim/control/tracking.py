@@ -20,11 +20,17 @@ import numpy as np
 from wallbot_sim.model import BaumgarteGains, ConstraintSelection, DriveForces, ParameterError, Reference, Robot
 from wallbot_sim.model.constraint_set import build_modules
 from wallbot_sim.model.constraints import LookAheadPointTask
+from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE
 from wallbot_sim.model.outputs import drive_forces, side_motor_torques
 from wallbot_sim.model.simulation import constrained_motion
 
-DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
+DRIVEN = ConstraintSelection.structural(trajectory=False)
 """The constraints of the driven robot: belts, no side slip, wheels rolling on the wall."""
+
+
+GAIN_RANGES = {'alpha': POSITIVE, 'beta': POSITIVE, 'look_ahead': POSITIVE, 'integral': NON_NEGATIVE,
+               'integral_zone': POSITIVE}
+"""The accepted values of each of the ControllerGains (the controller node's parameters of the same names)."""
 
 
 @dataclass(frozen=True)
@@ -43,12 +49,8 @@ class ControllerGains:
     """The error is integrated only while the centre is this close to its reference (m)."""
 
     def __post_init__(self) -> None:
-        for name in ('alpha', 'beta', 'look_ahead', 'integral_zone'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ParameterError(f'{name} must be a finite number > 0, got {value!r}')
-        if not (math.isfinite(self.integral) and self.integral >= 0.0):
-            raise ParameterError(f'integral must be a finite number >= 0, got {self.integral!r}')
+        for name, allowed in GAIN_RANGES.items():
+            allowed.check(name, getattr(self, name))
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """The wall-climbing robot model of docs/model.md: pure NumPy, no ROS, no I/O."""
 
-from wallbot_sim.model.constraint_set import STRUCTURAL, ConstraintSelection, build_modules
+from wallbot_sim.model.constraint_set import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.outputs import DriveForces, StepOutputs, drive_forces
@@ -13,7 +13,7 @@ from wallbot_sim.model.trajectories import (
     Circle, FigureEight, Reference, ReferenceSample, SampledReference, SmoothStop, tangent_heading)
 
 __all__ = [
-    'DEFAULT_STEP', 'DOF', 'STRUCTURAL', 'Adsorption', 'BaumgarteGains', 'Circle',
+    'DEFAULT_STEP', 'DOF', 'SELECTION_SYNTAX', 'STRUCTURAL', 'Adsorption', 'BaumgarteGains', 'Circle',
     'ConstrainedMotion', 'ConstraintSelection', 'DivergedError', 'DriveForces', 'FigureEight',
     'ModelError', 'ParameterError', 'Reference', 'ReferenceSample', 'Robot', 'RobotParameters',
     'SampledReference', 'Scenario', 'Simulation', 'SmoothStop', 'StepOutputs', 'SwitchReport',

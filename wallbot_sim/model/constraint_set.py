@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 from wallbot_sim.model.constraints import (
     BaumgarteGains, ConstraintModule, NonLateral, Nonslip, SynchronousBelt, TangentHeadingTask,
@@ -11,8 +12,30 @@ from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.robot import Robot
 from wallbot_sim.model.trajectories import Reference
 
-STRUCTURAL = ('belt', 'non_lateral', 'nonslip')
+
+@dataclass(frozen=True)
+class ModuleKind:
+    """How to build one kind of constraint module, and whether it is a task on the reference."""
+
+    build: Callable[[Robot, Reference | None, BaumgarteGains], ConstraintModule]
+    task: bool = False
+
+
+MODULES: dict[str, ModuleKind] = {
+    'trajectory': ModuleKind(lambda robot, reference, gains: TrajectoryTask(reference, gains), task=True),
+    'tangent_heading': ModuleKind(lambda robot, reference, gains: TangentHeadingTask(reference, gains), task=True),
+    'belt': ModuleKind(lambda robot, reference, gains: SynchronousBelt(gains)),
+    'non_lateral': ModuleKind(lambda robot, reference, gains: NonLateral(gains)),
+    'nonslip': ModuleKind(lambda robot, reference, gains: Nonslip(robot.params.wheel_radius, robot.lateral_offsets,
+                                                                  gains)),
+}
+"""The one list of constraint modules a selection can switch on, keyed by name, in stacking order. The
+names are the ones the command line, the nodes and the ``constraints`` message use
+(``wallbot_msgs_py.topics.CONSTRAINT_MODULES`` gives each its constraint_config switch)."""
+STRUCTURAL = tuple(name for name, kind in MODULES.items() if not kind.task)
 """Names of the structural and environmental constraints, in the paper's order."""
+SELECTION_SYNTAX = f'comma list of {", ".join(STRUCTURAL)}, or none'
+"""How a selection is written (:meth:`ConstraintSelection.parse`; ``--constraints``, ``constraints:=``)."""
 
 
 @dataclass(frozen=True)
@@ -38,8 +61,14 @@ class ConstraintSelection:
         unknown = [name for name in names if name not in STRUCTURAL]
         if unknown or not text.strip():
             bad = unknown[0] if unknown else text
-            raise ParameterError(f'unknown constraint {bad!r}: use a comma list of {", ".join(STRUCTURAL)}, or none')
-        return cls(trajectory, *(name in names for name in STRUCTURAL), tangent_heading)
+            raise ParameterError(f'unknown constraint {bad!r}: use a {SELECTION_SYNTAX}')
+        return cls(trajectory=trajectory, tangent_heading=tangent_heading,
+                   **{name: name in names for name in STRUCTURAL})
+
+    @classmethod
+    def structural(cls, trajectory: bool = True) -> ConstraintSelection:
+        """Every structural constraint on (the driven robot's set without the trajectory task)."""
+        return cls(trajectory=trajectory, **dict.fromkeys(STRUCTURAL, True))
 
     @property
     def heading(self) -> bool:
@@ -50,34 +79,21 @@ class ConstraintSelection:
 
     def active_names(self) -> list[str]:
         """Names of the active modules, in stacking order."""
-        flags = {'trajectory': self.trajectory, 'tangent_heading': self.heading, 'belt': self.belt,
-                 'non_lateral': self.non_lateral, 'nonslip': self.nonslip}
-        return [name for name, on in flags.items() if on]
+        return [name for name in MODULES if (self.heading if name == 'tangent_heading' else getattr(self, name))]
 
     def label(self) -> str:
         """Short human-readable name, e.g. 'trajectory+tangent_heading+belt'."""
         return '+'.join(self.active_names()) or 'free'
 
 
-MODULES = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
-"""Every module a selection can switch on, in stacking order."""
-
-
 def make_module(name: str, robot: Robot, reference: Reference | None, gains: BaumgarteGains) -> ConstraintModule:
     """The constraint module called ``name`` (one of MODULES) for ``robot``."""
-    if name in ('trajectory', 'tangent_heading') and reference is None:
+    kind = MODULES.get(name)
+    if kind is None:
+        raise ParameterError(f'unknown constraint module {name!r} (known: {", ".join(MODULES)})')
+    if kind.task and reference is None:
         raise ParameterError(f'the {name} task needs a reference')
-    if name == 'trajectory':
-        return TrajectoryTask(reference, gains)
-    if name == 'tangent_heading':
-        return TangentHeadingTask(reference, gains)
-    if name == 'belt':
-        return SynchronousBelt(gains)
-    if name == 'non_lateral':
-        return NonLateral(gains)
-    if name == 'nonslip':
-        return Nonslip(robot.params.wheel_radius, robot.lateral_offsets, gains)
-    raise ParameterError(f'unknown constraint module {name!r} (known: {", ".join(MODULES)})')
+    return kind.build(robot, reference, gains)
 
 
 def build_modules(selection: ConstraintSelection, robot: Robot, reference: Reference | None,

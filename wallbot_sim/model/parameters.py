@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Mapping
 
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 
 _POSITIVE = (
     'body_mass', 'wheel_mass', 'body_yaw_inertia', 'wheel_yaw_inertia', 'wheel_spin_inertia',
@@ -45,25 +45,18 @@ class RobotParameters:
 
     def __post_init__(self) -> None:
         for name in _POSITIVE + _NON_NEGATIVE:
-            value = _as_float(name, getattr(self, name))
-            if name in _POSITIVE and not value > 0.0:
-                raise ParameterError(f'{name} must be > 0, got {value!r}')
-            if name in _NON_NEGATIVE and not value >= 0.0:
-                raise ParameterError(f'{name} must be >= 0, got {value!r}')
-            object.__setattr__(self, name, value)
+            allowed = POSITIVE if name in _POSITIVE else NON_NEGATIVE
+            object.__setattr__(self, name, allowed.check(name, getattr(self, name)))
         if self.kinetic_friction > self.wall_friction:
             raise ParameterError(f'kinetic_friction must be <= wall_friction ({self.wall_friction!r}), '
                                  f'got {self.kinetic_friction!r}')
-        if self.adhesion_force is not None:
-            force = _as_float('adhesion_force', self.adhesion_force)
-            if not force > 0.0:
-                raise ParameterError(f'adhesion_force must be > 0 (or null for k_ad F_min), got {force!r}')
-            object.__setattr__(self, 'adhesion_force', force)
+        if self.adhesion_force is not None:  # null applies k_ad F_min
+            object.__setattr__(self, 'adhesion_force', POSITIVE.check('adhesion_force', self.adhesion_force))
         offset = self.com_offset
         if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
             raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')
         object.__setattr__(
-            self, 'com_offset', (_as_float('com_offset', offset[0]), _as_float('com_offset', offset[1])))
+            self, 'com_offset', (FINITE.check('com_offset', offset[0]), FINITE.check('com_offset', offset[1])))
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> RobotParameters:
@@ -82,12 +75,3 @@ class RobotParameters:
     def replace(self, **changes: Any) -> RobotParameters:
         """A copy with some values changed (validated like any other)."""
         return RobotParameters(**{**asdict(self), **changes})
-
-
-
-def _as_float(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ParameterError(f'{name} must be a number, got {value!r}')
-    if not math.isfinite(value):
-        raise ParameterError(f'{name} must be finite, got {value!r}')
-    return float(value)

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.trajectories import Circle, FigureEight, Reference, tangent_heading
 
@@ -48,8 +48,7 @@ class Scenario:
             raise ParameterError(f'scenario is missing {missing.args[0]!r}') from None
         except (TypeError, AttributeError):
             raise ParameterError('scenario must be a mapping with name, reference, duration and initial_state') from None
-        if not duration > 0.0:
-            raise ParameterError(f'scenario duration must be > 0, got {duration!r}')
+        POSITIVE.check('scenario duration', duration)
         return cls(name, reference, duration, initial)
 
     def initial_state(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
@@ -86,7 +85,4 @@ def make_reference(values: Mapping[str, Any]) -> Reference:
 
 
 def _number(values: Mapping[str, Any], key: str) -> float:
-    value = values[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ParameterError(f'{key} must be a finite number, got {value!r}')
-    return float(value)
+    return FINITE.check(key, values[key])

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -15,6 +14,7 @@ from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
+from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
@@ -54,8 +54,7 @@ class Simulation:
                  gains: BaumgarteGains | None = None, extra_modules: Sequence[ConstraintModule] = (),
                  contact: str = IDEAL) -> None:
         """``extra_modules``: constraint modules of your own, active beside the selected ones."""
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ParameterError(f'time step must be a finite number > 0, got {dt!r}')
+        POSITIVE.check('time step', dt)
         self.robot = robot
         self.dt = dt
         self.gains = gains or BaumgarteGains(robot.params.baumgarte_alpha, robot.params.baumgarte_beta)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Protocol, Sequence
 
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.numbers import POSITIVE
 
 Vec2 = tuple[float, float]
 
@@ -73,10 +74,6 @@ def tangent_heading(sample: ReferenceSample) -> Heading | None:
     return Heading(math.atan2(vy, vx), rate, acceleration)
 
 
-def _positive(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-        raise ParameterError(f'{name} must be a finite number > 0, got {value!r}')
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -88,8 +85,8 @@ class Circle:
     center: Vec2 = (0.0, 0.0)
 
     def __post_init__(self) -> None:
-        _positive('radius', self.radius)
-        _positive('period', self.period)
+        POSITIVE.check('radius', self.radius)
+        POSITIVE.check('period', self.period)
 
     def sample(self, t: float) -> ReferenceSample:
         w = 2.0 * math.pi / self.period
@@ -109,8 +106,8 @@ class FigureEight:
     center: Vec2 = (0.0, 0.0)
 
     def __post_init__(self) -> None:
-        _positive('amplitude', self.amplitude)
-        _positive('period', self.period)
+        POSITIVE.check('amplitude', self.amplitude)
+        POSITIVE.check('period', self.period)
 
     def sample(self, t: float) -> ReferenceSample:
         w, amp = 2.0 * math.pi / self.period, self.amplitude
@@ -136,8 +133,8 @@ class SmoothStop:
     stop_time: float = 2.0
 
     def __post_init__(self) -> None:
-        _positive('duration', self.duration)
-        _positive('stop_time', self.stop_time)
+        POSITIVE.check('duration', self.duration)
+        POSITIVE.check('stop_time', self.stop_time)
 
     def _warp(self, t: float) -> tuple[float, float, float, float]:
         """s and its first three derivatives at t."""
@@ -255,7 +252,7 @@ def sample_plan(reference: Reference, start: float, end: float, sample_dt: float
     overlap share their sample points exactly, and a SampledReference built from either gives
     bit-identical values there. That is what makes replanning ahead invisible to the dynamics.
     """
-    _positive('sample_dt', sample_dt)
+    POSITIVE.check('sample_dt', sample_dt)
     if not (math.isfinite(start) and math.isfinite(end) and end >= start >= 0.0):
         raise ParameterError(f'a plan needs finite times 0 <= start <= end, got [{start!r}, {end!r}]')
     first = math.floor(start / sample_dt + 1e-9)

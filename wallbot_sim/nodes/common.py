@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import sys
@@ -19,34 +18,31 @@ from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 
 from wallbot_sim.model import ModelError
+from wallbot_sim.model.numbers import NumberRange
 
 
 def declare(node: Node, name: str, default, description: str, *, low: float | None = None,
-            high: float | None = None, read_only: bool = False):
+            high: float | None = None, allowed: NumberRange | None = None, read_only: bool = False):
     """Declare ``name`` with a descriptor (description, range if given); return its value.
 
-    Ranges are closed [low, high]; rclpy refuses out-of-range sets with a reason. Finiteness
-    and strict bounds are checked by each node's parameter callback (see ``check_number``).
+    Ranges are closed [low, high], or the interval holding every value ``allowed`` accepts; rclpy
+    refuses out-of-range sets with a reason. Finiteness, strict bounds and gaps are checked by each
+    node's parameter callback (``NumberRange.reason``).
     """
+    if allowed is not None:
+        low, high = allowed.bounds()
     descriptor = ParameterDescriptor(description=description, read_only=read_only)
     if low is not None or high is not None:
         if isinstance(default, bool) or not isinstance(default, (int, float)):
             raise TypeError(f'range on non-numeric parameter {name}')
+        if low is None or high is None:
+            raise TypeError(f'a descriptor range of {name} needs both ends')
         if isinstance(default, int):
             descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
         else:
             descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high),
                                                                   step=0.0)]
     return node.declare_parameter(name, default, descriptor).value
-
-
-def check_number(name: str, value, *, minimum: float | None = None, exclusive: bool = False) -> str | None:
-    """Reason why ``value`` is not an acceptable number for ``name``, or None."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        return f'{name} must be a finite number, got {value!r}'
-    if minimum is not None and (value <= minimum if exclusive else value < minimum):
-        return f'{name} must be {">" if exclusive else ">="} {minimum:g}, got {value!r}'
-    return None
 
 
 def parameter_result(reasons: Iterable[str | None]) -> SetParametersResult:

@@ -15,19 +15,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import BaumgarteGains, ModelError
-from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
-
-SWITCH_HELP = {
-    'trajectory_task': 'the centre follows the reference trajectory (off = driven by wheel_torque_cmd)',
-    'belt': 'synchronous toothed belt: front and rear wheel of a side turn together',
-    'non_lateral': 'the centre does not move sideways',
-    'nonslip': 'each wheel rolls on the wall without longitudinal slip',
-    'tangent_heading': 'heading task along the path whenever non_lateral is on with the trajectory task '
-                       '(false gives the paper\'s inconsistent set)',
-}
-SWITCH_DEFAULTS = {'trajectory_task': True, 'belt': False, 'non_lateral': False, 'nonslip': False,
-                   'tangent_heading': True}
-
+from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
 
 def _default_gains() -> BaumgarteGains:
     """The installed robot file's Baumgarte gains (the model defaults if it cannot be read)."""
@@ -44,8 +33,8 @@ class ConstraintConfigNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, **kwargs)
-        self.switches = {name: bool(declare(self, name, default, SWITCH_HELP[name]))
-                         for name, default in SWITCH_DEFAULTS.items()}
+        self.switches = {switch.parameter: bool(declare(self, switch.parameter, switch.default, switch.description))
+                         for switch in topics.CONSTRAINT_MODULES.values()}
         gains = _default_gains()
         self.gains = {
             'baumgarte_alpha': declare(self, 'baumgarte_alpha', float(gains.alpha),
@@ -64,8 +53,7 @@ class ConstraintConfigNode(Node):
 
     @staticmethod
     def _check(values: dict) -> str | None:
-        reasons = [check_number(name, values[name], minimum=0.0, exclusive=True)
-                   for name in codec.GAINS if name in values]
+        reasons = [POSITIVE.reason(name, values[name]) for name in codec.GAINS if name in values]
         return '; '.join(r for r in reasons if r) or None
 
     def _on_set(self, parameters):

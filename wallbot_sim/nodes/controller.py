@@ -44,8 +44,10 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import DOF, ModelError, Robot, SampledReference
-from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -92,9 +94,8 @@ def cdr_stamp_ns(data: bytes) -> int | None:
 
 def check_values(values: dict) -> list[str]:
     """Reasons why a full set of controller parameters is unusable (empty if fine)."""
-    reasons = [check_number(name, values[name], minimum=0.0, exclusive=True)
-               for name in ('alpha', 'beta', 'look_ahead', 'integral_zone', 'mass_scale', 'max_wheel_torque')]
-    reasons.append(check_number('integral', values['integral'], minimum=0.0))
+    ranges = {**GAIN_RANGES, 'mass_scale': POSITIVE, 'max_wheel_torque': POSITIVE}
+    reasons = [allowed.reason(name, values[name]) for name, allowed in ranges.items()]
     rate = values['rate_hz']
     if isinstance(rate, bool) or not isinstance(rate, int) or not 1 <= rate <= 1000:
         reasons.append(f'rate_hz must be an integer in [1, 1000], got {rate!r}')

@@ -70,13 +70,11 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
-from wallbot_sim.nodes.common import check_number, declare, heard_by_every, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
+from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              RecordProgress, Reset, ResumeSnapshot, TorqueCommand)
-from wallbot_sim.nodes.pacing import Pacer
-
-SLOWEST_FACTOR = 1e-3
-"""Smallest positive real_time_factor: a step then waits at most dt / factor (1 s at 1 kHz)."""
+from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, Pacer
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -103,7 +101,7 @@ class DynamicsNode(Node):
             'publish_every': declare(self, 'publish_every', 1, 'publish every N steps', low=1, high=1000000),
             'real_time_factor': declare(self, 'real_time_factor', 1.0,
                                         'simulation seconds per wall second; 0 = as fast as possible',
-                                        low=0.0, high=1e6),
+                                        allowed=REAL_TIME_FACTOR),
             'command_timeout': declare(self, 'command_timeout', 0.5,
                                        'seconds of simulation time a wheel_torque_cmd is held (> 0)'),
             'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
@@ -231,18 +229,17 @@ class DynamicsNode(Node):
         reasons = []
         for name in ('initial_x', 'initial_y', 'initial_theta'):
             if name in values:
-                reasons.append(check_number(name, values[name]))
+                reasons.append(FINITE.reason(name, values[name]))
         for name in ('command_timeout', 'max_wheel_torque'):
             if name in values:
-                reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
+                reasons.append(POSITIVE.reason(name, values[name]))
         if 'contact_model' in values and values['contact_model'] not in CONTACT_MODELS:
             reasons.append(f'contact_model must be one of {", ".join(CONTACT_MODELS)}, got {values["contact_model"]!r}')
-        for name in ('real_time_factor', 'stop_at', 'adhesion_force', 'snapshot_period'):
+        for name in ('stop_at', 'adhesion_force', 'snapshot_period'):
             if name in values:
-                reasons.append(check_number(name, values[name], minimum=0.0))
-        factor = values.get('real_time_factor')
-        if isinstance(factor, float) and 0.0 < factor < SLOWEST_FACTOR:
-            reasons.append(f'real_time_factor must be 0 (as fast as possible) or >= {SLOWEST_FACTOR:g}, got {factor!r}')
+                reasons.append(NON_NEGATIVE.reason(name, values[name]))
+        if 'real_time_factor' in values:
+            reasons.append(REAL_TIME_FACTOR.reason('real_time_factor', values['real_time_factor']))
         return [r for r in reasons if r]
 
     def _on_set(self, parameters):

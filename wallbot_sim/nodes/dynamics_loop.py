@@ -649,13 +649,12 @@ class DynamicsLoop:
         if sim is None:
             return
         command, since = self.command if self.command is not None else (None, 0.0)
-        selection = sim.selection
+        switches = messages.switches_from_selection(sim.selection)
         self._graph.publish_snapshot(DynamicsSnapshot(
             anchor=sim.initial_time, steps=sim.steps, dt=sim.dt, q=tuple(sim.q), qd=tuple(sim.qd),
             motor_torque=sim.motor_torque, command=command, command_since=since,
             command_expired=self.command_expired,
-            switches=(selection.trajectory, selection.belt, selection.non_lateral, selection.nonslip,
-                      selection.tangent_heading is not False),
+            switches=tuple(switches[name] for name in SWITCHES),
             gains=(float(sim.gains.alpha), float(sim.gains.beta)), paused=self.paused,
             seen_until_ns=codec.to_nanoseconds(sim.t)))
 

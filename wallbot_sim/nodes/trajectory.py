@@ -28,10 +28,11 @@ from wallbot_msgs_py import topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
+from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import check_number, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
 
 REPLAN_CHECK_PERIOD = 0.02
 """Wall-clock period (s) of the check whether the plan needs renewing."""
@@ -63,10 +64,10 @@ def check_values(values: dict) -> list[str]:
     if values['shape'] not in SHAPES:
         reasons.append(f'unknown shape {values["shape"]!r}: use {" or ".join(SHAPES)}')
     for name in ('radius', 'amplitude', 'period', 'stop_time', 'publish_rate_hz', 'sample_dt', 'horizon'):
-        reasons.append(check_number(name, values[name], minimum=0.0, exclusive=True))
+        reasons.append(POSITIVE.reason(name, values[name]))
     for name in ('center_x', 'center_y'):
-        reasons.append(check_number(name, values[name]))
-    reasons.append(check_number('duration', values['duration'], minimum=0.0))
+        reasons.append(FINITE.reason(name, values[name]))
+    reasons.append(NON_NEGATIVE.reason('duration', values['duration']))
     if not reasons[-1] and values['sample_dt'] > 0.1:
         reasons.append(f'sample_dt must be <= 0.1 s to keep the interpolation accurate, got {values["sample_dt"]!r}')
     reasons = [r for r in reasons if r]

@@ -7,13 +7,12 @@ that row's friction, so a contact model can drop a slipping channel's rows witho
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.numbers import POSITIVE
 
 
 @dataclass(frozen=True)
@@ -25,9 +24,7 @@ class BaumgarteGains:
 
     def __post_init__(self) -> None:
         for name in ('alpha', 'beta'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
-                raise ParameterError(f'baumgarte_{name} must be a finite number > 0, got {value!r}')
+            POSITIVE.check(f'baumgarte_{name}', getattr(self, name))
 
     @property
     def velocity_gain(self) -> float:

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from wallbot_sim.model.constraints.base import BaumgarteGains
-from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.trajectories import Reference, tangent_heading
 
 
@@ -24,8 +24,7 @@ class LookAheadPointTask:
     name = 'look_ahead'
 
     def __init__(self, reference: Reference, gains: BaumgarteGains, distance: float) -> None:
-        if not (math.isfinite(distance) and distance > 0.0):
-            raise ParameterError(f'look-ahead distance must be a finite number > 0, got {distance!r}')
+        POSITIVE.check('look-ahead distance', distance)
         self.reference = reference
         self.gains = gains
         self.distance = distance
