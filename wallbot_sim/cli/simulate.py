@@ -7,7 +7,7 @@ import csv
 import math
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import Callable, TextIO
 
 import numpy as np
 
@@ -15,6 +15,9 @@ from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.control import TrackingController
+from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
+from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
@@ -39,7 +42,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '
-                             'needs a run without the trajectory task)')
+                             'needs a run without the trajectory task: rest, or --controller)')
+    parser.add_argument('--controller', action='store_true',
+                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with the '
+                             'example tracking controller commanding the wheel torques at 200 Hz of simulation '
+                             'time, as run --controller does over DDS')
+    parser.add_argument('--controller-mass-scale', type=float, default=1.0,
+                        help="with --controller: the controller's robot mass relative to the simulator's "
+                             '(model mismatch; default 1.0)')
     parser.add_argument('--adhesion-force', type=float,
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
@@ -53,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
-    """The simulation and duration the arguments ask for (shared with the bag writer)."""
+    """The simulation and duration the arguments ask for (the closed loop's plant with --controller)."""
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise CliError(f'--duration must be a positive number of seconds, got {args.duration}')
     if not (math.isfinite(args.dt) and 0 < args.dt <= 0.1):
@@ -67,11 +77,21 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     rest = args.scenario == REST
     if not rest and (args.heading is not None or args.torque is not None):
         raise CliError('--heading and --torque set up --scenario rest; a trajectory scenario starts as its file says')
-    selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
-                                          trajectory=not rest, tangent_heading=args.tangent_heading)
+    if args.controller:
+        if rest:
+            raise CliError('--controller follows a trajectory scenario (circle, figure8, a YAML): rest has none')
+        if args.constraints is not None or args.tangent_heading is not None:
+            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
+                           'drop --constraints and --tangent-heading')
+        selection = DRIVEN
+    else:
+        if args.controller_mass_scale != 1.0:
+            raise CliError('--controller-mass-scale needs --controller')
+        selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
+                                              trajectory=not rest, tangent_heading=args.tangent_heading)
     if args.contact == 'coulomb' and selection.trajectory:
         raise CliError(f'--contact coulomb with the trajectory task of scenario {args.scenario!r}: the task\'s force '
-                       'is a virtual actuator, not friction; use --scenario rest (driven by --torque)')
+                       'is a virtual actuator, not friction; use --controller, or --scenario rest (driven by --torque)')
     if rest:
         heading = 0.0 if args.heading is None else args.heading
         if not math.isfinite(heading):
@@ -84,6 +104,21 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     q0, qd0 = scenario.initial_state(robot)
     duration = args.duration if args.duration is not None else scenario.duration
     return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact), duration
+
+
+def build_controller(args: argparse.Namespace, simulation: Simulation) -> Callable[[StepOutputs], None] | None:
+    """With --controller, the step hook that closes the loop on ``simulation``; else None.
+
+    The controller's robot is the robot file's with its mass scaled, as tracking_controller_node
+    builds it (--adhesion-force is the simulated robot's, not the controller's).
+    """
+    if not args.controller:
+        return None
+    mass_scale = args.controller_mass_scale
+    if not (math.isfinite(mass_scale) and mass_scale > 0):
+        raise CliError(f'--controller-mass-scale must be a positive number, got {mass_scale}')
+    robot = controller_robot(load_robot_parameters(args.robot), mass_scale)
+    return close_loop(simulation, SampledController(TrackingController(robot, simulation.reference)))
 
 
 def parse_torque(text: str | None) -> tuple[float, float]:
@@ -103,6 +138,7 @@ def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
     simulation, duration = build_simulation(args)
+    controller = build_controller(args, simulation)
     progress = Progress(duration, None if args.quiet else sys.stderr)
     sinks = []
     if args.bag:
@@ -125,6 +161,8 @@ def main(args: argparse.Namespace) -> int:
                     writer.writerow(csv_row(out))
                 for sink in sinks:
                     sink.write(out)
+            if controller is not None:  # after the state was written, as the graph answers a published state
+                controller(out)
             progress.update(out.t)
 
         try:
@@ -138,7 +176,8 @@ def main(args: argparse.Namespace) -> int:
                 sink.close()
     progress.update(final.t, force=True)
     if not args.quiet:
-        print(f'{simulation.selection.label()}: final tracking error {final.tracking_error:.3e} m, '
+        loop = ' under the tracking controller' if controller is not None else ''
+        print(f'{simulation.selection.label()}{loop}: final tracking error {final.tracking_error:.3e} m, '
               f'residual {final.residual:.3e}', file=sys.stderr)
     return 0
 
