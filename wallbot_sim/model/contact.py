@@ -13,7 +13,7 @@ row belongs to and which wheels' loads bound it.
 from __future__ import annotations
 
 import math
-from typing import AbstractSet as Set, Callable, NamedTuple, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -110,6 +110,7 @@ class _Layout:
         self._active: dict[frozenset[str], list[ConstraintModule]] = {}
         self._slipping_rows: dict[frozenset[str], list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]] = {}
         self._load_dependent: dict[frozenset[str], bool] = {}
+        self._channel_rows: dict[frozenset[str], list[tuple[ContactConstraint, list[tuple[int, str]]]]] = {}
 
     def active(self, slipping: frozenset[str]) -> list[ConstraintModule]:
         """The modules without the rows of ``slipping`` channels."""
@@ -137,6 +138,15 @@ class _Layout:
             dependent = any(not wheels.all() for _module, _rows, wheels in self.slipping_rows(slipping))
             self._load_dependent[slipping] = dependent
         return dependent
+
+    def channel_rows(self, channels: frozenset[str]) -> list[tuple[ContactConstraint, list[tuple[int, str]]]]:
+        """(module, its (row, channel) pairs of ``channels``) for the modules that have such rows."""
+        found = self._channel_rows.get(channels)
+        if found is None:
+            found = [(module, rows) for module in self.contacts
+                     if (rows := [(row, channel) for row, channel in enumerate(module.channels) if channel in channels])]
+            self._channel_rows[channels] = found
+        return found
 
     def slipping_rows(self, slipping: frozenset[str]) -> list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]:
         """(module, its rows of ``slipping`` channels or None for all of them, the wheels bounding each row)."""
@@ -217,37 +227,28 @@ class CoulombContact:
 
     def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
         """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
-        (slips,) = self._slips(modules, {channel}, q, qd)
-        return max((abs(value) for value in slips[channel]), default=0.0)
+        speed = 0.0
+        for module, rows in self._layout_of(modules).channel_rows(frozenset((channel,))):
+            slips = (module.velocity_rows(q) @ qd).tolist()
+            speed = max([speed] + [abs(slips[row]) for row, _channel in rows])
+        return speed
 
-    def _slips(self, modules: Sequence[ConstraintModule], channels: Set[str], q: np.ndarray,
-               *velocities: np.ndarray) -> list[dict[str, list[float]]]:
-        """The slip velocity a_k qd of every row k of ``channels``, by channel, for each qd of ``velocities``
-        (the rows a_k at q found once, only in the modules that have such rows)."""
-        slips: list[dict[str, list[float]]] = [{channel: [] for channel in channels} for _ in velocities]
-        for module in self.contacts(modules):
-            if channels.isdisjoint(module.channels):
-                continue
-            rows = module.velocity_rows(q)
-            for found, qd in zip(slips, velocities):
-                for value, channel in zip((rows @ qd).tolist(), module.channels):
-                    if channel in found:
-                        found[channel].append(value)
-        return slips
-
-    def _stopping(self, modules: Sequence[ConstraintModule], channels: Set[str], q: np.ndarray, qd: np.ndarray,
+    def _stopping(self, modules: Sequence[ConstraintModule], channels: frozenset[str], q: np.ndarray, qd: np.ndarray,
                   predicted: np.ndarray) -> set[str]:
-        """The channels whose every slip velocity is below v_st or changes sign within the step.
+        """The channels whose every slip velocity a_k qd is below v_st or changes sign within the step.
 
         The second test catches a slip that the regularized kinetic friction would reverse in one
         step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
         cycle of slip speeds that straddles v_st without ever falling below it.
         """
-        if not channels:
-            return set()
-        now, then = self._slips(modules, channels, q, qd, predicted)
-        return {channel for channel in channels
-                if all(abs(v) < self.stick_velocity or v * w < 0.0 for v, w in zip(now[channel], then[channel]))}
+        stopping = set(channels)
+        for module, rows in self._layout_of(modules).channel_rows(channels):
+            velocity_rows = module.velocity_rows(q)
+            now, then = (velocity_rows @ qd).tolist(), (velocity_rows @ predicted).tolist()
+            for row, channel in rows:
+                if not (abs(now[row]) < self.stick_velocity or now[row] * then[row] < 0.0):
+                    stopping.discard(channel)
+        return stopping
 
     # --- transitions at a step boundary ------------------------------------------------------
     def settle(self, modules: Sequence[ConstraintModule], q: np.ndarray, qd: np.ndarray, dt: float,
