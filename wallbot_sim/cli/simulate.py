@@ -6,7 +6,7 @@ import argparse
 import csv
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import Callable, TextIO
 
 import numpy as np
 
@@ -15,6 +15,9 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.control import TrackingController
+from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
+from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
@@ -43,7 +46,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '
-                             'needs a run without the trajectory task)')
+                             'needs a run without the trajectory task: rest, or --controller)')
+    parser.add_argument('--controller', action='store_true',
+                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with the '
+                             'example tracking controller commanding the wheel torques at 200 Hz of simulation '
+                             'time, as run --controller does over DDS')
+    parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
+                        help="with --controller: the controller's robot mass relative to the simulator's "
+                             '(model mismatch; default 1.0)')
     parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
@@ -57,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
-    """The simulation and duration the arguments ask for (shared with the bag writer)."""
+    """The simulation and duration the arguments ask for (the closed loop's plant with --controller)."""
     params = load_robot_parameters(args.robot)
     if args.adhesion_force is not None:
         params = params.replace(adhesion_force=args.adhesion_force)
@@ -65,11 +75,21 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     rest = args.scenario == REST
     if not rest and (args.heading is not None or args.torque is not None):
         raise CliError('--heading and --torque set up --scenario rest; a trajectory scenario starts as its file says')
-    selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
-                                          trajectory=not rest, tangent_heading=args.tangent_heading)
+    if args.controller:
+        if rest:
+            raise CliError('--controller follows a trajectory scenario (circle, figure8, a YAML): rest has none')
+        if args.constraints is not None or args.tangent_heading is not None:
+            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
+                           'drop --constraints and --tangent-heading')
+        selection = DRIVEN
+    else:
+        if args.controller_mass_scale != 1.0:
+            raise CliError('--controller-mass-scale needs --controller')
+        selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
+                                              trajectory=not rest, tangent_heading=args.tangent_heading)
     if args.contact == 'coulomb' and selection.trajectory:
         raise CliError(f'--contact coulomb with the trajectory task of scenario {args.scenario!r}: the task\'s force '
-                       'is a virtual actuator, not friction; use --scenario rest (driven by --torque)')
+                       'is a virtual actuator, not friction; use --controller, or --scenario rest (driven by --torque)')
     if rest:
         heading = 0.0 if args.heading is None else args.heading
         q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
@@ -80,6 +100,18 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     q0, qd0 = scenario.initial_state(robot)
     duration = args.duration if args.duration is not None else scenario.duration
     return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact), duration
+
+
+def build_controller(args: argparse.Namespace, simulation: Simulation) -> Callable[[StepOutputs], None] | None:
+    """With --controller, the step hook that closes the loop on ``simulation``; else None.
+
+    The controller's robot is the robot file's with its mass scaled, as tracking_controller_node
+    builds it (--adhesion-force is the simulated robot's, not the controller's).
+    """
+    if not args.controller:
+        return None
+    robot = controller_robot(load_robot_parameters(args.robot), args.controller_mass_scale)
+    return close_loop(simulation, SampledController(TrackingController(robot, simulation.reference)))
 
 
 def parse_torque(text: str | None) -> tuple[float, float]:
@@ -100,6 +132,7 @@ def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
     simulation, duration = build_simulation(args)
+    controller = build_controller(args, simulation)
     progress = Progress(duration, None if args.quiet else sys.stderr)
     sinks = []
     if args.bag:
@@ -122,6 +155,8 @@ def main(args: argparse.Namespace) -> int:
                     writer.writerow(csv_row(out))
                 for sink in sinks:
                     sink.write(out)
+            if controller is not None:  # after the state was written, as the graph answers a published state
+                controller(out)
             progress.update(out.t)
 
         try:
@@ -135,7 +170,8 @@ def main(args: argparse.Namespace) -> int:
                 sink.close()
     progress.update(final.t, force=True)
     if not args.quiet:
-        print(f'{simulation.selection.label()}: final tracking error {final.tracking_error:.3e} m, '
+        loop = ' under the tracking controller' if controller is not None else ''
+        print(f'{simulation.selection.label()}{loop}: final tracking error {final.tracking_error:.3e} m, '
               f'residual {final.residual:.3e}', file=sys.stderr)
     return 0
 

@@ -95,6 +95,73 @@ class ContactSolution(NamedTuple):
     """Q_f(q, qd) over the step."""
 
 
+class _Layout:
+    """What the contact model derives from one list of modules, for each set of slipping channels.
+
+    Built once per list and slipping set (a step boundary asks for the same ones again and again),
+    so a slipping step pays for its friction, not for finding its rows.
+    """
+
+    def __init__(self, modules: Sequence[ConstraintModule]) -> None:
+        self.modules = modules
+        self.contacts: list[ContactConstraint] = [module for module in modules if isinstance(module, ContactConstraint)]
+        """The contact modules (found once: a Protocol check is slow)."""
+        self.present = frozenset(channel for module in self.contacts for channel in module.channels)
+        self._active: dict[frozenset[str], list[ConstraintModule]] = {}
+        self._slipping_rows: dict[frozenset[str], list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]] = {}
+        self._load_dependent: dict[frozenset[str], bool] = {}
+        self._channel_rows: dict[frozenset[str], list[tuple[ContactConstraint, list[tuple[int, str]]]]] = {}
+
+    def active(self, slipping: frozenset[str]) -> list[ConstraintModule]:
+        """The modules without the rows of ``slipping`` channels."""
+        active = self._active.get(slipping)
+        if active is None:
+            contacts = {id(module) for module in self.contacts}
+            active = []
+            for module in self.modules:
+                if id(module) in contacts:
+                    keep = np.array([i for i, channel in enumerate(module.channels) if channel not in slipping],
+                                    dtype=int)
+                    if len(keep) == len(module.channels):
+                        active.append(module)
+                    elif len(keep):
+                        active.append(_RowSubset(module, keep))
+                else:
+                    active.append(module)
+            self._active[slipping] = active
+        return active
+
+    def load_dependent(self, slipping: frozenset[str]) -> bool:
+        """Whether a slipping row's friction depends on how the load is shared among the wheels."""
+        dependent = self._load_dependent.get(slipping)
+        if dependent is None:
+            dependent = any(not wheels.all() for _module, _rows, wheels in self.slipping_rows(slipping))
+            self._load_dependent[slipping] = dependent
+        return dependent
+
+    def channel_rows(self, channels: frozenset[str]) -> list[tuple[ContactConstraint, list[tuple[int, str]]]]:
+        """(module, its (row, channel) pairs of ``channels``) for the modules that have such rows."""
+        found = self._channel_rows.get(channels)
+        if found is None:
+            found = [(module, rows) for module in self.contacts
+                     if (rows := [(row, channel) for row, channel in enumerate(module.channels) if channel in channels])]
+            self._channel_rows[channels] = found
+        return found
+
+    def slipping_rows(self, slipping: frozenset[str]) -> list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]:
+        """(module, its rows of ``slipping`` channels or None for all of them, the wheels bounding each row)."""
+        parts = self._slipping_rows.get(slipping)
+        if parts is None:
+            parts = []
+            for module in self.contacts:
+                rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
+                if rows:
+                    selected = None if len(rows) == len(module.channels) else np.array(rows, dtype=int)
+                    parts.append((module, selected, module.row_wheels[rows]))
+            self._slipping_rows[slipping] = parts
+        return parts
+
+
 class CoulombContact:
     """The stick/slip state of the channels and the kinetic friction of the slipping ones."""
 
@@ -105,15 +172,17 @@ class CoulombContact:
         self.slipping: frozenset[str] = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
         """The loads bounding kinetic friction, held over a step like the motor torques."""
-        self._contacts_of: tuple[Sequence[ConstraintModule] | None, list[ContactConstraint]] = (None, [])
+        self._layout = _Layout([])
+
+    def _layout_of(self, modules: Sequence[ConstraintModule]) -> _Layout:
+        """The layout of ``modules`` (remembered for the last list)."""
+        if modules is not self._layout.modules:
+            self._layout = _Layout(modules)
+        return self._layout
 
     def contacts(self, modules: Sequence[ConstraintModule]) -> list[ContactConstraint]:
-        """The contact modules among ``modules`` (remembered for the last list: a Protocol check is slow)."""
-        known, contacts = self._contacts_of
-        if modules is not known:
-            contacts = [module for module in modules if isinstance(module, ContactConstraint)]
-            self._contacts_of = (modules, contacts)
-        return contacts
+        """The contact modules among ``modules``."""
+        return self._layout_of(modules).contacts
 
     def reset(self, adhesion_force: float) -> None:
         """Every channel sticking, loads at rest on a level share."""
@@ -127,18 +196,7 @@ class CoulombContact:
         slipping = self.slipping if slipping is None else slipping
         if not slipping:
             return modules  # type: ignore[return-value]
-        contacts = {id(module) for module in self.contacts(modules)}
-        active: list[ConstraintModule] = []
-        for module in modules:
-            if id(module) in contacts:
-                keep = np.array([i for i, channel in enumerate(module.channels) if channel not in slipping], dtype=int)
-                if len(keep) == len(module.channels):
-                    active.append(module)
-                elif len(keep):
-                    active.append(_RowSubset(module, keep))
-            else:
-                active.append(module)
-        return active
+        return self._layout_of(modules).active(frozenset(slipping))
 
     def friction_function(self, modules: Sequence[ConstraintModule], loads: np.ndarray,
                           slipping: frozenset[str] | None = None
@@ -152,12 +210,8 @@ class CoulombContact:
         slipping = self.slipping if slipping is None else slipping
         if not slipping:
             return None
-        parts = []
-        for module in self.contacts(modules):
-            rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
-            if rows:
-                bounds = self.kinetic_friction * (module.row_wheels[rows] @ loads)
-                parts.append((module, np.array(rows, dtype=int), bounds))
+        parts = [(module, rows, self.kinetic_friction * (wheels @ loads))
+                 for module, rows, wheels in self._layout_of(modules).slipping_rows(frozenset(slipping))]
         if not parts:
             return None
         eps2 = self.epsilon ** 2
@@ -165,7 +219,7 @@ class CoulombContact:
         def friction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
             total = np.zeros(qd.shape[0])
             for module, rows, bound in parts:
-                velocity_rows = module.velocity_rows(q)[rows]
+                velocity_rows = module.velocity_rows(q) if rows is None else module.velocity_rows(q)[rows]
                 slip = velocity_rows @ qd
                 total -= (bound * slip / np.sqrt(slip * slip + eps2)) @ velocity_rows
             return total
@@ -173,23 +227,28 @@ class CoulombContact:
 
     def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
         """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
-        return float(np.max(np.abs(self._slip(modules, channel, q, qd)), initial=0.0))
+        speed = 0.0
+        for module, rows in self._layout_of(modules).channel_rows(frozenset((channel,))):
+            slips = (module.velocity_rows(q) @ qd).tolist()
+            speed = max([speed] + [abs(slips[row]) for row, _channel in rows])
+        return speed
 
-    def _slip(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return np.array([value for module in self.contacts(modules)
-                         for value, row_channel in zip(module.violation(q, qd), module.channels)
-                         if row_channel == channel])
-
-    def _stopping(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray,
-                  predicted: np.ndarray) -> bool:
-        """Whether every slip velocity of the channel is below v_st or changes sign within the step.
+    def _stopping(self, modules: Sequence[ConstraintModule], channels: frozenset[str], q: np.ndarray, qd: np.ndarray,
+                  predicted: np.ndarray) -> set[str]:
+        """The channels whose every slip velocity a_k qd is below v_st or changes sign within the step.
 
         The second test catches a slip that the regularized kinetic friction would reverse in one
         step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
         cycle of slip speeds that straddles v_st without ever falling below it.
         """
-        now, then = self._slip(modules, channel, q, qd).tolist(), self._slip(modules, channel, q, predicted).tolist()
-        return all(abs(v) < self.stick_velocity or v * w < 0.0 for v, w in zip(now, then))
+        stopping = set(channels)
+        for module, rows in self._layout_of(modules).channel_rows(channels):
+            velocity_rows = module.velocity_rows(q)
+            now, then = (velocity_rows @ qd).tolist(), (velocity_rows @ predicted).tolist()
+            for row, channel in rows:
+                if not (abs(now[row]) < self.stick_velocity or now[row] * then[row] < 0.0):
+                    stopping.discard(channel)
+        return stopping
 
     # --- transitions at a step boundary ------------------------------------------------------
     def settle(self, modules: Sequence[ConstraintModule], q: np.ndarray, qd: np.ndarray, dt: float,
@@ -202,11 +261,11 @@ class CoulombContact:
         whose force exceeds its limit slips. Returns the velocities (projected if a channel
         stuck again) and the solution the step integrates.
         """
-        present = {channel for module in self.contacts(modules) for channel in module.channels}
+        present = self._layout_of(modules).present
         self.slipping = self.slipping & present
         result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
         predicted = qd + dt * result.motion.acceleration
-        candidates = {channel for channel in self.slipping if self._stopping(modules, channel, q, qd, predicted)}
+        candidates = self._stopping(modules, self.slipping, q, qd, predicted)
         while candidates:
             trial = self.slipping - candidates
             trial_qd = project(self.active_modules(modules, trial), qd)
@@ -239,18 +298,12 @@ class CoulombContact:
             friction = None if function is None else function(q, qd)
             motion = evaluate(active, friction, qd)
             loads, use = measure(motion, friction, qd)
-            if function is None or not self._load_dependent(self.contacts(modules), slipping) \
+            if function is None or not self._layout_of(modules).load_dependent(frozenset(slipping)) \
                     or np.max(np.abs(loads - held)) <= _LOAD_TOLERANCE * np.sum(np.abs(loads)):
                 return ContactSolution(motion, friction, loads, use, held, active, function)
             held = loads
         raise ModelError('normal loads and kinetic friction found no consistent value in '
                          f'{_LOAD_ITERATIONS} iterations (loads {np.round(loads, 3).tolist()} N)')
-
-    @staticmethod
-    def _load_dependent(contacts: Sequence[ContactConstraint], slipping: frozenset[str]) -> bool:
-        """Whether a slipping row's friction depends on how the load is shared among the wheels."""
-        return any(not module.row_wheels[i].all() for module in contacts
-                   for i, channel in enumerate(module.channels) if channel in slipping)
 
 
 def _within_limit(use: FrictionUse, channel: str) -> bool:

@@ -261,10 +261,12 @@ class Simulation:
             q = self._y[:DOF]
             friction = None
             if self.coulomb_applies:
+                velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(
-                    self._modules, q, self._y[DOF:], self.dt, self._evaluate, self._project, self._measure)
-                self._y = np.concatenate((q, qd))
-                q = self._y[:DOF]
+                    self._modules, q, velocities, self.dt, self._evaluate, self._project, self._measure)
+                if qd is not velocities:  # a channel stuck again: its slip was projected away
+                    self._y = np.concatenate((q, qd))
+                    q = self._y[:DOF]
                 motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
                 self._active, self._friction = solution.active, solution.function
                 slipping = slip_flags(self._coulomb.slipping)

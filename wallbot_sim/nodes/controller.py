@@ -1,8 +1,10 @@
 """tracking_controller_node (``/wallbot/controller``): an example closed-loop controller.
 
-Thin ROS shell around ``wallbot_sim.control.TrackingController`` (model-based feed-forward
-from the Udwadia-Phohomsiri inverse dynamics of its own robot copy, plus PD and integral
-feedback; see that module and docs/controller.md). Replace it with your own controller by
+Thin ROS shell around ``wallbot_sim.control.SampledController``, which runs a
+``TrackingController`` (model-based feed-forward from the Udwadia-Phohomsiri inverse dynamics of
+its own robot copy, plus PD and integral feedback; see those modules and docs/controller.md) at
+its control rate; ``wallbot-sim simulate --controller`` runs the same loop headless. Replace it
+with your own controller by
 speaking the same three topics:
 
 * subscribes ``odom`` (nav_msgs/Odometry, pose in ``wall``, twist in ``base_link``) and
@@ -28,7 +30,6 @@ falls back to zero torque after its ``command_timeout``).
 
 from __future__ import annotations
 
-import math
 import struct
 import sys
 
@@ -44,8 +45,10 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rewind, SampledController,
+                                          controller_robot)
 from wallbot_sim.control.tracking import GAIN_RANGES
-from wallbot_sim.model import DOF, ModelError, Robot, SampledReference
+from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
 
@@ -109,7 +112,7 @@ class ControllerNode(Node):
         super().__init__(NODE_NAME, namespace=topics.NAMESPACE, **kwargs)
         defaults = ControllerGains()
         self.values = {
-            'rate_hz': declare(self, 'rate_hz', 200, 'control rate in simulation time (Hz; 1000 / rate_hz '
+            'rate_hz': declare(self, 'rate_hz', CONTROL_RATE_HZ, 'control rate in simulation time (Hz; 1000 / rate_hz '
                                                      'should be a whole number of dynamics steps)', low=1, high=1000),
             'alpha': declare(self, 'alpha', defaults.alpha, 'velocity gain 2 alpha of the look-ahead task (1/s, > 0)'),
             'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s, > 0)'),
@@ -122,7 +125,7 @@ class ControllerNode(Node):
                                   'empty = installed config/robot.yaml', read_only=True),
             'mass_scale': declare(self, 'mass_scale', 1.0, "body_mass of the controller's robot copy relative to "
                                   "the file's (model mismatch; > 0)"),
-            'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
+            'max_wheel_torque': declare(self, 'max_wheel_torque', MAX_WHEEL_TORQUE,
                                         'commands are clamped to +-this (N m, > 0; the dynamics\' limit)'),
             'wait_for_recorder': declare(self, 'wait_for_recorder', False,
                                          'subscribe odom only once a recorder (record_progress) is matched on '
@@ -135,8 +138,7 @@ class ControllerNode(Node):
         self.plans = Plans()
         self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values))
         self.controller.reference = self.plans
-        self.next_due_ns: int | None = None
-        self.last_stamp_ns: int | None = None
+        self.loop = SampledController(self.controller, self.values['rate_hz'], float(self.values['max_wheel_torque']))
         self.pending: bytes | None = None
         self.commands = 0
         self.clamped = 0
@@ -158,15 +160,11 @@ class ControllerNode(Node):
 
     # --- model ---------------------------------------------------------------------------------
     def _robot(self, mass_scale: float) -> Robot:
-        return Robot(self.file_params.replace(body_mass=self.file_params.body_mass * mass_scale))
+        return controller_robot(self.file_params, mass_scale)
 
     @staticmethod
     def _gains(values: dict) -> ControllerGains:
         return ControllerGains(**{name: float(values[name]) for name in GAIN_NAMES})
-
-    @property
-    def period_ns(self) -> int:
-        return round(1e9 / self.values['rate_hz'])
 
     # --- start-up -----------------------------------------------------------------------------
     def _subscribe_odom(self) -> None:
@@ -206,51 +204,32 @@ class ControllerNode(Node):
         if stamp_ns is None:
             self.get_logger().error('ignoring a malformed odom message', throttle_duration_sec=THROTTLE)
             return
-        if self.last_stamp_ns is not None and stamp_ns < self.last_stamp_ns:
-            if stamp_ns < self.period_ns:
-                self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: controller restarted')
-                self.controller.reset()
-                self.next_due_ns = None
-            else:
-                self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s (a resumed dynamics): '
-                                       'carrying on')
-                self.next_due_ns = -(-stamp_ns // self.period_ns) * self.period_ns
-        self.last_stamp_ns = stamp_ns
-        if self.next_due_ns is not None and stamp_ns < self.next_due_ns:
+        rewind = self.loop.observe(stamp_ns)
+        if rewind is Rewind.RESTART:
+            self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: controller restarted')
+        elif rewind is Rewind.RESUME:
+            self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s (a resumed dynamics): '
+                                   'carrying on')
+        if not self.loop.due(stamp_ns):
             return
         if not self.plans:
             self.pending = data
             self.get_logger().info('waiting for reference_trajectory', throttle_duration_sec=THROTTLE)
             return
-        period = self.period_ns
-        self.next_due_ns = (stamp_ns // period + 1) * period
-        self._control(data, period * 1e-9)
+        self._control(data)
 
-    def _control(self, data: bytes, dt: float) -> None:
+    def _control(self, data: bytes) -> None:
         try:
-            msg = deserialize_message(data, Odometry)
-            state = codec.planar_state(msg)
-            robot = self.controller.robot
-            q = np.zeros(DOF)
-            qd = np.zeros(DOF)
-            q[:3] = state.x, state.y, state.theta
-            qd[:3] = state.xd, state.yd, state.thd
-            qd[3:] = robot.rolling_spin_rates(state.theta, (state.xd, state.yd), state.thd)
-            command = self.controller.update(state.t, q, qd, dt)
-            torques = (float(command.tau_left), float(command.tau_right))
-            if not all(math.isfinite(tau) for tau in torques):
-                raise ValueError(f'non-finite torques {torques}')
+            command = self.loop.command(codec.planar_state(deserialize_message(data, Odometry)))
         except (ValueError, ModelError, np.linalg.LinAlgError) as error:
             self.get_logger().error(f'no command at t = {cdr_stamp_ns(data) * 1e-9:.3f} s: {error}',
                                     throttle_duration_sec=THROTTLE)
             return
-        limit = float(self.values['max_wheel_torque'])
-        clamped = tuple(min(limit, max(-limit, tau)) for tau in torques)
-        if clamped != torques:
+        if command.clamped:
             self.clamped += 1
-            self.get_logger().warning(f'torques {torques[0]:.3f}, {torques[1]:.3f} N m clamped to +-{limit:g} N m',
-                                      throttle_duration_sec=THROTTLE)
-        self.command_pub.publish(Float64MultiArray(data=list(clamped)))
+            self.get_logger().warning(f'torques {command.requested[0]:.3f}, {command.requested[1]:.3f} N m clamped to '
+                                      f'+-{self.loop.max_wheel_torque:g} N m', throttle_duration_sec=THROTTLE)
+        self.command_pub.publish(Float64MultiArray(data=[command.tau_left, command.tau_right]))
         self.commands += 1
 
     # --- parameters ----------------------------------------------------------------------------
@@ -273,8 +252,10 @@ class ControllerNode(Node):
             self.controller.gains = self._gains(self.values)
         if 'mass_scale' in changes:
             self.controller.robot = self._robot(self.values['mass_scale'])
+        if 'max_wheel_torque' in changes:
+            self.loop.max_wheel_torque = float(self.values['max_wheel_torque'])
         if 'rate_hz' in changes:
-            self.next_due_ns = None
+            self.loop.set_rate(self.values['rate_hz'])
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
 

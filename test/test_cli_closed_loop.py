@@ -1,0 +1,198 @@
+"""``wallbot-sim simulate --controller``: the example controller closing the loop headless.
+
+The headless loop is the graph's lockstep loop (``run --controller``, compared state by state);
+with coulomb contact it is how slip under a controller is seen without DDS, and the slip it
+reports is checked against the friction cone computed from the CSV's own columns.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from closed_loop import check_complete
+from wallbot_msgs_py.codec import PlanarState
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.control import TrackingController
+from wallbot_sim.control.sampling import Rewind, SampledController, controller_robot
+from wallbot_sim.paths import scenario_yaml
+from wallbot_sim.rundata import format_summary, load_run, summarize
+
+WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
+PARAMS = load_robot_parameters()
+
+
+def wallbot(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([*WALLBOT, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def headless(out: Path, *args: str) -> object:
+    """The run of ``simulate --controller ARGS`` written to ``out`` (a CSV)."""
+    result = wallbot('simulate', '--controller', '--csv', str(out), '--quiet', *args)
+    assert result.returncode == 0, result.stderr
+    return load_run(out)
+
+
+def fast_circle(tmp_path: Path) -> Path:
+    """The circle scenario at twice its speed (half the period)."""
+    scenario = yaml.safe_load(scenario_yaml('circle').read_text())
+    scenario['name'] = 'circle_fast'
+    scenario['reference']['period'] /= 2
+    path = tmp_path / 'circle_fast.yaml'
+    path.write_text(yaml.safe_dump(scenario))
+    return path
+
+
+# --- the same loop as the graph's ---------------------------------------------------------------
+@pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
+def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact):
+    """run --controller at factor 0 and simulate --controller: the same states at the same stamps.
+
+    With coulomb contact the circle's start (0.2 m off the path, at rest) slips both tractions
+    in the first 0.36 s: the slip transitions are part of what must agree.
+    """
+    pytest.importorskip('rclpy')
+    duration = 1.0
+    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--real-time-factor', '0',
+                    '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
+    assert graph.returncode == 0, graph.stderr + graph.stdout
+    recorded = load_run(tmp_path / 'run' / 'bag')
+    computed = headless(tmp_path / 'headless.csv', '--contact', contact, '--duration', str(duration))
+
+    check_complete(recorded, duration)  # every 1 ms state from 0 to the end, each once
+    assert np.array_equal(np.round(recorded.t * 1e9).astype(np.int64), np.round(computed.t * 1e9).astype(np.int64))
+    for name in ('x', 'y', 'vx', 'vy', 'omega'):
+        assert np.max(np.abs(getattr(recorded, name) - getattr(computed, name))) < 1e-9, name
+    assert np.max(np.abs(np.angle(np.exp(1j * (recorded.theta - computed.theta))))) < 1e-9  # odometry's yaw is wrapped
+    for name in ('phi', 'dphi', 'loads', 'use'):  # slipping wheels spin up to hundreds of rad/s
+        expected = getattr(computed, name)
+        assert np.max(np.abs(getattr(recorded, name) - expected)) < 1e-9 * max(1.0, np.max(np.abs(expected))), name
+    assert np.array_equal(recorded.slip, computed.slip)
+    slipped = computed.slip.any(axis=0)
+    assert slipped.tolist() == ([True, True, False] if contact == 'coulomb' else [False, False, False])
+
+
+# --- slip under the controller ------------------------------------------------------------------
+def cone_forces(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Kinetic friction of each channel as docs/model.md 11.3 states it, from the run's own columns.
+
+    A side's wheels slide at the contact with c_i = v_long - s_i omega - r dphi_i (s_i = +b left,
+    -b right) and friction pushes the robot against it with mu_k N_i c_i / sqrt(c_i^2 + eps^2);
+    the lateral channel slides with v_lat and takes mu_k F_ad, F_ad = N_1 + ... + N_4 (11.1).
+    Returns F_L, F_R, F_lat and the slowest contact speed of each side (for where |F| = mu_k N).
+    """
+    cos_t, sin_t = np.cos(run.theta), np.sin(run.theta)
+    v_long, v_lat = cos_t * run.vx + sin_t * run.vy, -sin_t * run.vx + cos_t * run.vy
+    mu, eps2 = PARAMS.kinetic_friction, PARAMS.velocity_epsilon ** 2
+    sides = []
+    for wheels, offset in (([0, 1], PARAMS.half_track), ([2, 3], -PARAMS.half_track)):
+        contact = v_long[:, None] - offset * run.omega[:, None] - PARAMS.wheel_radius * run.dphi[:, wheels]
+        force = -mu * np.sum(run.loads[:, wheels] * contact / np.sqrt(contact ** 2 + eps2), axis=1)
+        sides.append((force, np.min(np.abs(contact), axis=1)))
+    lateral = -mu * run.loads.sum(axis=1) * v_lat / np.sqrt(v_lat ** 2 + eps2)
+    (left, left_speed), (right, right_speed) = sides
+    return left, right, lateral, left_speed, right_speed
+
+
+def test_a_fast_circle_slips_and_the_csv_and_summary_say_so(tmp_path):
+    """Twice the circle's speed with the default adhesion: the controller's start demands more
+    traction than friction gives, the wheels spin up and the robot slides away from the path."""
+    out = tmp_path / 'slip.csv'
+    run = headless(out, '--scenario', str(fast_circle(tmp_path)), '--contact', 'coulomb', '--duration', '2')
+    slip = run.slip > 0.5
+    assert slip[:, 0].sum() > 1000 and slip[:, 1].sum() > 1000, slip.sum(axis=0)
+    first = int(np.flatnonzero(slip.any(axis=1))[0])
+    names = ', '.join(name for name, flag in zip(('left', 'right', 'lateral'), slip[first]) if flag)
+    assert f'first slip at t = {run.t[first]:.3f} s ({names})' in format_summary(summarize(out))
+    assert run.err[-1] > 0.5  # lost: the controller does nothing about slip
+
+    left, right, lateral, left_speed, right_speed = cone_forces(run)
+    for k, (recorded, expected, speed, load) in enumerate((
+            (run.F_left, left, left_speed, run.loads[:, 0] + run.loads[:, 1]),
+            (run.F_right, right, right_speed, run.loads[:, 2] + run.loads[:, 3]))):
+        rows = slip[:, k]
+        assert np.allclose(recorded[rows], expected[rows], rtol=1e-6, atol=1e-9)
+        # sliding well above eps, the force is the cone's edge: |F| = mu_k N, against the slip
+        sliding = rows & (speed > 20 * PARAMS.velocity_epsilon)
+        assert sliding.sum() > 1000
+        assert np.allclose(np.abs(recorded[sliding]), PARAMS.kinetic_friction * load[sliding], rtol=2e-3)
+        assert np.allclose(run.use[sliding, k], PARAMS.kinetic_friction / PARAMS.wall_friction, rtol=2e-3)
+    rows = slip[:, 2]
+    assert np.allclose(run.F_lateral[rows], lateral[rows], rtol=1e-6, atol=1e-6)
+    # a sticking channel stays inside the cone (its force is within mu_s times its load)
+    assert np.all(run.use[~slip] <= 1.0 + 1e-12)
+
+
+def test_with_enough_adhesion_the_coulomb_loop_is_the_ideal_loop_bit_for_bit(tmp_path):
+    scenario = str(fast_circle(tmp_path))
+    runs = [headless(tmp_path / f'{contact}.csv', '--scenario', scenario, '--contact', contact,
+                     '--adhesion-force', '500', '--duration', '2') for contact in ('ideal', 'coulomb')]
+    assert not runs[1].slip.any() and np.max(runs[1].use) > 0.5  # sticking, but not by a wide margin
+    assert (tmp_path / 'ideal.csv').read_bytes() == (tmp_path / 'coulomb.csv').read_bytes()
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--controller', '--scenario', 'rest'], 'rest has none'),
+    (['--controller', '--constraints', 'belt'], 'drop --constraints'),
+    (['--controller', '--controller-mass-scale', '0'], 'argument --controller-mass-scale: must be > 0'),
+    (['--controller-mass-scale', '1.2'], '--controller-mass-scale needs --controller'),
+])
+def test_bad_closed_loop_arguments_are_one_line_errors(tmp_path, args, words):
+    result = wallbot('simulate', '--csv', str(tmp_path / 'x.csv'), *args)
+    assert result.returncode == 2 and words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / 'x.csv').exists()
+
+
+# --- the sampling the node and simulate share (no DDS) ------------------------------------------
+def state(t_ns: int, x: float = 0.8) -> PlanarState:
+    return PlanarState(t_ns, x, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def sampled(max_wheel_torque: float = 5.0) -> SampledController:
+    from wallbot_sim.config import load_scenario
+    reference = load_scenario('circle').reference
+    return SampledController(TrackingController(controller_robot(PARAMS, 1.0), reference),
+                             max_wheel_torque=max_wheel_torque)
+
+
+def test_the_controller_acts_on_the_first_state_of_each_period():
+    loop = sampled()
+    acted = []
+    for stamp in (0, 1_000_000, 4_000_000, 5_000_000, 7_000_000, 9_999_999, 11_000_000, 15_000_000):
+        assert loop.observe(stamp) is None
+        if loop.due(stamp):
+            loop.command(state(stamp))
+            acted.append(stamp)
+    assert acted == [0, 5_000_000, 11_000_000, 15_000_000]  # 10 ms had no state: the first after it
+
+
+def test_time_going_back_restarts_or_carries_on():
+    """A reset (back into the first period) clears the integral; a resume keeps it."""
+    loop = sampled()
+    for stamp in range(0, 300_000_000, 1_000_000):  # 0.3 s near the path: the error is integrated
+        loop.observe(stamp)
+        if loop.due(stamp):
+            loop.command(state(stamp, x=0.99))
+    probe = state(205_000_000, x=0.99)
+    fresh = sampled().command(probe)
+    assert loop.observe(201_000_000) is Rewind.RESUME  # a resumed dynamics publishes states again
+    assert not loop.due(201_000_000) and not loop.due(204_000_000) and loop.due(205_000_000)
+    assert loop.command(probe).requested != fresh.requested
+    assert loop.observe(1_000_000) is Rewind.RESTART
+    assert loop.due(1_000_000) and loop.command(probe).requested == fresh.requested
+
+
+def test_commands_are_clamped_and_say_so():
+    loop = sampled(max_wheel_torque=0.5)
+    command = loop.command(state(0))  # at rest below the path: the controller asks for more than 0.5 N m
+    assert command.clamped and max(abs(tau) for tau in command.requested) > 0.5
+    assert (command.tau_left, command.tau_right) == tuple(math.copysign(min(0.5, abs(tau)), tau)
+                                                          for tau in command.requested)
+    unclamped = sampled(max_wheel_torque=100.0).command(state(0))
+    assert not unclamped.clamped and (unclamped.tau_left, unclamped.tau_right) == command.requested
