@@ -244,6 +244,11 @@ def constraints(switches: Mapping[str, bool], alpha: float, beta: float, active:
     return _serialize(_status(Status(CONSTRAINTS_STATUS_NAME, 'ok', label, list(values.items()))), topics.CONSTRAINTS)
 
 
+def robot_description(urdf: str) -> bytes:
+    """``robot_description``: the URDF document as a std_msgs/String (decoded as ``msg.data``)."""
+    return _serialize(_types()['std_msgs/msg/String'](data=urdf), topics.ROBOT_DESCRIPTION)
+
+
 def constraint_switches(msg: Any) -> ConstraintSwitches:
     """The switches and gains of a ``constraints`` message; ValueError naming what is wrong."""
     values = {kv.key: kv.value for kv in msg.values}
