@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -127,3 +128,12 @@ def test_a_late_subscriber_receives_the_robot_description(tmp_path, process_runn
     links = {link.name: link for link in parse(received[0].data).robot.links}
     assert links[topics.BASE_FRAME].inertial.mass == 6.5
     assert links['wheel_left_front_link'].inertial.mass == 0.3
+
+
+def test_a_bad_robot_file_ends_constraint_config_with_one_line(tmp_path, process_runner):
+    missing = tmp_path / 'missing.yaml'
+    node = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.constraint_config', '--ros-args',
+                                 '-p', f'robot_file:={missing}'], 'constraint_config')
+    assert node.wait(timeout=60) == 1
+    output = process_runner.output('constraint_config')
+    assert output.count('\n') == 1 and f'cannot read {missing}: No such file' in output
