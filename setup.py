@@ -63,7 +63,7 @@ setup(
     ],
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
-        'test': ['pytest', 'mcap', 'colcon-common-extensions', 'import-linter'],
+        'test': ['pytest', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy'],
     },
     # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
     tests_require=['pytest'],

@@ -129,6 +129,18 @@ class Graph:
             if stamp > newest:
                 newest, progressed = stamp, time.monotonic()
 
+    def wait_until_quiet(self, quiet_for: float = 0.3, timeout: float = 10.0) -> int:
+        """The newest odometry stamp once no newer one has come for ``quiet_for`` wall seconds (a
+        paused simulation: this test's subscriber may still be taking what was sent before)."""
+        seen = {'stamp': self.last_stamp(), 'since': time.monotonic()}
+
+        def quiet() -> bool:
+            if self.last_stamp() != seen['stamp']:
+                seen.update(stamp=self.last_stamp(), since=time.monotonic())
+            return time.monotonic() - seen['since'] > quiet_for
+        self.wait_for(quiet, timeout, 'no odometry while paused')
+        return self.last_stamp()
+
     def call(self, kind, name: str, request, timeout: float = 5.0):
         client = self.node.create_client(kind, name)
         try:

@@ -6,6 +6,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import yaml
 
 from cli_helpers import WALLBOT
 from wallbot_msgs_py import bagio, codec
+from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.rundata import summarize
 from wallbot_sim.graph import child_processes
 from wallbot_sim.plots.figures import FIGURES
@@ -110,7 +112,10 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
     (['square'], "unknown scenario 'square'"),
     (['circle', '--real-time-factor', '-1'], 'argument --real-time-factor: must be 0 (as fast as possible) or in'),
     (['circle', '--real-time-factor', '0.0005'], 'argument --real-time-factor: must be 0'),
-    (['circle', '--duration', '0'], 'argument --duration: must be > 0, got 0.0'),
+    (['circle', '--duration', '-1'], 'argument --duration: must be 0 (until Ctrl-C) or in (0, 1e+09], got -1.0'),
+    (['circle', '--domain-id', '0'], "argument --domain-id: must be an integer in 1..101 (0 is the domain"),
+    (['circle', '--domain-id', '102'], "argument --domain-id: must be an integer in 1..101"),
+    (['circle', '--domain-id', 'seven'], "got 'seven'"),
     (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
     (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
     (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),
@@ -172,3 +177,59 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
 
     graph_diagnostics = running(graph['/diagnostics'])
     assert graph_diagnostics and graph_diagnostics == running(alone['/diagnostics'])
+
+
+def test_a_domain_another_run_holds_is_refused(tmp_path, ros_domain):
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--domain-id', str(ros_domain.domain_id),
+                             '--out', str(tmp_path / 'run')], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and f'ROS_DOMAIN_ID {ros_domain.domain_id} is in use by another run' in lines[0], \
+        result.stderr
+    assert result.stdout == '' and not (tmp_path / 'run').exists()
+
+
+def wait_for_output(process_runner, name: str, pattern: str, timeout: float) -> re.Match:
+    """The first match of ``pattern`` in what ``name`` wrote, once it is there (failing if the
+    process exits or ``timeout`` passes first)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        found = re.search(pattern, process_runner.output(name), re.MULTILINE)
+        if found:
+            return found
+        assert process_runner.processes[name].poll() is None, process_runner.output(name)
+        assert time.monotonic() < deadline, f'no {pattern!r} from {name}: ' + process_runner.output(name)
+        time.sleep(0.1)
+
+
+def test_another_terminal_attaches_with_the_printed_export_until_ctrl_c(tmp_path, process_runner):
+    """A run until stopped (--duration 0) in a chosen domain: a separate process given nothing but
+    the printed first line (on top of this session's own domain, which cannot see the run) receives
+    its odometry; Ctrl-C then ends the run with status 130, the summary and a closed bag."""
+    with claim_domain_id() as free:  # a domain no other claim holds; the run claims it again
+        chosen = free.domain_id
+    out = tmp_path / 'run'
+    run = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '0', '--domain-id', chosen,
+                                '--out', out, '--no-plots'], 'run')
+    first = wait_for_output(process_runner, 'run', r'\A.*\n', 60).group(0)
+    assert first.startswith(f'export ROS_DOMAIN_ID={chosen} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST  # ')
+    assert os.environ['ROS_DOMAIN_ID'] != str(chosen)
+
+    probe = Path(__file__).with_name('odom_probe.py')
+    attached = process_runner.start(['bash', '-c', f'{first}exec {sys.executable} {probe}'], 'attached')
+    assert wait_for_output(process_runner, 'attached', r'^domain (\d+)$', 30).group(1) == str(chosen)
+    # the probe exits once it has odometry; a stall of the run shows as its progress not moving
+    wait_for_output(process_runner, 'attached', r'^odom [0-9.]+$', 120)
+    assert attached.wait(timeout=30) == 0
+
+    wait_for_output(process_runner, 'run', r't = +[0-9.]+ s \(until stopped\)', 60)
+    os.kill(run.pid, signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    output = process_runner.output('run')
+    assert 'Traceback' not in output and 'until Ctrl-C at real-time factor 1' in output
+    assert 'wallbot-sim run: stopped by Ctrl-C' in output and 'interrupted' not in output
+    assert 'tracking error:' in output and f'bag:                 {out / "bag"}' in output
+    meta = yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['custom_data']['wallbot.recorder.stop_signal'] == 'SIGINT'
+    recorded = odometry(out / 'bag')
+    assert len(recorded) > 0 and recorded[0, 0] == 0 and np.all(np.diff(recorded[:, 0]) == 1_000_000)

@@ -114,11 +114,11 @@ class _Terminal(io.StringIO):
         return True
 
 
-def _drive(progress_stream, monkeypatch) -> str:
+def _drive(progress_stream, monkeypatch, duration: float = 10.0) -> str:
     from wallbot_sim.cli import progress as progress_module
     clock = _FakeClock()
     monkeypatch.setattr(progress_module.time, 'monotonic', clock)
-    progress = progress_module.Progress(10.0, progress_stream)
+    progress = progress_module.Progress(duration, progress_stream)
     for step in range(1001):  # 10 s of simulation in 10 s of wall time, updated every 10 ms
         clock.now += 0.01
         progress.update(step * 0.01)
@@ -140,3 +140,9 @@ def test_progress_in_a_terminal_redraws_one_line(monkeypatch):
     text = _drive(_Terminal(), monkeypatch)
     assert text.count('\n') == 1 and text.endswith('\n')
     assert text.count('\r') > 20  # redrawn a few times a second
+
+
+def test_progress_of_a_run_until_stopped_shows_no_end(monkeypatch):
+    lines = _drive(io.StringIO(), monkeypatch, duration=0.0).splitlines()
+    assert lines[-1].startswith('  t =  10.000 s (until stopped)   real-time factor   1.00')
+    assert not any(' / ' in line for line in lines)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, claim_domain_id,
-                                isolated_ros_env)
+from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
+                                claim_domain_id, isolated_ros_env)
 
 
 def test_concurrent_claims_get_distinct_ids(tmp_path):
@@ -111,3 +111,32 @@ def test_process_runner_sigkills_a_child_ignoring_sigterm(process_runner):
     while 'ready' not in process_runner.output('stubborn') and time.monotonic() < deadline:
         time.sleep(0.05)
     assert process_runner.stop(proc) == -9
+
+
+def test_a_chosen_id_is_claimed_unless_held_or_out_of_range(tmp_path):
+    with claim_chosen_domain_id(17, tmp_path) as chosen:
+        assert chosen.domain_id == 17 and chosen.held
+        with pytest.raises(DomainUnavailable, match=r'ROS_DOMAIN_ID 17 is in use by another run .*17\.lock'):
+            claim_chosen_domain_id(17, tmp_path)
+        # an automatic claim passes it by
+        claims = [claim_domain_id(tmp_path) for _ in range(MAX_DOMAIN_ID - MIN_DOMAIN_ID)]
+        try:
+            assert 17 not in {c.domain_id for c in claims}
+        finally:
+            for c in claims:
+                c.release()
+    with claim_chosen_domain_id(17, tmp_path) as again:  # released: free again
+        assert again.domain_id == 17
+    for outside in (0, MAX_DOMAIN_ID + 1, -1):
+        with pytest.raises(DomainUnavailable, match=f'must be in 1..101, got {outside}'):
+            claim_chosen_domain_id(outside, tmp_path)
+
+
+def test_export_line_sets_exactly_the_isolating_variables(tmp_path):
+    with claim_chosen_domain_id(42, tmp_path) as claim:
+        line = claim.export_line()
+    assert line == 'export ROS_DOMAIN_ID=42 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST'
+    shown = subprocess.run(['bash', '-c', f'{line}; env'], capture_output=True, text=True, env={'PATH': '/usr/bin:/bin'},
+                           check=True).stdout.splitlines()
+    assert {k: v for k, v in (entry.split('=', 1) for entry in shown) if k.startswith('ROS_')} == \
+        isolated_ros_env(42, {})

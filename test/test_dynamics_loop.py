@@ -20,7 +20,7 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.trajectories import Circle, sample_plan
 from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, ConstraintSwitch, Decision, DynamicsLoop, NewPlan,
                                              ParameterChange, Pause, RecordProgress, Reset, ResumeSnapshot, RunState,
-                                             TorqueCommand)
+                                             Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import Pacer
 
 DT = 1e-3
@@ -211,6 +211,69 @@ def test_pause_resume_and_reset_transitions():
     assert graph.times[published:] == pytest.approx([0.0, DT])
     assert loop.command is None and log.said('reset to the initial state at t = 0')
     np.testing.assert_array_equal(graph.published[published][1], graph.published[0][1])
+
+
+def test_step_takes_its_steps_while_paused_and_is_ignored_while_running():
+    loop, graph, log, _clock = make_loop()
+    loop.post(DRIVEN)
+    ticks(loop, 3)
+    loop.post(Pause(True))
+    loop.post(Step(2))
+    assert ticks(loop, 4) == [Decision.STEPPED] * 2 + [Decision.NOT_READY] * 2
+    assert str(loop.status) == 'paused' and graph.times == pytest.approx([k * DT for k in range(6)])
+    loop.post(Step(1))
+    loop.post(Step(2))  # requests add up
+    assert ticks(loop, 4) == [Decision.STEPPED] * 3 + [Decision.NOT_READY]
+    loop.post(Step(5))
+    loop.post(Pause(True))  # a new pause (or running again) drops the steps still to take
+    assert loop.tick() is Decision.NOT_READY and loop.sim.steps == 8
+    loop.post(Pause(False))
+    loop.post(Step(3))
+    assert loop.tick() is Decision.STEPPED and log.said('~/step ignored: the simulation is running')
+    assert loop.steps_to_take == 0
+
+
+def test_a_teleport_places_the_robot_at_rest_and_time_goes_on():
+    """The placed state is published at once; the run goes on from it as a simulation started at
+    rest there and then (an independent Simulation) does, the wheels' angles kept."""
+    from wallbot_sim.model import Robot, Simulation
+    loop, graph, log, _clock = make_loop()
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((0.4, 0.1)))
+    ticks(loop, 5)
+    loop.post(Pause(True))
+    loop.tick()
+    wheels = loop.sim.q[3:].copy()
+    assert np.any(wheels != 0.0)
+    loop.post(Teleport(0.2, -0.3, 1.0))
+    assert loop.tick() is Decision.NOT_READY
+    t, q = graph.published[-1]
+    assert t == pytest.approx(5 * DT) and np.array_equal(q, [0.2, -0.3, 1.0, *wheels])
+    assert not np.any(loop.sim.qd) and log.said('placed at rest at x = 0.200 m, y = -0.300 m, heading 1.000 rad')
+    assert graph.snapshots[-1].q == (0.2, -0.3, 1.0, *wheels) and graph.snapshots[-1].paused
+    loop.post(Step(3))
+    ticks(loop, 4)
+    expected = Simulation(Robot(load_robot_parameters(None)), None, DRIVEN.selection, np.array(q), np.zeros(7),
+                          dt=DT, t0=5 * DT, gains=GAINS)
+    expected.set_motor_torque(0.4, 0.1)
+    for _ in range(3):
+        expected.step()
+    assert graph.times[-3:] == pytest.approx([6 * DT, 7 * DT, 8 * DT])
+    np.testing.assert_array_equal(graph.published[-1][1], expected.q)
+
+
+def test_a_teleport_before_the_start_is_ignored_and_after_a_divergence_recovers():
+    loop, graph, log, _clock = make_loop()
+    loop.post(Teleport(0.2, 0.0, 0.0))
+    assert loop.tick() is Decision.NOT_READY and log.said('initialpose ignored') and not graph.published
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1e308, -1e308)))
+    ticks(loop, 2)
+    assert loop.diverged
+    loop.post(TorqueCommand((0.0, 0.0)))
+    loop.post(Teleport(0.2, 0.0, 0.0))
+    assert loop.tick() is Decision.STEPPED and not loop.diverged
+    assert np.array_equal(graph.published[-2][1][:3], [0.2, 0.0, 0.0])
 
 
 def test_a_diverged_run_holds_until_a_reset():

@@ -199,6 +199,27 @@ def test_torque_command_validation():
             codec.torque_command(command(data), 2.0)
 
 
+def test_initial_pose_validation():
+    types = bagio.typestore().types
+
+    def pose(frame='wall', x=0.3, y=-0.4, q=(0.0, 0.0, math.sin(-1.2), math.cos(-1.2))):
+        return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
+            header=codec.header(0.0, frame),
+            pose=types['geometry_msgs/msg/PoseWithCovariance'](
+                pose=types['geometry_msgs/msg/Pose'](position=types['geometry_msgs/msg/Point'](x=x, y=y, z=0.0),
+                                                     orientation=types['geometry_msgs/msg/Quaternion'](*q)),
+                covariance=np.zeros(36)))
+
+    x, y, heading = codec.initial_pose(pose())
+    assert (x, y) == (0.3, -0.4) and heading == pytest.approx(-2.4, abs=1e-12)
+    assert codec.initial_pose(pose(q=(0.0, 0.0, 3.0, 0.0)))[2] == pytest.approx(math.pi)  # any norm
+    for bad, reason in [(pose(frame='map'), "frame 'map', not 'wall'"), (pose(frame=''), "frame '', not 'wall'"),
+                        (pose(x=math.nan), 'not finite'), (pose(q=(0.0, 0.0, 0.0, 0.0)), 'not a turn about Z'),
+                        (pose(q=(0.1, 0.0, 0.0, 0.995)), 'not a turn about Z')]:
+        with pytest.raises(ValueError, match=reason):
+            codec.initial_pose(bad)
+
+
 def test_diagnostics_builder():
     status = codec.Status('x', 'error', 'diverged', [('rate', 999.123456), ('set', 'belt')])
     array = decode(codec.diagnostics(1.5, [status]), topics.DIAGNOSTICS)

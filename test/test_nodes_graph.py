@@ -24,7 +24,8 @@ from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
 from scheduling_helpers import may_use_fifo  # noqa: E402
-from wallbot_msgs_py import bagio, topics  # noqa: E402
+from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
+from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
 from wallbot_sim.model import ConstraintSelection, FigureEight, Robot, Simulation  # noqa: E402
@@ -163,15 +164,7 @@ def test_pause_and_reset(graph):
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=True)).success
     graph.wait_for(lambda: any(s.message == 'paused' for a in graph.messages(topics.DIAGNOSTICS.name)
                                for s in a.status), 3, 'paused diagnostics')
-    # this test's subscriber may still be taking what was sent before the pause: wait until it is quiet
-    seen = {'stamp': graph.last_stamp(), 'since': time.monotonic()}
-
-    def quiet() -> bool:
-        if graph.last_stamp() != seen['stamp']:
-            seen.update(stamp=graph.last_stamp(), since=time.monotonic())
-        return time.monotonic() - seen['since'] > 0.3
-    graph.wait_for(quiet, 10, 'no odometry while paused')
-    held = graph.last_stamp()
+    held = graph.wait_until_quiet()
     time.sleep(0.5)
     assert graph.last_stamp() == held, 'a paused simulation must not advance'
     assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=False)).success
@@ -183,6 +176,49 @@ def test_pause_and_reset(graph):
     assert (first.pose.pose.position.x, first.pose.pose.position.y, first.twist.twist.linear.x) == (0.7, 0.0, 0.0)
     graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 300 * MS], 5,
                    'time running again from 0 after the reset')
+
+
+def test_step_and_place_a_paused_robot(graph):
+    """Gazebo's step and RViz's 2D Pose Estimate: ~/step takes step_count steps of a paused run (and
+    is refused while it runs); an initialpose in frame wall puts the robot there at rest, one in
+    another frame is rejected."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    start_graph(graph, 'step_count:=5', constraints=('trajectory_task:=false', 'belt:=true', 'non_lateral:=true',
+                                                     'nonslip:=true'), trajectory=None)
+    graph.wait_sim_time(0.05)
+    refused = graph.call(Trigger, '/wallbot/dynamics/step', Trigger.Request())
+    assert not refused.success and 'running' in refused.message
+    assert graph.call(SetBool, '/wallbot/dynamics/pause', SetBool.Request(data=True)).success
+    held = graph.wait_until_quiet()
+
+    place = graph.node.create_publisher(PoseWithCovarianceStamped, topics.INITIALPOSE.resolve(),
+                                        qos_profile(topics.INITIALPOSE))
+    graph.wait_for(lambda: place.get_subscription_count() > 0, 10, 'the dynamics subscribing initialpose')
+    pose = PoseWithCovarianceStamped()
+    pose.header.frame_id = 'map'
+    place.publish(pose)
+    graph.wait_for(lambda: "rejected: initialpose: frame 'map'" in graph.runner.output('dynamics'), 5, 'the rejection')
+    pose.header.frame_id = topics.WALL_FRAME
+    pose.pose.pose.position.x, pose.pose.pose.position.y = 0.3, -0.4
+    pose.pose.pose.orientation.z, pose.pose.pose.orientation.w = math.sin(0.5), math.cos(0.5)  # heading 1 rad
+    place.publish(pose)
+    placed = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name)
+                                     if ns(m) == held and m.pose.pose.position.x == 0.3], 5, 'the placed state')[0]
+    assert placed.pose.pose.position.y == -0.4
+    assert codec.quaternion_yaw(placed.pose.pose.orientation) == pytest.approx(1.0, abs=1e-12)
+    twist = placed.twist.twist
+    assert (twist.linear.x, twist.linear.y, twist.angular.z) == (0.0, 0.0, 0.0)
+
+    graph.clear(topics.DIAGNOSTICS.name)
+    assert graph.call(Trigger, '/wallbot/dynamics/step', Trigger.Request()).success
+    # held: the diagnostics of the paused loop carry its simulation time
+    graph.wait_for(lambda: any(ns(a) == held + 5 * MS and s.message == 'paused'
+                               for a in graph.messages(topics.DIAGNOSTICS.name) for s in a.status), 5,
+                   'paused again 5 steps later')
+    after = [m for m in graph.messages(topics.ODOM.name) if ns(m) > held]
+    assert [ns(m) for m in after] == [held + k * MS for k in range(1, 6)]
+    assert math.hypot(after[-1].pose.pose.position.x - 0.3, after[-1].pose.pose.position.y + 0.4) < 1e-3
 
 
 def test_driven_mode_rejects_malformed_commands_and_times_out(graph):

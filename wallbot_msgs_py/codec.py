@@ -72,6 +72,24 @@ def quaternion_yaw(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
+def initial_pose(msg: Any) -> tuple[float, float, float]:
+    """(x, y, heading) of an ``initialpose`` (PoseWithCovarianceStamped); ValueError naming what is
+    wrong: a frame other than ``wall`` (the graph has no tf to convert it), a non-finite number, an
+    orientation that is not a turn about the wall's normal Z. The covariance is not used."""
+    frame = msg.header.frame_id
+    if frame != topics.WALL_FRAME:
+        raise ValueError(f'initialpose: frame {frame!r}, not {topics.WALL_FRAME!r} (set the fixed frame to '
+                         f'{topics.WALL_FRAME!r})')
+    position, q = msg.pose.pose.position, msg.pose.pose.orientation
+    values = (position.x, position.y, position.z, q.x, q.y, q.z, q.w)
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f'initialpose: a pose value is not finite: {values}')
+    norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
+    if norm == 0.0 or math.hypot(q.x, q.y) > 1e-6 * norm:
+        raise ValueError(f'initialpose: orientation ({q.x}, {q.y}, {q.z}, {q.w}) is not a turn about Z')
+    return float(position.x), float(position.y), math.atan2(2.0 * q.w * q.z, q.w * q.w - q.z * q.z)  # any norm
+
+
 def _vector(x: float = 0.0, y: float = 0.0, z: float = 0.0) -> Any:
     return _types()['geometry_msgs/msg/Vector3'](x=float(x), y=float(y), z=float(z))
 
@@ -242,6 +260,11 @@ def constraints(switches: Mapping[str, bool], alpha: float, beta: float, active:
     values.update({'baumgarte_alpha': repr(float(alpha)), 'baumgarte_beta': repr(float(beta)),
                    'active': ','.join(active)})
     return _serialize(_status(Status(CONSTRAINTS_STATUS_NAME, 'ok', label, list(values.items()))), topics.CONSTRAINTS)
+
+
+def robot_description(urdf: str) -> bytes:
+    """``robot_description``: the URDF document as a std_msgs/String (decoded as ``msg.data``)."""
+    return _serialize(_types()['std_msgs/msg/String'](data=urdf), topics.ROBOT_DESCRIPTION)
 
 
 def constraint_switches(msg: Any) -> ConstraintSwitches:

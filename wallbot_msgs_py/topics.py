@@ -56,6 +56,12 @@ REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiD
                              Durability.TRANSIENT_LOCAL, depth=1)
 REFERENCE_PATH = Topic('reference_path', 'nav_msgs/msg/Path', Durability.TRANSIENT_LOCAL, depth=1)
 CONSTRAINTS = Topic('constraints', 'diagnostic_msgs/msg/DiagnosticStatus', Durability.TRANSIENT_LOCAL, depth=1)
+INITIALPOSE = Topic('initialpose', 'geometry_msgs/msg/PoseWithCovarianceStamped', depth=10)
+"""Where to put the robot, at rest (what RViz's "2D Pose Estimate" publishes), in frame ``wall``;
+the dynamics places it there at its next step boundary."""
+ROBOT_DESCRIPTION = Topic('robot_description', 'std_msgs/msg/String', Durability.TRANSIENT_LOCAL, depth=1)
+"""The robot's URDF, generated from the robot file, published once by constraint_config; transient-local
+like robot_state_publisher's, so RViz, Foxglove or a controller_manager started later receive it."""
 RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a recorder: the newest stamp up to which it has written /clock and every message
 of STEP_STAMPED.

@@ -7,6 +7,9 @@ or dies, so stale claims never block. Pure stdlib (no ROS import).
     with claim_domain_id() as claim:
         env = isolated_ros_env(claim.domain_id)
         subprocess.run(cmd, env=env)
+
+``claim_chosen_domain_id(n)`` claims one given id, refusing it when another claim holds it.
+Domain 0 is never claimed: it is the domain of every ROS process nobody configured.
 """
 from __future__ import annotations
 
@@ -20,6 +23,10 @@ from typing import IO, Mapping
 MIN_DOMAIN_ID = 1
 MAX_DOMAIN_ID = 101  # inclusive; ids above 101 collide with ephemeral ports on Linux
 DEFAULT_LOCK_DIR = Path(tempfile.gettempdir()) / 'wallbot_sim_domains'
+
+
+class DomainUnavailable(RuntimeError):
+    """A chosen ROS_DOMAIN_ID that cannot be claimed: outside the range, or held by another claim."""
 
 
 class DomainClaim:
@@ -49,6 +56,11 @@ class DomainClaim:
         """Shortcut for ``isolated_ros_env(self.domain_id, base)``."""
         return isolated_ros_env(self.domain_id, base)
 
+    def export_line(self) -> str:
+        """The shell command that puts another terminal in this domain, e.g.
+        ``export ROS_DOMAIN_ID=7 ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``."""
+        return 'export ' + ' '.join(f'{key}={value}' for key, value in self.env({}).items())
+
     def __enter__(self) -> 'DomainClaim':
         return self
 
@@ -72,32 +84,58 @@ def claim_domain_id(lock_dir: Path | str | None = None,
     Ids are tried in order starting from a random one, so concurrent runs spread
     out. Raises RuntimeError if every id is taken.
     """
+    lock_dir = _lock_dir(lock_dir)
+    ids = list(range(MIN_DOMAIN_ID, MAX_DOMAIN_ID + 1))
+    start = (rng or random.SystemRandom()).randrange(len(ids))
+    for domain_id in ids[start:] + ids[:start]:
+        claim = _try_claim(lock_dir, domain_id)
+        if claim is not None:
+            return claim
+    raise RuntimeError(f'no free ROS_DOMAIN_ID in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID} '
+                       f'(all locks in {lock_dir} are held)')
+
+
+def claim_chosen_domain_id(domain_id: int, lock_dir: Path | str | None = None) -> DomainClaim:
+    """Claim ``domain_id`` itself; DomainUnavailable (one line) if it is outside 1..101 or another
+    claim on this machine holds it. A ROS process that claimed nothing is not seen."""
+    if not MIN_DOMAIN_ID <= domain_id <= MAX_DOMAIN_ID:
+        raise DomainUnavailable(f'ROS_DOMAIN_ID must be in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID}, got {domain_id}')
+    lock_dir = _lock_dir(lock_dir)
+    claim = _try_claim(lock_dir, domain_id)
+    if claim is None:
+        raise DomainUnavailable(f'ROS_DOMAIN_ID {domain_id} is in use by another run on this machine '
+                                f'(its lock {lock_dir / f"{domain_id}.lock"} is held)')
+    return claim
+
+
+def _lock_dir(lock_dir: Path | str | None) -> Path:
+    """The directory of the lock files, created and shared between users."""
     lock_dir = Path(lock_dir) if lock_dir is not None else DEFAULT_LOCK_DIR
     lock_dir.mkdir(parents=True, exist_ok=True)
     try:
         os.chmod(lock_dir, 0o1777)  # shared between users, like /tmp
     except OSError:
         pass
-    ids = list(range(MIN_DOMAIN_ID, MAX_DOMAIN_ID + 1))
-    start = (rng or random.SystemRandom()).randrange(len(ids))
-    for domain_id in ids[start:] + ids[:start]:
-        path = lock_dir / f'{domain_id}.lock'
-        try:
-            f = open(path, 'a+')
-        except OSError:
-            continue  # e.g. owned by another user without write permission
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            f.close()
-            continue
-        f.seek(0)
-        f.truncate()
-        f.write(f'{os.getpid()}\n')
-        f.flush()
-        return DomainClaim(domain_id, f, path)
-    raise RuntimeError(f'no free ROS_DOMAIN_ID in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID} '
-                       f'(all locks in {lock_dir} are held)')
+    return lock_dir
+
+
+def _try_claim(lock_dir: Path, domain_id: int) -> DomainClaim | None:
+    """The claim of ``domain_id`` if its lock is free, else None."""
+    path = lock_dir / f'{domain_id}.lock'
+    try:
+        f = open(path, 'a+')
+    except OSError:
+        return None  # e.g. owned by another user without write permission
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.close()
+        return None
+    f.seek(0)
+    f.truncate()
+    f.write(f'{os.getpid()}\n')
+    f.flush()
+    return DomainClaim(domain_id, f, path)
 
 
 def isolated_ros_env(domain_id: int, base: Mapping[str, str] | None = None) -> dict[str, str]:

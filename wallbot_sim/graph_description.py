@@ -44,8 +44,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
     not wait for one. With ``controller_mass_scale`` (a closed-loop run) the selection is the driven
     set (no trajectory task); the controller starts before the dynamics, which waits for it
-    (``wait_for_command``) so the loop is closed from t = 0. ``robot_file`` None: the installed
-    robot file; ``adhesion_force`` None: the robot file's.
+    (``wait_for_command``) so the loop is closed from t = 0. ``robot_file`` (the dynamics' model,
+    constraint_config's gains and robot_description) None: the installed robot file;
+    ``adhesion_force`` None: the robot file's.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -65,8 +66,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         if closed_loop:
             recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
         specs.append(NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder))
+    robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     specs += [
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', switches),
+        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
     ]
@@ -77,7 +79,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': bag is not None, 'realtime_priority': int(realtime_priority),
-        **({'robot_file': str(robot_file)} if robot_file is not None else {}),
+        **robot,
         'contact_model': contact_model,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))

@@ -17,7 +17,7 @@ class Progress:
     In a terminal one line is redrawn in place a few times a second; anywhere else (a log
     file, a pipe) a plain line is printed every LOG_PERIOD seconds, so a log never holds one
     line thousands of characters long. The factor is measured from the first time simulation
-    time moved, so start-up is not in it.
+    time moved, so start-up is not in it. ``duration`` 0: a run until stopped, shown without an end.
     """
 
     def __init__(self, duration: float, stream: TextIO | None) -> None:
@@ -26,10 +26,13 @@ class Progress:
         self.period = TERMINAL_PERIOD if self.terminal else LOG_PERIOD
         self.last = time.monotonic()
         self.anchor: tuple[float, float] | None = None
+        self.latest: float | None = None
+        """The newest simulation time given to :meth:`update` (None before the first)."""
 
     def update(self, t: float, force: bool = False) -> None:
         """Show simulation time ``t`` if the period is up; ``force`` shows it now (and ends the line)."""
         now = time.monotonic()
+        self.latest = t
         if self.anchor is None:
             self.anchor = (t, now)
         if self.stream is None or not (force or now - self.last >= self.period):
@@ -37,7 +40,8 @@ class Progress:
         self.last = now
         start_t, start_wall = self.anchor
         factor = (t - start_t) / max(now - start_wall, 1e-9)
-        text = f'  t = {t:7.3f} / {self.duration:.3f} s   real-time factor {factor:6.2f}'
+        end = f' / {self.duration:.3f} s' if self.duration > 0 else ' s (until stopped)'
+        text = f'  t = {t:7.3f}{end}   real-time factor {factor:6.2f}'
         if self.terminal:  # redraw in place; a forced (final) line ends it
             text = '\r' + text + ('\n' if force else '')
         else:

@@ -1,10 +1,11 @@
 """``wallbot-sim run``: the main job. The real node graph in its own DDS domain, recorded, plotted.
 
 Starts recorder, constraint_config, trajectory and dynamics as separate processes with a
-ROS_DOMAIN_ID of their own (localhost discovery only), shows simulation time and real-time
-factor while they run, stops the graph once the recorder holds the whole duration, then prints
-a summary and writes the paper's figures. A node that dies ends the run with its status and log
-named; Ctrl-C or SIGTERM stops the graph cleanly; the bag is kept either way.
+ROS_DOMAIN_ID of their own (localhost discovery only; the first line on stdout is the ``export``
+that attaches another terminal), shows simulation time and real-time factor while they run,
+stops the graph once the recorder holds the whole duration (``--duration 0``: at Ctrl-C), then
+prints a summary and writes the paper's figures. A node that dies ends the run with its status and
+log named; Ctrl-C or SIGTERM stops the graph cleanly; the bag is kept either way.
 """
 
 from __future__ import annotations
@@ -24,12 +25,13 @@ from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
+                                claim_domain_id)
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
-from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
@@ -43,6 +45,21 @@ FINAL_WAIT = 10.0
 """Wall seconds to wait, after the last step is recorded, for the other nodes' last messages: the
 dynamics' diagnostics of the stop (published once a second) and the trajectory node's reference
 pose at the end (it follows /clock, and lags it on a loaded machine)."""
+DURATION = NumberRange(0.0, 1e9, low_open=True, zero='until Ctrl-C')
+"""Simulated seconds of a run: the dynamics' stop_at, whose 0 means never."""
+
+
+def domain_id(text: str) -> int:
+    """An argparse ``type``: a ROS_DOMAIN_ID a run may claim (whether another run holds it is
+    known only when it is claimed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or not MIN_DOMAIN_ID <= value <= MAX_DOMAIN_ID:
+        raise argparse.ArgumentTypeError(f'must be an integer in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID} (0 is the domain '
+                                         f'of every ROS process nobody configured), got {text!r}')
+    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -51,7 +68,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f'{SELECTION_SYNTAX} (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
-    parser.add_argument('--duration', type=number(POSITIVE), help="simulated seconds (default: the scenario's)")
+    parser.add_argument('--duration', type=number(DURATION),
+                        help="simulated seconds, 0 = until Ctrl-C (default: the scenario's)")
+    parser.add_argument('--domain-id', type=domain_id, metavar='N',
+                        help=f'ROS_DOMAIN_ID of the run, {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID}, refused if another run '
+                             'holds it (default: a free one); the first line printed is the export that '
+                             'attaches another terminal')
     parser.add_argument('--real-time-factor', type=number(REAL_TIME_FACTOR), default=1.0,
                         help=f'simulated seconds per wall second, {REAL_TIME_FACTOR.describe()} (default 1)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
@@ -158,8 +180,9 @@ def check_nodes(graph: Graph, reported: set[str]) -> None:
 
 
 def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
-    """Start the graph, return once the recorder holds ``duration`` seconds, and stop it (also
-    when interrupted); NodeDied if an essential node exits."""
+    """Start the graph, return once the recorder holds ``duration`` seconds (0: only by an
+    exception, Ctrl-C's KeyboardInterrupt), and stop it (also when interrupted); NodeDied if an
+    essential node exits."""
     monitor = Monitor()
     reported: set[str] = set()
     try:
@@ -172,7 +195,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             monitor.spin(0.05)
         for spec in specs[1:]:
             graph.start_node(spec)
-        while monitor.recorded < duration - 1e-9:
+        while duration == 0 or monitor.recorded < duration - 1e-9:
             check_nodes(graph, reported)
             if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
                 raise CliError(f'no simulation time recorded after {2 * START_TIMEOUT:.0f} s; logs in {graph.log_dir}')
@@ -216,27 +239,38 @@ def main(args: argparse.Namespace) -> int:
     robot_file = Path(args.robot).resolve() if args.robot else None
     params = load_robot_parameters(robot_file)
     robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
-    out = output_directory(args.out, args.scenario)
-    bag = out / 'bag'
     try:
-        specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
-                               controller_mass_scale=mass_scale, robot_file=robot_file,
-                               contact_model=args.contact, adhesion_force=args.adhesion_force)
-    except GraphDescriptionError as error:
+        claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
+    except DomainUnavailable as error:
         raise CliError(str(error)) from None
-    graph = None
-    with claim_domain_id() as claim:
+    with claim:
+        out = output_directory(args.out, args.scenario)
+        bag = out / 'bag'
+        try:
+            specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
+                                   controller_mass_scale=mass_scale, robot_file=robot_file,
+                                   contact_model=args.contact, adhesion_force=args.adhesion_force)
+        except GraphDescriptionError as error:
+            raise CliError(str(error)) from None
+        print(f'{claim.export_line()}  # in another terminal, to see this run with ros2 topic, RViz, ...', flush=True)
         os.environ.update(claim.env())  # the monitor node joins the run's domain
         graph = Graph(out / 'logs', claim.env())
         loop = '' if mass_scale is None else f' under tracking_controller_node (mass scale {mass_scale:g})'
-        print(f'wallbot-sim run: {scenario.name}, {selection.label()}{loop}, {duration:g} s at real-time factor {factor:g}, '
+        length = f'{duration:g} s' if duration > 0 else 'until Ctrl-C'
+        print(f'wallbot-sim run: {scenario.name}, {selection.label()}{loop}, {length} at real-time factor {factor:g}, '
               f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
+        progress = Progress(duration, sys.stderr)
         try:
-            run_graph(graph, specs, duration, Progress(duration, sys.stderr))
+            run_graph(graph, specs, duration, progress)
         except NodeDied as died:
             raise CliError(f'{died}; partial bag kept in {bag}', code=1) from None
         except KeyboardInterrupt:
-            print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
+            if duration > 0 or progress.latest is None:
+                print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
+                return 130
+            # a run until Ctrl-C ends here: its summary, and still the status of an interrupted command
+            print('\nwallbot-sim run: stopped by Ctrl-C; the bag as recorded:', file=sys.stderr)
+            report(bag, out, robot, plots=not args.no_plots)
             return 130
     return report(bag, out, robot, plots=not args.no_plots)
 

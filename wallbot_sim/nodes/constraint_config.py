@@ -1,7 +1,10 @@
-"""constraint_config_node: the constraint switches as parameters, published on ``constraints``.
+"""constraint_config_node: the constraint switches as parameters, published on ``constraints``, and
+the robot model on ``robot_description``.
 
 ``ros2 param set /wallbot/constraint_config nonslip true`` switches the dynamics at its next
-step boundary (the dynamics node projects the velocities onto newly added constraints).
+step boundary (the dynamics node projects the velocities onto newly added constraints). The
+robot file (``robot_file``, the same the dynamics simulates) gives the default Baumgarte gains
+and the URDF, published once (transient-local) as robot_state_publisher does.
 """
 
 from __future__ import annotations
@@ -10,22 +13,16 @@ import sys
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
+from std_msgs.msg import String
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
-from wallbot_sim.model import BaumgarteGains, ModelError
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import BaumgarteGains
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
-
-def _default_gains() -> BaumgarteGains:
-    """The installed robot file's Baumgarte gains (the model defaults if it cannot be read)."""
-    try:
-        from wallbot_sim.config import load_robot_parameters
-        params = load_robot_parameters()
-        return BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
-    except (ModelError, OSError):
-        return BaumgarteGains()
+from wallbot_sim.urdf import robot_urdf
 
 
 class ConstraintConfigNode(Node):
@@ -35,7 +32,10 @@ class ConstraintConfigNode(Node):
         super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, **kwargs)
         self.switches = {switch.parameter: bool(declare(self, switch.parameter, switch.default, switch.description))
                          for switch in topics.CONSTRAINT_MODULES.values()}
-        gains = _default_gains()
+        robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
+                             'the default gains and the robot_description', read_only=True)
+        params = load_robot_parameters(robot_file or None)
+        gains = BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
         self.gains = {
             'baumgarte_alpha': declare(self, 'baumgarte_alpha', float(gains.alpha),
                                        'Baumgarte gain alpha (1/s, > 0)', low=0.0, high=1e4),
@@ -50,6 +50,12 @@ class ConstraintConfigNode(Node):
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.publish()
+        self.description_publisher = self.create_publisher(String, topics.ROBOT_DESCRIPTION.name,
+                                                           qos_profile(topics.ROBOT_DESCRIPTION))
+        urdf = robot_urdf(params)
+        self.description_publisher.publish(codec.robot_description(urdf))
+        self.get_logger().info(f'robot_description: {len(urdf)} characters of URDF from '
+                               f'{robot_file or "the installed robot file"}')
 
     @staticmethod
     def _check(values: dict) -> str | None:

@@ -52,7 +52,7 @@ import traceback
 from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -73,7 +73,7 @@ from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
-                                             RecordProgress, Reset, ResumeSnapshot, TorqueCommand)
+                                             RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, Pacer
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
@@ -139,6 +139,8 @@ class DynamicsNode(Node):
                                        'simulation seconds between state snapshots (kept by the recorder for a '
                                        'restart); 0 = only at events (start, reset, pause, switch, plan)',
                                        low=0.0, high=1e6),
+            'step_count': declare(self, 'step_count', 1, 'steps one ~/step call takes while paused',
+                                  low=1, high=1000000),
             'resume_wait': declare(self, 'resume_wait', 2.0,
                                    'wall seconds from the first constraint set to wait for a keeper of snapshots '
                                    '(resume_state) to continue from; 0 = always start from the initial state',
@@ -174,6 +176,11 @@ class DynamicsNode(Node):
                                  qos_profile(topics.RESUME_STATE))
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
+        self.pause_requested = False
+        """What the last ~/pause asked (the loop applies it at its next step boundary)."""
+        self.create_service(Trigger, '~/step', self._on_step)
+        self.create_subscription(PoseWithCovarianceStamped, topics.INITIALPOSE.name, self._on_initialpose,
+                                 qos_profile(topics.INITIALPOSE))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.create_timer(1.0, self._publish_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -219,10 +226,26 @@ class DynamicsNode(Node):
         return response
 
     def _on_pause(self, request, response):
+        self.pause_requested = bool(request.data)
         self.loop.post(Pause(bool(request.data)))
         response.success = True
         response.message = 'paused' if request.data else 'running'
         return response
+
+    def _on_step(self, _request, response):
+        if not (self.pause_requested or self.loop.paused):
+            response.success, response.message = False, 'running: ~/step advances a paused simulation (~/pause true)'
+            return response
+        count = int(self.params['step_count'])
+        self.loop.post(Step(count))
+        response.success, response.message = True, f'{count} step(s) (step_count) at the next step boundary'
+        return response
+
+    def _on_initialpose(self, msg: PoseWithCovarianceStamped) -> None:
+        try:
+            self.loop.post(Teleport(*codec.initial_pose(msg)))
+        except ValueError as error:
+            self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
     @staticmethod
     def _check(values: dict) -> list[str]:

@@ -1,7 +1,8 @@
 """The dynamics loop's state and decisions, free of ROS (the node only wires it to the graph).
 
 Everything that reaches the loop from outside is a typed event (a constraint switch, a plan, a
-torque command, a reset, a pause, a kept snapshot, a parameter change, a recorder's progress)
+torque command, a reset, a pause, a step or a teleport while paused, a kept snapshot, a parameter
+change, a recorder's progress)
 posted to one thread-safe queue; the loop thread applies the queued events at each step boundary
 (:meth:`DynamicsLoop.tick`), so no physics runs in a callback and the state sequence depends on
 the events' order, not on their timing. What the loop needs of the graph (publishing, the
@@ -96,6 +97,23 @@ class Pause:
 
 
 @dataclass(frozen=True)
+class Step:
+    """While paused: take ``count`` steps, then hold again (ignored while running)."""
+
+    count: int
+
+
+@dataclass(frozen=True)
+class Teleport:
+    """Put the robot at rest at (x, y) m in the wall frame with heading ``theta`` rad; simulation
+    time and the wheels' angles go on."""
+
+    x: float
+    y: float
+    theta: float
+
+
+@dataclass(frozen=True)
 class ResumeSnapshot:
     """A keeper's answer at start: the snapshot to continue from, or None (it holds nothing)."""
 
@@ -116,7 +134,8 @@ class RecordProgress:
     stamp_ns: int
 
 
-Event = Union[ConstraintSwitch, NewPlan, TorqueCommand, Reset, Pause, ResumeSnapshot, ParameterChange, RecordProgress]
+Event = Union[ConstraintSwitch, NewPlan, TorqueCommand, Reset, Pause, Step, Teleport, ResumeSnapshot, ParameterChange,
+              RecordProgress]
 
 
 # --- what the loop reports ------------------------------------------------------------------------
@@ -235,6 +254,8 @@ class DynamicsLoop:
         self.gains: BaumgarteGains | None = None
         self.pending_constraints: ConstraintSwitch | None = None
         self.paused = self.diverged = False
+        self.steps_to_take = 0
+        """Steps a Step event still allows while paused."""
         self.detached: str | None = None
         """Why the robot left the wall (coulomb contact), until a reset."""
         self.status = Status(RunState.WAITING_CONSTRAINTS)
@@ -313,6 +334,8 @@ class DynamicsLoop:
         if self._held_back():
             return Decision.HELD_BACK
         self._step()
+        if self.paused:  # a step that a Step event allowed
+            self.steps_to_take -= 1
         return Decision.STEPPED
 
     def _apply_events(self) -> None:
@@ -346,9 +369,16 @@ class DynamicsLoop:
             case Reset():
                 self.reset_requested = self._clock()
             case Pause():
-                self.paused = event.paused
+                self.paused, self.steps_to_take = event.paused, 0
                 self._log.info('paused' if event.paused else 'running again')
                 self._snapshot()
+            case Step():
+                if self.paused:
+                    self.steps_to_take += event.count
+                else:
+                    self._log.warning('~/step ignored: the simulation is running (it steps while paused)')
+            case Teleport():
+                self._teleport(event)
             case ResumeSnapshot():
                 self.resume.offer(event.snapshot)
             case ParameterChange():
@@ -399,6 +429,22 @@ class DynamicsLoop:
             self._log.info('reset to the initial state at t = 0')
             self._publish(self.sim.outputs())
             self._snapshot()
+        self.pacer.reanchor()
+
+    def _teleport(self, pose: Teleport) -> None:
+        """A new run segment from the current time, at rest at ``pose``; published at once, so a
+        paused robot is seen where it was put."""
+        sim = self.sim
+        if sim is None:
+            self._log.warning('initialpose ignored: the simulation starts with the first constraint set')
+            return
+        self.diverged, self.detached = False, None
+        q = np.array([pose.x, pose.y, pose.theta, *sim.q[3:]])
+        self.sim = self._simulation(q, np.zeros(DOF), sim.t, sim.motor_torque)
+        self._log.info(f'placed at rest at x = {pose.x:.3f} m, y = {pose.y:.3f} m, heading {pose.theta:.3f} rad '
+                       f'at t = {sim.t:.3f} s')
+        self._publish(self.sim.outputs())
+        self._snapshot()
         self.pacer.reanchor()
 
     def _restore(self, kept: DynamicsSnapshot, switch: ConstraintSwitch) -> None:
@@ -475,7 +521,7 @@ class DynamicsLoop:
         sim = self.sim
         if sim is None:
             return False
-        if self.paused or self.diverged or self.detached:
+        if (self.paused and self.steps_to_take <= 0) or self.diverged or self.detached:
             self.status = (Status(RunState.DIVERGED) if self.diverged else
                            Status(RunState.DETACHED, reason=self.detached) if self.detached else Status(RunState.PAUSED))
             return False
