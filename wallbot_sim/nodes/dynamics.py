@@ -168,8 +168,8 @@ class DynamicsNode(Node):
                                  qos_profile(topics.CONSTRAINTS))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)  # see plan_from_cdr
-        self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
-                                 qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.command_sub = self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
+                                                    qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
                                  qos_profile(topics.RECORD_PROGRESS))
         self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
@@ -296,7 +296,10 @@ class DynamicsNode(Node):
         return self.count_publishers(self.resume_topic) > 0
 
     def controller_listening(self) -> bool:
-        return heard_by_every(self, self.publishers_[topics.ODOM], self.command_topic)
+        # and every discovered command publisher is matched here: its answer to the first state
+        # must not be sent before (the other direction is the controller's to check)
+        return (heard_by_every(self, self.publishers_[topics.ODOM], self.command_topic)
+                and self.command_sub.get_publisher_count() >= self.count_publishers(self.command_topic))
 
     def _run_loop(self) -> None:
         try:
