@@ -185,8 +185,8 @@ class Window:
 class Graph(Protocol):
     """What the loop needs of the ROS graph around it (the node implements it)."""
 
-    def prepare(self, out: StepOutputs) -> Callable[[], None]:
-        """Encode a state's per-step messages; calling the result publishes them."""
+    def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
+        """Encode a state's per-step messages, with /clock if ``clock``; calling the result publishes them."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
@@ -250,6 +250,7 @@ class DynamicsLoop:
         self.held_since: tuple[float, int | None] | None = None  # clock time a back-pressure wait began, progress then
         self.last_outputs: StepOutputs | None = None
         self.resume = ResumeGate(float(self.params['resume_wait']))
+        self.clock_schedule = messages.ClockSchedule(float(self.params['clock_rate_hz']))
         self._window = Window()
         self._window_lock = threading.Lock()
 
@@ -629,7 +630,9 @@ class DynamicsLoop:
         window.step_time_max = max(window.step_time_max, step_time)
         publish = sim.steps % self.params['publish_every'] == 0
         if publish:
-            send = self._graph.prepare(out)
+            stop_at = self.params['stop_at']
+            stops = stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt  # as _ready decides
+            send = self._graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=stops))
         lateness = self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
@@ -662,7 +665,7 @@ class DynamicsLoop:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
         self._note_residual(out.residual)
-        self._graph.prepare(out)()
+        self._graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
         self._mark_sync()
 
     def _note_residual(self, residual: float) -> None:
