@@ -110,7 +110,7 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
     for raw in messages(out / 'bag', ['/diagnostics']):
         status = bagio.deserialize(raw.data, raw.type).status
         for report in status:
-            if report.name.endswith('/dynamics'):
+            if 'simulation' in report.name:  # the dynamics' report
                 result.diagnostics.append((raw.timestamp * 1e-9, {kv.key: kv.value for kv in report.values}))
     if len(result.diagnostics) < 2:
         raise SystemExit(f'{name}: fewer than two /diagnostics of the dynamics in the bag')

@@ -29,10 +29,11 @@ PUBLISH_RATE_HZ = 100.0
 """Default rate of the reference pose, in simulation time."""
 
 # --- /clock -------------------------------------------------------------------------------------
-CLOCK_RATE_HZ = 100.0
-"""Default rate of /clock in simulation time: the reference pose's rate (PUBLISH_RATE_HZ), which a
-timer on simulation time cannot exceed, and a tenth of the per-step messages' rate, so every node
-following simulation time handles a tenth of the callbacks (gazebo_ros: 10 Hz)."""
+CLOCK_RATE_HZ = 10.0
+"""Default rate of /clock in simulation time, as gazebo_ros publishes it. Every node with
+use_sim_time pays a callback per /clock message, and none of the graph's needs more: the
+controller follows odometry, the trajectory node replans every few seconds and publishes its
+100 Hz reference poses for the grid points each /clock has passed."""
 
 
 class ClockSchedule:

@@ -630,9 +630,8 @@ class DynamicsLoop:
         window.step_time_max = max(window.step_time_max, step_time)
         publish = sim.steps % self.params['publish_every'] == 0
         if publish:
-            stop_at = self.params['stop_at']
-            stops = stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt  # as _ready decides
-            send = self._graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=stops))
+            clock = self.clock_schedule.due(codec.to_nanoseconds(out.t), final=self._waits_next())
+            send = self._graph.prepare(out, clock)
         lateness = self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
@@ -645,6 +644,13 @@ class DynamicsLoop:
                 self._snapshot()
         self._note_residual(out.residual)
         self.last_outputs = out
+
+    def _waits_next(self) -> bool:
+        """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
+        decides: then /clock goes with it, so every node's simulation time is the newest state's."""
+        sim, stop_at = self.sim, self.params['stop_at']
+        return ((stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt)
+                or (sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt)))
 
     def _snapshot(self) -> None:
         """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
