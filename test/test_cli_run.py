@@ -159,6 +159,11 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
     references = graph[topics.REFERENCE.resolve()]
     assert len(references) > 10
     assert [fields(m) for m in references] == [by_stamp[stamp_ns(m)] for m in references]
+    # on the grid of 1 / publish_rate_hz, none missing after the first (the node publishes every
+    # grid point each /clock has passed, however rarely /clock comes)
+    period_ns = round(1e9 / messages.PUBLISH_RATE_HZ)
+    assert all(b - a == period_ns for a, b in zip(map(stamp_ns, references), map(stamp_ns, references[1:])))
+    assert stamp_ns(references[-1]) >= 1_000_000_000 - period_ns  # what run waits for before it stops
     for topic in (topics.REFERENCE_TRAJECTORY, topics.REFERENCE_PATH, topics.CONSTRAINTS):
         name = topic.resolve()
         # latched (transient-local): DDS may deliver the sample again when a match is re-established
