@@ -17,8 +17,8 @@ Time. The node follows ``/clock`` (``use_sim_time``) and does its work in one ca
 it checks the plan, then publishes the reference pose for every point of the
 ``publish_rate_hz`` grid of simulation time the clock has passed since the last message (at most
 MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
-whatever the clock's rate, and the node wakes ten times per simulated second instead of once per
-pose and once per plan check.
+whatever the clock's rate, and at the default rates the node wakes ten times per simulated second
+instead of once per pose and once per plan check.
 """
 
 from __future__ import annotations
@@ -32,9 +32,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import codec
-
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
