@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from wallbot_sim.graph import ChildProcesses
+from wallbot_sim.graph import ChildProcesses, cpu_seconds
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -36,13 +36,8 @@ sys.path.insert(0, str(ROOT))
 from wallbot_msgs_py import bagio, codec  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 
-STEP_TOPICS = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'clock')
-
-
-def cpu_seconds(pid: int) -> float:
-    """utime + stime of a process (s)."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+STEP_TOPICS = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces')
+"""The topics with a message at every step (/clock goes out at clock_rate_hz)."""
 
 
 def stamp_ns(msg) -> int:

@@ -24,14 +24,7 @@ import time
 from pathlib import Path
 
 from wallbot_sim.domain import claim_domain_id
-from wallbot_sim.graph import ChildProcesses
-
-
-def cpu_seconds(pid: int) -> float:
-    """utime + stime of a process, in seconds."""
-    with open(f'/proc/{pid}/stat') as stream:
-        fields = stream.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+from wallbot_sim.graph import ChildProcesses, cpu_seconds
 
 
 def main() -> int:

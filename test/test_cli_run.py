@@ -140,6 +140,7 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
     and the moments they were sent at."""
     from bag_helpers import by_topic, diagnostics_without_wall_clock, fields, stamp_ns
     from wallbot_msgs_py import topics
+    from wallbot_sim import messages
 
     graph_out, headless = tmp_path / 'run', tmp_path / 'headless'
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--no-plots',
@@ -152,15 +153,22 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
     graph, alone = by_topic(graph_out / 'bag'), by_topic(headless)
     assert set(graph) == set(alone) == {t.resolve() for t in topics.RECORDED}
 
-    for topic in (topics.ODOM, topics.WHEEL_STATES, topics.CONSTRAINT_WRENCH, topics.DRIVE_FORCES, topics.CLOCK):
+    clocks = round(1.0 * messages.CLOCK_RATE_HZ) + 1  # every period of 1 s from t = 0, and t = 1 s
+    for topic, count in ((topics.ODOM, 1001), (topics.WHEEL_STATES, 1001), (topics.CONSTRAINT_WRENCH, 1001),
+                         (topics.DRIVE_FORCES, 1001), (topics.CLOCK, clocks)):
         name = topic.resolve()
-        assert len(graph[name]) == 1001, name
+        assert len(graph[name]) == count, name
         assert [fields(m) for m in graph[name]] == [fields(m) for m in alone[name]], name
     # the trajectory node publishes the pose at its own rate: each is the headless one of that time
     by_stamp = {stamp_ns(m): fields(m) for m in alone[topics.REFERENCE.resolve()]}
     references = graph[topics.REFERENCE.resolve()]
     assert len(references) > 10
     assert [fields(m) for m in references] == [by_stamp[stamp_ns(m)] for m in references]
+    # on the grid of 1 / publish_rate_hz, none missing after the first (the node publishes every
+    # grid point each /clock has passed, however rarely /clock comes)
+    period_ns = round(1e9 / messages.PUBLISH_RATE_HZ)
+    assert all(b - a == period_ns for a, b in zip(map(stamp_ns, references), map(stamp_ns, references[1:])))
+    assert stamp_ns(references[-1]) >= 1_000_000_000 - period_ns  # what run waits for before it stops
     for topic in (topics.REFERENCE_TRAJECTORY, topics.REFERENCE_PATH, topics.CONSTRAINTS):
         name = topic.resolve()
         # latched (transient-local): DDS may deliver the sample again when a match is re-established

@@ -27,8 +27,8 @@ DT = 1e-3
 PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
               real_time_factor=0.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
               wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
-              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, snapshot_period=0.01,
-              resume_wait=0.0)
+              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
+              snapshot_period=0.01, resume_wait=0.0)
 GAINS = BaumgarteGains(5.0, 5.0)
 SWITCHES = dict(belt=False, non_lateral=True, nonslip=True, tangent_heading=True)
 DRIVEN = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': False}), GAINS)
@@ -38,11 +38,14 @@ TRACKING = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'traje
 class FakeGraph:
     def __init__(self) -> None:
         self.published: list[tuple[float, np.ndarray]] = []
+        self.clocks: list[float] = []  # the states published with /clock
         self.snapshots = []
         self.recorder = self.keeper = False
         self.controller = True
 
-    def prepare(self, out):
+    def prepare(self, out, clock):
+        if clock:
+            self.clocks.append(out.t)
         return lambda: self.published.append((out.t, out.q.copy()))
 
     def publish_snapshot(self, snapshot) -> None:
@@ -180,6 +183,7 @@ def test_the_trajectory_task_waits_for_a_plan_covering_the_next_step():
     assert str(loop.status) == 'waiting for a reference_trajectory covering t = 0.009 s'
     assert log.said('reference plan 0.000 .. 0.010 s at t = 0.000 s')
     assert loop.command_state() == messages.COMMAND_IGNORED
+    assert graph.clocks == pytest.approx([0.0, 0.009])  # the start, and the state it waits at
     loop.post(plan(0.005, 0.02))
     assert loop.tick() is Decision.STEPPED and graph.times[-1] == pytest.approx(0.01)
 
@@ -193,6 +197,21 @@ def test_stop_at_stops_the_loop_until_it_moves():
     loop.post(ParameterChange({'stop_at': 0.0}))
     assert loop.tick() is Decision.STEPPED and loop.sim.steps == 4
     assert log.said('parameters: stop_at = 0.0')
+
+
+def test_clock_goes_with_the_first_state_of_each_period_the_start_the_stop_and_a_reset():
+    """clock_rate_hz 10 at 1 kHz: /clock at t = 0 (the start), every 100 ms, at the state the loop
+    stops at (stop_at off the 100 ms grid), and at the state a reset goes back to; the per-step
+    messages go out for every state."""
+    loop, graph, _log, _clock = make_loop(stop_at=0.26)
+    loop.post(DRIVEN)
+    while loop.tick() is Decision.STEPPED:
+        pass
+    assert len(graph.published) == 261  # t = 0 and 260 steps
+    assert graph.clocks == pytest.approx([0.0, 0.1, 0.2, 0.26])
+    loop.post(Reset())
+    loop.tick()
+    assert graph.clocks[-1] == 0.0 and graph.published[-1][0] == pytest.approx(0.001)
 
 
 def test_pause_resume_and_reset_transitions():

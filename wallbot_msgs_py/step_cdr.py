@@ -1,6 +1,7 @@
 """The dynamics node's per-step messages as CDR bytes, encoded without ROS.
 
-Every step publishes odom, wheel_states, constraint_wrench, drive_forces, wheel_contact and /clock. Their
+Every step publishes odom, wheel_states, constraint_wrench, drive_forces, wheel_contact, and /clock at
+the dynamics' clock_rate_hz (the encoder encodes it for every step; the publisher picks). Their
 strings (frames, joint names) and array lengths never change, so each message is a fixed
 byte template whose numbers are overwritten in place: encoding a step costs a few
 ``struct.pack_into`` calls instead of filling rclpy message objects and having rclpy convert

@@ -163,6 +163,12 @@ def child_processes(pid: int) -> dict[int, str]:
     return found
 
 
+def cpu_seconds(pid: int) -> float:
+    """CPU time (utime + stime, s) process ``pid`` has used so far (Linux /proc)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def resident_mib(pid: int) -> float:
     """Resident memory (VmRSS) of process ``pid`` in MiB; NaN if it does not say."""
     for line in Path(f'/proc/{pid}/status').read_text().splitlines():

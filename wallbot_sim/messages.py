@@ -28,6 +28,33 @@ HORIZON = 10.0
 PUBLISH_RATE_HZ = 100.0
 """Default rate of the reference pose, in simulation time."""
 
+# --- /clock -------------------------------------------------------------------------------------
+CLOCK_RATE_HZ = 10.0
+"""Default rate of /clock in simulation time, as gazebo_ros publishes it. Every node with
+use_sim_time pays a callback per /clock message, and none of the graph's needs more: the
+controller follows odometry, the trajectory node replans every few seconds and publishes its
+100 Hz reference poses for the grid points each /clock has passed."""
+
+
+class ClockSchedule:
+    """Which states /clock is published for: the first of every period of 1 / ``rate_hz`` seconds of
+    simulation time (on a grid of 1 ms steps and 100 Hz, the states at multiples of 10 ms), and
+    every state marked ``final`` (the last before a stop, the state at a start or reset), so the
+    newest /clock is the newest state whenever the simulation waits."""
+
+    def __init__(self, rate_hz: float) -> None:
+        self.period_ns = max(1, round(1e9 / rate_hz))
+        self._last_period: int | None = None
+        self._last_ns: int | None = None
+
+    def due(self, t_ns: int, final: bool = False) -> bool:
+        """Whether the state at ``t_ns`` carries /clock (call once per state, in order)."""
+        period = t_ns // self.period_ns
+        if not (final or period != self._last_period or t_ns < self._last_ns):
+            return False
+        self._last_period, self._last_ns = period, t_ns
+        return True
+
 
 def plan_ahead(reference: Reference, now: float, sample_dt: float = SAMPLE_DT, horizon: float = HORIZON,
                rest_at: float | None = None) -> Plan:

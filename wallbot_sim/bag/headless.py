@@ -9,7 +9,8 @@ half-way), which agrees with the analytic reference to far below a micrometre.
 
 Differences, by design: the receive timestamps are the simulation time (ns since 0) rather than
 the recorder's clock; ``reference`` is written at every step (the node samples the same plan at
-its own rate); ``/diagnostics`` is written every DIAGNOSTICS_PERIOD of simulation time and once
+its own rate); ``/clock`` at ``messages.CLOCK_RATE_HZ`` and at the last state, as the
+dynamics node publishes it by default; ``/diagnostics`` is written every DIAGNOSTICS_PERIOD of simulation time and once
 at the end, with this process's wall-clock figures.
 """
 
@@ -36,6 +37,9 @@ class HeadlessBagWriter:
         self.writer, self.simulation = writer, simulation
         self._conn = {t.name: writer.add_graph_topic(t, namespace) for t in topics.RECORDED}
         self._step = StepEncoder()
+        self._clock_schedule = messages.ClockSchedule(messages.CLOCK_RATE_HZ)
+        self._unwritten_clock: tuple[float, bytes] | None = None
+        """The newest state's /clock if it was not due: written at the end (the state the run stops at)."""
         self._node_name = f'{namespace.rstrip("/")}/{topics.NODE_DYNAMICS}'
         self._path_reference = simulation.reference
         """The reference the trajectory node samples (the simulation follows its plans)."""
@@ -81,7 +85,13 @@ class HeadlessBagWriter:
         """All topics of one step (state, wrench, drive forces, clock, reference, diagnostics)."""
         t = out.t
         for topic, data in self._step.encode(out):
-            self._put(topic, t, data)
+            if topic is not topics.CLOCK:
+                self._put(topic, t, data)
+            elif self._clock_schedule.due(codec.to_nanoseconds(t)):
+                self._put(topic, t, data)
+                self._unwritten_clock = None
+            else:
+                self._unwritten_clock = (t, data)
         reference = self.simulation.reference
         if reference is not None:  # sampled at the stamp's time, as the trajectory node samples it
             stamp_t = codec.to_nanoseconds(t) * 1e-9
@@ -120,7 +130,10 @@ class HeadlessBagWriter:
         self._unreported = None
 
     def close(self) -> None:
-        """Report the steps since the last diagnostics (their residuals belong to the run), then close."""
+        """Write the last state's /clock and report the steps since the last diagnostics (their
+        residuals belong to the run), then close."""
+        if self._unwritten_clock is not None:
+            self._put(topics.CLOCK, *self._unwritten_clock)
         if self._unreported is not None:
             self._diagnostics(self._unreported, messages.stopped_status(self._unreported.t))
         self.writer.close()

@@ -99,6 +99,10 @@ class DynamicsNode(Node):
             'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
                                low=1, high=100000),
             'publish_every': declare(self, 'publish_every', 1, 'publish every N steps', low=1, high=1000000),
+            'clock_rate_hz': declare(self, 'clock_rate_hz', messages.CLOCK_RATE_HZ,
+                                     '/clock messages per second of simulation time (at most one per published '
+                                     'step, and always the state before a stop); the per-step topics carry '
+                                     'every published step', low=0.001, high=1e6, read_only=True),
             'real_time_factor': declare(self, 'real_time_factor', 1.0,
                                         'simulation seconds per wall second; 0 = as fast as possible',
                                         allowed=REAL_TIME_FACTOR),
@@ -275,12 +279,13 @@ class DynamicsNode(Node):
             self.loop.post(ParameterChange(changes))
 
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
-    def prepare(self, out: StepOutputs) -> Callable[[], None]:
+    def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         encoded = self.encoder.encode(out)
 
         def send() -> None:
             for topic, data in encoded:
-                self.publishers_[topic].publish(data)
+                if clock or topic is not topics.CLOCK:
+                    self.publishers_[topic].publish(data)
         return send
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:

@@ -204,8 +204,8 @@ class Window:
 class Graph(Protocol):
     """What the loop needs of the ROS graph around it (the node implements it)."""
 
-    def prepare(self, out: StepOutputs) -> Callable[[], None]:
-        """Encode a state's per-step messages; calling the result publishes them."""
+    def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
+        """Encode a state's per-step messages, with /clock if ``clock``; calling the result publishes them."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
@@ -271,6 +271,7 @@ class DynamicsLoop:
         self.held_since: tuple[float, int | None] | None = None  # clock time a back-pressure wait began, progress then
         self.last_outputs: StepOutputs | None = None
         self.resume = ResumeGate(float(self.params['resume_wait']))
+        self.clock_schedule = messages.ClockSchedule(float(self.params['clock_rate_hz']))
         self._window = Window()
         self._window_lock = threading.Lock()
 
@@ -675,7 +676,8 @@ class DynamicsLoop:
         window.step_time_max = max(window.step_time_max, step_time)
         publish = sim.steps % self.params['publish_every'] == 0
         if publish:
-            send = self._graph.prepare(out)
+            clock = self.clock_schedule.due(codec.to_nanoseconds(out.t), final=self._waits_next())
+            send = self._graph.prepare(out, clock)
         lateness = self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)
         window.lateness_max = max(window.lateness_max, lateness)
         if lateness > LATE_LIMIT:
@@ -688,6 +690,13 @@ class DynamicsLoop:
                 self._snapshot()
         self._note_residual(out.residual)
         self.last_outputs = out
+
+    def _waits_next(self) -> bool:
+        """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
+        decides: then /clock goes with it, so every node's simulation time is the newest state's."""
+        sim, stop_at = self.sim, self.params['stop_at']
+        return ((stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt)
+                or (sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt)))
 
     def _snapshot(self) -> None:
         """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
@@ -708,7 +717,7 @@ class DynamicsLoop:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
         self._note_residual(out.residual)
-        self._graph.prepare(out)()
+        self._graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
         self._mark_sync()
 
     def _note_residual(self, residual: float) -> None:

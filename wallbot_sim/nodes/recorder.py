@@ -9,8 +9,8 @@ Design (see docs/bags.md):
 * every subscription is RELIABLE with KEEP_ALL history (depth from topics.py as the resource hint),
   transient-local topics are subscribed transient-local so their latched sample is recorded;
 * record_progress (rosgraph_msgs/Clock): the newest stamp up to which /clock and every per-step
-  topic (topics.STEP_STAMPED) have been written, every PROGRESS_EVERY clock messages and from a
-  50 ms timer; at every real-time factor the dynamics node stays within its
+  topic (topics.STEP_STAMPED) have been written, whenever it has advanced PROGRESS_STEP_NS and
+  from a 50 ms timer; at every real-time factor the dynamics node stays within its
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
@@ -41,8 +41,10 @@ from wallbot_msgs_py import bagio, topics
 from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
 
 NODE_NAME = topics.NODE_RECORDER
-PROGRESS_EVERY = 20
-"""Publish record_progress every this many /clock messages (and from a 50 ms timer)."""
+PROGRESS_STEP_NS = 20_000_000
+"""Publish record_progress whenever it has advanced this much simulation time (20 steps at 1 kHz,
+well inside the dynamics' backpressure_window whatever its /clock rate), or gone back (a reset);
+and from a 50 ms timer."""
 KEEP_PERIOD = 0.05
 """Wall seconds between republications of the kept snapshot (when it changed)."""
 SPIN_PERIOD = 0.05
@@ -118,7 +120,6 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self._stamped = {self.resolve_topic_name(t.name) for t in (*topics.STEP_STAMPED, topics.CLOCK)
                              if t in recorded}
             self._progress_sent: int | None = None
-            self._clocks = 0
             self._progress_pub = None
             if any(t.name == topics.CLOCK.name for t in recorded):
                 from rosgraph_msgs.msg import Clock
@@ -173,11 +174,10 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                     self.keeper.stamp(name, stamp)
                 if self._progress_pub is not None:
                     self._newest_stamps[name] = stamp
-                    self.progress_ns = min(self._newest_stamps.values())
-            if topic.name == topics.CLOCK.name and self._progress_pub is not None:
-                self._clocks += 1
-                if self._clocks % PROGRESS_EVERY == 0:
-                    self._publish_progress()
+                    self.progress_ns = progress = min(self._newest_stamps.values())
+                    sent = self._progress_sent
+                    if sent is None or progress < sent or progress - sent >= PROGRESS_STEP_NS:
+                        self._publish_progress()
 
         def finish(self) -> None:
             """After the stop: write what DDS received up to the stop and nobody took yet.

@@ -11,6 +11,14 @@ Parameter changes replan from the current simulation time; a clock that jumps ba
 (``~/reset`` of the dynamics) replans from there. Plans are built on a background thread
 (``LatestRequestWorker``), so the node answers parameter and service requests at once
 whatever it is planning.
+
+Time. The node follows ``/clock`` (``use_sim_time``) and does its work in one callback per
+``/clock`` message, which the dynamics publishes at its ``clock_rate_hz`` (10 Hz by default):
+it checks the plan, then publishes the reference pose for every point of the
+``publish_rate_hz`` grid of simulation time the clock has passed since the last message (at most
+MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
+whatever the clock's rate, and at the default rates the node wakes ten times per simulated second
+instead of once per pose and once per plan check.
 """
 
 from __future__ import annotations
@@ -19,12 +27,12 @@ import sys
 from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry, Path
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
@@ -34,8 +42,9 @@ from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
 from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
 
-REPLAN_CHECK_PERIOD = 0.02
-"""Wall-clock period (s) of the check whether the plan needs renewing."""
+MAX_POSE_BURST = 100
+"""Most reference poses published for one /clock message (the newest ones): a clock that jumps
+ahead (a resumed run) is no reason to publish the whole interval."""
 MAX_PLAN_SAMPLES = 5_000
 """Largest plan accepted: every subscriber decodes a whole plan in one callback."""
 LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4, 'stop_time': 1e6}
@@ -158,12 +167,18 @@ class TrajectoryNode(Node):
         self.yaw = 0.0
         self.reference: SampledReference | None = None
         self.planner = LatestRequestWorker(build_plan, self._publish_plan, self._planning_failed, 'planner')
+        self.last_pose: int | None = None
+        """Grid index (simulation time / pose period) of the newest reference pose published."""
         self.replan(self._now())
-        self.create_timer(REPLAN_CHECK_PERIOD, self._check_plan, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.pose_timer = self.create_timer(1.0 / self.values['publish_rate_hz'], self._publish_reference)
+        self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_clock(self, msg: Clock) -> None:
+        now_ns = codec.stamp_nanoseconds(msg.clock)
+        self._check_plan(now_ns * 1e-9)
+        self._publish_reference(now_ns)
 
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
@@ -183,8 +198,8 @@ class TrajectoryNode(Node):
     def _planning_failed(self, error: Exception) -> None:
         self.get_logger().error(f'planning failed: {error}')
 
-    def _check_plan(self) -> None:
-        now, plan = self._now(), self.plan
+    def _check_plan(self, now: float) -> None:
+        plan = self.plan
         jumped_back = now < self.last_now - 1e-9 or (plan is not None and now < plan.times[0])
         self.last_now = now
         if self.planner.busy or plan is None:
@@ -199,12 +214,21 @@ class TrajectoryNode(Node):
         """Stop the planner thread (called by ``run`` before the node is destroyed)."""
         self.planner.stop()
 
-    def _publish_reference(self) -> None:
-        now = self._now()
-        if self.reference is None:
+    def _publish_reference(self, now_ns: int) -> None:
+        """The poses of the grid points in (last pose, now_ns]; only the newest if time went back."""
+        period_ns = max(1, round(1e9 / self.values['publish_rate_hz']))
+        newest = now_ns // period_ns
+        last = self.last_pose
+        if last is None or last > newest:
+            last = newest - 1
+        reference = self.reference
+        if reference is None:
             return
-        data, self.yaw = messages.reference_message(self.reference.sample(now), now, self.yaw)
-        self.reference_pub.publish(data)
+        for k in range(max(last, newest - MAX_POSE_BURST) + 1, newest + 1):
+            t = k * period_ns * 1e-9
+            data, self.yaw = messages.reference_message(reference.sample(t), t, self.yaw)
+            self.reference_pub.publish(data)
+        self.last_pose = newest
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):
@@ -223,8 +247,7 @@ class TrajectoryNode(Node):
             return
         self.values.update(changes)
         if 'publish_rate_hz' in changes:
-            self.destroy_timer(self.pose_timer)
-            self.pose_timer = self.create_timer(1.0 / self.values['publish_rate_hz'], self._publish_reference)
+            self.last_pose = None  # a new grid: it starts at the next clock
         if set(changes) - {'publish_rate_hz'}:
             self.replan(self._now())
 

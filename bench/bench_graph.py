@@ -1,0 +1,177 @@
+"""CPU budget of the recorded graph of ``wallbot-sim run`` (issue 14; a measurement, not a test).
+
+Runs ``wallbot-sim run circle`` (all constraints, the recorder writing every topic) twice, on a
+private ROS domain:
+  * at real-time factor 1 for --duration simulated seconds: each process's CPU share (utime +
+    stime from /proc, over the run's steady part: from --warmup wall seconds after every node is up
+    until the first one exits), their total in CPU seconds per simulated second, and the steps
+    later than 2 ms that the dynamics reported in its /diagnostics (read back from the bag);
+  * at factor 0 for --fast-duration simulated seconds: the simulated seconds per wall second
+    (between the first and the last running /diagnostics of the bag).
+Beside them, the straightforward two-pinv model alone (bench_core's StraightforwardSimulation:
+wallbot_sim.model.solve at every RK4 stage) stepping the same scenario in this process, before and
+after the runs: its CPU seconds per simulated second. The machine-independent forms are the
+ratios: graph CPU per simulated second / model CPU per simulated second (target <= 0.6) and
+factor-0 speed / model speed (target >= 5).
+
+    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bench_core import StraightforwardSimulation
+from wallbot_msgs_py import bagio
+from wallbot_sim.bag.reader import messages
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.graph import ChildProcesses, child_processes, cpu_seconds
+from wallbot_sim.model import ConstraintSelection, Robot
+
+NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
+         'constraint_config': 'wallbot_sim.nodes.constraint_config', 'recorder': 'wallbot_sim.nodes.recorder'}
+"""The recorded graph's nodes, by the module each child of ``run`` runs."""
+SAMPLE_PERIOD = 0.25
+"""Wall seconds between /proc samples."""
+
+
+def model_cpu_per_simulated_second(simulated: float) -> float:
+    """CPU seconds the two-pinv model takes per simulated second (circle, all constraints, 1 kHz)."""
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    simulation = StraightforwardSimulation(robot, scenario.reference, ConstraintSelection.parse(
+        'belt,non_lateral,nonslip'), *scenario.initial_state(robot))
+    steps = round(simulated / simulation.dt)
+    started = time.process_time()
+    for _ in range(steps):
+        simulation.step()
+    return (time.process_time() - started) / (steps * simulation.dt)
+
+
+@dataclass
+class Run:
+    """What one ``wallbot-sim run`` took: CPU seconds per process over the window, the window's wall
+    span (time.time() seconds) and the dynamics' diagnostics (receive time s, key -> value)."""
+
+    cpu: dict[str, float] = field(default_factory=dict)
+    window: tuple[float, float] = (0.0, 0.0)
+    diagnostics: list[tuple[float, dict[str, str]]] = field(default_factory=list)
+
+    def simulated(self) -> float:
+        """Simulated seconds within the window (the diagnostics' simulation time, interpolated)."""
+        wall = [w for w, _ in self.diagnostics]
+        sim = [float(d['simulation time']) for _, d in self.diagnostics]
+        return float(np.interp(self.window[1], wall, sim) - np.interp(self.window[0], wall, sim))
+
+    def running(self) -> list[tuple[float, dict[str, str]]]:
+        return [(w, d) for w, d in self.diagnostics if d['status'] == 'running']
+
+
+def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float) -> Run:
+    """Run the circle scenario at ``factor`` for ``duration`` simulated seconds, sampling /proc."""
+    name = f'run_factor_{factor:g}'
+    run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
+                          '--real-time-factor', factor, '--no-plots', '--out', out], name)
+    pids: dict[str, int] = {}
+    first: tuple[float, dict[str, float]] | None = None
+    last: tuple[float, dict[str, float]] | None = None
+    all_up = None
+    while run.poll() is None:
+        time.sleep(SAMPLE_PERIOD)
+        if len(pids) < len(NODES):
+            pids = {node: pid for pid, cmd in child_processes(run.pid).items()
+                    for node, module in NODES.items() if module in cmd.split()}
+            if len(pids) == len(NODES):
+                pids['run'] = run.pid
+                all_up = time.monotonic()
+            continue
+        try:
+            sample = (time.time(), {node: cpu_seconds(pid) for node, pid in pids.items()})
+        except (OSError, IndexError):
+            break  # a node has exited: the run is stopping
+        if first is None and time.monotonic() - all_up >= warmup:
+            first = sample
+        last = sample
+    if run.wait() != 0:
+        raise SystemExit(f'{name} failed with status {run.returncode}: see {launcher.log(name)}')
+    if first is None or last is None or last[0] <= first[0]:
+        raise SystemExit(f'{name}: too short to measure; raise the duration')
+    result = Run({node: last[1][node] - first[1][node] for node in pids}, (first[0], last[0]))
+    for raw in messages(out / 'bag', ['/diagnostics']):
+        status = bagio.deserialize(raw.data, raw.type).status
+        for report in status:
+            if 'simulation' in report.name:  # the dynamics' report
+                result.diagnostics.append((raw.timestamp * 1e-9, {kv.key: kv.value for kv in report.values}))
+    if len(result.diagnostics) < 2:
+        raise SystemExit(f'{name}: fewer than two /diagnostics of the dynamics in the bag')
+    return result
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--duration', type=float, default=60.0, help='simulated seconds at factor 1 (default 60)')
+    parser.add_argument('--fast-duration', type=float, default=20.0,
+                        help='simulated seconds at factor 0 (default 20)')
+    parser.add_argument('--warmup', type=float, default=3.0,
+                        help='wall seconds after every node is up before CPU is counted (default 3)')
+    parser.add_argument('--model-seconds', type=float, default=2.0,
+                        help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
+    args = parser.parse_args()
+
+    claim = claim_domain_id()
+    work = Path(tempfile.mkdtemp(prefix='wallbot_bench_graph_'))
+    launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
+    try:
+        model_before = model_cpu_per_simulated_second(args.model_seconds)
+        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup)
+        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup)
+        model_after = model_cpu_per_simulated_second(args.model_seconds)
+    finally:
+        launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
+        claim.release()
+    model = (model_before + model_after) / 2
+
+    wall = realtime.window[1] - realtime.window[0]
+    simulated = realtime.simulated()
+    total = sum(realtime.cpu.values())
+    late = sum(int(d['late steps (> 2 ms)']) for _, d in realtime.diagnostics)
+    lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
+    print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
+          f'(before the runs {model_before:.3f}, after {model_after:.3f})')
+    print(f'\nwallbot-sim run circle, factor 1, {args.duration:g} simulated s; '
+          f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
+    for node, seconds in realtime.cpu.items():
+        print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per simulated s')
+    print(f'  {"total":18s} {100 * total / wall:6.1f} % of a core   {total / simulated:6.3f} CPU s per simulated s'
+          '   (target <= 50 %)')
+    print(f'  ratio to the two-pinv model: {total / simulated / model:.2f}   (target <= 0.6)')
+    print(f'  steps later than 2 ms over the whole run: {late}   (max lateness {lateness:.3f} ms; target 0)')
+
+    running = fast.running()
+    (w0, d0), (w1, d1) = running[0], running[-1]
+    speed = (float(d1['simulation time']) - float(d0['simulation time'])) / (w1 - w0)
+    fast_wall = fast.window[1] - fast.window[0]
+    print(f'\nwallbot-sim run circle, factor 0, {args.fast_duration:g} simulated s:')
+    print(f'  simulated s per wall s: {speed:.2f}   (target >= 5)')
+    print(f'  ratio to the two-pinv model\'s speed ({1 / model:.2f} simulated s per CPU s): {speed * model:.2f}'
+          '   (target >= 5)')
+    print('  CPU share: ' + ', '.join(f'{node} {100 * s / fast_wall:.0f} %' for node, s in fast.cpu.items()))
+    load = os.getloadavg()
+    print(f'\nmachine: {os.cpu_count()} CPUs, load average at the end {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, '
+          f'Python {sys.version.split()[0]}')
+    shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
