@@ -5,12 +5,12 @@ the ideal contact. The single-robot loop is ``Simulation.step`` on one robot; th
 ``BatchSimulation.step`` on N robots with slightly different body masses. Timings are best of
 ``--repeats`` (wall clock; other processes on the machine slow both alike), interleaved.
 
-What limits the batch: the time of one batch step is fitted as t(N) = t0 + c N over the batch sizes.
-t0 is the per-step cost that does not grow with N (Python and NumPy call overhead, ~100 array
-operations per RK4 stage); c is the per-robot cost of the array work, and 1/c the rate no batch size
-can exceed. The per-stage split says where c goes, at the largest batch.
+What limits the batch: a batch step costs t(N) = t0 + N c(N). t0, measured at N = 1, is the cost that
+does not grow with N (Python and NumPy call overhead of ~200 array operations per step); c(N) is the
+per-robot cost of the array work, printed for every size (it grows once the working set, a few kB
+per robot, leaves the cache). The per-stage split at the fastest size says where c goes.
 
-    python bench/bench_batch.py [--sizes 100,1000,4000,16000] [--steps 40]
+    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--steps 40]
 """
 
 from __future__ import annotations
@@ -80,12 +80,17 @@ def stage_split(batch: BatchSimulation, repeats: int) -> dict[str, float]:
         'mass factor W': lambda: batch.robots.mass_inverse_factor(q),
         'solve (W, Q, A, b -> qdd)': lambda: batch_constrained_acceleration(factor, force, rows, rhs),
     }
-    return {name: best_seconds(part, repeats) for name, part in parts.items()}
+    times = {name: best_seconds(part, repeats) for name, part in parts.items()}
+    matrix = rows @ factor
+    gram = np.swapaxes(matrix, 1, 2) @ matrix
+    times['  of which B^T B'] = best_seconds(lambda: np.swapaxes(matrix, 1, 2) @ matrix, repeats)
+    times['  of which np.linalg.cholesky'] = best_seconds(lambda: np.linalg.cholesky(gram), repeats)
+    return times
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--sizes', default='100,1000,4000,16000', help='comma list of batch sizes')
+    parser.add_argument('--sizes', default='1,100,1000,4000,16000', help='comma list of batch sizes')
     parser.add_argument('--steps', type=int, default=40, help='batch steps per measurement')
     parser.add_argument('--single-steps', type=int, default=2000, help='single-robot steps per measurement')
     parser.add_argument('--repeats', type=int, default=5, help='measurements per figure (the best is kept)')
@@ -95,26 +100,29 @@ def main() -> None:
           f'load average {os.getloadavg()[0]:.1f} at start; circle, {SELECTION} + trajectory, ideal contact')
     single = single_rate(args.single_steps, args.repeats)
     print(f'single-robot loop: {single:10.0f} robot-steps/s')
-    print(f'{"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"ms/step":>8s}')
-    step_times = []
-    batch = None
+    print(f'{"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
+    rates = {}
+    overhead = None
     for size in sizes:
         batch = batch_of(size)
         batch.step()  # first step: allocations and caches warm
         seconds = best_seconds(lambda: batch.run(args.steps), args.repeats) / args.steps
-        step_times.append(seconds)
-        rate = size / seconds
-        print(f'{size:10d} {rate:14.0f} {rate / single:9.1f} {seconds * 1e3:8.2f}')
+        rates[size] = size / seconds
+        if size == 1:
+            overhead = seconds
+        beyond = '' if overhead is None or size == 1 else f'{(seconds - overhead) / size * 1e9:26.0f}'
+        print(f'{size:10d} {rates[size]:14.0f} {rates[size] / single:9.1f} {seconds * 1e3:8.2f} {beyond}')
     check_agreement(batch)
-    if len(sizes) > 1:
-        per_robot, overhead = np.polyfit(sizes, step_times, 1)
-        print(f'fit t(N) = t0 + c N: t0 = {overhead * 1e6:.0f} us per step (not growing with N), '
-              f'c = {per_robot * 1e9:.0f} ns per robot-step -> at most {1.0 / per_robot:.0f} robot-steps/s')
+    fastest = max(rates, key=rates.get)
+    print(f'fastest: N = {fastest}, {rates[fastest]:.0f} robot-steps/s = {rates[fastest] / single:.1f} x the single loop')
+    batch = batch_of(fastest)
+    batch.run(3)
     split = stage_split(batch, args.repeats)
-    stage = sum(split.values())
-    print(f'one RK4 stage at N = {batch.size} ({stage / batch.size * 1e9:.0f} ns per robot):')
+    stage = sum(seconds for name, seconds in split.items() if not name.startswith(' '))
+    print(f'one RK4 stage at N = {fastest} ({stage / fastest * 1e9:.0f} ns per robot; a step is 4 stages and the '
+          f'RK4 sums):')
     for name, seconds in split.items():
-        print(f'  {name:26s} {seconds / batch.size * 1e9:6.0f} ns per robot  {seconds / stage:5.1%}')
+        print(f'  {name:26s} {seconds / fastest * 1e9:6.0f} ns per robot  {seconds / stage:5.1%}')
     print(f'load average {os.getloadavg()[0]:.1f} at end')
 
 

@@ -75,14 +75,15 @@ def _full_rank_factor(gram: np.ndarray) -> np.ndarray | None:
 def _cholesky_solve(factor: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """x with L L^T x = r for stacked lower-triangular L (N, n, n): forward then back substitution."""
     size = factor.shape[-1]
-    diagonal = np.diagonal(factor, axis1=1, axis2=2)
-    forward = np.empty_like(rhs)
+    lower = np.moveaxis(factor, 0, -1).copy()  # (n, n, N): each entry one contiguous vector over the batch
+    solution = rhs.T.copy()
     for j in range(size):
-        forward[:, j] = (rhs[:, j] - np.sum(factor[:, j, :j] * forward[:, :j], axis=1)) / diagonal[:, j]
-    solution = np.empty_like(rhs)
+        solution[j] -= np.einsum('kn,kn->n', lower[j, :j], solution[:j])
+        solution[j] /= lower[j, j]
     for j in reversed(range(size)):
-        solution[:, j] = (forward[:, j] - np.sum(factor[:, j + 1:, j] * solution[:, j + 1:], axis=1)) / diagonal[:, j]
-    return solution
+        solution[j] -= np.einsum('kn,kn->n', lower[j + 1:, j], solution[j + 1:])
+        solution[j] /= lower[j, j]
+    return solution.T
 
 
 def independent_columns(gram: np.ndarray) -> np.ndarray:
