@@ -2,16 +2,16 @@
 
 The circle with the full constraint set (trajectory, tangent heading, belt, non-lateral, nonslip) and
 the ideal contact. The single-robot loop is ``Simulation.step`` on one robot; the batch is
-``BatchSimulation.step`` on N robots with slightly different body masses. Timings are best of
-``--repeats`` (wall clock; other processes on the machine slow both); the single loop is measured
-before and after the batches and the better figure kept, so the ratio errs low rather than high.
+``BatchSimulation.step`` on N robots with slightly different body masses. Timings are wall clock,
+the best of ``--repeats`` rounds; each round measures the single loop and every batch size in turn,
+so load from other processes on the machine hits them alike.
 
 What limits the batch: a batch step costs t(N) = t0 + N c(N). t0, measured at N = 1, is the cost that
 does not grow with N (Python and NumPy call overhead of ~200 array operations per step); c(N) is the
 per-robot cost of the array work, printed for every size (it grows once the working set, a few kB
 per robot, leaves the cache). The per-stage split at the fastest size says where c goes.
 
-    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--steps 40]
+    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--robot-steps 40000]
 """
 
 from __future__ import annotations
@@ -47,7 +47,8 @@ def batch_of(size: int, selection: ConstraintSelection | None = None) -> BatchSi
     return BatchSimulation.from_scenario(robots, load_scenario('circle'), selection or ConstraintSelection.parse(SELECTION))
 
 
-def single_rate(steps: int, repeats: int) -> float:
+def single_run_seconds(steps: int) -> float:
+    """Seconds per step of the single-robot loop over ``steps`` steps."""
     robot = Robot(load_robot_parameters())
     scenario = load_scenario('circle')
     q0, qd0 = scenario.initial_state(robot)
@@ -56,7 +57,7 @@ def single_rate(steps: int, repeats: int) -> float:
     def run() -> None:
         for _ in range(steps):
             simulation.step()
-    return steps / best_seconds(run, repeats)
+    return best_seconds(run, 1) / steps
 
 
 def check_agreement(batch: BatchSimulation) -> None:
@@ -92,37 +93,38 @@ def stage_split(batch: BatchSimulation, repeats: int) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--sizes', default='1,100,1000,4000,16000', help='comma list of batch sizes')
-    parser.add_argument('--steps', type=int, default=40, help='batch steps per measurement')
+    parser.add_argument('--robot-steps', type=int, default=40000, help='robot-steps per batch measurement')
     parser.add_argument('--single-steps', type=int, default=2000, help='single-robot steps per measurement')
-    parser.add_argument('--repeats', type=int, default=5, help='measurements per figure (the best is kept)')
+    parser.add_argument('--repeats', type=int, default=7, help='measurements per figure (the best is kept)')
     args = parser.parse_args()
     sizes = [int(size) for size in args.sizes.split(',')]
     print(f'# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}; '
           f'load average {os.getloadavg()[0]:.1f} at start; circle, {SELECTION} + trajectory, ideal contact')
-    single = single_rate(args.single_steps, args.repeats)
+    batches = {size: batch_of(size) for size in sizes}
+    for batch in batches.values():
+        batch.step()  # first step: allocations and caches warm
+    single_seconds, batch_seconds = float('inf'), dict.fromkeys(sizes, float('inf'))
+    for _ in range(args.repeats):  # round robin, best of each: load from other processes hits all alike
+        single_seconds = min(single_seconds, single_run_seconds(args.single_steps))
+        for size, batch in batches.items():
+            steps = max(2, round(args.robot_steps / size))
+            batch_seconds[size] = min(batch_seconds[size], best_seconds(lambda: batch.run(steps), 1) / steps)
+    single = 1.0 / single_seconds
     print(f'single-robot loop: {single:10.0f} robot-steps/s')
     print(f'{"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
-    rates = {}
-    overhead = None
-    for size in sizes:
-        batch = batch_of(size)
-        batch.step()  # first step: allocations and caches warm
-        seconds = best_seconds(lambda: batch.run(args.steps), args.repeats) / args.steps
-        rates[size] = size / seconds
-        if size == 1:
-            overhead = seconds
+    overhead = batch_seconds.get(1)
+    rates = {size: size / seconds for size, seconds in batch_seconds.items()}
+    for size, seconds in batch_seconds.items():
         beyond = '' if overhead is None or size == 1 else f'{(seconds - overhead) / size * 1e9:26.0f}'
         print(f'{size:10d} {rates[size]:14.0f} {rates[size] / single:9.1f} {seconds * 1e3:8.2f} {beyond}')
-    check_agreement(batch)
+    check_agreement(batches[sizes[-1]])
     fastest = max(rates, key=rates.get)
-    single = max(single, single_rate(args.single_steps, args.repeats))
-    print(f'single-robot loop measured again: best {single:.0f} robot-steps/s')
-    print(f'fastest: N = {fastest}, {rates[fastest]:.0f} robot-steps/s = {rates[fastest] / single:.1f} x the '
-          f'single loop (its best of both measurements)')
+    print(f'fastest: N = {fastest}, {rates[fastest]:.0f} robot-steps/s = {rates[fastest] / single:.1f} x the single loop')
     driven = batch_of(fastest, ConstraintSelection.structural(trajectory=False))
     driven.set_motor_torque((0.5, 0.4))
     driven.step()
-    seconds = best_seconds(lambda: driven.run(args.steps), args.repeats) / args.steps
+    steps = max(2, round(args.robot_steps / fastest))
+    seconds = best_seconds(lambda: driven.run(steps), args.repeats) / steps
     print(f'driven set without the trajectory task (B of rank 5: the rank-revealing path), N = {fastest}: '
           f'{fastest / seconds:.0f} robot-steps/s')
     batch = batch_of(fastest)
