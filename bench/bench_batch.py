@@ -29,6 +29,8 @@ from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.model.batch import BatchSimulation, batch_constrained_acceleration
 
 SELECTION = 'belt,non_lateral,nonslip'
+MAX_BATCH_STEPS = 400
+"""Steps per measurement at most (the small batches' per-step overhead would make --robot-steps long)."""
 
 
 def best_seconds(action: Callable[[], None], repeats: int) -> float:
@@ -107,7 +109,7 @@ def main() -> None:
     for _ in range(args.repeats):  # round robin, best of each: load from other processes hits all alike
         single_seconds = min(single_seconds, single_run_seconds(args.single_steps))
         for size, batch in batches.items():
-            steps = max(2, round(args.robot_steps / size))
+            steps = max(2, min(round(args.robot_steps / size), MAX_BATCH_STEPS))
             batch_seconds[size] = min(batch_seconds[size], best_seconds(lambda: batch.run(steps), 1) / steps)
     single = 1.0 / single_seconds
     print(f'single-robot loop: {single:10.0f} robot-steps/s')
