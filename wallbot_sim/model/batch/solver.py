@@ -40,7 +40,7 @@ def minimum_norm_least_squares(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarra
     moment = stacked_product(np.swapaxes(matrix, 1, 2), rhs)
     factor = _full_rank_factor(gram)
     if factor is not None:
-        return _cholesky_solve(factor, moment)
+        return _cholesky_solve(factor, moment[:, :, None])[:, :, 0]
     kept = independent_columns(gram)
     size = gram.shape[-1]
     both_kept = kept[:, :, None] & kept[:, None, :]
@@ -48,13 +48,13 @@ def minimum_norm_least_squares(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarra
     reduced = np.where(both_kept, gram, identity)  # the kept block, identity on the skipped columns
     # One solve gives the basic solution (zero on the skipped columns) and, for every skipped
     # column j, the combination of kept columns that reproduces it: null vector e_j - that.
-    right = np.concatenate((moment[:, :, None], np.where(kept[:, :, None], gram, 0.0)), axis=2)
-    solved = np.linalg.solve(reduced, np.where(kept[:, :, None], right, 0.0))
+    right = np.concatenate((moment[:, :, None], gram), axis=2) * kept[:, :, None]
+    solved = _positive_definite_solve(reduced, right)
     basic = solved[:, :, 0]
     null = np.where(kept[:, None, :], 0.0, identity - solved[:, :, 1:])
-    null_gram = np.swapaxes(null, 1, 2) @ null + np.where(identity & kept[:, None, :], 1.0, 0.0)
-    shift = np.linalg.solve(null_gram, stacked_product(np.swapaxes(null, 1, 2), basic)[..., None])[..., 0]
-    return basic - stacked_product(null, shift)
+    null_gram = np.swapaxes(null, 1, 2) @ null + (identity & kept[:, None, :])
+    shift = _positive_definite_solve(null_gram, stacked_product(np.swapaxes(null, 1, 2), basic)[:, :, None])
+    return basic - stacked_product(null, shift[:, :, 0])
 
 
 def _full_rank_factor(gram: np.ndarray) -> np.ndarray | None:
@@ -72,18 +72,27 @@ def _full_rank_factor(gram: np.ndarray) -> np.ndarray | None:
     return factor if np.all(pivots > floor[:, None]) else None
 
 
+def _positive_definite_solve(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """X (N, n, m) with M X = R for stacked positive definite M (N, n, n)."""
+    try:
+        factor = np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:  # positive definite in exact arithmetic, not quite in round-off
+        return np.linalg.solve(matrix, rhs)
+    return _cholesky_solve(factor, rhs)
+
+
 def _cholesky_solve(factor: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """x with L L^T x = r for stacked lower-triangular L (N, n, n): forward then back substitution."""
+    """X (N, n, m) with L L^T X = R for stacked lower-triangular L (N, n, n): forward then back substitution."""
     size = factor.shape[-1]
     lower = np.moveaxis(factor, 0, -1).copy()  # (n, n, N): each entry one contiguous vector over the batch
-    solution = rhs.T.copy()
+    solution = np.moveaxis(rhs, 0, -1).copy()  # (n, m, N)
     for j in range(size):
-        solution[j] -= np.einsum('kn,kn->n', lower[j, :j], solution[:j])
+        solution[j] -= np.einsum('kr,kcr->cr', lower[j, :j], solution[:j])
         solution[j] /= lower[j, j]
     for j in reversed(range(size)):
-        solution[j] -= np.einsum('kn,kn->n', lower[j + 1:, j], solution[j + 1:])
+        solution[j] -= np.einsum('kr,kcr->cr', lower[j + 1:, j], solution[j + 1:])
         solution[j] /= lower[j, j]
-    return solution.T
+    return np.moveaxis(solution, -1, 0)
 
 
 def independent_columns(gram: np.ndarray) -> np.ndarray:
@@ -93,21 +102,22 @@ def independent_columns(gram: np.ndarray) -> np.ndarray:
     the largest remaining pivot is taken until none is above the cut.
     """
     count, size = gram.shape[0], gram.shape[-1]
-    cut = _RELATIVE_CUTOFF * np.max(np.diagonal(gram, axis1=1, axis2=2), axis=1)
-    schur = gram.copy()
-    kept = np.zeros((count, size), dtype=bool)
-    robots = np.arange(count)
+    diagonal = np.arange(size)
+    schur = np.moveaxis(gram, 0, -1).copy()  # (n, n, N), batch last as in _cholesky_solve
+    cut = _RELATIVE_CUTOFF * np.max(schur[diagonal, diagonal], axis=0)
+    kept = np.zeros((size, count), dtype=bool)
     for _ in range(size):
-        pivots = np.where(kept, -np.inf, np.diagonal(schur, axis1=1, axis2=2))
-        best = np.argmax(pivots, axis=1)
-        pivot = pivots[robots, best]
+        pivots = np.where(kept, -np.inf, schur[diagonal, diagonal])
+        best = np.argmax(pivots, axis=0)
+        pivot = np.take_along_axis(pivots, best[None], axis=0)[0]
         take = pivot > cut
         if not take.any():
             break
-        kept[robots[take], best[take]] = True
-        column = schur[robots, :, best] / np.sqrt(np.where(take, pivot, 1.0))[:, None]
-        schur -= np.where(take[:, None, None], column[:, :, None] * column[:, None, :], 0.0)
-    return kept
+        kept[best[take], np.flatnonzero(take)] = True
+        column = np.take_along_axis(schur, best[None, None, :], axis=1)[:, 0, :]
+        column *= take / np.sqrt(np.where(take, pivot, 1.0))
+        schur -= column[:, None, :] * column[None, :, :]
+    return kept.T
 
 
 def stacked_product(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
