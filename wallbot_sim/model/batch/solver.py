@@ -3,9 +3,9 @@
     qdd = a + W B+ (b - A a),   a = M^-1 Q,   B = A W,   W W^T = M^-1
 
 B+ r is the minimum-norm least-squares solution, found robot by robot without a LAPACK call per
-robot: the normal equations B^T B x = B^T r on the columns of B that are independent (an unpivoted
-Cholesky that skips the columns whose pivot falls below a cut), then the null space of B removed
-from that basic solution. A consistent set gives its exact solution, an inconsistent one the
+robot: the normal equations B^T B x = B^T r, solved by Cholesky when every robot's B is safely of
+full column rank; otherwise on the columns of B that a pivoted (rank-revealing) Cholesky finds
+independent, then the null space of B removed from that basic solution. A consistent set gives its exact solution, an inconsistent one the
 least-squares compromise, and redundant rows are ignored, as in the single-robot solver.
 The normal equations square B's condition number: the batch agrees with the single solver to
 ~1e-16 cond(B)^2 relative, 1e-11 for the robot of config/robot.yaml under the full set (cond 300).
