@@ -7,10 +7,13 @@ import pytest
 
 from model_helpers import random_parameters
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.model import ConstraintSelection, DivergedError, ParameterError, Robot, Simulation
+from wallbot_sim.model import (
+    ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
 from wallbot_sim.model.batch import (
     BATCH_MODULES, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
+from wallbot_sim.model.batch.constraints import wrap_angles
 from wallbot_sim.model.constraint_set import MODULES
+from wallbot_sim.model.constraints import wrap_angle
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.solver import constrained_acceleration
 
@@ -219,3 +222,22 @@ def test_a_diverging_robot_stops_the_batch_unchanged_and_is_named():
     with pytest.raises(DivergedError, match=r'robot\(s\) \[1\]'):
         batch.step()
     assert batch.steps == 0 and np.array_equal(batch.qd, qd0)
+
+
+def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
+    """SmoothStop: the heading task has no direction once the reference rests, and holds the heading."""
+    rng = np.random.default_rng(14)
+    robots = random_robots(rng, 4)
+    circle = load_scenario('circle')
+    stopping = Scenario('stop', SmoothStop(circle.reference, duration=0.1, stop_time=0.2), 1.0, circle.initial)
+    q0, qd0 = perturbed_starts(rng, robots, stopping)
+    assert tangent_heading(stopping.reference.sample(0.35)) is None
+    run_both(robots, stopping, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=450)
+
+
+def test_wrapped_angles_match_the_single_robot_wrap():
+    angles = np.concatenate((np.random.default_rng(15).uniform(-40.0, 40.0, 200),
+                             [0.0, np.pi, -np.pi, 3 * np.pi, -3 * np.pi, 2 * np.pi, np.nextafter(np.pi, 4.0)]))
+    expected = [wrap_angle(angle) for angle in angles]
+    assert np.allclose(wrap_angles(angles), expected, rtol=0.0, atol=1e-14)
+    assert np.all((wrap_angles(angles) > -np.pi) & (wrap_angles(angles) <= np.pi))
