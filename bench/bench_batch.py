@@ -1,0 +1,144 @@
+"""Robot-steps per second of the batched core, beside the single-robot loop measured in the same run.
+
+The circle with the full constraint set (trajectory, tangent heading, belt, non-lateral, nonslip) and
+the ideal contact. The single-robot loop is ``Simulation.step`` on one robot; the batch is
+``BatchSimulation.step`` on N robots with slightly different body masses. Timings are wall clock,
+the best of ``--repeats`` rounds; each round measures the single loop and every batch size in turn,
+so load from other processes on the machine hits them alike.
+
+What limits the batch: a batch step costs t(N) = t0 + N c(N). t0, measured at N = 1, is the cost that
+does not grow with N (Python and NumPy call overhead of ~200 array operations per step); c(N) is the
+per-robot cost of the array work, printed for every size (it grows once the working set, a few kB
+per robot, leaves the cache). The per-stage split at the fastest size says where c goes.
+
+    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--robot-steps 40000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from typing import Callable
+
+import numpy as np
+
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import ConstraintSelection, Robot, Simulation
+from wallbot_sim.model.batch import BatchSimulation, batch_constrained_acceleration, solver
+
+SELECTION = 'belt,non_lateral,nonslip'
+MAX_BATCH_STEPS = 400
+"""Steps per measurement at most (the small batches' per-step overhead would make --robot-steps long)."""
+
+
+def best_seconds(action: Callable[[], None], repeats: int) -> float:
+    """The shortest wall time of ``repeats`` runs of ``action``."""
+    best = float('inf')
+    for _ in range(repeats):
+        started = time.perf_counter()
+        action()
+        best = min(best, time.perf_counter() - started)
+    return best
+
+
+def batch_of(size: int, selection: ConstraintSelection | None = None) -> BatchSimulation:
+    params = load_robot_parameters()
+    robots = [Robot(params.replace(body_mass=params.body_mass * (1.0 + 0.2 * i / size))) for i in range(size)]
+    return BatchSimulation.from_scenario(robots, load_scenario('circle'), selection or ConstraintSelection.parse(SELECTION))
+
+
+def single_run_seconds(steps: int) -> float:
+    """Seconds per step of the single-robot loop over ``steps`` steps."""
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    q0, qd0 = scenario.initial_state(robot)
+    simulation = Simulation(robot, scenario.reference, ConstraintSelection.parse(SELECTION), q0, qd0)
+
+    def run() -> None:
+        for _ in range(steps):
+            simulation.step()
+    return best_seconds(run, 1) / steps
+
+
+def check_agreement(batch: BatchSimulation) -> None:
+    """The batch's last robot against the single-robot Simulation after the same steps (a fair comparison)."""
+    robot = batch.robots.robots[-1]
+    q0, qd0 = load_scenario('circle').initial_state(robot)
+    single = Simulation(robot, load_scenario('circle').reference, batch.selection, q0, qd0)
+    for _ in range(batch.steps):
+        single.step()
+    if not np.allclose(batch.q[-1], single.q, rtol=1e-9, atol=1e-12):
+        raise SystemExit(f'batch and single robot disagree: {batch.q[-1]} vs {single.q}')
+
+
+def stage_split(batch: BatchSimulation, repeats: int) -> dict[str, float]:
+    """Seconds per RK4 stage of each part of the derivative, at the batch's state."""
+    q, qd, t = batch.q, batch.qd, batch.t
+    force, rows, rhs = batch._problem(t, q, qd)
+    factor = batch.robots.mass_inverse_factor(q)
+    parts = {
+        'applied force Q': lambda: batch.robots.applied_force(q, qd, batch.motor_torque),
+        'constraint rows A, b': lambda: [module.rows(t, q, qd) for module in batch.modules],
+        'mass factor W': lambda: batch.robots.mass_inverse_factor(q),
+        'solve (W, Q, A, b -> qdd)': lambda: batch_constrained_acceleration(factor, force, rows, rhs),
+    }
+    times = {name: best_seconds(part, repeats) for name, part in parts.items()}
+    matrix = rows @ factor
+    gram = np.swapaxes(matrix, 1, 2) @ matrix
+    times['  of which B^T B'] = best_seconds(lambda: np.swapaxes(matrix, 1, 2) @ matrix, repeats)
+    times['  of which its Cholesky'] = best_seconds(lambda: solver._cholesky(gram), repeats)
+    return times
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--sizes', default='1,100,1000,4000,16000', help='comma list of batch sizes')
+    parser.add_argument('--robot-steps', type=int, default=40000, help='robot-steps per batch measurement')
+    parser.add_argument('--single-steps', type=int, default=2000, help='single-robot steps per measurement')
+    parser.add_argument('--repeats', type=int, default=7, help='measurements per figure (the best is kept)')
+    args = parser.parse_args()
+    sizes = [int(size) for size in args.sizes.split(',')]
+    print(f'# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}; '
+          f'load average {os.getloadavg()[0]:.1f} at start; circle, {SELECTION} + trajectory, ideal contact')
+    batches = {size: batch_of(size) for size in sizes}
+    for batch in batches.values():
+        batch.step()  # first step: allocations and caches warm
+    single_seconds, batch_seconds = float('inf'), dict.fromkeys(sizes, float('inf'))
+    for _ in range(args.repeats):  # round robin, best of each: load from other processes hits all alike
+        single_seconds = min(single_seconds, single_run_seconds(args.single_steps))
+        for size, batch in batches.items():
+            steps = max(2, min(round(args.robot_steps / size), MAX_BATCH_STEPS))
+            batch_seconds[size] = min(batch_seconds[size], best_seconds(lambda: batch.run(steps), 1) / steps)
+    single = 1.0 / single_seconds
+    print(f'single-robot loop: {single:10.0f} robot-steps/s')
+    print(f'{"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
+    overhead = batch_seconds.get(1)
+    rates = {size: size / seconds for size, seconds in batch_seconds.items()}
+    for size, seconds in batch_seconds.items():
+        beyond = '' if overhead is None or size == 1 else f'{(seconds - overhead) / size * 1e9:26.0f}'
+        print(f'{size:10d} {rates[size]:14.0f} {rates[size] / single:9.1f} {seconds * 1e3:8.2f} {beyond}')
+    check_agreement(batches[sizes[-1]])
+    fastest = max(rates, key=rates.get)
+    print(f'fastest: N = {fastest}, {rates[fastest]:.0f} robot-steps/s = {rates[fastest] / single:.1f} x the single loop')
+    driven = batch_of(fastest, ConstraintSelection.structural(trajectory=False))
+    driven.set_motor_torque((0.5, 0.4))
+    driven.step()
+    steps = max(2, round(args.robot_steps / fastest))
+    seconds = best_seconds(lambda: driven.run(steps), args.repeats) / steps
+    print(f'driven set without the trajectory task (B of rank 5: the rank-revealing path), N = {fastest}: '
+          f'{fastest / seconds:.0f} robot-steps/s')
+    batch = batch_of(fastest)
+    batch.run(3)
+    split = stage_split(batch, args.repeats)
+    stage = sum(seconds for name, seconds in split.items() if not name.startswith(' '))
+    print(f'one RK4 stage at N = {fastest} ({stage / fastest * 1e9:.0f} ns per robot; a step is 4 stages and the '
+          f'RK4 sums):')
+    for name, seconds in split.items():
+        print(f'  {name:26s} {seconds / fastest * 1e9:6.0f} ns per robot  {seconds / stage:5.1%}')
+    print(f'load average {os.getloadavg()[0]:.1f} at end')
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,243 @@
+"""The batched core against the single-robot Simulation, robot by robot, and its solver against pinv."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from model_helpers import random_parameters
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import (
+    ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
+from wallbot_sim.model.batch import (
+    BATCH_MODULES, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
+from wallbot_sim.model.batch.constraints import wrap_angles
+from wallbot_sim.model.constraint_set import MODULES
+from wallbot_sim.model.constraints import wrap_angle
+from wallbot_sim.model.robot import DOF
+from wallbot_sim.model.solver import constrained_acceleration
+
+TOLERANCE = 1e-9
+"""Relative agreement asked of the batch, states and forces, robot by robot."""
+
+
+def random_robots(rng: np.random.Generator, count: int) -> list[Robot]:
+    """Robots of random parameters (CoM off the centre), half with an adhesion force of their own."""
+    robots = []
+    for i in range(count):
+        params = random_parameters(rng)
+        if i % 2:
+            params = params.replace(adhesion_force=float(rng.uniform(1.0, 3.0)) * params.gravity * 10.0)
+        robots.append(Robot(params))
+    return robots
+
+
+def perturbed_starts(rng: np.random.Generator, robots: list[Robot], scenario) -> tuple[np.ndarray, np.ndarray]:
+    """Each robot at the scenario's start, moved and set moving a little differently."""
+    states = [scenario.initial_state(robot) for robot in robots]
+    q0 = np.array([q for q, _ in states]) + rng.normal(0.0, [0.02, 0.02, 0.1, 0.5, 0.5, 0.5, 0.5], (len(robots), DOF))
+    qd0 = np.array([qd for _, qd in states]) + rng.normal(0.0, [0.02, 0.02, 0.1, 0.5, 0.5, 0.5, 0.5],
+                                                            (len(robots), DOF))
+    return q0, qd0
+
+
+def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray) -> None:
+    """|batch - single| within TOLERANCE of the single robot's largest magnitude of that quantity."""
+    scale = np.max(np.abs(single_values))
+    error = np.max(np.abs(batch_values - single_values))
+    assert error <= TOLERANCE * scale, f'{name}: batch differs by {error:.3g}, {error / scale:.3g} relative'
+
+
+def run_both(robots: list[Robot], scenario, selection: ConstraintSelection, q0: np.ndarray, qd0: np.ndarray,
+             steps: int, torques: np.ndarray | None = None, every: int = 50) -> None:
+    """Step the batch and one Simulation per robot side by side, comparing states and forces every ``every`` steps."""
+    reference = scenario.reference if selection.trajectory else None
+    batch = BatchSimulation(robots, reference, selection, q0, qd0)
+    singles = [Simulation(robot, reference, selection, q0[i], qd0[i]) for i, robot in enumerate(robots)]
+    if torques is not None:
+        batch.set_motor_torque(torques)
+        for single, torque in zip(singles, torques):
+            single.set_motor_torque(*torque)
+    keys = ('q', 'qd', 'acceleration', 'force', 'residual')
+    history = {i: {key: [] for key in keys} for i in range(len(robots))}
+    batch_history = {i: {key: [] for key in keys} for i in range(len(robots))}
+    for step in range(steps + 1):
+        if step % every == 0:
+            outputs = batch.outputs()
+            assert outputs.t == singles[0].t
+            for i, single in enumerate(singles):
+                single_out = single.outputs()
+                for store, values in ((history[i], (single_out.q, single_out.qd, single_out.acceleration,
+                                                    single_out.constraint_force, single_out.residual)),
+                                      (batch_history[i], (outputs.q[i], outputs.qd[i], outputs.acceleration[i],
+                                                          outputs.constraint_force[i], outputs.residual[i]))):
+                    for key, value in zip(keys, values):
+                        store[key].append(value)
+        if step < steps:
+            batch.step()
+            for single in singles:
+                single.step()
+    for i in range(len(robots)):
+        for key in ('q', 'qd', 'acceleration', 'force'):
+            assert_agree(f'robot {i} {key}', np.array(batch_history[i][key]), np.array(history[i][key]))
+        # a consistent set's residual is round-off: it agrees on the scale of the accelerations it measures
+        residual_scale = max(np.max(history[i]['residual']), np.max(np.abs(history[i]['acceleration'])))
+        assert np.max(np.abs(np.subtract(batch_history[i]['residual'], history[i]['residual']))) <= (
+            TOLERANCE * residual_scale), f'robot {i} residual'
+
+
+@pytest.mark.parametrize('scenario_name', ['circle', 'figure8'])
+def test_full_set_with_the_trajectory_task_agrees_robot_by_robot(scenario_name):
+    """simulate --scenario circle --constraints belt,non_lateral,nonslip, for random robots from random starts."""
+    rng = np.random.default_rng(11)
+    robots = random_robots(rng, 6)
+    scenario = load_scenario(scenario_name)
+    q0, qd0 = perturbed_starts(rng, robots, scenario)
+    run_both(robots, scenario, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=400)
+
+
+def test_driven_set_without_the_trajectory_task_agrees_robot_by_robot():
+    """Belt, non-lateral, nonslip, motor torques per robot: A has dependent rows, so B has dependent columns."""
+    rng = np.random.default_rng(12)
+    robots = random_robots(rng, 6)
+    q0 = np.zeros((6, DOF))
+    q0[:, 2] = rng.uniform(-np.pi, np.pi, 6)
+    qd0 = rng.normal(0.0, 0.05, (6, DOF))
+    run_both(robots, load_scenario('circle'), ConstraintSelection.structural(trajectory=False), q0, qd0, steps=400,
+             torques=rng.uniform(-2.0, 2.0, (6, 2)))
+
+
+@pytest.mark.parametrize('constraints, heading', [
+    ('belt,non_lateral,nonslip', False),  # centre task against non-lateral motion, and a spin free: both
+    ('non_lateral', False),               # inconsistent, full column rank
+    ('belt', None),                       # consistent, dependent columns (the spins the belt leaves free)
+    ('none', None),                       # the trajectory task alone
+], ids=['inconsistent-and-rank-deficient', 'inconsistent', 'rank-deficient', 'trajectory-only'])
+def test_least_squares_compromise_per_robot_agrees(constraints, heading):
+    rng = np.random.default_rng(13)
+    robots = random_robots(rng, 5)
+    scenario = load_scenario('circle')
+    q0, qd0 = perturbed_starts(rng, robots, scenario)
+    selection = ConstraintSelection.parse(constraints, tangent_heading=heading)
+    run_both(robots, scenario, selection, q0, qd0, steps=300)
+
+
+def test_the_inconsistent_case_really_is_a_compromise():
+    """The first case above leaves a residual (the set cannot hold) and B a dependent column."""
+    rng = np.random.default_rng(13)
+    robots = random_robots(rng, 5)
+    scenario = load_scenario('circle')
+    q0, qd0 = perturbed_starts(rng, robots, scenario)
+    batch = BatchSimulation(robots, scenario.reference,
+                            ConstraintSelection.parse('belt,non_lateral,nonslip', tangent_heading=False), q0, qd0)
+    force, rows, rhs = batch._problem(batch.t, batch.q, batch.qd)
+    matrices = rows @ batch.robots.mass_inverse_factor(batch.q)
+    assert all(np.linalg.matrix_rank(matrix) < DOF for matrix in matrices)
+    assert np.all(batch.outputs().residual > 1e-3)
+
+
+def pinv_solutions(matrices: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    return np.array([np.linalg.pinv(matrix) @ r for matrix, r in zip(matrices, rhs)])
+
+
+@pytest.mark.parametrize('rank', [7, 6, 5, 3, 0])
+def test_minimum_norm_least_squares_is_pinv_robot_by_robot(rank):
+    """Random B of a given rank (dependent rows and columns, inconsistent right sides) against pinv."""
+    rng = np.random.default_rng(rank)
+    count, rows, columns = 50, 10, 7
+    left = rng.normal(size=(count, rows, rank))
+    right = rng.normal(size=(count, rank, columns))
+    matrices = left @ right
+    rhs = rng.normal(size=(count, rows))
+    expected = pinv_solutions(matrices, rhs)
+    solved = minimum_norm_least_squares(matrices, rhs)
+    assert np.allclose(solved, expected, rtol=0.0, atol=1e-9 * max(1.0, np.max(np.abs(expected))))
+
+
+def test_a_batch_mixing_ranks_solves_each_robot_alone():
+    """Full-rank, rank-deficient and zero matrices in one batch: each gets its own minimum-norm solution."""
+    rng = np.random.default_rng(5)
+    matrices = rng.normal(size=(3, 8, 7))
+    matrices[1, :, 4] = 2.0 * matrices[1, :, 1] - matrices[1, :, 0]
+    matrices[2] = 0.0
+    rhs = rng.normal(size=(3, 8))
+    assert np.allclose(minimum_norm_least_squares(matrices, rhs), pinv_solutions(matrices, rhs), atol=1e-12)
+
+
+def test_batched_acceleration_matches_the_single_solver_on_random_problems():
+    """W, Q, A, b drawn at random (A with a repeated row): qdd as the model's constrained_acceleration gives it."""
+    rng = np.random.default_rng(7)
+    count = 40
+    mass = rng.normal(size=(count, DOF, DOF))
+    mass = mass @ np.swapaxes(mass, 1, 2) + DOF * np.eye(DOF)
+    factors = np.linalg.cholesky(np.linalg.inv(mass))
+    forces = rng.normal(size=(count, DOF))
+    rows = rng.normal(size=(count, 5, DOF))
+    rows[:, 4] = rows[:, 0]
+    rhs = rng.normal(size=(count, 5))
+    expected = np.array([constrained_acceleration(*problem) for problem in zip(factors, forces, rows, rhs)])
+    assert np.allclose(batch_constrained_acceleration(factors, forces, rows, rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+def test_mass_matrix_and_factor_match_the_robot_model():
+    rng = np.random.default_rng(3)
+    robots = random_robots(rng, 8)
+    batch = BatchSimulation(robots, None, ConstraintSelection.structural(trajectory=False),
+                            rng.normal(size=(8, DOF)), np.zeros((8, DOF)))
+    q, qd = batch.q, rng.normal(size=(8, DOF))
+    torques = rng.normal(size=(8, 2))
+    for i, robot in enumerate(robots):
+        assert np.allclose(batch.robots.mass_matrix(q)[i], robot.mass_matrix(q[i]), rtol=1e-14, atol=0.0)
+        assert np.allclose(batch.robots.mass_inverse_factor(q)[i], robot.mass_inverse_factor(q[i]), rtol=1e-13,
+                           atol=1e-15)
+        assert np.allclose(batch.robots.applied_force(q, qd, torques)[i], robot.applied_force(q[i], qd[i], torques[i]),
+                           rtol=1e-13, atol=1e-13)
+
+
+def test_every_constraint_module_has_a_batched_form():
+    assert list(BATCH_MODULES) == list(MODULES)
+
+
+def test_bad_batches_are_refused_with_a_reason():
+    robot = Robot(load_robot_parameters())
+    selection = ConstraintSelection.parse('belt')
+    reference = load_scenario('circle').reference
+    with pytest.raises(ParameterError, match='at least one robot'):
+        BatchSimulation([], reference, selection, np.zeros((0, DOF)), np.zeros((0, DOF)))
+    with pytest.raises(ParameterError, match=r'shape \(2, 7\)'):
+        BatchSimulation([robot, robot], reference, selection, np.zeros((2, DOF)), np.zeros(DOF))
+    with pytest.raises(ParameterError, match='finite'):
+        BatchSimulation([robot], reference, selection, np.full((1, DOF), np.nan), np.zeros((1, DOF)))
+    with pytest.raises(ParameterError, match='needs a reference'):
+        BatchSimulation([robot], None, selection, np.zeros((1, DOF)), np.zeros((1, DOF)))
+
+
+def test_a_diverging_robot_stops_the_batch_unchanged_and_is_named():
+    """A robot whose state stops being finite is reported by index; no robot's state moves."""
+    params = load_robot_parameters()
+    robots = [Robot(params), Robot(params)]
+    q0, qd0 = np.zeros((2, DOF)), np.zeros((2, DOF))
+    qd0[1, 2] = 1e200  # its centripetal and resistance terms overflow at once
+    batch = BatchSimulation(robots, None, ConstraintSelection.parse('none', trajectory=False), q0, qd0)
+    with pytest.raises(DivergedError, match=r'robot\(s\) \[1\]'):
+        batch.step()
+    assert batch.steps == 0 and np.array_equal(batch.qd, qd0)
+
+
+def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
+    """SmoothStop: the heading task has no direction once the reference rests, and holds the heading."""
+    rng = np.random.default_rng(14)
+    robots = random_robots(rng, 4)
+    circle = load_scenario('circle')
+    stopping = Scenario('stop', SmoothStop(circle.reference, duration=0.1, stop_time=0.2), 1.0, circle.initial)
+    q0, qd0 = perturbed_starts(rng, robots, stopping)
+    assert tangent_heading(stopping.reference.sample(0.35)) is None
+    run_both(robots, stopping, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=450)
+
+
+def test_wrapped_angles_match_the_single_robot_wrap():
+    angles = np.concatenate((np.random.default_rng(15).uniform(-40.0, 40.0, 200),
+                             [0.0, np.pi, -np.pi, 3 * np.pi, -3 * np.pi, 2 * np.pi, np.nextafter(np.pi, 4.0)]))
+    expected = [wrap_angle(angle) for angle in angles]
+    assert np.allclose(wrap_angles(angles), expected, rtol=0.0, atol=1e-14)
+    assert np.all((wrap_angles(angles) > -np.pi) & (wrap_angles(angles) <= np.pi))
