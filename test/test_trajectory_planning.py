@@ -134,3 +134,52 @@ def test_the_node_answers_parameter_requests_while_planning(monkeypatch, ros_dom
             node.close()
             node.destroy_node()
         rclpy.shutdown(context=context)
+
+
+def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(monkeypatch, ros_domain):
+    """/clock messages that arrive while the first plan builds (a short factor-0 run on a loaded
+    machine) are not lost: once the plan lands, the poses of every grid point since its start up
+    to the newest clock are published, each stamped on its grid and sampled from the plan."""
+    rclpy = pytest.importorskip('rclpy')
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from rosgraph_msgs.msg import Clock
+
+    from wallbot_msgs_py import codec
+    from wallbot_sim import messages
+    from wallbot_sim.nodes import trajectory
+
+    release = threading.Event()
+    real_build = trajectory.build_plan
+
+    def slow_build(request):
+        release.wait(WAIT)
+        return real_build(request)
+
+    monkeypatch.setattr(trajectory, 'build_plan', slow_build)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = None
+    try:
+        node = trajectory.TrajectoryNode(context=context)
+        published = []
+        monkeypatch.setattr(node.reference_pub, 'publish', published.append)
+        for t_ms in (0, 100, 200, 300):  # the run's clock passes without a plan to sample
+            clock = Clock()
+            clock.clock.sec, clock.clock.nanosec = divmod(t_ms * 1_000_000, 1_000_000_000)
+            node._on_clock(clock)
+        assert not published
+        release.set()
+        assert node.planner.wait_idle(WAIT)
+        poses = [deserialize_message(data, Odometry) for data in published]
+        stamps = [codec.stamp_nanoseconds(m.header.stamp) for m in poses]
+        period = round(1e9 / messages.PUBLISH_RATE_HZ)
+        assert stamps == list(range(0, 300_000_001, period))
+        x = [m.pose.pose.position.x for m in poses]
+        assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
+    finally:
+        release.set()
+        if node is not None:
+            node.close()
+            node.destroy_node()
+        rclpy.shutdown(context=context)

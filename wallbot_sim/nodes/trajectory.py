@@ -24,6 +24,7 @@ instead of once per pose and once per plan check.
 from __future__ import annotations
 
 import sys
+import threading
 from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry, Path
@@ -169,6 +170,8 @@ class TrajectoryNode(Node):
         self.planner = LatestRequestWorker(build_plan, self._publish_plan, self._planning_failed, 'planner')
         self.last_pose: int | None = None
         """Grid index (simulation time / pose period) of the newest reference pose published."""
+        self.clock_ns: int | None = None
+        self.pose_lock = threading.Lock()  # poses go out from the executor and, for a new plan, the planner
         self.replan(self._now())
         self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
 
@@ -177,6 +180,7 @@ class TrajectoryNode(Node):
 
     def _on_clock(self, msg: Clock) -> None:
         now_ns = codec.stamp_nanoseconds(msg.clock)
+        self.clock_ns = now_ns
         self._check_plan(now_ns * 1e-9)
         self._publish_reference(now_ns)
 
@@ -190,7 +194,11 @@ class TrajectoryNode(Node):
         self.trajectory_pub.publish(built.trajectory)
         self.path_pub.publish(built.path)
         times = built.plan.times
-        self.reference, self.yaw, self.plan = built.reference, built.yaw, built.plan
+        with self.pose_lock:
+            self.reference, self.yaw, self.plan = built.reference, built.yaw, built.plan
+        clock_ns = self.clock_ns
+        if clock_ns is not None:  # the poses owed since the clock passed them without a plan
+            self._publish_reference(clock_ns)
         self.get_logger().info(
             f'plan {built.shape} from t = {times[0]:.3f} s to {times[-1]:.3f} s '
             f'({len(times)} samples{", ends at rest" if messages.plan_is_final(built.plan) else ""})')
@@ -215,20 +223,24 @@ class TrajectoryNode(Node):
         self.planner.stop()
 
     def _publish_reference(self, now_ns: int) -> None:
-        """The poses of the grid points in (last pose, now_ns]; only the newest if time went back."""
-        period_ns = max(1, round(1e9 / self.values['publish_rate_hz']))
-        newest = now_ns // period_ns
-        last = self.last_pose
-        if last is None or last > newest:
-            last = newest - 1
-        reference = self.reference
-        if reference is None:
-            return
-        for k in range(max(last, newest - MAX_POSE_BURST) + 1, newest + 1):
-            t = k * period_ns * 1e-9
-            data, self.yaw = messages.reference_message(reference.sample(t), t, self.yaw)
-            self.reference_pub.publish(data)
-        self.last_pose = newest
+        """The poses of the grid points in (last pose, now_ns], at most MAX_POSE_BURST; the first
+        ones from the plan's start; only the newest if time went back."""
+        with self.pose_lock:
+            reference, plan = self.reference, self.plan
+            if reference is None or plan is None:
+                return
+            period_ns = max(1, round(1e9 / self.values['publish_rate_hz']))
+            newest = now_ns // period_ns
+            last = self.last_pose
+            if last is None:
+                last = -(-codec.to_nanoseconds(plan.times[0]) // period_ns) - 1
+            if last > newest:
+                last = newest - 1
+            for k in range(max(last, newest - MAX_POSE_BURST) + 1, newest + 1):
+                t = k * period_ns * 1e-9
+                data, self.yaw = messages.reference_message(reference.sample(t), t, self.yaw)
+                self.reference_pub.publish(data)
+            self.last_pose = newest
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):
