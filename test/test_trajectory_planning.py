@@ -98,11 +98,16 @@ def test_plans_cover_at_most_the_horizon_and_a_finite_run_ends_at_rest():
     assert check_values({**DEFAULTS, 'horizon': 1000.0, 'sample_dt': 0.001})  # 10^6 samples: refused
 
 
-def test_the_node_answers_parameter_requests_while_planning(monkeypatch, ros_domain):
-    """A plan that takes for ever to build does not hold up set_parameters (it runs on the planner thread)."""
-    rclpy = pytest.importorskip('rclpy')
-    from rclpy.parameter import Parameter
+class HeldPlanner:
+    """A trajectory node whose plan builds block until ``release`` is set (``building`` is set when one starts)."""
 
+    def __init__(self, node, building: threading.Event, release: threading.Event) -> None:
+        self.node, self.building, self.release = node, building, release
+
+
+@pytest.fixture
+def held_planner(monkeypatch, ros_domain):
+    rclpy = pytest.importorskip('rclpy')
     from wallbot_sim.nodes import trajectory
 
     release, building = threading.Event(), threading.Event()
@@ -119,15 +124,7 @@ def test_the_node_answers_parameter_requests_while_planning(monkeypatch, ros_dom
     node = None
     try:
         node = trajectory.TrajectoryNode(context=context)
-        assert building.wait(WAIT), 'the first plan is built on the planner thread'
-        results = node.set_parameters([Parameter('radius', Parameter.Type.DOUBLE, 2.0),
-                                       Parameter('period', Parameter.Type.DOUBLE, 0.0)])
-        assert results[0].successful and not results[1].successful and 'period' in results[1].reason
-        assert node.planner.busy and node.reference is None  # answered while the plan was still building
-        release.set()
-        assert node.planner.wait_idle(WAIT)
-        assert node.reference is not None  # the plan of the accepted radius
-        assert node.reference.sample(1.0).position[0] == pytest.approx(2.0 * math.cos(2 * math.pi / 20.0), abs=1e-6)
+        yield HeldPlanner(node, building, release)
     finally:
         release.set()
         if node is not None:
@@ -136,50 +133,46 @@ def test_the_node_answers_parameter_requests_while_planning(monkeypatch, ros_dom
         rclpy.shutdown(context=context)
 
 
-def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(monkeypatch, ros_domain):
+def test_the_node_answers_parameter_requests_while_planning(held_planner):
+    """A plan that takes for ever to build does not hold up set_parameters (it runs on the planner thread)."""
+    from rclpy.parameter import Parameter
+
+    node = held_planner.node
+    assert held_planner.building.wait(WAIT), 'the first plan is built on the planner thread'
+    results = node.set_parameters([Parameter('radius', Parameter.Type.DOUBLE, 2.0),
+                                   Parameter('period', Parameter.Type.DOUBLE, 0.0)])
+    assert results[0].successful and not results[1].successful and 'period' in results[1].reason
+    assert node.planner.busy and node.reference is None  # answered while the plan was still building
+    held_planner.release.set()
+    assert node.planner.wait_idle(WAIT)
+    assert node.reference is not None  # the plan of the accepted radius
+    assert node.reference.sample(1.0).position[0] == pytest.approx(2.0 * math.cos(2 * math.pi / 20.0), abs=1e-6)
+
+
+def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(held_planner, monkeypatch):
     """/clock messages that arrive while the first plan builds (a short factor-0 run on a loaded
     machine) are not lost: once the plan lands, the poses of every grid point since its start up
     to the newest clock are published, each stamped on its grid and sampled from the plan."""
-    rclpy = pytest.importorskip('rclpy')
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message
     from rosgraph_msgs.msg import Clock
 
     from wallbot_msgs_py import codec
     from wallbot_sim import messages
-    from wallbot_sim.nodes import trajectory
 
-    release = threading.Event()
-    real_build = trajectory.build_plan
-
-    def slow_build(request):
-        release.wait(WAIT)
-        return real_build(request)
-
-    monkeypatch.setattr(trajectory, 'build_plan', slow_build)
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = None
-    try:
-        node = trajectory.TrajectoryNode(context=context)
-        published = []
-        monkeypatch.setattr(node.reference_pub, 'publish', published.append)
-        for t_ms in (0, 100, 200, 300):  # the run's clock passes without a plan to sample
-            clock = Clock()
-            clock.clock.sec, clock.clock.nanosec = divmod(t_ms * 1_000_000, 1_000_000_000)
-            node._on_clock(clock)
-        assert not published
-        release.set()
-        assert node.planner.wait_idle(WAIT)
-        poses = [deserialize_message(data, Odometry) for data in published]
-        stamps = [codec.stamp_nanoseconds(m.header.stamp) for m in poses]
-        period = round(1e9 / messages.PUBLISH_RATE_HZ)
-        assert stamps == list(range(0, 300_000_001, period))
-        x = [m.pose.pose.position.x for m in poses]
-        assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
-    finally:
-        release.set()
-        if node is not None:
-            node.close()
-            node.destroy_node()
-        rclpy.shutdown(context=context)
+    node = held_planner.node
+    published = []
+    monkeypatch.setattr(node.reference_pub, 'publish', published.append)
+    for t_ms in (0, 100, 200, 300):  # the run's clock passes without a plan to sample
+        clock = Clock()
+        clock.clock.sec, clock.clock.nanosec = divmod(t_ms * 1_000_000, 1_000_000_000)
+        node._on_clock(clock)
+    assert not published
+    held_planner.release.set()
+    assert node.planner.wait_idle(WAIT)
+    poses = [deserialize_message(data, Odometry) for data in published]
+    stamps = [codec.stamp_nanoseconds(m.header.stamp) for m in poses]
+    period = round(1e9 / messages.PUBLISH_RATE_HZ)
+    assert stamps == list(range(0, 300_000_001, period))
+    x = [m.pose.pose.position.x for m in poses]
+    assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
