@@ -237,15 +237,15 @@ def test_cdr_stamp_and_odometry_decoding():
 
     from wallbot_msgs_py import codec, topics
     from wallbot_msgs_py.step_cdr import StepEncoder
-    from wallbot_sim.nodes.controller import cdr_stamp_ns
+    from wallbot_msgs_py.codec import leading_stamp_ns
     plant = Simulation(ROBOT, None, DRIVEN, np.array([0.3, -0.2, 2.5, 0, 0, 0, 0]), np.zeros(7), t0=12.345)
     plant.set_motor_torque(1.0, 2.0)
     for _ in range(50):
         plant.step()
     data = dict(StepEncoder().encode(plant.outputs()))[topics.ODOM]
     msg = deserialize_message(data, Odometry)
-    assert cdr_stamp_ns(data) == round(plant.t * 1e9)
-    assert cdr_stamp_ns(b'\0\1') is None
+    assert leading_stamp_ns(data) == round(plant.t * 1e9)
+    assert leading_stamp_ns(b'\0\1') is None
     state = codec.planar_state(msg)
     assert state.stamp_ns == round(plant.t * 1e9)
     assert np.allclose([state.x, state.y, state.theta, state.xd, state.yd, state.thd], plant.q[:3].tolist()

@@ -29,7 +29,7 @@ from wallbot_sim.bag.reader import messages  # noqa: E402
 from wallbot_sim.config import load_scenario  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
 from wallbot_sim.graph_description import RECORDER, describe_graph  # noqa: E402
-from wallbot_sim.nodes.controller import cdr_stamp_ns  # noqa: E402
+from wallbot_msgs_py.codec import leading_stamp_ns  # noqa: E402
 from wallbot_sim.rundata import load_run  # noqa: E402
 
 SCENARIO = 'circle'
@@ -101,7 +101,7 @@ class SplitGraph:
 
 def odometry_received(bag: Path) -> tuple[np.ndarray, np.ndarray]:
     """Stamps (ns of simulation time) and receive times (ns, recorder's wall clock) of the recorded odometry."""
-    pairs = [(cdr_stamp_ns(raw.data), raw.timestamp) for raw in messages(bag) if raw.topic.endswith('/odom')]
+    pairs = [(leading_stamp_ns(raw.data), raw.timestamp) for raw in messages(bag) if raw.topic.endswith('/odom')]
     stamps, received = np.array(pairs, dtype=np.int64).T
     return stamps, received
 

@@ -16,6 +16,7 @@ simulation time.
 from __future__ import annotations
 
 import math
+import struct
 from typing import Any, Iterable, Mapping, NamedTuple, Sequence
 
 import numpy as np
@@ -56,6 +57,18 @@ def stamp_nanoseconds(msg: Any) -> int:
 def seconds(msg: Any) -> float:
     """A Time or Duration in seconds."""
     return stamp_nanoseconds(msg) * 1e-9
+
+
+def leading_stamp_ns(data: bytes) -> int | None:
+    """The time (ns) a serialized message starts with, read without decoding it: a
+    rosgraph_msgs/Clock, or any message whose first field is a std_msgs/Header; None if too short.
+
+    CDR: a 4-byte encapsulation header (byte 1, bit 0: little endian), then int32 sec, uint32 nanosec.
+    """
+    if len(data) < 12:
+        return None
+    sec, nanosec = struct.unpack_from('<iI' if data[1] & 1 else '>iI', data, 4)
+    return sec * NS_PER_S + nanosec
 
 
 def header(t: float, frame: str) -> Any:

@@ -34,7 +34,6 @@ falls back to zero torque after its ``command_timeout``).
 
 from __future__ import annotations
 
-import struct
 import sys
 
 import numpy as np
@@ -89,17 +88,6 @@ class Plans:
             if start <= t + 1e-9:
                 return reference.sample(t)
         return self.plans[0][1].sample(t)
-
-
-def cdr_stamp_ns(data: bytes) -> int | None:
-    """header.stamp (ns) of a serialized message that starts with a std_msgs/Header, or None.
-
-    CDR: a 4-byte encapsulation header (byte 1: 1 = little endian), then int32 sec, uint32 nanosec.
-    """
-    if len(data) < 12:
-        return None
-    sec, nanosec = struct.unpack_from('<iI' if data[1] & 1 else '>iI', data, 4)
-    return sec * codec.NS_PER_S + nanosec
 
 
 def check_values(values: dict) -> list[str]:
@@ -213,7 +201,7 @@ class ControllerNode(Node):
             self._on_odom(msg)
 
     def _on_odom(self, data: bytes) -> None:
-        stamp_ns = cdr_stamp_ns(data)
+        stamp_ns = codec.leading_stamp_ns(data)
         if stamp_ns is None:
             self.get_logger().error('ignoring a malformed odom message', throttle_duration_sec=THROTTLE)
             return
@@ -235,7 +223,7 @@ class ControllerNode(Node):
         try:
             command = self.loop.command(codec.planar_state(deserialize_message(data, Odometry)))
         except (ValueError, ModelError, np.linalg.LinAlgError) as error:
-            self.get_logger().error(f'no command at t = {cdr_stamp_ns(data) * 1e-9:.3f} s: {error}',
+            self.get_logger().error(f'no command at t = {codec.leading_stamp_ns(data) * 1e-9:.3f} s: {error}',
                                     throttle_duration_sec=THROTTLE)
             return
         if command.clamped:

@@ -32,12 +32,11 @@ Design (see docs/bags.md):
 from __future__ import annotations
 
 import importlib
-import struct
 import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
 
 NODE_NAME = topics.NODE_RECORDER
@@ -51,14 +50,6 @@ SPIN_PERIOD = 0.05
 """Longest wait of the executor (s). The EventsExecutor cannot be woken from another thread (its
 wake() does not end spin_once, guard conditions are not supported), so a signal is handled at the
 next callback or after this. Either way before any message taken after it is written."""
-
-
-def leading_stamp_ns(data: bytes) -> int:
-    """The time (ns) a serialized message starts with: rosgraph_msgs/Clock, or any message whose
-    first field is a std_msgs/Header. CDR: 4-byte encapsulation (byte 1: 1 = little endian), then
-    int32 sec, uint32 nanosec."""
-    sec, nanosec = struct.unpack_from('<iI' if data[1] else '>iI', data, 4)
-    return sec * 1_000_000_000 + nanosec
 
 
 def message_class(type_name: str) -> Any:
@@ -168,8 +159,8 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self.writer.write(connection, received_ns, data)
             self.last_log_ns = received_ns
             self.received += 1
-            if name in self._stamped and len(data) >= 12:  # one parse feeds the keeper and the progress
-                stamp = leading_stamp_ns(data)
+            stamp = codec.leading_stamp_ns(data) if name in self._stamped else None
+            if stamp is not None:  # one parse feeds the keeper and the progress
                 if name in self._keeper_stamped:
                     self.keeper.stamp(name, stamp)
                 if self._progress_pub is not None:
