@@ -131,14 +131,17 @@ class Monitor:
                                       qos_profile(topics.RECORD_PROGRESS))
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
                                       qos_profile(topics.DIAGNOSTICS))
+        # raw: only the stamp is read, from the CDR bytes (100 poses per simulated second)
         self.node.create_subscription(Odometry, topics.REFERENCE.name, self._on_reference,
-                                      qos_profile(topics.REFERENCE))
+                                      qos_profile(topics.REFERENCE), raw=True)
 
     def _on_progress(self, msg) -> None:
         self.recorded = max(self.recorded, codec.seconds(msg.clock))
 
-    def _on_reference(self, msg) -> None:
-        self.reference_time = max(self.reference_time, codec.seconds(msg.header.stamp))
+    def _on_reference(self, data: bytes) -> None:
+        stamp_ns = codec.leading_stamp_ns(data)
+        if stamp_ns is not None:
+            self.reference_time = max(self.reference_time, stamp_ns * 1e-9)
 
     def _on_diagnostics(self, msg) -> None:
         for status in msg.status:
