@@ -63,7 +63,9 @@ setup(
     ],
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
-        'test': ['pytest', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy'],
+        'foxglove': ['foxglove-sdk'],
+        'test': ['pytest', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy', 'foxglove-sdk',
+                 'websockets'],
     },
     # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
     tests_require=['pytest'],
@@ -80,6 +82,7 @@ setup(
             'constraint_config_node = wallbot_sim.nodes.constraint_config:main',
             'recorder_node = wallbot_sim.nodes.recorder:main',
             'tracking_controller_node = wallbot_sim.nodes.controller:main',
+            'viewer_node = wallbot_sim.nodes.viewer:main',
         ],
     },
 )

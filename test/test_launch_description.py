@@ -99,6 +99,14 @@ def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_pa
     assert nodes[0]['parameters'][0]['output'] == str(tmp_path / 'bag')
 
 
+def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(launch_file):
+    nodes = launched_nodes(launch_file, viewer='true')
+    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'), viewer=True)
+    assert nodes == as_launched(expected)
+    assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'viewer_node',
+                                                'dynamics_node']
+
+
 def test_every_node_module_has_its_console_script():
     setup = (LAUNCH_FILE.parents[1] / 'setup.py').read_text()
     for module, executable in EXECUTABLES.items():

@@ -62,6 +62,13 @@ the dynamics places it there at its next step boundary."""
 ROBOT_DESCRIPTION = Topic('robot_description', 'std_msgs/msg/String', Durability.TRANSIENT_LOCAL, depth=1)
 """The robot's URDF, generated from the robot file, published once by constraint_config; transient-local
 like robot_state_publisher's, so RViz, Foxglove or a controller_manager started later receive it."""
+MARKERS = Topic('markers', 'visualization_msgs/msg/MarkerArray', Durability.TRANSIENT_LOCAL, depth=1)
+"""Published by the viewer at its frame rate (never per step): the robot, its paths and contact
+forces, all in the odometry's frame (``wall``), so RViz or Foxglove needs no tf tree (wallbot_sim/view.py
+says what each marker shows). Transient-local, so a viewer opened later gets the latest frame."""
+TF = Topic('/tf', 'tf2_msgs/msg/TFMessage', depth=100)
+"""Published by the viewer at its frame rate where tf2_msgs is installed: ``wall`` -> ``base_link``
+(the odometry's frames) and ``base_link`` -> each wheel link (``<wheel joint>_link``, as the URDF names them)."""
 RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a recorder: the newest stamp up to which it has written /clock and every message
 of STEP_STAMPED.
@@ -98,6 +105,7 @@ NODE_DYNAMICS = 'dynamics'
 NODE_TRAJECTORY = 'trajectory'
 NODE_CONSTRAINT_CONFIG = 'constraint_config'
 NODE_RECORDER = 'recorder'
+NODE_VIEWER = 'viewer'
 
 
 @dataclass(frozen=True)

@@ -12,17 +12,20 @@ from pathlib import Path
 from wallbot_msgs_py import topics
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.graph import NodeSpec
+from wallbot_sim.live_view import DEFAULT_HOST
 from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
 
 RECORDER = 'recorder'
 CONTROLLER = 'controller'
+VIEWER = 'viewer'
 EXECUTABLES = {
     'wallbot_sim.nodes.recorder': 'recorder_node',
     'wallbot_sim.nodes.constraint_config': 'constraint_config_node',
     'wallbot_sim.nodes.trajectory': 'trajectory_node',
     'wallbot_sim.nodes.controller': 'tracking_controller_node',
     'wallbot_sim.nodes.dynamics': 'dynamics_node',
+    'wallbot_sim.nodes.viewer': 'viewer_node',
 }
 """Each node module's console script (setup.py entry points): what ``ros2 run`` and launch start."""
 CONTROL_STEPS = 5
@@ -38,7 +41,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    real_time_factor: float = 1.0, bag: Path | None = None,
                    controller_mass_scale: float | None = None, realtime_priority: int = 0,
                    robot_file: Path | None = None, contact_model: str = 'ideal',
-                   adhesion_force: float | None = None) -> list[NodeSpec]:
+                   adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
+                   foxglove_host: str = DEFAULT_HOST) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -46,7 +50,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     set (no trajectory task); the controller starts before the dynamics, which waits for it
     (``wait_for_command``) so the loop is closed from t = 0. ``robot_file`` (the dynamics' model,
     constraint_config's gains and robot_description) None: the installed robot file;
-    ``adhesion_force`` None: the robot file's.
+    ``adhesion_force`` None: the robot file's. ``viewer``: the viewer node (markers, tf), started
+    before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
+    it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -75,6 +81,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
             'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None}))
+    if viewer or foxglove_port:
+        specs.append(NodeSpec(VIEWER, 'wallbot_sim.nodes.viewer', {
+            **robot, **({'foxglove_port': int(foxglove_port), 'foxglove_host': foxglove_host} if foxglove_port else {})}))
     specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),

@@ -28,7 +28,8 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
                                 claim_domain_id)
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
-from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
+from wallbot_sim.graph_description import CONTROLLER, RECORDER, VIEWER, GraphDescriptionError, describe_graph
+from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
@@ -36,9 +37,11 @@ from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 ALL_STRUCTURAL = ','.join(STRUCTURAL)
-OPTIONAL = (CONTROLLER,)
-"""Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
-torque after command_timeout, which is a run worth recording (and a test of that fallback)."""
+OPTIONAL = {CONTROLLER: 'the dynamics falls back to zero torque after command_timeout',
+            VIEWER: 'no markers or live view from now on'}
+"""Nodes whose exit does not end the run, and what follows: without its controller the dynamics falls
+back to zero torque after command_timeout, which is a run worth recording (and a test of that
+fallback); the viewer only shows the run."""
 START_TIMEOUT = 30.0
 """Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
 FINAL_WAIT = 10.0
@@ -59,6 +62,17 @@ def domain_id(text: str) -> int:
     if value is None or not MIN_DOMAIN_ID <= value <= MAX_DOMAIN_ID:
         raise argparse.ArgumentTypeError(f'must be an integer in {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID} (0 is the domain '
                                          f'of every ROS process nobody configured), got {text!r}')
+    return value
+
+
+def port(text: str) -> int:
+    """An argparse ``type``: a TCP port, 1..65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f'must be a TCP port, 1..65535, got {text!r}')
     return value
 
 
@@ -87,6 +101,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='closed loop: driven mode (no trajectory task; '
                              f'{", ".join(DRIVEN.active_names())}) with '
                              'tracking_controller_node commanding the wheel torques; wheel_torque_cmd is recorded')
+    parser.add_argument('--markers', action=argparse.BooleanOptionalAction, default=False,
+                        help='start viewer_node: markers (and /tf where tf2_msgs is installed) for RViz or Foxglove, '
+                             'at 30 frames per second (default: off)')
+    parser.add_argument('--foxglove', type=port, nargs='?', const=DEFAULT_PORT, metavar='PORT',
+                        help=f'serve the live topics over the Foxglove WebSocket protocol on PORT (default '
+                             f'{DEFAULT_PORT}; needs the foxglove-sdk package; implies --markers)')
+    parser.add_argument('--foxglove-host', default=DEFAULT_HOST,
+                        help=f'address the Foxglove server binds to (default {DEFAULT_HOST}: this machine only)')
     parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
                              '(model mismatch; default 1.0)')
@@ -179,7 +201,7 @@ def check_nodes(graph: Graph, reported: set[str]) -> None:
         if name not in reported:
             reported.add(name)
             print(f'\nwallbot-sim run: node {name} exited with status {status} (its log: {graph.log(name)}); '
-                  'the dynamics falls back to zero torque after command_timeout, the run goes on', file=sys.stderr)
+                  f'{OPTIONAL[name]}, the run goes on', file=sys.stderr)
 
 
 def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
@@ -252,7 +274,9 @@ def main(args: argparse.Namespace) -> int:
         try:
             specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
                                    controller_mass_scale=mass_scale, robot_file=robot_file,
-                                   contact_model=args.contact, adhesion_force=args.adhesion_force)
+                                   contact_model=args.contact, adhesion_force=args.adhesion_force,
+                                   viewer=args.markers, foxglove_port=args.foxglove or 0,
+                                   foxglove_host=args.foxglove_host)
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
         print(f'{claim.export_line()}  # in another terminal, to see this run with ros2 topic, RViz, ...', flush=True)

@@ -1,0 +1,174 @@
+"""What the viewer draws (wallbot_sim.view) and how it is encoded (wallbot_msgs_py.view_cdr), without DDS.
+
+The encodings are checked against an independent encoder (rosbags' Jazzy typestore), the geometry
+against the URDF read by an independent parser (yourdfpy) and rotations against scipy's.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from wallbot_msgs_py import bagio, topics, view_cdr
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.urdf import robot_urdf, wheel_link
+from wallbot_sim.view import FORCE_SCALE, TRAIL_SPACING, Pose, Scene, margin_color
+
+yourdfpy = pytest.importorskip('yourdfpy')
+MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
+TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
+WALL, BASE = topics.WALL_FRAME, topics.BASE_FRAME
+
+
+@pytest.fixture(scope='module')
+def params():
+    return load_robot_parameters()
+
+
+def pose(t: float, x: float, y: float, theta: float) -> Pose:
+    return Pose(round(t * 1e9), WALL, BASE, x, y, theta)
+
+
+def driven_scene(params, theta: float = 0.7) -> Scene:
+    scene = Scene(params)
+    scene.update_pose(pose(1.25, 0.3, -0.4, theta))
+    scene.update_wheels([0.1, -2.0, 3.5, 7.0])
+    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.3, 0.5, 0.2], [False, False, False])
+    scene.update_drive([12.0, -8.0, 30.0])
+    scene.set_reference_path([(math.cos(a), math.sin(a)) for a in np.linspace(0, 2 * math.pi, 50)])
+    return scene
+
+
+def rotation(q) -> Rotation:
+    return Rotation.from_quat(q)  # scipy's order is (x, y, z, w) too
+
+
+# --- encodings --------------------------------------------------------------------------------------
+def test_a_marker_array_is_what_rosbags_serializes(params):
+    scene = driven_scene(params)
+    specs = scene.markers()
+    data = view_cdr.marker_array(1_250_000_000, WALL, specs)
+    msg = bagio.deserialize(data, MARKER_ARRAY)
+    assert bagio.serialize(msg, MARKER_ARRAY) == data
+    assert len(msg.markers) == len(specs)
+    for marker, spec in zip(msg.markers, specs):
+        assert (marker.header.frame_id, marker.header.stamp.sec, marker.header.stamp.nanosec) == (WALL, 1, 250_000_000)
+        assert (marker.ns, marker.id, marker.type, marker.action) == (spec.ns, spec.id, spec.type, spec.action)
+        p, q, s = marker.pose.position, marker.pose.orientation, marker.scale
+        assert (p.x, p.y, p.z, q.x, q.y, q.z, q.w) == (*spec.position, *spec.orientation)
+        assert (s.x, s.y, s.z) == spec.scale
+        assert (marker.color.r, marker.color.g, marker.color.b, marker.color.a) == pytest.approx(spec.color, abs=1e-7)
+        assert [(pt.x, pt.y, pt.z) for pt in marker.points] == [tuple(row) for row in spec.points]
+
+
+def test_a_tf_message_is_what_rosbags_serializes(params):
+    scene = driven_scene(params)
+    data = view_cdr.tf_message(1_250_000_000, scene.transforms())
+    msg = bagio.deserialize(data, TF_MESSAGE)
+    assert bagio.serialize(msg, TF_MESSAGE) == data
+    assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == (
+        [(WALL, BASE)] + [(BASE, wheel_link(joint)) for joint in topics.WHEEL_JOINTS])
+
+
+# --- geometry ---------------------------------------------------------------------------------------
+def test_the_transforms_are_the_urdfs_kinematics(params):
+    """base_link in the wall from the odometry pose; each wheel link from the URDF's joint origin
+    and axis at the wheel's spin angle, as robot_state_publisher would compute it."""
+    scene = driven_scene(params)
+    model = yourdfpy.URDF.load(io.StringIO(robot_urdf(params)), build_scene_graph=True, load_meshes=False)
+    model.update_cfg(dict(zip(topics.WHEEL_JOINTS, scene.wheel_angles)))
+    transforms = scene.transforms()
+    base = transforms[0]
+    assert base.translation == (0.3, -0.4, 0.0)
+    assert rotation(base.rotation).as_euler('xyz') == pytest.approx([0.0, 0.0, 0.7], abs=1e-12)
+    for transform in transforms[1:]:
+        expected = model.get_transform(transform.child, BASE)
+        matrix = np.eye(4)
+        matrix[:3, :3] = rotation(transform.rotation).as_matrix()
+        matrix[:3, 3] = transform.translation
+        assert matrix == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_wheels_are_drawn_where_the_transforms_put_them_turned_by_their_spin(params):
+    scene = driven_scene(params)
+    markers = {(m.ns, m.id): m for m in scene.markers()}
+    heading = Rotation.from_euler('z', 0.7)
+    for wheel, (joint, origin) in enumerate(zip(topics.WHEEL_JOINTS, scene.wheel_origins)):
+        centre = np.array([0.3, -0.4, 0.0]) + heading.apply(origin)
+        spin = Rotation.from_euler('y', scene.wheel_angles[wheel])
+        mark, body = markers['wheel_marks', wheel], markers['wheels', wheel]
+        assert mark.position == pytest.approx(centre, abs=1e-12) and body.position == pytest.approx(centre, abs=1e-12)
+        # the mark's long side (its x) is the wheel's x turned by the spin angle about the axle
+        assert rotation(mark.orientation).apply([1, 0, 0]) == pytest.approx((heading * spin).apply([1, 0, 0]), abs=1e-12)
+        # the wheel cylinder's axis (its z) lies along the axle, base_link's y
+        assert abs(rotation(body.orientation).apply([0, 0, 1]) @ heading.apply([0, 1, 0])) == pytest.approx(1.0)
+    chassis = markers['chassis', 0]
+    assert chassis.position == pytest.approx((0.3, -0.4, params.wheel_radius))
+    assert chassis.scale[:2] == pytest.approx((2 * params.half_wheelbase, 2 * params.half_track - scene.width))
+
+
+def test_the_contact_arrows_add_up_to_the_channel_forces_and_show_slip(params):
+    """The four wheels' arrows sum to the traction of both sides and the lateral force, turned into
+    the wall frame; each side's traction is shared by its wheels' normal loads."""
+    scene = driven_scene(params)
+    arrows = [m for m in scene.markers() if m.ns == 'contact_forces']
+    vectors = np.array([(a.points[1] - a.points[0])[:2] / FORCE_SCALE for a in arrows])
+    heading = Rotation.from_euler('z', 0.7)
+    assert vectors.sum(axis=0) == pytest.approx(heading.apply([12.0 - 8.0, 30.0, 0.0])[:2], abs=1e-9)
+    front_left = heading.inv().apply([*vectors[0], 0.0])
+    assert front_left[0] == pytest.approx(12.0 * 60.0 / 100.0) and front_left[1] == pytest.approx(30.0 * 60.0 / 200.0)
+    for arrow, origin in zip(arrows, scene.wheel_origins):  # from the contact point on the wall
+        assert arrow.points[0] == pytest.approx([0.3, -0.4, 0.0] + heading.apply([origin[0], origin[1], 0.0]))
+    assert {a.color for a in arrows} == {(0.1, 0.8, 0.1, 1.0)}
+
+    scene.update_contact([60.0, 40.0, 55.0, 45.0], [1.0, 0.5, 0.2], [True, False, False])  # the left side slips
+    colors = [m.color for m in scene.markers() if m.ns == 'contact_forces']
+    assert colors[0] == colors[1] != colors[2] == colors[3] and colors[0][0] > colors[0][1]
+    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.1, 0.1, 1.0], [False, False, True])  # lateral: every wheel
+    assert all(m.color[0] > m.color[1] for m in scene.markers() if m.ns == 'contact_forces')
+
+
+def test_the_chassis_colour_is_the_adhesion_margin(params):
+    scene = driven_scene(params)
+    chassis = next(m for m in scene.markers() if m.ns == 'chassis')
+    assert scene.margin() == pytest.approx(0.5) and chassis.color == margin_color(0.5) == (1.0, 1.0, 0.0, 1.0)
+    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.0, 0.05, 0.0], [False] * 3)
+    assert next(m for m in scene.markers() if m.ns == 'chassis').color == margin_color(0.95)
+    assert margin_color(0.95)[1] == 1.0 and margin_color(0.95)[0] == pytest.approx(0.1)
+    scene.update_contact([60.0, -1.0, 55.0, 45.0], [0.0, 0.0, 0.0], [False] * 3)  # a wheel off the wall
+    assert scene.margin() == 0.0 and next(m for m in scene.markers() if m.ns == 'chassis').color == (1.0, 0.0, 0.0, 1.0)
+    assert margin_color(-0.3) == (1.0, 0.0, 0.0, 1.0)
+
+
+def test_the_travelled_path_is_bounded_spaced_and_starts_again_after_a_reset(params):
+    scene = Scene(params, trail_points=100)
+    step = 0.75 * TRAIL_SPACING  # clear of the spacing both ways: every second pose makes a point
+    for k in range(1000):
+        scene.update_pose(pose(k * 1e-3, k * step, 0.0, 0.0))
+    trail = np.array(scene.trail)
+    assert len(trail) == 100 and trail[-1, 0] == pytest.approx(998 * step)
+    assert np.diff(trail[:, 0]) == pytest.approx(np.full(99, 2 * step))
+    travelled = next(m for m in scene.markers() if m.ns == 'travelled')
+    assert travelled.type == view_cdr.LINE_STRIP and travelled.points == pytest.approx(trail)
+
+    scene.update_pose(pose(0.0, 5.0, 5.0, 0.0))  # time went back: the path starts afresh
+    assert list(scene.trail) == [(5.0, 5.0, 0.0)]
+    travelled = next(m for m in scene.markers() if m.ns == 'travelled')
+    assert travelled.action == view_cdr.DELETE  # one point is no line: what was drawn goes
+    scene.set_trail_points(3)
+    for k in range(1, 10):
+        scene.update_pose(pose(k, 5.0 + k, 5.0, 0.0))
+    assert [p[0] for p in scene.trail] == [12.0, 13.0, 14.0]
+
+
+def test_nothing_is_drawn_before_the_first_pose_and_no_arrows_before_contact(params):
+    scene = Scene(params)
+    assert scene.markers() == [] and scene.transforms() == []
+    scene.update_pose(pose(0.0, 0.0, 0.0, 0.0))
+    markers = scene.markers()
+    assert {m.ns for m in markers if m.action == view_cdr.DELETE} == {'reference_path', 'travelled', 'contact_forces'}
+    assert next(m for m in markers if m.ns == 'chassis').color == margin_color(1.0)

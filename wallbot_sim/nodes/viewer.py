@@ -1,0 +1,205 @@
+"""viewer_node (``/wallbot/viewer``): the running simulation as markers, tf and a Foxglove live view.
+
+Publishes ``markers`` (visualization_msgs/MarkerArray, frame ``wall``: RViz2 or Foxglove with that
+fixed frame draws the robot with no tf tree; what each marker shows: ``wallbot_sim.view``) at
+``rate_hz`` frames per wall second, and ``/tf`` (the odometry frame -> ``base_link`` -> the wheel
+links) when tf2_msgs is importable. With ``foxglove_port`` > 0 it also serves the graph's topics
+over the Foxglove WebSocket protocol (``wallbot_sim.live_view``).
+
+It never runs at the dynamics' 1 kHz: the per-step topics are read through a second node that no
+executor spins (``_viewer_inputs``), with subscriptions that keep only the newest message
+(best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
+``rate_hz`` times a second whatever the step rate, and never slows the dynamics down (a best-effort
+reader is never waited for). A frame with no new odometry publishes nothing new; ``markers`` is
+transient-local, so a viewer opened later still gets the latest frame.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+from nav_msgs.msg import Odometry, Path
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from visualization_msgs.msg import MarkerArray
+
+from wallbot_msgs_py import codec, topics, view_cdr
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
+from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.recorder import message_class
+from wallbot_sim.view import Pose, Scene
+
+THROTTLE = 5.0
+"""Seconds between repeated log lines of one kind."""
+RATE_HZ = NumberRange(1.0, 100.0)
+"""Frames per wall second."""
+TRAIL_POINTS = NumberRange(2, 1_000_000)
+NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
+                    durability=DurabilityPolicy.VOLATILE)
+"""The per-step topics: only the newest message matters, and the dynamics never waits for this reader."""
+DRAWN = (topics.ODOM, topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES, topics.REFERENCE_PATH)
+"""Topics the markers are drawn from."""
+RELAYED_ONLY = (topics.CONSTRAINT_WRENCH, topics.REFERENCE, topics.CONSTRAINTS, topics.ROBOT_DESCRIPTION,
+                topics.DIAGNOSTICS)
+"""Topics the Foxglove relay serves beside those drawn (the per-step ones at the frame rate)."""
+EVERY_MESSAGE = (topics.DIAGNOSTICS,)
+"""Relayed topics whose every message is served, not only each frame's newest."""
+
+
+def tf_message_type():
+    """tf2_msgs' TFMessage, or None where it is not installed (the pip wheels lack it)."""
+    try:
+        from tf2_msgs.msg import TFMessage
+    except ImportError:
+        return None
+    return TFMessage
+
+
+class ViewerNode(Node):
+    """Each frame: take the newest inputs, update the scene, publish markers (and tf, and the relay)."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(topics.NODE_VIEWER, namespace=topics.NAMESPACE, **kwargs)
+        self.rate_hz = float(declare(self, 'rate_hz', 30.0, 'frames per wall second', allowed=RATE_HZ))
+        trail_points = declare(self, 'trail_points', 3000, 'points kept of the path travelled (one every '
+                               '2 mm or more)', allowed=TRAIL_POINTS)
+        robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
+                             'the sizes drawn', read_only=True)
+        port = declare(self, 'foxglove_port', 0, 'serve the topics over the Foxglove WebSocket protocol on this '
+                       'port (0 = off)', low=0, high=65535, read_only=True)
+        host = declare(self, 'foxglove_host', DEFAULT_HOST, 'address the Foxglove server binds to', read_only=True)
+        reasons = [RATE_HZ.reason('rate_hz', self.rate_hz), TRAIL_POINTS.reason('trail_points', trail_points)]
+        if any(reasons):
+            raise ValueError('; '.join(r for r in reasons if r))
+        self.scene = Scene(load_robot_parameters(robot_file or None), trail_points)
+        self.relay = None
+        if port:
+            self.relay = FoxgloveRelay(host, port, self.get_namespace(), DRAWN + RELAYED_ONLY + (topics.MARKERS,))
+            self.get_logger().info(f'serving Foxglove on ws://{host}:{self.relay.port}')
+        self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS.name, qos_profile(topics.MARKERS))
+        tf_type = tf_message_type()
+        self.tf_pub = None if tf_type is None else self.create_publisher(tf_type, topics.TF.name,
+                                                                         qos_profile(topics.TF))
+        if self.tf_pub is None:
+            self.get_logger().info('tf2_msgs is not installed: no /tf (the markers need none)')
+
+        self.inputs = Node('_viewer_inputs', namespace=topics.NAMESPACE, context=self.context,
+                           start_parameter_services=False)
+        relayed = RELAYED_ONLY if self.relay is not None else ()
+        self.subscriptions_ = {
+            topic: self.inputs.create_subscription(
+                message_class(topic.type), topic.name, lambda _data: None,
+                NEWEST if topic.durability is topics.Durability.VOLATILE and topic not in EVERY_MESSAGE
+                else qos_profile(topic), raw=True)
+            for topic in DRAWN + relayed}
+        self.last_stamp_ns: int | None = None
+        self.timer = self._frame_timer()
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        self.get_logger().info(f'markers at {self.rate_hz:g} frames per second')
+
+    def _frame_timer(self):
+        return self.create_timer(1.0 / self.rate_hz, self.frame, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # --- a frame ---------------------------------------------------------------------------------
+    def _take(self, topic: topics.Topic) -> list[bytes]:
+        """What arrived on ``topic`` since the last frame (its newest message only, for most topics)."""
+        subscription = self.subscriptions_.get(topic)
+        taken = []
+        while subscription is not None:
+            with subscription.handle:
+                message = subscription.handle.take_message(subscription.msg_type, True)
+            if message is None:
+                break
+            taken.append(message[0])
+        return taken
+
+    def frame(self) -> None:
+        """Take the newest inputs, and publish the markers (and tf) if the robot has moved on."""
+        for topic in self.subscriptions_:
+            for data in self._take(topic):
+                try:
+                    if topic in DRAWN:
+                        self._draw(topic, data)
+                except (ValueError, TypeError, IndexError) as error:  # malformed: never drawn
+                    self.get_logger().error(f'ignoring a {topic.name} message: {error}',
+                                            throttle_duration_sec=THROTTLE)
+                    continue
+                if self.relay is not None:
+                    self.relay.log(topic, data)
+        pose = self.scene.pose
+        if pose is None or pose.stamp_ns == self.last_stamp_ns:
+            return
+        self.last_stamp_ns = pose.stamp_ns
+        markers = view_cdr.marker_array(pose.stamp_ns, pose.frame, self.scene.markers())
+        self.marker_pub.publish(markers)
+        if self.relay is not None:
+            self.relay.log(topics.MARKERS, markers)
+        if self.tf_pub is not None:
+            self.tf_pub.publish(view_cdr.tf_message(pose.stamp_ns, self.scene.transforms()))
+
+    def _draw(self, topic: topics.Topic, data: bytes) -> None:
+        scene = self.scene
+        if topic is topics.ODOM:
+            msg = deserialize_message(data, Odometry)
+            state = codec.planar_state(msg)
+            scene.update_pose(Pose(state.stamp_ns, msg.header.frame_id, msg.child_frame_id, state.x, state.y,
+                                   state.theta))
+        elif topic is topics.REFERENCE_PATH:
+            msg = deserialize_message(data, Path)
+            scene.set_reference_path([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
+        else:
+            msg = deserialize_message(data, JointState)
+            if topic is topics.WHEEL_STATES:
+                scene.update_wheels(_finite(topic, codec.joint_values(msg, topics.WHEEL_JOINTS, 'position')))
+            elif topic is topics.DRIVE_FORCES:
+                scene.update_drive(_finite(topic, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort')))
+            else:
+                channels = topics.DRIVE_JOINTS
+                scene.update_contact(_finite(topic, codec.joint_values(msg, topics.WHEEL_JOINTS, 'effort')),
+                                     _finite(topic, codec.joint_values(msg, channels, 'position')),
+                                     [flag > 0.5 for flag in _finite(topic, codec.joint_values(msg, channels,
+                                                                                                'velocity'))])
+
+    # --- parameters ------------------------------------------------------------------------------
+    def _on_set(self, parameters):
+        changes = param_dict(parameters, ('rate_hz', 'trail_points'))
+        return parameter_result([RATE_HZ.reason(name, value) if name == 'rate_hz' else TRAIL_POINTS.reason(name, value)
+                                 for name, value in changes.items()])
+
+    def _after_set(self, parameters) -> None:
+        changes = param_dict(parameters, ('rate_hz', 'trail_points'))
+        if 'rate_hz' in changes:
+            self.rate_hz = float(changes['rate_hz'])
+            self.destroy_timer(self.timer)
+            self.timer = self._frame_timer()
+        if 'trail_points' in changes:
+            self.scene.set_trail_points(int(changes['trail_points']))
+        if changes:
+            self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def close(self) -> None:
+        self.inputs.destroy_node()
+        if self.relay is not None:
+            self.relay.close()
+
+
+def _finite(topic: topics.Topic, values: tuple[float, ...]) -> tuple[float, ...]:
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f'{topic.name}: a value is missing or not finite: {values}')
+    return values
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run(ViewerNode, args))
+
+
+if __name__ == '__main__':
+    main()
