@@ -14,7 +14,10 @@ after the runs: its CPU seconds per simulated second. The machine-independent fo
 ratios: graph CPU per simulated second / model CPU per simulated second (target <= 0.6) and
 factor-0 speed / model speed (target >= 5).
 
-    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3]
+    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--markers]
+
+``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second), so its
+cost shows beside the others'.
 """
 
 from __future__ import annotations
@@ -77,21 +80,24 @@ class Run:
         return [(w, d) for w, d in self.diagnostics if d['status'] == 'running']
 
 
-def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float) -> Run:
+def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
+              markers: bool = False) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds, sampling /proc."""
     name = f'run_factor_{factor:g}'
+    nodes = {**NODES, 'viewer': 'wallbot_sim.nodes.viewer'} if markers else NODES
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
-                          '--real-time-factor', factor, '--no-plots', '--out', out], name)
+                          '--real-time-factor', factor, '--no-plots', '--out', out, *(['--markers'] if markers else [])],
+                         name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
     all_up = None
     while run.poll() is None:
         time.sleep(SAMPLE_PERIOD)
-        if len(pids) < len(NODES):
+        if len(pids) < len(nodes):
             pids = {node: pid for pid, cmd in child_processes(run.pid).items()
-                    for node, module in NODES.items() if module in cmd.split()}
-            if len(pids) == len(NODES):
+                    for node, module in nodes.items() if module in cmd.split()}
+            if len(pids) == len(nodes):
                 pids['run'] = run.pid
                 all_up = time.monotonic()
             continue
@@ -126,6 +132,7 @@ def main() -> int:
                         help='wall seconds after every node is up before CPU is counted (default 3)')
     parser.add_argument('--model-seconds', type=float, default=2.0,
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
+    parser.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
     args = parser.parse_args()
 
     claim = claim_domain_id()
@@ -133,8 +140,8 @@ def main() -> int:
     launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
-        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup)
-        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup)
+        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.markers)
+        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.markers)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))

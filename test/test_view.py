@@ -149,20 +149,23 @@ def test_the_travelled_path_is_bounded_spaced_and_starts_again_after_a_reset(par
     step = 0.75 * TRAIL_SPACING  # clear of the spacing both ways: every second pose makes a point
     for k in range(1000):
         scene.update_pose(pose(k * 1e-3, k * step, 0.0, 0.0))
-    trail = np.array(scene.trail)
+    trail = scene.trail.points()
     assert len(trail) == 100 and trail[-1, 0] == pytest.approx(998 * step)
     assert np.diff(trail[:, 0]) == pytest.approx(np.full(99, 2 * step))
     travelled = next(m for m in scene.markers() if m.ns == 'travelled')
     assert travelled.type == view_cdr.LINE_STRIP and travelled.points == pytest.approx(trail)
 
     scene.update_pose(pose(0.0, 5.0, 5.0, 0.0))  # time went back: the path starts afresh
-    assert list(scene.trail) == [(5.0, 5.0, 0.0)]
+    assert scene.trail.points().tolist() == [[5.0, 5.0, 0.0]]
     travelled = next(m for m in scene.markers() if m.ns == 'travelled')
     assert travelled.action == view_cdr.DELETE  # one point is no line: what was drawn goes
     scene.set_trail_points(3)
     for k in range(1, 10):
         scene.update_pose(pose(k, 5.0 + k, 5.0, 0.0))
-    assert [p[0] for p in scene.trail] == [12.0, 13.0, 14.0]
+    assert scene.trail.points()[:, 0].tolist() == [12.0, 13.0, 14.0]
+    scene.set_trail_points(5)  # keeps what it has
+    scene.update_pose(pose(10, 15.0, 5.0, 0.0))
+    assert scene.trail.points()[:, 0].tolist() == [12.0, 13.0, 14.0, 15.0]
 
 
 def test_nothing_is_drawn_before_the_first_pose_and_no_arrows_before_contact(params):

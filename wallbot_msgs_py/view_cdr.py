@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from wallbot_msgs_py.step_cdr import NS_PER_S, _Template
+from wallbot_msgs_py.step_cdr import ENCAPSULATION, NS_PER_S, _Template
 
 ARROW, CUBE, CYLINDER, LINE_STRIP = 0, 1, 3, 4
 """visualization_msgs/Marker types used here."""
@@ -106,19 +106,29 @@ def marker_array(stamp_ns: int, frame: str, markers: Sequence[MarkerSpec]) -> by
         out.float32s(marker.color)
         out.time(0)  # lifetime 0: until replaced
         out.boolean(False)  # frame_locked
-        out.point_sequence(marker.points)
-        out.uint32(0)  # colors
-        out.string('')  # texture_resource
-        out.stamped_header(0, '')  # texture: sensor_msgs/CompressedImage, empty
-        out.string('')
-        out.uint32(0)
-        out.uint32(0)  # uv_coordinates
-        out.string('')  # text
-        out.string('')  # mesh_resource
-        out.string('')  # mesh_file: filename, data
-        out.uint32(0)
-        out.boolean(False)  # mesh_use_embedded_materials
+        out.point_sequence(marker.points)  # ends 4-aligned: the empty rest is always the same bytes
+        out.data += _EMPTY_MARKER_END
     return out.bytes()
+
+
+def _empty_marker_end() -> bytes:
+    """A Marker's fields after ``points``, all empty, from a 4-aligned offset (none needs more)."""
+    out = _Writer()
+    out.uint32(0)  # colors
+    out.string('')  # texture_resource
+    out.stamped_header(0, '')  # texture: sensor_msgs/CompressedImage, empty
+    out.string('')
+    out.uint32(0)
+    out.uint32(0)  # uv_coordinates
+    out.string('')  # text
+    out.string('')  # mesh_resource
+    out.string('')  # mesh_file: filename, data
+    out.uint32(0)
+    out.boolean(False)  # mesh_use_embedded_materials
+    return out.bytes()[len(ENCAPSULATION):]
+
+
+_EMPTY_MARKER_END = _empty_marker_end()
 
 
 def tf_message(stamp_ns: int, transforms: Sequence[TransformSpec]) -> bytes:

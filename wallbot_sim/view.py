@@ -23,7 +23,6 @@ Markers, all in the odometry's frame (``wall``), so a viewer needs no tf tree:
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -101,6 +100,43 @@ class Pose:
         return (c * vector[0] - s * vector[1], s * vector[0] + c * vector[1])
 
 
+class Trail:
+    """The newest ``capacity`` points of a path, kept in a ring buffer (drawn every frame without
+    converting thousands of Python objects)."""
+
+    def __init__(self, capacity: int) -> None:
+        self.buffer = np.zeros((capacity, 3))
+        self.count = 0
+        self.next = 0
+
+    def __len__(self) -> int:
+        return self.count
+
+    def last(self) -> np.ndarray:
+        return self.buffer[self.next - 1]
+
+    def append(self, point: Sequence[float]) -> None:
+        self.buffer[self.next] = point
+        self.next = (self.next + 1) % len(self.buffer)
+        self.count = min(self.count + 1, len(self.buffer))
+
+    def clear(self) -> None:
+        self.count = self.next = 0
+
+    def points(self) -> np.ndarray:
+        """The points, oldest first (count x 3)."""
+        if self.count < len(self.buffer):
+            return self.buffer[:self.count]
+        return np.concatenate((self.buffer[self.next:], self.buffer[:self.next]))
+
+    def resized(self, capacity: int) -> Trail:
+        """A trail of ``capacity`` holding the newest of these points."""
+        trail = Trail(capacity)
+        for point in self.points()[-capacity:]:
+            trail.append(point)
+        return trail
+
+
 class Scene:
     """The newest state of the graph as the viewer knows it; markers and transforms of it."""
 
@@ -118,20 +154,19 @@ class Scene:
         self.slipping: tuple[bool, ...] = (False, False, False)
         self.drive: tuple[float, float, float] | None = None
         self.reference_path = np.zeros((0, 3))
-        self.trail: deque[tuple[float, float, float]] = deque(maxlen=trail_points)
+        self.trail = Trail(trail_points)
 
     # --- inputs ----------------------------------------------------------------------------------
     def set_trail_points(self, count: int) -> None:
-        self.trail = deque(self.trail, maxlen=count)
+        self.trail = self.trail.resized(count)
 
     def update_pose(self, pose: Pose) -> None:
         """A new odometry pose; time going back (a reset) starts the travelled path afresh."""
         if self.pose is not None and pose.stamp_ns < self.pose.stamp_ns:
             self.trail.clear()
         self.pose = pose
-        point = (pose.x, pose.y, 0.0)
-        if not self.trail or math.hypot(point[0] - self.trail[-1][0], point[1] - self.trail[-1][1]) >= TRAIL_SPACING:
-            self.trail.append(point)
+        if not self.trail or math.hypot(pose.x - self.trail.last()[0], pose.y - self.trail.last()[1]) >= TRAIL_SPACING:
+            self.trail.append((pose.x, pose.y, 0.0))
 
     def update_wheels(self, angles: Sequence[float]) -> None:
         """Spin angles (rad) of the wheels, in topics.WHEEL_JOINTS order."""
@@ -197,7 +232,7 @@ class Scene:
             markers.append(MarkerSpec('wheel_marks', wheel, CUBE, centre, rotation,
                                       (2 * self.radius, 1.05 * self.width, 0.2 * self.radius), MARK_COLOR))
         markers.append(self._line('reference_path', self.reference_path, REFERENCE_COLOR))
-        markers.append(self._line('travelled', np.array(self.trail, dtype=float).reshape(-1, 3), TRAVELLED_COLOR))
+        markers.append(self._line('travelled', self.trail.points(), TRAVELLED_COLOR))
         forces = self.contact_forces()
         for wheel, origin in enumerate(self.wheel_origins):
             if forces is None:

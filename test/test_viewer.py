@@ -1,0 +1,167 @@
+"""viewer_node in the running graph: markers over DDS, the live topics over the Foxglove WebSocket
+protocol to a plain WebSocket client, its parameters and its one-line errors."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import socket
+import struct
+import sys
+import time
+
+import pytest
+import rclpy
+from visualization_msgs.msg import MarkerArray
+
+from cli_helpers import WALLBOT
+from graph_helpers import Graph
+from test_cli_run import wait_for_output
+from wallbot_msgs_py import bagio, codec, topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.config import load_scenario
+from wallbot_sim.domain import claim_domain_id
+
+sync_client = pytest.importorskip('websockets.sync.client')
+pytest.importorskip('foxglove')
+SUBPROTOCOL = 'foxglove.sdk.v1'
+"""What foxglove-sdk's server speaks (the Foxglove WebSocket protocol, renamed from foxglove.websocket.v1)."""
+MESSAGE_DATA = 0x01
+"""Opcode of a binary server message carrying a message: subscription id (uint32), receive time
+(uint64), the message's bytes."""
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def connect(port: int, process_runner, timeout: float = 60.0):
+    """A Foxglove WebSocket connection to the run's viewer, once it listens (the run must keep running)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return sync_client.connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], open_timeout=5)
+        except OSError:
+            assert process_runner.processes['run'].poll() is None, process_runner.output('run')
+            assert time.monotonic() < deadline, f'nothing listens on {port}: ' + process_runner.output('run')
+            time.sleep(0.2)
+
+
+def channel_of(connection, topic: str, timeout: float = 30.0) -> dict:
+    """The advertised channel of ``topic`` (its id, encoding and schema)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        message = connection.recv(timeout=timeout)
+        if isinstance(message, str):
+            reply = json.loads(message)
+            if reply.get('op') == 'advertise':
+                for channel in reply['channels']:
+                    if channel['topic'] == topic:
+                        return channel
+    pytest.fail(f'{topic} was not advertised')
+
+
+def markers_received(domain_id: int, timeout: float = 60.0) -> MarkerArray:
+    """The first MarkerArray on /wallbot/markers in ``domain_id`` that holds the travelled path."""
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = rclpy.create_node('markers_probe', context=context)
+    received: list[MarkerArray] = []
+    node.create_subscription(MarkerArray, topics.MARKERS.resolve(), received.append, qos_profile(topics.MARKERS))
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+            drawn = [msg for msg in received
+                     if any(m.ns == 'travelled' and m.action == m.ADD for m in msg.markers)]
+            if drawn:
+                return drawn[-1]
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    pytest.fail(f'no markers with a travelled path within {timeout:g} s')
+
+
+def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, process_runner):
+    """``run --foxglove PORT``: a WebSocket client subscribes odom and decodes the robot on its
+    circle; a ROS subscriber in the run's domain receives markers in frame wall."""
+    with claim_domain_id() as free:
+        chosen = free.domain_id
+    port = free_port()
+    run = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '0', '--domain-id', chosen,
+                                '--foxglove', port, '--out', tmp_path / 'run', '--no-plots'], 'run')
+    wait_for_output(process_runner, 'run', r't = +[0-9.]+ s \(until stopped\)', 120)
+    with connect(port, process_runner) as connection:
+        odom = channel_of(connection, topics.ODOM.resolve())
+        assert (odom['encoding'], odom['schemaName'], odom['schemaEncoding']) == ('cdr', topics.ODOM.type, 'ros2msg')
+        assert 'MSG: geometry_msgs/Pose' in odom['schema']
+        connection.send(json.dumps({'op': 'subscribe', 'subscriptions': [{'id': 7, 'channelId': odom['id']}]}))
+        states = []
+        while len(states) < 10:
+            message = connection.recv(timeout=30)
+            if isinstance(message, bytes) and message[0] == MESSAGE_DATA:
+                subscription, _receive_ns = struct.unpack_from('<IQ', message, 1)
+                assert subscription == 7
+                states.append(codec.planar_state(bagio.deserialize(message[13:], topics.ODOM.type)))
+    stamps = [state.stamp_ns for state in states]
+    assert stamps == sorted(set(stamps))  # the newest odometry each frame, never the same twice
+    circle = load_scenario('circle').reference
+    for state in states[1:]:  # starting 0.2 m inside the circle, turning onto it
+        distance = math.hypot(state.x - circle.center[0], state.y - circle.center[1])
+        assert circle.radius - 0.21 < distance < circle.radius + 0.01
+
+    markers = markers_received(chosen)
+    assert {m.header.frame_id for m in markers.markers} == {topics.WALL_FRAME}
+    drawn = sorted((m.ns, m.id) for m in markers.markers if m.action == m.ADD)
+    assert drawn == sorted([('chassis', 0), ('reference_path', 0), ('travelled', 0)]
+                           + [(ns, i) for ns in ('wheels', 'wheel_marks', 'contact_forces') for i in range(4)])
+
+    run.send_signal(signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    viewer = (tmp_path / 'run' / 'logs' / 'viewer.log').read_text()
+    assert 'Traceback' not in viewer and f'serving Foxglove on ws://127.0.0.1:{port}' in viewer
+    assert viewer.count('tf2_msgs') == (0 if _tf2_msgs_installed() else 1)
+
+
+def _tf2_msgs_installed() -> bool:
+    try:
+        import tf2_msgs.msg  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def test_a_refused_rate_leaves_the_viewer_running(process_runner):
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer', '--ros-args', '-p', 'rate_hz:=20.0'],
+                         'viewer')
+    graph = Graph(process_runner)
+    graph.procs['viewer'] = process_runner.processes['viewer']
+    try:
+        graph.wait_for(lambda: graph.node.count_publishers(topics.MARKERS.resolve()) > 0, 30, 'the viewer')
+        for bad in (0.0, 101.0, math.nan):
+            refused, = graph.set_parameters('viewer', rate_hz=bad)
+            assert not refused.successful and 'rate_hz out of range' in refused.reason
+        accepted, = graph.set_parameters('viewer', rate_hz=5.0)
+        assert accepted.successful
+        assert graph.get_parameters('viewer', 'rate_hz') == [5.0]
+    finally:
+        graph.close()
+
+
+def test_a_port_in_use_is_one_line_and_exit_status_1(process_runner):
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        viewer = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer', '--ros-args',
+                                       '-p', f'foxglove_port:={port}'], 'viewer')
+        assert viewer.wait(timeout=60) == 1
+    errors = [line for line in process_runner.output('viewer').splitlines() if line.startswith('error:')]
+    assert len(errors) == 1 and errors[0].startswith(f'error: cannot serve Foxglove on 127.0.0.1:{port}: ')
+    assert 'Traceback' not in process_runner.output('viewer')
