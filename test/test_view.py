@@ -7,13 +7,18 @@ against the URDF read by an independent parser (yourdfpy) and rotations against 
 from __future__ import annotations
 
 import io
+import json
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from cli_helpers import simulate
 from wallbot_msgs_py import bagio, topics, view_cdr
+from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.urdf import robot_urdf, wheel_link
 from wallbot_sim.view import FORCE_SCALE, TRAIL_SPACING, Pose, Scene, margin_color
@@ -175,3 +180,48 @@ def test_nothing_is_drawn_before_the_first_pose_and_no_arrows_before_contact(par
     markers = scene.markers()
     assert {m.ns for m in markers if m.action == view_cdr.DELETE} == {'reference_path', 'travelled', 'contact_forces'}
     assert next(m for m in markers if m.ns == 'chassis').color == margin_color(1.0)
+
+
+# --- the Foxglove layout ------------------------------------------------------------------------------
+LAYOUT = Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'
+PLOTTED = {'F_L': 'drive_left', 'F_R': 'drive_right', 'F_lat': 'lateral',
+           'use_L': 'drive_left', 'use_R': 'drive_right', 'use_lat': 'lateral'}
+"""Each plotted channel's series label and the joint name its array index must have in the message."""
+
+
+def panels(tree) -> list[str]:
+    return [tree] if isinstance(tree, str) else panels(tree['first']) + panels(tree['second'])
+
+
+def field(message, path: str):
+    """A Foxglove message path below the topic (``.a.b[2]``) evaluated on a decoded message."""
+    value = message
+    for name, index in re.findall(r'\.(\w+)(?:\[(\d+)\])?', path):
+        value = getattr(value, name)
+        if index:
+            value = value[int(index)]
+    return value
+
+
+def test_the_foxglove_layout_plots_what_a_recorded_bag_holds(tmp_path):
+    """Every plotted path names a recorded topic and a field its messages have, and every indexed
+    channel is the one its label says (wheel_contact lists the wheels before the channels)."""
+    layout = json.loads(LAYOUT.read_text())
+    assert set(panels(layout['layout'])) == set(layout['configById'])
+    result = simulate('--scenario', 'circle', '--duration', '0.01', '--csv', tmp_path / 'run.csv',
+                      '--bag', tmp_path / 'bag')
+    assert result.returncode == 0, result.stderr
+    first = {}
+    for raw in messages(tmp_path / 'bag'):
+        first.setdefault(raw.topic, bagio.deserialize(raw.data, raw.type))
+    plotted = [(series['value'], series['label']) for panel in layout['configById'].values()
+               for series in panel.get('paths', [])]
+    plotted += [(panel['xAxisPath']['value'], 'x') for panel in layout['configById'].values() if 'xAxisPath' in panel]
+    assert len(plotted) == 9
+    for value, label in plotted:
+        topic, path = re.fullmatch(r'(/[\w/]+?)((?:\.\w+(?:\[\d+\])?)+)', value).groups()
+        assert topic in first, f'{topic} is not recorded'
+        assert isinstance(field(first[topic], path), float), value
+        if label in PLOTTED:
+            index = int(re.search(r'\[(\d+)\]$', path).group(1))
+            assert first[topic].name[index] == PLOTTED[label], value
