@@ -21,12 +21,8 @@ from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
 
-def main() -> int:
-    print(f'domain {os.environ.get("ROS_DOMAIN_ID", "unset")}', flush=True)
-    received: list[Odometry] = []
-    rclpy.init()
-    node = rclpy.create_node('odom_probe')
-    node.create_subscription(Odometry, topics.ODOM.resolve(), received.append, qos_profile(topics.ODOM))
+def spin_until(node, received: list) -> None:
+    """Spin ``node`` until ``received`` holds something, then leave ROS."""
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:
@@ -36,6 +32,15 @@ def main() -> int:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
+
+
+def main() -> int:
+    print(f'domain {os.environ.get("ROS_DOMAIN_ID", "unset")}', flush=True)
+    received: list[Odometry] = []
+    rclpy.init()
+    node = rclpy.create_node('odom_probe')
+    node.create_subscription(Odometry, topics.ODOM.resolve(), received.append, qos_profile(topics.ODOM))
+    spin_until(node, received)
     print(f'odom {codec.seconds(received[0].header.stamp):.3f}', flush=True)
     return 0
 

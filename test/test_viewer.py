@@ -98,6 +98,9 @@ def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, pro
                                 '--foxglove', port, '--out', tmp_path / 'run', '--no-plots'], 'run')
     wait_for_output(process_runner, 'run', r't = +[0-9.]+ s \(until stopped\)', 120)
     with connect(port, process_runner) as connection:
+        info = json.loads(connection.recv(timeout=30))
+        assert info['op'] == 'serverInfo'  # a read-only view: clients can neither publish nor call
+        assert not {'clientPublish', 'services', 'parameters', 'parametersSubscribe'} & set(info['capabilities'])
         odom = channel_of(connection, topics.ODOM.resolve())
         assert (odom['encoding'], odom['schemaName'], odom['schemaEncoding']) == ('cdr', topics.ODOM.type, 'ros2msg')
         assert 'MSG: geometry_msgs/Pose' in odom['schema']

@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import rclpy  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from odom_probe import spin_until  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
@@ -48,15 +48,7 @@ def main() -> int:
 
     node.create_subscription(TFMessage, topics.TF.name, on_tf, qos_profile(topics.TF))
     node.create_timer(0.02, publish)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        while not answer:
-            executor.spin_once(timeout_sec=0.1)
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until(node, answer)
     transforms = answer[0].transforms
     stamp = codec.stamp_nanoseconds(transforms[0].header.stamp)
     print(json.dumps({'odom': sent[stamp], 'wheel_angles': WHEEL_ANGLES, 'transforms': [
