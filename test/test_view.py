@@ -17,7 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from cli_helpers import simulate
-from wallbot_msgs_py import bagio, topics, view_cdr
+from wallbot_msgs_py import bagio, codec, topics, view_cdr
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.urdf import robot_urdf, wheel_link
@@ -77,6 +77,34 @@ def test_a_tf_message_is_what_rosbags_serializes(params):
     assert bagio.serialize(msg, TF_MESSAGE) == data
     assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == (
         [(WALL, BASE)] + [(BASE, wheel_link(joint)) for joint in topics.WHEEL_JOINTS])
+
+
+@pytest.mark.parametrize('little_endian', [True, False])
+def test_the_per_step_messages_are_read_as_rosbags_wrote_them(little_endian):
+    types = bagio.typestore().types
+    odom = bagio.deserialize(codec.odometry(12.345, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3), topics.ODOM.type)
+    data = bagio.typestore().serialize_cdr(odom, topics.ODOM.type, little_endian=little_endian)
+    assert view_cdr.odometry_pose(data) == (12_345_000_000, WALL, BASE, 0.5, -0.25, pytest.approx(2.5, abs=1e-15))
+
+    names = list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
+    joints = types['sensor_msgs/msg/JointState'](
+        header=codec.header(0.002, ''), name=names, position=np.arange(7.0), velocity=np.array([]),
+        effort=np.linspace(-1.0, 1.0, 7))
+    data = bagio.typestore().serialize_cdr(joints, 'sensor_msgs/msg/JointState', little_endian=little_endian)
+    read = view_cdr.joint_arrays(data)
+    assert (read.stamp_ns, read.name, read.position, read.velocity) == (2_000_000, tuple(names), tuple(range(7)), ())
+    assert read.effort == tuple(np.linspace(-1.0, 1.0, 7))
+    assert codec.joint_values(read, topics.DRIVE_JOINTS, 'effort') == tuple(np.linspace(-1.0, 1.0, 7)[4:])
+
+
+def test_short_or_garbled_bytes_are_a_value_error():
+    data = codec.odometry(1.0, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3)
+    # cut short; not CDR; a frame name longer than the message
+    for bad in (data[:40], b'\x07\x07' + data[2:], data[:12] + b'\xff\xff\xff\x7f' + data[16:]):
+        with pytest.raises(ValueError):
+            view_cdr.odometry_pose(bad)
+    with pytest.raises(ValueError):
+        view_cdr.joint_arrays(data[:30])
 
 
 # --- geometry ---------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ import time
 
 import pytest
 import rclpy
+from nav_msgs.msg import Odometry
 from visualization_msgs.msg import MarkerArray
 
 from cli_helpers import WALLBOT
@@ -153,6 +154,35 @@ def test_a_refused_rate_leaves_the_viewer_running(process_runner):
         accepted, = graph.set_parameters('viewer', rate_hz=5.0)
         assert accepted.successful
         assert graph.get_parameters('viewer', 'rate_hz') == [5.0]
+    finally:
+        graph.close()
+
+
+def test_malformed_odometry_is_never_drawn_and_the_viewer_goes_on(process_runner):
+    """Bytes that are no Odometry are logged and dropped; the next good one is drawn."""
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer'], 'viewer')
+    graph = Graph(process_runner)
+    graph.procs['viewer'] = process_runner.processes['viewer']
+    received: list[MarkerArray] = []
+    graph.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), received.append, qos_profile(topics.MARKERS))
+    odom = graph.node.create_publisher(Odometry, topics.ODOM.resolve(), qos_profile(topics.ODOM))
+    try:
+        graph.wait_for(lambda: odom.get_subscription_count() > 0, 30, 'the viewer subscribing odom')
+        def published_until(data: bytes, seen):  # the viewer's reader may match this writer later
+            def check():
+                odom.publish(data)
+                return seen()
+            return check
+
+        good = codec.odometry(2.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0)
+        for bad in (good[:30], good[:12] + b'\xff\xff\xff\x7f' + good[16:]):
+            count = process_runner.output('viewer').count('ignoring a odom message: ')
+            graph.wait_for(published_until(bad, lambda: process_runner.output('viewer').count(
+                'ignoring a odom message: ') > count), 30, 'the malformed odometry logged')
+        assert not received
+        chassis = graph.wait_for(published_until(good, lambda: [m for msg in received for m in msg.markers
+                                                                if m.ns == 'chassis']), 30, 'markers of good odometry')
+        assert (chassis[0].pose.position.x, chassis[0].pose.position.y) == (0.5, 0.25)
     finally:
         graph.close()
 

@@ -10,8 +10,9 @@ It never runs at the dynamics' 1 kHz: the per-step topics are read through a sec
 executor spins (``_viewer_inputs``), with subscriptions that keep only the newest message
 (best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
 ``rate_hz`` times a second whatever the step rate, and never slows the dynamics down (a best-effort
-reader is never waited for). A frame with no new odometry publishes nothing new; ``markers`` is
-transient-local, so a viewer opened later still gets the latest frame.
+reader is never waited for). Nothing is built or published for a frame without new odometry, or
+while nothing subscribes (the scene is kept up to date all the same, so a viewer opened later
+gets the whole path at once).
 """
 
 from __future__ import annotations
@@ -19,12 +20,11 @@ from __future__ import annotations
 import math
 import sys
 
-from nav_msgs.msg import Odometry, Path
+from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import JointState
 from visualization_msgs.msg import MarkerArray
 
 from wallbot_msgs_py import codec, topics, view_cdr
@@ -99,7 +99,8 @@ class ViewerNode(Node):
                 NEWEST if topic.durability is topics.Durability.VOLATILE and topic not in EVERY_MESSAGE
                 else qos_profile(topic), raw=True)
             for topic in DRAWN + relayed}
-        self.last_stamp_ns: int | None = None
+        self.published_ns: int | None = None
+        """The odometry stamp of the newest frame published."""
         self.timer = self._frame_timer()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
@@ -135,37 +136,41 @@ class ViewerNode(Node):
                 if self.relay is not None:
                     self.relay.log(topic, data)
         pose = self.scene.pose
-        if pose is None or pose.stamp_ns == self.last_stamp_ns:
+        if pose is None or pose.stamp_ns == self.published_ns:
             return
-        self.last_stamp_ns = pose.stamp_ns
-        markers = view_cdr.marker_array(pose.stamp_ns, pose.frame, self.scene.markers())
-        self.marker_pub.publish(markers)
-        if self.relay is not None:
-            self.relay.log(topics.MARKERS, markers)
-        if self.tf_pub is not None:
+        markers_wanted = self.relay is not None or self.marker_pub.get_subscription_count() > 0
+        tf_wanted = self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0
+        if not (markers_wanted or tf_wanted):
+            return
+        self.published_ns = pose.stamp_ns
+        if markers_wanted:
+            markers = view_cdr.marker_array(pose.stamp_ns, pose.frame, self.scene.markers())
+            self.marker_pub.publish(markers)
+            if self.relay is not None:
+                self.relay.log(topics.MARKERS, markers)
+        if tf_wanted:
             self.tf_pub.publish(view_cdr.tf_message(pose.stamp_ns, self.scene.transforms()))
 
     def _draw(self, topic: topics.Topic, data: bytes) -> None:
         scene = self.scene
         if topic is topics.ODOM:
-            msg = deserialize_message(data, Odometry)
-            state = codec.planar_state(msg)
-            scene.update_pose(Pose(state.stamp_ns, msg.header.frame_id, msg.child_frame_id, state.x, state.y,
-                                   state.theta))
+            odom = view_cdr.odometry_pose(data)
+            _finite(topic, (odom.x, odom.y, odom.yaw))
+            scene.update_pose(Pose(odom.stamp_ns, odom.frame, odom.child, odom.x, odom.y, odom.yaw))
         elif topic is topics.REFERENCE_PATH:
             msg = deserialize_message(data, Path)
             scene.set_reference_path([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
         else:
-            msg = deserialize_message(data, JointState)
+            joints = view_cdr.joint_arrays(data)
             if topic is topics.WHEEL_STATES:
-                scene.update_wheels(_finite(topic, codec.joint_values(msg, topics.WHEEL_JOINTS, 'position')))
+                scene.update_wheels(_finite(topic, codec.joint_values(joints, topics.WHEEL_JOINTS, 'position')))
             elif topic is topics.DRIVE_FORCES:
-                scene.update_drive(_finite(topic, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort')))
+                scene.update_drive(_finite(topic, codec.joint_values(joints, topics.DRIVE_JOINTS, 'effort')))
             else:
                 channels = topics.DRIVE_JOINTS
-                scene.update_contact(_finite(topic, codec.joint_values(msg, topics.WHEEL_JOINTS, 'effort')),
-                                     _finite(topic, codec.joint_values(msg, channels, 'position')),
-                                     [flag > 0.5 for flag in _finite(topic, codec.joint_values(msg, channels,
+                scene.update_contact(_finite(topic, codec.joint_values(joints, topics.WHEEL_JOINTS, 'effort')),
+                                     _finite(topic, codec.joint_values(joints, channels, 'position')),
+                                     [flag > 0.5 for flag in _finite(topic, codec.joint_values(joints, channels,
                                                                                                 'velocity'))])
 
     # --- parameters ------------------------------------------------------------------------------
