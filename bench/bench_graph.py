@@ -14,10 +14,11 @@ after the runs: its CPU seconds per simulated second. The machine-independent fo
 ratios: graph CPU per simulated second / model CPU per simulated second (target <= 0.6) and
 factor-0 speed / model speed (target >= 5).
 
-    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--markers]
+    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--markers | --foxglove]
 
-``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second), so its
-cost shows beside the others'.
+``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second, nothing
+subscribing its markers), ``--foxglove`` with ``run --foxglove`` (the viewer also serving the live
+view, which builds the markers every frame; no client connected), so its cost shows beside the others'.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import socket
 import sys
 import tempfile
 import time
@@ -81,13 +83,13 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              markers: bool = False) -> Run:
-    """Run the circle scenario at ``factor`` for ``duration`` simulated seconds, sampling /proc."""
+              viewer: list[str]) -> Run:
+    """Run the circle scenario at ``factor`` for ``duration`` simulated seconds, sampling /proc;
+    ``viewer``: the run's options that start the viewer (none: no viewer)."""
     name = f'run_factor_{factor:g}'
-    nodes = {**NODES, 'viewer': 'wallbot_sim.nodes.viewer'} if markers else NODES
+    nodes = {**NODES, 'viewer': 'wallbot_sim.nodes.viewer'} if viewer else NODES
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
-                          '--real-time-factor', factor, '--no-plots', '--out', out, *(['--markers'] if markers else [])],
-                         name)
+                          '--real-time-factor', factor, '--no-plots', '--out', out, *viewer], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -123,6 +125,13 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
     return result
 
 
+def free_port() -> int:
+    """A TCP port nothing listens on now."""
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--duration', type=float, default=60.0, help='simulated seconds at factor 1 (default 60)')
@@ -132,16 +141,19 @@ def main() -> int:
                         help='wall seconds after every node is up before CPU is counted (default 3)')
     parser.add_argument('--model-seconds', type=float, default=2.0,
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
-    parser.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
+    choice = parser.add_mutually_exclusive_group()
+    choice.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
+    choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
     args = parser.parse_args()
+    viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
 
     claim = claim_domain_id()
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_graph_'))
     launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
-        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.markers)
-        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.markers)
+        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, viewer)
+        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, viewer)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
