@@ -20,14 +20,12 @@ from __future__ import annotations
 import math
 import sys
 
-from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import MarkerArray
 
-from wallbot_msgs_py import codec, topics, view_cdr
+from wallbot_msgs_py import bagio, codec, topics, view_cdr
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
@@ -111,16 +109,19 @@ class ViewerNode(Node):
 
     # --- a frame ---------------------------------------------------------------------------------
     def _take(self, topic: topics.Topic) -> list[bytes]:
-        """What arrived on ``topic`` since the last frame (its newest message only, for most topics)."""
-        subscription = self.subscriptions_.get(topic)
+        """What arrived on ``topic`` since the last frame (its newest message only, for most topics).
+
+        Taken from the subscription's handle, as rclpy's own ``wait_for_message`` does: the
+        subscription belongs to a node no executor waits on, so no callback runs per message.
+        """
+        subscription = self.subscriptions_[topic]
         taken = []
-        while subscription is not None:
+        while True:
             with subscription.handle:
                 message = subscription.handle.take_message(subscription.msg_type, True)
             if message is None:
-                break
+                return taken
             taken.append(message[0])
-        return taken
 
     def frame(self) -> None:
         """Take the newest inputs, and publish the markers (and tf) if the robot has moved on."""
@@ -158,7 +159,10 @@ class ViewerNode(Node):
             _finite(topic, (odom.x, odom.y, odom.yaw))
             scene.update_pose(Pose(odom.stamp_ns, odom.frame, odom.child, odom.x, odom.y, odom.yaw))
         elif topic is topics.REFERENCE_PATH:
-            msg = deserialize_message(data, Path)
+            try:
+                msg = bagio.deserialize(data, topic.type)
+            except Exception as error:  # noqa: BLE001 - any decoding failure is a malformed message
+                raise ValueError(f'malformed message ({type(error).__name__}: {error})') from None
             scene.set_reference_path([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
         else:
             joints = view_cdr.joint_arrays(data)
