@@ -10,19 +10,17 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 import shutil
 import subprocess
 import sys
-import sysconfig
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from test_cli_run import wait_for_output
+from cli_helpers import wait_for_output
 from wallbot_msgs_py import topics
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.urdf import robot_urdf, wheel_link

@@ -16,9 +16,8 @@ import rclpy
 from nav_msgs.msg import Odometry
 from visualization_msgs.msg import MarkerArray
 
-from cli_helpers import WALLBOT
+from cli_helpers import WALLBOT, wait_for_output
 from graph_helpers import Graph
-from test_cli_run import wait_for_output
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_scenario
