@@ -119,6 +119,8 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
     (['circle', '--constraints', 'glue'], "unknown constraint 'glue'"),
     (['circle', '--out', '/proc/wallbot'], 'cannot write to output directory /proc/wallbot'),
     (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),
+    (['circle', '--foxglove', '0'], "argument --foxglove: must be a TCP port, 1..65535, got '0'"),
+    (['circle', '--foxglove-host', '0.0.0.0'], '--foxglove-host needs --foxglove'),
 ])
 def test_bad_arguments_give_one_line(args, message):
     result = subprocess.run([*WALLBOT, 'run', *args], capture_output=True, text=True, timeout=60)

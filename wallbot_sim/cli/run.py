@@ -107,8 +107,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--foxglove', type=port, nargs='?', const=DEFAULT_PORT, metavar='PORT',
                         help=f'serve the live topics over the Foxglove WebSocket protocol on PORT (default '
                              f'{DEFAULT_PORT}; needs the foxglove-sdk package; implies --markers)')
-    parser.add_argument('--foxglove-host', default=DEFAULT_HOST,
-                        help=f'address the Foxglove server binds to (default {DEFAULT_HOST}: this machine only)')
+    parser.add_argument('--foxglove-host',
+                        help=f'with --foxglove: the address its server binds to (default {DEFAULT_HOST}: this machine '
+                             'only)')
     parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
                              '(model mismatch; default 1.0)')
@@ -258,6 +259,8 @@ def main(args: argparse.Namespace) -> int:
         selection = DRIVEN
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
+    if args.foxglove_host is not None and args.foxglove is None:
+        raise CliError('--foxglove-host needs --foxglove')
     if args.contact == 'coulomb' and not args.controller:
         raise CliError("--contact coulomb needs --controller: with the trajectory task on, the task's force is a "
                        'virtual actuator, not friction')
@@ -276,7 +279,7 @@ def main(args: argparse.Namespace) -> int:
                                    controller_mass_scale=mass_scale, robot_file=robot_file,
                                    contact_model=args.contact, adhesion_force=args.adhesion_force,
                                    viewer=args.markers, foxglove_port=args.foxglove or 0,
-                                   foxglove_host=args.foxglove_host)
+                                   foxglove_host=args.foxglove_host or DEFAULT_HOST)
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
         print(f'{claim.export_line()}  # in another terminal, to see this run with ros2 topic, RViz, ...', flush=True)
