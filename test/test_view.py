@@ -201,6 +201,18 @@ def test_the_travelled_path_is_bounded_spaced_and_starts_again_after_a_reset(par
     assert scene.trail.points()[:, 0].tolist() == [12.0, 13.0, 14.0, 15.0]
 
 
+def test_a_scene_that_forgets_the_wheels_and_contact_draws_no_arrows_and_unturned_wheels(params):
+    scene = driven_scene(params)
+    scene.forget_wheels_and_contact()
+    markers = scene.markers()
+    assert scene.margin() is None and next(m for m in markers if m.ns == 'chassis').color == margin_color(1.0)
+    assert all(m.action == view_cdr.DELETE for m in markers if m.ns == 'contact_forces')
+    heading = Rotation.from_euler('z', 0.7)
+    for mark in (m for m in markers if m.ns == 'wheel_marks'):
+        assert rotation(mark.orientation).apply([1, 0, 0]) == pytest.approx(heading.apply([1, 0, 0]), abs=1e-12)
+    assert len(scene.trail) == 1 and len(next(m for m in markers if m.ns == 'reference_path').points) == 50
+
+
 def test_nothing_is_drawn_before_the_first_pose_and_no_arrows_before_contact(params):
     scene = Scene(params)
     assert scene.markers() == [] and scene.transforms() == []

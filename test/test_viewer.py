@@ -186,6 +186,29 @@ def test_malformed_odometry_is_never_drawn_and_the_viewer_goes_on(process_runner
         graph.close()
 
 
+def test_an_unwatched_viewer_reads_only_the_odometry_and_the_reference_path(process_runner):
+    """The wheels' and contact topics (1 kHz each) are subscribed only while markers have a subscriber."""
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer'], 'viewer')
+    graph = Graph(process_runner)
+    graph.procs['viewer'] = process_runner.processes['viewer']
+
+    def viewer_reads(topic: topics.Topic) -> bool:
+        return any(info.node_name == '_viewer_inputs'
+                   for info in graph.node.get_subscriptions_info_by_topic(topic.resolve()))
+    per_step = (topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES)
+    try:
+        graph.wait_for(lambda: viewer_reads(topics.ODOM) and viewer_reads(topics.REFERENCE_PATH), 30, 'the viewer')
+        assert not any(viewer_reads(topic) for topic in per_step)
+        markers = graph.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), lambda _msg: None,
+                                                 qos_profile(topics.MARKERS))
+        graph.wait_for(lambda: all(viewer_reads(topic) for topic in per_step), 30, 'the viewer reading them all')
+        graph.node.destroy_subscription(markers)
+        graph.wait_for(lambda: not any(viewer_reads(topic) for topic in per_step), 30, 'the viewer dropping them')
+        assert viewer_reads(topics.ODOM)
+    finally:
+        graph.close()
+
+
 def test_a_port_in_use_is_one_line_and_exit_status_1(process_runner):
     with socket.socket() as taken:
         taken.bind(('127.0.0.1', 0))

@@ -148,11 +148,12 @@ class Scene:
         """Each wheel joint's origin in base_link, in topics.WHEEL_JOINTS order."""
         self.chassis_size = (2 * a, 2 * b - self.width, r)
         self.pose: Pose | None = None
-        self.wheel_angles = (0.0, 0.0, 0.0, 0.0)
+        self.wheel_angles: tuple[float, ...] = ()
         self.loads: tuple[float, ...] | None = None
         self.use: tuple[float, ...] | None = None
-        self.slipping: tuple[bool, ...] = (False, False, False)
+        self.slipping: tuple[bool, ...] = ()
         self.drive: tuple[float, float, float] | None = None
+        self.forget_wheels_and_contact()
         self.reference_path = np.zeros((0, 3))
         self.trail = Trail(trail_points)
 
@@ -177,6 +178,12 @@ class Scene:
         self.loads = tuple(float(load) for load in loads)
         self.use = tuple(float(u) for u in use)
         self.slipping = tuple(bool(flag) for flag in slipping)
+
+    def forget_wheels_and_contact(self) -> None:
+        """Back to not knowing the wheel angles, the contact and the drive forces (no longer read)."""
+        self.wheel_angles = (0.0, 0.0, 0.0, 0.0)
+        self.loads = self.use = self.drive = None
+        self.slipping = (False, False, False)
 
     def update_drive(self, forces: Sequence[float]) -> None:
         """The channel forces F_L, F_R, F_lat (N) of ``drive_forces``."""

@@ -10,9 +10,9 @@ It never runs at the dynamics' 1 kHz: the per-step topics are read through a sec
 executor spins (``_viewer_inputs``), with subscriptions that keep only the newest message
 (best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
 ``rate_hz`` times a second whatever the step rate, and never slows the dynamics down (a best-effort
-reader is never waited for). Nothing is built or published for a frame without new odometry, or
-while nothing subscribes (the scene is kept up to date all the same, so a viewer opened later
-gets the whole path at once).
+reader is never waited for). While nothing subscribes ``markers`` or ``/tf`` it reads only the
+odometry (for the path travelled) and the reference path, and builds nothing; nor for a frame
+without new odometry.
 """
 
 from __future__ import annotations
@@ -42,7 +42,12 @@ TRAIL_POINTS = NumberRange(2, 1_000_000)
 NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
                     durability=DurabilityPolicy.VOLATILE)
 """The per-step topics: only the newest message matters, and the dynamics never waits for this reader."""
-DRAWN = (topics.ODOM, topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES, topics.REFERENCE_PATH)
+ALWAYS_READ = (topics.ODOM, topics.REFERENCE_PATH)
+"""Read all the time, so a viewer opened later sees the path travelled and the reference at once."""
+READ_WHILE_WATCHED = (topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES)
+"""Read only while something subscribes ``markers`` or ``/tf`` (or the Foxglove relay runs): three
+1 kHz streams that an unwatched viewer does not receive."""
+DRAWN = ALWAYS_READ + READ_WHILE_WATCHED
 """Topics the markers are drawn from."""
 RELAYED_ONLY = (topics.CONSTRAINT_WRENCH, topics.REFERENCE, topics.CONSTRAINTS, topics.ROBOT_DESCRIPTION,
                 topics.DIAGNOSTICS)
@@ -90,19 +95,36 @@ class ViewerNode(Node):
 
         self.inputs = Node('_viewer_inputs', namespace=topics.NAMESPACE, context=self.context,
                            start_parameter_services=False)
-        relayed = RELAYED_ONLY if self.relay is not None else ()
-        self.subscriptions_ = {
-            topic: self.inputs.create_subscription(
-                message_class(topic.type), topic.name, lambda _data: None,
-                NEWEST if topic.durability is topics.Durability.VOLATILE and topic not in EVERY_MESSAGE
-                else qos_profile(topic), raw=True)
-            for topic in DRAWN + relayed}
+        self.subscriptions_ = {}
+        for topic in ALWAYS_READ + ((READ_WHILE_WATCHED + RELAYED_ONLY) if self.relay is not None else ()):
+            self._subscribe(topic)
         self.published_ns: int | None = None
         """The odometry stamp of the newest frame published."""
         self.timer = self._frame_timer()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(f'markers at {self.rate_hz:g} frames per second')
+
+    def _subscribe(self, topic: topics.Topic) -> None:
+        newest_only = topic.durability is topics.Durability.VOLATILE and topic not in EVERY_MESSAGE
+        self.subscriptions_[topic] = self.inputs.create_subscription(
+            message_class(topic.type), topic.name, lambda _data: None, NEWEST if newest_only else qos_profile(topic),
+            raw=True)
+
+    def _watched(self) -> bool:
+        """Whether anything takes what the viewer publishes (and so, whether to read every input)."""
+        return (self.relay is not None or self.marker_pub.get_subscription_count() > 0
+                or (self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0))
+
+    def _read_while_watched(self, watched: bool) -> None:
+        """Subscribe the wheels' and contact topics while watched, drop them (and what they said) when not."""
+        if watched and READ_WHILE_WATCHED[0] not in self.subscriptions_:
+            for topic in READ_WHILE_WATCHED:
+                self._subscribe(topic)
+        elif not watched and READ_WHILE_WATCHED[0] in self.subscriptions_:
+            for topic in READ_WHILE_WATCHED:
+                self.inputs.destroy_subscription(self.subscriptions_.pop(topic))
+            self.scene.forget_wheels_and_contact()
 
     def _frame_timer(self):
         return self.create_timer(1.0 / self.rate_hz, self.frame, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -125,6 +147,8 @@ class ViewerNode(Node):
 
     def frame(self) -> None:
         """Take the newest inputs, and publish the markers (and tf) if the robot has moved on."""
+        watched = self._watched()
+        self._read_while_watched(watched)
         for topic in self.subscriptions_:
             for data in self._take(topic):
                 try:
@@ -137,19 +161,15 @@ class ViewerNode(Node):
                 if self.relay is not None:
                     self.relay.log(topic, data)
         pose = self.scene.pose
-        if pose is None or pose.stamp_ns == self.published_ns:
-            return
-        markers_wanted = self.relay is not None or self.marker_pub.get_subscription_count() > 0
-        tf_wanted = self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0
-        if not (markers_wanted or tf_wanted):
+        if not watched or pose is None or pose.stamp_ns == self.published_ns:
             return
         self.published_ns = pose.stamp_ns
-        if markers_wanted:
+        if self.relay is not None or self.marker_pub.get_subscription_count() > 0:
             markers = view_cdr.marker_array(pose.stamp_ns, pose.frame, self.scene.markers())
             self.marker_pub.publish(markers)
             if self.relay is not None:
                 self.relay.log(topics.MARKERS, markers)
-        if tf_wanted:
+        if self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0:
             self.tf_pub.publish(view_cdr.tf_message(pose.stamp_ns, self.scene.transforms()))
 
     def _draw(self, topic: topics.Topic, data: bytes) -> None:
