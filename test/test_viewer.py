@@ -140,73 +140,69 @@ def _tf2_msgs_installed() -> bool:
     return True
 
 
-def test_a_refused_rate_leaves_the_viewer_running(process_runner):
-    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer', '--ros-args', '-p', 'rate_hz:=20.0'],
-                         'viewer')
+@pytest.fixture
+def viewer(process_runner):
+    """A viewer node alone, watched by this test's Graph node."""
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer'], 'viewer')
     graph = Graph(process_runner)
     graph.procs['viewer'] = process_runner.processes['viewer']
     try:
-        graph.wait_for(lambda: graph.node.count_publishers(topics.MARKERS.resolve()) > 0, 30, 'the viewer')
-        for bad in (0.0, 101.0, math.nan):
-            refused, = graph.set_parameters('viewer', rate_hz=bad)
-            assert not refused.successful and 'rate_hz out of range' in refused.reason
-        accepted, = graph.set_parameters('viewer', rate_hz=5.0)
-        assert accepted.successful
-        assert graph.get_parameters('viewer', 'rate_hz') == [5.0]
+        yield graph
     finally:
         graph.close()
 
 
-def test_malformed_odometry_is_never_drawn_and_the_viewer_goes_on(process_runner):
+def test_a_refused_rate_leaves_the_viewer_running(viewer):
+    viewer.wait_for(lambda: viewer.node.count_publishers(topics.MARKERS.resolve()) > 0, 30, 'the viewer')
+    for bad in (0.0, 101.0, math.nan):
+        refused, = viewer.set_parameters('viewer', rate_hz=bad)
+        assert not refused.successful and 'rate_hz out of range' in refused.reason
+    accepted, = viewer.set_parameters('viewer', rate_hz=5.0)
+    assert accepted.successful
+    assert viewer.get_parameters('viewer', 'rate_hz') == [5.0]
+
+
+def test_malformed_odometry_is_never_drawn_and_the_viewer_goes_on(viewer, process_runner):
     """Bytes that are no Odometry are logged and dropped; the next good one is drawn."""
-    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer'], 'viewer')
-    graph = Graph(process_runner)
-    graph.procs['viewer'] = process_runner.processes['viewer']
     received: list[MarkerArray] = []
-    graph.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), received.append, qos_profile(topics.MARKERS))
-    odom = graph.node.create_publisher(Odometry, topics.ODOM.resolve(), qos_profile(topics.ODOM))
-    try:
-        graph.wait_for(lambda: odom.get_subscription_count() > 0, 30, 'the viewer subscribing odom')
-        def published_until(data: bytes, seen):  # the viewer's reader may match this writer later
-            def check():
-                odom.publish(data)
-                return seen()
-            return check
+    viewer.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), received.append,
+                                    qos_profile(topics.MARKERS))
+    odom = viewer.node.create_publisher(Odometry, topics.ODOM.resolve(), qos_profile(topics.ODOM))
+    viewer.wait_for(lambda: odom.get_subscription_count() > 0, 30, 'the viewer subscribing odom')
 
-        good = codec.odometry(2.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0)
-        for bad in (good[:30], good[:12] + b'\xff\xff\xff\x7f' + good[16:]):
-            count = process_runner.output('viewer').count('ignoring a odom message: ')
-            graph.wait_for(published_until(bad, lambda: process_runner.output('viewer').count(
-                'ignoring a odom message: ') > count), 30, 'the malformed odometry logged')
-        assert not received
-        chassis = graph.wait_for(published_until(good, lambda: [m for msg in received for m in msg.markers
-                                                                if m.ns == 'chassis']), 30, 'markers of good odometry')
-        assert (chassis[0].pose.position.x, chassis[0].pose.position.y) == (0.5, 0.25)
-    finally:
-        graph.close()
+    def published_until(data: bytes, seen):  # the viewer's reader may match this writer later
+        def check():
+            odom.publish(data)
+            return seen()
+        return check
+
+    def logged() -> int:
+        return process_runner.output('viewer').count('ignoring a odom message: ')
+
+    good = codec.odometry(2.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0)
+    for bad in (good[:30], good[:12] + b'\xff\xff\xff\x7f' + good[16:]):
+        count = logged()
+        viewer.wait_for(published_until(bad, lambda: logged() > count), 30, 'the malformed odometry logged')
+    assert not received
+    chassis = viewer.wait_for(published_until(good, lambda: [m for msg in received for m in msg.markers
+                                                             if m.ns == 'chassis']), 30, 'markers of good odometry')
+    assert (chassis[0].pose.position.x, chassis[0].pose.position.y) == (0.5, 0.25)
 
 
-def test_an_unwatched_viewer_reads_only_the_odometry_and_the_reference_path(process_runner):
+def test_an_unwatched_viewer_reads_only_the_odometry_and_the_reference_path(viewer):
     """The wheels' and contact topics (1 kHz each) are subscribed only while markers have a subscriber."""
-    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer'], 'viewer')
-    graph = Graph(process_runner)
-    graph.procs['viewer'] = process_runner.processes['viewer']
-
     def viewer_reads(topic: topics.Topic) -> bool:
         return any(info.node_name == '_viewer_inputs'
-                   for info in graph.node.get_subscriptions_info_by_topic(topic.resolve()))
+                   for info in viewer.node.get_subscriptions_info_by_topic(topic.resolve()))
     per_step = (topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES)
-    try:
-        graph.wait_for(lambda: viewer_reads(topics.ODOM) and viewer_reads(topics.REFERENCE_PATH), 30, 'the viewer')
-        assert not any(viewer_reads(topic) for topic in per_step)
-        markers = graph.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), lambda _msg: None,
-                                                 qos_profile(topics.MARKERS))
-        graph.wait_for(lambda: all(viewer_reads(topic) for topic in per_step), 30, 'the viewer reading them all')
-        graph.node.destroy_subscription(markers)
-        graph.wait_for(lambda: not any(viewer_reads(topic) for topic in per_step), 30, 'the viewer dropping them')
-        assert viewer_reads(topics.ODOM)
-    finally:
-        graph.close()
+    viewer.wait_for(lambda: viewer_reads(topics.ODOM) and viewer_reads(topics.REFERENCE_PATH), 30, 'the viewer')
+    assert not any(viewer_reads(topic) for topic in per_step)
+    markers = viewer.node.create_subscription(MarkerArray, topics.MARKERS.resolve(), lambda _msg: None,
+                                              qos_profile(topics.MARKERS))
+    viewer.wait_for(lambda: all(viewer_reads(topic) for topic in per_step), 30, 'the viewer reading them all')
+    viewer.node.destroy_subscription(markers)
+    viewer.wait_for(lambda: not any(viewer_reads(topic) for topic in per_step), 30, 'the viewer dropping them')
+    assert viewer_reads(topics.ODOM)
 
 
 def test_a_port_in_use_is_one_line_and_exit_status_1(process_runner):
