@@ -96,6 +96,7 @@ def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, pro
     port = free_port()
     run = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '0', '--domain-id', chosen,
                                 '--foxglove', port, '--out', tmp_path / 'run', '--no-plots'], 'run')
+    wait_for_output(process_runner, 'run', rf'^wallbot-sim run: live view for Foxglove on ws://127.0.0.1:{port}$', 60)
     wait_for_output(process_runner, 'run', r't = +[0-9.]+ s \(until stopped\)', 120)
     with connect(port, process_runner) as connection:
         info = json.loads(connection.recv(timeout=30))

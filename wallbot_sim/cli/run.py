@@ -289,6 +289,9 @@ def main(args: argparse.Namespace) -> int:
         length = f'{duration:g} s' if duration > 0 else 'until Ctrl-C'
         print(f'wallbot-sim run: {scenario.name}, {selection.label()}{loop}, {length} at real-time factor {factor:g}, '
               f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
+        if args.foxglove:
+            print(f'wallbot-sim run: live view for Foxglove on ws://{args.foxglove_host or DEFAULT_HOST}:{args.foxglove}',
+                  file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
             run_graph(graph, specs, duration, progress)
