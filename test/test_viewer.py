@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import socket
 import struct
@@ -217,3 +218,22 @@ def test_a_port_in_use_is_one_line_and_exit_status_1(process_runner):
     errors = [line for line in process_runner.output('viewer').splitlines() if line.startswith('error:')]
     assert len(errors) == 1 and errors[0].startswith(f'error: cannot serve Foxglove on 127.0.0.1:{port}: ')
     assert 'Traceback' not in process_runner.output('viewer')
+
+
+def test_a_run_goes_on_without_its_viewer(tmp_path, process_runner):
+    """The viewer only shows the run: when it cannot start (its port is taken), the run says so and
+    goes on until stopped."""
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        run = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '0', '--foxglove', port,
+                                    '--out', tmp_path / 'run', '--no-plots'], 'run')
+        log = tmp_path / 'run' / 'logs' / 'viewer.log'
+        wait_for_output(process_runner, 'run', re.escape(f'node viewer exited with status 1 (its log: {log}); '
+                                                         'no markers or live view from now on, the run goes on'), 120)
+    shown = len(re.findall(r't = +[0-9.]+ s \(until stopped\)', process_runner.output('run')))
+    wait_for_output(process_runner, 'run', r'(?s)(t = +[0-9.]+ s \(until stopped\).*){%d}' % (shown + 2), 60)
+    run.send_signal(signal.SIGINT)
+    assert run.wait(timeout=60) == 130
+    assert 'tracking error:' in process_runner.output('run') and 'Traceback' not in process_runner.output('run')
