@@ -51,18 +51,17 @@ def connect(port: int, process_runner, timeout: float = 60.0):
             time.sleep(0.2)
 
 
-def channel_of(connection, topic: str, timeout: float = 30.0) -> dict:
-    """The advertised channel of ``topic`` (its id, encoding and schema)."""
+def channels_of(connection, topics_wanted: set[str], timeout: float = 30.0) -> dict[str, dict]:
+    """The advertised channels of ``topics_wanted`` (id, encoding and schema of each), by topic."""
+    found: dict[str, dict] = {}
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    while time.monotonic() < deadline and set(found) != topics_wanted:
         message = connection.recv(timeout=timeout)
-        if isinstance(message, str):
-            reply = json.loads(message)
-            if reply.get('op') == 'advertise':
-                for channel in reply['channels']:
-                    if channel['topic'] == topic:
-                        return channel
-    pytest.fail(f'{topic} was not advertised')
+        if isinstance(message, str) and json.loads(message).get('op') == 'advertise':
+            found.update({channel['topic']: channel for channel in json.loads(message)['channels']
+                          if channel['topic'] in topics_wanted})
+    assert set(found) == topics_wanted, f'advertised only {sorted(found)}'
+    return found
 
 
 def markers_received(domain_id: int, timeout: float = 60.0) -> MarkerArray:
@@ -103,7 +102,9 @@ def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, pro
         info = json.loads(connection.recv(timeout=30))
         assert info['op'] == 'serverInfo'  # a read-only view: clients can neither publish nor call
         assert not {'clientPublish', 'services', 'parameters', 'parametersSubscribe'} & set(info['capabilities'])
-        odom = channel_of(connection, topics.ODOM.resolve())
+        channels = channels_of(connection, {topics.ODOM.resolve(), topics.TF.name})
+        assert channels[topics.TF.name]['schemaName'] == topics.TF.type  # tf even without tf2_msgs
+        odom = channels[topics.ODOM.resolve()]
         assert (odom['encoding'], odom['schemaName'], odom['schemaEncoding']) == ('cdr', topics.ODOM.type, 'ros2msg')
         assert 'MSG: geometry_msgs/Pose' in odom['schema']
         connection.send(json.dumps({'op': 'subscribe', 'subscriptions': [{'id': 7, 'channelId': odom['id']}]}))

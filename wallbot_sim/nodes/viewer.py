@@ -84,7 +84,8 @@ class ViewerNode(Node):
         self.scene = Scene(load_robot_parameters(robot_file or None), trail_points)
         self.relay = None
         if port:
-            self.relay = FoxgloveRelay(host, port, self.get_namespace(), DRAWN + RELAYED_ONLY + (topics.MARKERS,))
+            self.relay = FoxgloveRelay(host, port, self.get_namespace(),
+                                       DRAWN + RELAYED_ONLY + (topics.MARKERS, topics.TF))
             self.get_logger().info(f'serving Foxglove on ws://{host}:{self.relay.port}')
         self.marker_pub = self.create_publisher(MarkerArray, topics.MARKERS.name, qos_profile(topics.MARKERS))
         tf_type = tf_message_type()
@@ -169,8 +170,13 @@ class ViewerNode(Node):
             self.marker_pub.publish(markers)
             if self.relay is not None:
                 self.relay.log(topics.MARKERS, markers)
-        if self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0:
-            self.tf_pub.publish(view_cdr.tf_message(pose.stamp_ns, self.scene.transforms()))
+        tf_wanted = self.tf_pub is not None and self.tf_pub.get_subscription_count() > 0
+        if tf_wanted or self.relay is not None:  # Foxglove gets tf with or without tf2_msgs
+            transforms = view_cdr.tf_message(pose.stamp_ns, self.scene.transforms())
+            if tf_wanted:
+                self.tf_pub.publish(transforms)
+            if self.relay is not None:
+                self.relay.log(topics.TF, transforms)
 
     def _draw(self, topic: topics.Topic, data: bytes) -> None:
         scene = self.scene
