@@ -70,7 +70,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     specs += [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
-            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
+            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
+            'wait_for_recorder': bag is not None}),
     ]
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
