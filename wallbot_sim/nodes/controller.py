@@ -147,7 +147,8 @@ class ControllerNode(Node):
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY))
         if self.values['wait_for_recorder']:
-            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded)
+            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded,
+                                                    clock=Clock(clock_type=ClockType.STEADY_TIME))
         else:
             self._subscribe_odom()
         self.create_timer(HEARING_CHECK, self._check_hearing, clock=Clock(clock_type=ClockType.STEADY_TIME))
