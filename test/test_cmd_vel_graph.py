@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
 import pytest
 
 pytest.importorskip('rclpy')
@@ -15,8 +14,8 @@ pytest.importorskip('rclpy')
 import rclpy.duration  # noqa: E402
 
 from geometry_msgs.msg import TwistStamped  # noqa: E402
+from rcl_interfaces.srv import DescribeParameters  # noqa: E402
 from graph_helpers import Graph, ns, start_graph  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
@@ -237,3 +236,24 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
     restarted = 'velocity loop restarted' if drive == 'cmd_vel' else 'controller restarted'
     assert restarted in graph.runner.output(drive)
     assert 'no wheel_torque_cmd within' not in graph.runner.output('dynamics')
+
+
+def test_cmd_vel_parameters_have_ranges_and_a_refusal_leaves_the_node_running(graph):
+    graph.start('cmd_vel', 'use_stamped_vel:=false')
+    topic = topics.CMD_VEL.resolve(graph.namespace)
+    subscriptions = graph.wait_for(lambda: graph.node.get_subscriptions_info_by_topic(topic), 15, 'cmd_vel subscribed')
+    assert [info.topic_type for info in subscriptions] == [topics.CMD_VEL_UNSTAMPED_TYPE]
+    response = graph.call(DescribeParameters, f'{graph.namespace}/{topics.NODE_CMD_VEL}/describe_parameters',
+                          DescribeParameters.Request(names=['linear.x.max_acceleration', 'wheel_radius',
+                                                            'wheel_speed_kp', 'rate_hz', 'use_stamped_vel']))
+    acceleration, radius, kp, rate, stamped = response.descriptors
+    assert acceleration.floating_point_range[0].to_value == 1e3 and radius.floating_point_range[0].to_value == 10.0
+    assert kp.floating_point_range[0].from_value == 0.0
+    assert rate.integer_range[0].from_value == 1 and rate.read_only and stamped.read_only
+    assert graph.get_parameters(topics.NODE_CMD_VEL, 'wheel_radius', 'wheel_separation') == [0.04, 0.24]
+
+    refused, = graph.set_parameters(topics.NODE_CMD_VEL, **{'linear.x.max_acceleration': 0.0})
+    assert not refused.successful and refused.reason == 'linear.x.max_acceleration must be in (0, 1000], got 0.0'
+    accepted, = graph.set_parameters(topics.NODE_CMD_VEL, **{'linear.x.max_acceleration': 2.5})
+    assert accepted.successful
+    assert graph.get_parameters(topics.NODE_CMD_VEL, 'linear.x.max_acceleration') == [2.5]
