@@ -87,7 +87,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot, **SIM_TIME}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
-            **SIM_TIME}),
+            'wait_for_recorder': bag is not None, **SIM_TIME}),
     ]
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {

@@ -224,6 +224,13 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
                and time.monotonic() < deadline):
             check_nodes(graph, reported)
             monitor.spin(0.1)
+        missing = [what for what, seen in (('the dynamics\' diagnostics of its stop', monitor.dynamics_stopped()),
+                                           ('the last reference pose', not reference
+                                            or monitor.reference_reached(duration)))
+                   if not seen]
+        if missing:
+            print(f'\nwallbot-sim run: {" and ".join(missing)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
+                  f'early (logs in {graph.log_dir})', file=sys.stderr)
     finally:
         graph.signal_all(first=(RECORDER,))  # the recorder's bag ends at its signal
         monitor.close()  # while the nodes leave DDS too
