@@ -109,6 +109,8 @@ class CmdVelNode(Node):
         self.instants = ControlInstants(int(self.rate_hz))
         self.now_ns: int | None = None
         """The newest odometry stamp: simulation time as this node knows it."""
+        self.early: tuple[float, float] | None = None
+        """The newest cmd_vel that came before any odometry."""
 
         publisher = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                           qos_profile(topics.WHEEL_TORQUE_CMD))
@@ -125,9 +127,14 @@ class CmdVelNode(Node):
 
     def _on_cmd_vel(self, msg) -> None:
         twist = msg.twist if self.use_stamped else msg
-        t = 0.0 if self.now_ns is None else self.now_ns * 1e-9
+        self._command(twist.linear.x, twist.angular.z)
+
+    def _command(self, linear: float, angular: float) -> None:
+        if self.now_ns is None:  # before the first odometry: received when simulation time is known
+            self.early = (linear, angular)
+            return
         try:
-            self.controller.command(twist.linear.x, twist.angular.z, t)
+            self.controller.command(linear, angular, self.now_ns * 1e-9)
         except ValueError as error:
             self.get_logger().warning(f'rejected cmd_vel: {error}', throttle_duration_sec=THROTTLE)
 
@@ -138,6 +145,9 @@ class CmdVelNode(Node):
             return
         rewind = self.instants.observe(stamp_ns)
         self.now_ns = stamp_ns
+        if self.early is not None:
+            early, self.early = self.early, None
+            self._command(*early)
         if rewind is Rewind.RESTART:
             self.controller.reset()
             self.get_logger().info(f'simulation time went back to {stamp_ns * 1e-9:.3f} s: velocity loop restarted')
