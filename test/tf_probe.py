@@ -35,7 +35,8 @@ def main() -> int:
     answer: list[TFMessage] = []
 
     def on_tf(msg: TFMessage) -> None:
-        if msg.transforms and codec.stamp_nanoseconds(msg.transforms[0].header.stamp) in sent:
+        # the first frames may come before the viewer has the wheel angles: then only wall -> base_link
+        if len(msg.transforms) == 5 and codec.stamp_nanoseconds(msg.transforms[0].header.stamp) in sent:
             answer.append(msg)
 
     def publish() -> None:

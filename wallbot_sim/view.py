@@ -148,7 +148,8 @@ class Scene:
         """Each wheel joint's origin in base_link, in topics.WHEEL_JOINTS order."""
         self.chassis_size = (2 * a, 2 * b - self.width, r)
         self.pose: Pose | None = None
-        self.wheel_angles: tuple[float, ...] = ()
+        self.wheel_angles: tuple[float, ...] | None = None
+        """Spin angles of the wheels; None while unknown (no wheel marks or wheel transforms then)."""
         self.loads: tuple[float, ...] | None = None
         self.use: tuple[float, ...] | None = None
         self.slipping: tuple[bool, ...] = ()
@@ -181,8 +182,7 @@ class Scene:
 
     def forget_wheels_and_contact(self) -> None:
         """Back to not knowing the wheel angles, the contact and the drive forces (no longer read)."""
-        self.wheel_angles = (0.0, 0.0, 0.0, 0.0)
-        self.loads = self.use = self.drive = None
+        self.wheel_angles = self.loads = self.use = self.drive = None
         self.slipping = (False, False, False)
 
     def update_drive(self, forces: Sequence[float]) -> None:
@@ -232,12 +232,15 @@ class Scene:
         markers = [MarkerSpec('chassis', 0, CUBE, pose.to_wall((0.0, 0.0, self.radius)), heading, self.chassis_size,
                               chassis_color)]
         for wheel, origin in enumerate(self.wheel_origins):
-            centre, rotation = pose.to_wall(origin), self.wheel_rotation(wheel)
-            markers.append(MarkerSpec('wheels', wheel, CYLINDER, centre,
-                                      quaternion_product(rotation, CYLINDER_ALONG_AXLE),
+            centre = pose.to_wall(origin)
+            markers.append(MarkerSpec('wheels', wheel, CYLINDER, centre,  # axisymmetric: drawn without its spin
+                                      quaternion_product(heading, CYLINDER_ALONG_AXLE),
                                       (2 * self.radius, 2 * self.radius, self.width), WHEEL_COLOR))
-            markers.append(MarkerSpec('wheel_marks', wheel, CUBE, centre, rotation,
-                                      (2 * self.radius, 1.05 * self.width, 0.2 * self.radius), MARK_COLOR))
+            if self.wheel_angles is None:
+                markers.append(MarkerSpec('wheel_marks', wheel, CUBE, action=DELETE))
+            else:
+                markers.append(MarkerSpec('wheel_marks', wheel, CUBE, centre, self.wheel_rotation(wheel),
+                                          (2 * self.radius, 1.05 * self.width, 0.2 * self.radius), MARK_COLOR))
         markers.append(self._line('reference_path', self.reference_path, REFERENCE_COLOR))
         markers.append(self._line('travelled', self.trail.points(), TRAVELLED_COLOR))
         forces = self.contact_forces()
@@ -261,11 +264,14 @@ class Scene:
 
     def transforms(self) -> list[TransformSpec]:
         """The odometry frame -> base_link, and base_link -> each wheel link (as robot_state_publisher
-        would give them from the URDF and wheel_states); none before the first pose."""
+        would give them from the URDF and wheel_states; only once the angles are known); none before
+        the first pose."""
         if self.pose is None:
             return []
         pose = self.pose
         transforms = [TransformSpec(pose.frame, pose.child, (pose.x, pose.y, 0.0), axis_rotation(2, pose.theta))]
+        if self.wheel_angles is None:
+            return transforms
         for joint, origin, angle in zip(topics.WHEEL_JOINTS, self.wheel_origins, self.wheel_angles):
             transforms.append(TransformSpec(pose.child, wheel_link(joint), origin, axis_rotation(1, angle)))
         return transforms
