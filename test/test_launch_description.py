@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import EXECUTABLES, describe_graph
+from wallbot_sim.graph_description import EXECUTABLES, describe_driven_graph, describe_graph
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
@@ -105,6 +105,13 @@ def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(lau
     assert nodes == as_launched(expected)
     assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'viewer_node',
                                                 'dynamics_node']
+
+
+def test_a_driven_run_starts_the_viewer_before_the_dynamics_too():
+    specs = describe_driven_graph('cmd_vel', foxglove_port=8765)
+    assert [s.name for s in specs] == ['constraint_config', 'cmd_vel_controller', 'viewer', 'dynamics']
+    assert specs[2].parameters == {'foxglove_port': 8765, 'foxglove_host': '127.0.0.1', 'use_sim_time': True}
+    assert 'viewer' not in [s.name for s in describe_driven_graph('cmd_vel')]
 
 
 def test_every_node_module_has_its_console_script():
