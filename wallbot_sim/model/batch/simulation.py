@@ -6,6 +6,7 @@ from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, build_batch_modules
 from wallbot_sim.model.batch.contact import (
     BatchCoulomb, BatchMotion, ContactRows, detached_wheels, drive_forces, friction_use, normal_loads)
@@ -71,6 +72,10 @@ class BatchOutputs(NamedTuple):
         return np.hypot(offset[:, 0], offset[:, 1])
 
 
+NUMPY, NUMBA = 'numpy', 'numba'
+ENGINES = (NUMPY, NUMBA)
+"""How the ideal-contact steps are computed: whole-batch NumPy array passes, or the compiled kernel."""
+
 StepHook = Callable[[BatchOutputs], None]
 """Called with the outputs of every instant (``Simulation.run``'s ``on_step`` over a batch)."""
 
@@ -86,10 +91,18 @@ class BatchSimulation:
 
     def __init__(self, robots: Sequence[Robot], reference: Reference | None, selection: ConstraintSelection,
                  q0: np.ndarray, qd0: np.ndarray, dt: float = DEFAULT_STEP, t0: float = 0.0,
-                 gains: BatchGains | None = None, contact: str = IDEAL) -> None:
-        """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own."""
+                 gains: BatchGains | None = None, contact: str = IDEAL, engine: str = NUMPY) -> None:
+        """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own.
+
+        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``) wherever the contact is ideal.
+        """
         POSITIVE.check('time step', dt)
         check_contact_model(contact)
+        if engine not in ENGINES:
+            raise ParameterError(f'unknown engine {engine!r} (use {" or ".join(ENGINES)})')
+        if engine == NUMBA and not kernel.available():
+            raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+        self.engine = engine
         self.robots = RobotBatch(robots)
         self.dt = dt
         self.gains = gains or BatchGains.of(self.robots)
@@ -114,14 +127,16 @@ class BatchSimulation:
         self.detached_wheel = np.zeros(self.size, dtype=int)
         """The wheel (1..4) that lifted off, 0 for a robot still on the wall."""
         self._cached: BatchOutputs | None = None
+        self._constants: np.ndarray | None = None
+        """The compiled engine's per-robot constants, made on its first step."""
 
     @classmethod
     def from_scenario(cls, robots: Sequence[Robot], scenario: Scenario, selection: ConstraintSelection,
-                      dt: float = DEFAULT_STEP, contact: str = IDEAL) -> BatchSimulation:
+                      dt: float = DEFAULT_STEP, contact: str = IDEAL, engine: str = NUMPY) -> BatchSimulation:
         """Every robot at the scenario's initial state (each with its own rolling spin rates)."""
         states = [scenario.initial_state(robot) for robot in robots]
         return cls(robots, scenario.reference, selection, np.array([q for q, _ in states]),
-                   np.array([qd for _, qd in states]), dt, contact=contact)
+                   np.array([qd for _, qd in states]), dt, contact=contact, engine=engine)
 
     @property
     def size(self) -> int:
@@ -244,12 +259,38 @@ class BatchSimulation:
                                     self.detached.copy(), reference)
         return self._cached
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the steps go through the compiled kernel (engine 'numba' and the contact ideal)."""
+        return self.engine == NUMBA and not self.coulomb_applies
+
+    def _compiled_steps(self, steps: int) -> None:
+        """``steps`` steps by the kernel; on divergence, the batch at the step before it and DivergedError."""
+        if self._constants is None:
+            self._constants = kernel.robot_constants(self.robots, self.gains.alpha, self.gains.beta)
+        references = kernel.reference_samples(self.reference, self.initial_time, self.steps, steps, self.dt)
+        active = tuple(self.selection.active_names())
+        y, diverged = kernel.advance(self._y, steps, self.dt, references, active, self._constants, self.motor_torque)
+        if np.any(diverged >= 0):
+            first = int(np.min(diverged[diverged >= 0]))
+            if first > 0:
+                self._compiled_steps(first)
+            robots = np.flatnonzero(diverged == first)
+            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
+                                f'at t = {self.t + self.dt:.3f} s')
+        self._y = y
+        self.steps += steps
+        self._cached = None
+
     def step(self) -> None:
         """Advance every robot one RK4 step; DivergedError (states unchanged) if one stops being finite.
 
         With coulomb contact a robot with a wheel lifted off at this instant is detached first: it
         keeps its state from here on.
         """
+        if self.compiled:
+            self._compiled_steps(1)
+            return
         k1 = None
         if self.coulomb_applies:
             out = self.outputs()
@@ -279,6 +320,9 @@ class BatchSimulation:
 
         Returns the final outputs when there is an ``on_step`` (without one, none are computed).
         """
+        if on_step is None and self.compiled:
+            self._compiled_steps(steps)
+            return None
         for _ in range(steps):
             if on_step is not None:
                 on_step(self.outputs())
