@@ -10,7 +10,7 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
     ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
 from wallbot_sim.model.batch import (
-    BATCH_MODULES, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
+    BATCH_MODULES, BatchRecorder, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import wrap_angles
 from wallbot_sim.model.constraint_set import MODULES
@@ -278,3 +278,21 @@ def test_wrapped_angles_match_the_single_robot_wrap():
     expected = [wrap_angle(angle) for angle in angles]
     assert np.allclose(wrap_angles(angles), expected, rtol=0.0, atol=1e-14)
     assert np.all((wrap_angles(angles) > -np.pi) & (wrap_angles(angles) <= np.pi))
+
+
+def test_the_recorder_keeps_per_robot_time_series_of_the_instants_asked():
+    rng = np.random.default_rng(16)
+    robots = random_robots(rng, 3)
+    scenario = load_scenario('circle')
+    batch = BatchSimulation.from_scenario(robots, scenario, ConstraintSelection.parse('belt'))
+    recorder = BatchRecorder(('q', 'tracking_error', 'loads'), every=10)
+    final = batch.run(30, recorder)
+    series = recorder.series()
+    assert np.allclose(series['t'], [0.0, 0.01, 0.02, 0.03])
+    assert series['q'].shape == (4, 3, DOF) and series['loads'].shape == (4, 3, 4)
+    assert np.array_equal(series['q'][-1], final.q) and np.array_equal(series['tracking_error'][-1], final.tracking_error)
+    again = BatchSimulation.from_scenario(robots, scenario, ConstraintSelection.parse('belt'))
+    again.run(20)
+    assert np.array_equal(series['q'][2], again.q)
+    with pytest.raises(ParameterError, match="no field 'torque'"):
+        BatchRecorder(('q', 'torque'))

@@ -333,6 +333,36 @@ class BatchSimulation:
         return self.outputs()
 
 
+class BatchRecorder:
+    """A step hook keeping chosen fields of ``BatchOutputs`` every ``every`` instants: per-robot time series.
+
+    ``series()`` gives 't' (T,) and each field stacked over time, robot index second: q (T, N, 7),
+    tracking_error (T, N), ... (any field or property of ``BatchOutputs``).
+    """
+
+    def __init__(self, fields: Sequence[str], every: int = 1) -> None:
+        unknown = [name for name in fields if not hasattr(BatchOutputs, name)]
+        if unknown:
+            raise ParameterError(f'BatchOutputs has no field {unknown[0]!r}')
+        if every < 1:
+            raise ParameterError(f'every must be >= 1, got {every}')
+        self.fields, self.every = tuple(fields), every
+        self._count = 0
+        self._times: list[float] = []
+        self._values: dict[str, list[np.ndarray]] = {name: [] for name in self.fields}
+
+    def __call__(self, out: BatchOutputs) -> None:
+        if self._count % self.every == 0:
+            self._times.append(out.t)
+            for name in self.fields:
+                self._values[name].append(np.array(getattr(out, name)))
+        self._count += 1
+
+    def series(self) -> dict[str, np.ndarray]:
+        """'t' and every recorded field, stacked over the recorded instants."""
+        return {'t': np.array(self._times), **{name: np.array(values) for name, values in self._values.items()}}
+
+
 def _state_matrix(size: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
     if q.shape != (size, DOF) or qd.shape != (size, DOF):
