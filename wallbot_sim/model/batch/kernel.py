@@ -68,7 +68,8 @@ def reference_samples(reference: Reference | None, initial_time: float, first_st
 
 
 def _compile(function: Any, **options: Any) -> Any:
-    return numba.njit(cache=True, **options)(function) if numba is not None else function
+    # error_model 'numpy': a division by zero gives inf or NaN as in NumPy, unchecked (the caller checks the results)
+    return numba.njit(cache=True, error_model='numpy', **options)(function) if numba is not None else function
 
 
 def _cholesky(matrix: np.ndarray, size: int, lower: np.ndarray) -> float:
@@ -105,7 +106,12 @@ def _substitute(lower: np.ndarray, size: int, vector: np.ndarray) -> None:
 
 def _solve_positive(matrix: np.ndarray, size: int, lower: np.ndarray, vector: np.ndarray) -> None:
     """vector <- M^-1 vector for a positive definite M (LU when round-off leaves a pivot <= 0)."""
-    if _cholesky(matrix, size, lower) > 0.0:
+    _solve_factored(matrix, size, _cholesky(matrix, size, lower) > 0.0, lower, vector)
+
+
+def _solve_factored(matrix: np.ndarray, size: int, factored: bool, lower: np.ndarray, vector: np.ndarray) -> None:
+    """vector <- M^-1 vector with M's Cholesky factor in ``lower`` if ``factored``, else by LU."""
+    if factored:
         _substitute(lower, size, vector)
     else:
         vector[:size] = np.linalg.solve(matrix[:size, :size], vector[:size].copy())
@@ -146,7 +152,8 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
     basic = scratch[1, 1]
     for i in range(size):
         basic[i] = moment[i] if kept[i] else 0.0
-    _solve_positive(reduced, size, lower, basic)
+    factored = _cholesky(reduced, size, lower) > 0.0  # one factorization for the basic solution and the columns
+    _solve_factored(reduced, size, factored, lower, basic)
     null = scratch[3]
     column = scratch[1, 2]
     for j in range(size):
@@ -156,7 +163,7 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
         else:
             for i in range(size):
                 column[i] = gram[i, j] if kept[i] else 0.0
-            _solve_positive(reduced, size, lower, column)
+            _solve_factored(reduced, size, factored, lower, column)
             for i in range(size):
                 null[i, j] = (1.0 if i == j else 0.0) - column[i]
     null_gram = scratch[4]
@@ -362,6 +369,7 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
 
 _cholesky = _compile(_cholesky, inline="always")
 _substitute = _compile(_substitute, inline="always")
+_solve_factored = _compile(_solve_factored)
 _solve_positive = _compile(_solve_positive)
 _rank_revealing = _compile(_rank_revealing)
 _acceleration = _compile(_acceleration, inline="always")
