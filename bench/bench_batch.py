@@ -164,14 +164,17 @@ def main() -> None:
         size = max(sizes)
         batch = batches['numba', size]
         threads = kernel.numba.get_num_threads()
-        kernel.numba.set_num_threads(1)
         steps = max(2, min(round(args.robot_steps / size), 10 * MAX_BATCH_STEPS))
-        _, cpu_seconds = best_times(lambda: batch.run(steps), args.repeats)
+        timings = {}
+        for count in sorted({1, threads}):  # one thread, then all: how far the second core was there to take
+            kernel.numba.set_num_threads(count)
+            timings[count] = best_times(lambda: batch.run(steps), args.repeats)
         kernel.numba.set_num_threads(threads)
-        per_robot = cpu_seconds / steps / size
-        print(f'numba: one robot-step costs {per_robot * 1e9:.0f} ns of one core (N = {size}, one thread); '
-              f'{threads} threads on {os.cpu_count()} cores to itself: at most {os.cpu_count() / per_robot:.0f} '
-              f'robot-steps/s')
+        per_robot = timings[1][1] / steps / size
+        print(f'numba at N = {size}: one thread {size * steps / timings[1][0]:.0f} robot-steps/s, {threads} threads '
+              f'{size * steps / timings[threads][0]:.0f} ({timings[1][0] / timings[threads][0]:.2f}x); '
+              f'one robot-step costs {per_robot * 1e9:.0f} ns of one core: with the {os.cpu_count()} cores to itself '
+              f'at most {os.cpu_count() / per_robot:.0f} robot-steps/s')
     print(f'load average {os.getloadavg()[0]:.1f} at end')
 
 

@@ -227,10 +227,10 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
     factor[2, 0], factor[2, 1], factor[2, 2] = l20, l21, math.sqrt(inv_schur - l20 * l20 - l21 * l21)
     factor[0, 1] = factor[0, 2] = factor[1, 2] = 0.0
     spin = math.sqrt(1.0 / spin_inertia)
-    # the rows of the active modules, in stacking order
+    # the rows of the active modules, in stacking order: their entries that are not written here stay
+    # zero from the block's start (each module writes the same entries at every stage)
     gam = 2.0 * alpha
     count = 0
-    rows[:, :] = 0.0
     if flags[0]:
         for axis in range(2):
             rows[count, axis] = 1.0
@@ -330,7 +330,7 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
     """
     count = y.shape[0]
     for block in prange((count + chunk - 1) // chunk):
-        rows, rhs = np.zeros((10, DOF)), np.zeros(10)
+        rows, rhs = np.zeros((10, DOF)), np.zeros(10)  # zero once: see _acceleration
         factor, matrix = np.zeros((DOF, DOF)), np.zeros((10, DOF))
         gram, lower = np.zeros((DOF, DOF)), np.zeros((DOF, DOF))
         vectors, scratch = np.zeros((5, 10)), np.zeros((5, DOF, DOF))
