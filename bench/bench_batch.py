@@ -32,7 +32,11 @@ import numpy as np
 
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.model.batch import BatchSimulation, batch_constrained_acceleration, kernel, solver
+from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.control.sampling import (
+    CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot)
+from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController, batch_constrained_acceleration, kernel
+from wallbot_sim.model.batch import solver
 
 SELECTION = 'belt,non_lateral,nonslip'
 MAX_BATCH_STEPS = 400
@@ -72,6 +76,30 @@ def single_run_seconds(steps: int) -> float:
         for _ in range(steps):
             simulation.step()
     return best_seconds(run, 1) / steps
+
+
+def closed_loop_rates(size: int, steps: int, repeats: int) -> tuple[float, float]:
+    """Robot-steps/s of the single robot and of a batch of ``size`` under the example controller with coulomb contact.
+
+    The figure-8, the driven set, controller mass scales 0.8-1.2: ``simulate --controller --contact coulomb``.
+    """
+    params, scenario = load_robot_parameters(), load_scenario('figure8')
+    selection = ConstraintSelection.structural(trajectory=False)
+    robot = Robot(params)
+
+    def single_loop() -> None:
+        q0, qd0 = scenario.initial_state(robot)
+        simulation = Simulation(robot, scenario.reference, selection, q0, qd0, contact='coulomb')
+        simulation.run(steps * simulation.dt,
+                       close_loop(simulation, SampledController(TrackingController(robot, scenario.reference))))
+
+    def batch_loop() -> None:
+        batch = BatchSimulation.from_scenario([robot] * size, scenario, selection, contact='coulomb')
+        scales = np.linspace(0.8, 1.2, size)
+        loop = BatchTrackingController([controller_robot(params, scale) for scale in scales], scenario.reference,
+                                       ControllerGains(), CONTROL_RATE_HZ, MAX_WHEEL_TORQUE)
+        batch.run(steps, loop.hook(batch))
+    return steps / best_seconds(single_loop, repeats), size * steps / best_seconds(batch_loop, repeats)
 
 
 def check_agreement(batch: BatchSimulation) -> None:
@@ -175,6 +203,9 @@ def main() -> None:
               f'{size * steps / timings[threads][0]:.0f} ({timings[1][0] / timings[threads][0]:.2f}x); '
               f'one robot-step costs {per_robot * 1e9:.0f} ns of one core: with the {os.cpu_count()} cores to itself '
               f'at most {os.cpu_count() / per_robot:.0f} robot-steps/s')
+    single_rate, batch_rate = closed_loop_rates(1000, 200, min(args.repeats, 3))
+    print(f'under the controller with coulomb contact (NumPy engine; figure-8, driven set): single robot '
+          f'{single_rate:.0f} robot-steps/s, N = 1000 {batch_rate:.0f} ({batch_rate / single_rate:.1f}x)')
     print(f'load average {os.getloadavg()[0]:.1f} at end')
 
 

@@ -8,7 +8,8 @@ import pytest
 from test_batch import assert_agree
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import ControllerGains, TrackingController
-from wallbot_sim.control.sampling import CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot
+from wallbot_sim.control.sampling import (
+    CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot)
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import Robot, Simulation
 from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController

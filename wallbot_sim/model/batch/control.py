@@ -37,7 +37,7 @@ class BatchTrackingController:
 
     def __init__(self, robots: Sequence[Robot], reference: Reference, gains: TrackingGains, rate_hz: int,
                  max_wheel_torque: float) -> None:
-        """``robots``: each robot's controller copy, in the batch's order; commands are clamped to +- ``max_wheel_torque``."""
+        """``robots``: each robot's controller copy, in the batch's order; commands clamped to +-``max_wheel_torque``."""
         self.robots = RobotBatch(robots)
         self.reference = reference
         self.gains = gains

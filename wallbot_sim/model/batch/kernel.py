@@ -119,7 +119,10 @@ def _solve_factored(matrix: np.ndarray, size: int, factored: bool, lower: np.nda
 
 def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, lower: np.ndarray,
                     result: np.ndarray) -> None:
-    """Minimum-norm least squares from B^T B and B^T r of a B not safely of full rank (``minimum_norm_least_squares``)."""
+    """Minimum-norm least squares from B^T B and B^T r of a B not safely of full rank.
+
+    ``minimum_norm_least_squares`` for one robot: pivoted Cholesky, basic solution, null space removed.
+    """
     size = DOF
     schur = scratch[0]
     kept = np.zeros(size, dtype=np.bool_)
