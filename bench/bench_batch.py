@@ -78,8 +78,9 @@ def single_run_seconds(steps: int) -> float:
     return best_seconds(run, 1) / steps
 
 
-def closed_loop_rates(size: int, steps: int, repeats: int) -> tuple[float, float]:
-    """Robot-steps/s of the single robot and of a batch of ``size`` under the example controller with coulomb contact.
+def closed_loop_rates(size: int, steps: int, repeats: int, engines: list[str]) -> tuple[float, dict[str, float]]:
+    """Robot-steps/s of the single robot and of a batch of ``size`` (each engine) under the example controller with
+    coulomb contact.
 
     The figure-8, the driven set, controller mass scales 0.8-1.2: ``simulate --controller --contact coulomb``.
     """
@@ -93,13 +94,14 @@ def closed_loop_rates(size: int, steps: int, repeats: int) -> tuple[float, float
         simulation.run(steps * simulation.dt,
                        close_loop(simulation, SampledController(TrackingController(robot, scenario.reference))))
 
-    def batch_loop() -> None:
-        batch = BatchSimulation.from_scenario([robot] * size, scenario, selection, contact='coulomb')
+    def batch_loop(engine: str) -> None:
+        batch = BatchSimulation.from_scenario([robot] * size, scenario, selection, contact='coulomb', engine=engine)
         scales = np.linspace(0.8, 1.2, size)
         loop = BatchTrackingController([controller_robot(params, scale) for scale in scales], scenario.reference,
                                        ControllerGains(), CONTROL_RATE_HZ, MAX_WHEEL_TORQUE)
         batch.run(steps, loop.hook(batch))
-    return steps / best_seconds(single_loop, repeats), size * steps / best_seconds(batch_loop, repeats)
+    return steps / best_seconds(single_loop, repeats), {
+        engine: size * steps / best_seconds(lambda: batch_loop(engine), repeats) for engine in engines}
 
 
 def check_agreement(batch: BatchSimulation) -> None:
@@ -203,9 +205,10 @@ def main() -> None:
               f'{size * steps / timings[threads][0]:.0f} ({timings[1][0] / timings[threads][0]:.2f}x); '
               f'one robot-step costs {per_robot * 1e9:.0f} ns of one core: with the {os.cpu_count()} cores to itself '
               f'at most {os.cpu_count() / per_robot:.0f} robot-steps/s')
-    single_rate, batch_rate = closed_loop_rates(1000, 200, min(args.repeats, 3))
-    print(f'under the controller with coulomb contact (NumPy engine; figure-8, driven set): single robot '
-          f'{single_rate:.0f} robot-steps/s, N = 1000 {batch_rate:.0f} ({batch_rate / single_rate:.1f}x)')
+    single_rate, batch_rates = closed_loop_rates(1000, 200, min(args.repeats, 3), engines)
+    print(f'under the controller with coulomb contact (figure-8, driven set): single robot {single_rate:.0f} '
+          f'robot-steps/s; N = 1000: ' + ', '.join(f'{engine} {rate:.0f} ({rate / single_rate:.1f}x)'
+                                                   for engine, rate in batch_rates.items()))
     print(f'load average {os.getloadavg()[0]:.1f} at end')
 
 

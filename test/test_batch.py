@@ -10,7 +10,8 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
     ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
 from wallbot_sim.model.batch import (
-    BATCH_MODULES, BatchRecorder, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
+    BATCH_MODULES, BatchRecorder, BatchSimulation, RobotBatch, batch_constrained_acceleration,
+    minimum_norm_least_squares)
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import wrap_angles
 from wallbot_sim.model.constraint_set import MODULES
@@ -189,6 +190,26 @@ def test_batched_acceleration_matches_the_single_solver_on_random_problems():
     rhs = rng.normal(size=(count, 5))
     expected = np.array([constrained_acceleration(*problem) for problem in zip(factors, forces, rows, rhs)])
     assert np.allclose(batch_constrained_acceleration(factors, forces, rows, rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+@pytest.mark.parametrize('rank', [7, 5, 0])
+def test_compiled_solves_match_the_numpy_ones_robot_by_robot(rank):
+    """The robots' own factors W and rows making B = A W random of a given rank (so of moderate condition):
+    qdd, and B+ r, as the NumPy engine gives them."""
+    rng = np.random.default_rng(17 + rank)
+    robots = RobotBatch(random_robots(rng, 30))
+    factors = robots.mass_inverse_factor(rng.normal(size=(30, DOF)))
+    forces = rng.normal(size=(30, DOF))
+    rows = rng.normal(size=(30, 9, rank)) @ rng.normal(size=(30, rank, DOF)) @ np.linalg.inv(factors)
+    rhs = rng.normal(size=(30, 9))
+    expected = batch_constrained_acceleration(factors, forces, rows, rhs)
+    assert np.allclose(kernel.constrained_accelerations(factors, forces, rows, rhs), expected, rtol=1e-9,
+                       atol=1e-9 * np.max(np.abs(expected)))
+    matrices = rows @ factors
+    expected = minimum_norm_least_squares(matrices, rhs)
+    assert np.allclose(kernel.minimum_norm_solutions(matrices, rhs), expected, rtol=1e-9,
+                       atol=1e-9 * max(1.0, np.max(np.abs(expected))))
 
 
 def test_mass_matrix_and_factor_match_the_robot_model():

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from model_helpers import random_parameters
-from test_batch import assert_agree, perturbed_starts, random_robots
+from test_batch import ENGINES, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.model.batch import BatchSimulation
@@ -73,7 +73,8 @@ def compare_contact(batch: BatchSimulation, singles: list[Simulation], steps: in
     return {'slipped': slipped, 't_detached': t_detached}
 
 
-def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment():
+@pytest.mark.parametrize('engine', ENGINES)
+def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment(engine):
     """Driven robots at rest under random torques: some stick, some slip, some peel off; each as alone.
 
     0.4 s: a robot whose channels all slip with one wheel's slip velocity near zero is integrated
@@ -85,7 +86,7 @@ def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment():
     q0, qd0 = np.zeros((12, DOF)), np.zeros((12, DOF))
     q0[:, 2] = rng.uniform(-np.pi, np.pi, 12)
     torques = rng.uniform(-1.5, 1.5, (12, 2))
-    batch = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb')
+    batch = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine=engine)
     batch.set_motor_torque(torques)
     singles = [Simulation(robot, None, DRIVEN, q0[i], qd0[i], contact='coulomb') for i, robot in enumerate(robots)]
     for single, torque in zip(singles, torques):
@@ -116,15 +117,16 @@ def test_a_detached_robot_stops_and_the_others_go_on():
     assert np.all(batch.detached_wheel[detached] > 0) and np.all(batch.detached_wheel[~detached] == 0)
 
 
+@pytest.mark.parametrize('engine', ENGINES)
 @pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
-def test_loads_and_friction_use_of_a_tracking_batch_agree(contact):
+def test_loads_and_friction_use_of_a_tracking_batch_agree(contact, engine):
     """With the trajectory task the contact is ideal either way; the loads and use are still reported."""
     rng = np.random.default_rng(21)
     robots = random_robots(rng, 5)
     scenario = load_scenario('circle')
     q0, qd0 = perturbed_starts(rng, robots, scenario)
     selection = ConstraintSelection.parse('belt,non_lateral,nonslip')
-    batch = BatchSimulation(robots, scenario.reference, selection, q0, qd0, contact=contact)
+    batch = BatchSimulation(robots, scenario.reference, selection, q0, qd0, contact=contact, engine=engine)
     singles = [Simulation(robot, scenario.reference, selection, q0[i], qd0[i], contact=contact)
                for i, robot in enumerate(robots)]
     found = compare_contact(batch, singles, 150)

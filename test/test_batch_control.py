@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from test_batch import assert_agree
+from test_batch import ENGINES, assert_agree
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import ControllerGains, TrackingController
 from wallbot_sim.control.sampling import (
@@ -16,7 +16,8 @@ from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController
 from wallbot_sim.model.contact import DetachedError
 
 
-def closed_loops(contact: str, seed: int, count: int, steps: int) -> tuple[list[dict], list[dict], np.ndarray]:
+def closed_loops(contact: str, seed: int, count: int, steps: int,
+                 engine: str = 'numpy') -> tuple[list[dict], list[dict], np.ndarray]:
     """Robots of the robot file with their mass, CoM height and adhesion varied, each controller's mass off by its own
     scale; the batch and one Simulation + SampledController per robot, run as ``simulate --controller`` runs."""
     rng = np.random.default_rng(seed)
@@ -27,7 +28,7 @@ def closed_loops(contact: str, seed: int, count: int, steps: int) -> tuple[list[
     scales = rng.uniform(0.7, 1.3, count)
     plants = [Robot(params) for params in plant_params]
     controllers = [controller_robot(params, scale) for params, scale in zip(plant_params, scales)]
-    batch = BatchSimulation.from_scenario(plants, scenario, DRIVEN, contact=contact)
+    batch = BatchSimulation.from_scenario(plants, scenario, DRIVEN, contact=contact, engine=engine)
     loop = BatchTrackingController(controllers, scenario.reference, ControllerGains(), CONTROL_RATE_HZ,
                                    MAX_WHEEL_TORQUE)
     keys = ('q', 'qd', 'constraint force', 'motor torque', 'loads')
@@ -59,9 +60,10 @@ def closed_loops(contact: str, seed: int, count: int, steps: int) -> tuple[list[
     return batch_history, single_history, slipped
 
 
+@pytest.mark.parametrize('engine', ENGINES)
 @pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
-def test_closed_loop_batch_agrees_robot_by_robot(contact):
-    batch_history, single_history, slipped = closed_loops(contact, seed=4, count=6, steps=500)
+def test_closed_loop_batch_agrees_robot_by_robot(contact, engine):
+    batch_history, single_history, slipped = closed_loops(contact, seed=4, count=6, steps=500, engine=engine)
     if contact == 'coulomb':
         assert slipped.any() and not slipped.all(), 'some robots should slip under the controller, others not'
     for i, (mine, theirs) in enumerate(zip(batch_history, single_history)):

@@ -1,4 +1,4 @@
-"""The ideal-contact RK4 step of the batch compiled with numba: each robot's steps in one fused loop.
+"""The batch compiled with numba: the ideal-contact RK4 steps fused robot by robot, and the solve alone.
 
 The NumPy path (``BatchSimulation`` with ``engine='numpy'``) spends its time in whole-batch
 array passes: every operation of a derivative reads and writes (N, k, 7) arrays, so a step is
@@ -9,6 +9,10 @@ computation as the NumPy path, operation for operation where it can be: the mode
 the rows of the modules of ``BATCH_MODULES`` in stacking order, the Udwadia-Kalaba solve by
 normal equations with the pivoted (rank-revealing) fallback per robot, and RK4's sums. The
 agreement tests run both.
+
+``constrained_accelerations`` and ``minimum_norm_solutions`` are the solve alone (the NumPy
+engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
+what the fused step does not cover: coulomb contact, and the outputs step hooks see.
 
 numba is optional: ``available()`` says whether it imported.
 """
@@ -271,7 +275,19 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
             violation = -cos_t * qd[0] - sin_t * qd[1] + constants[12 + wheel] * thd + radius * qd[3 + wheel]
             rhs[count] = thd * v_lat - gam * violation
             count += 1
-    # qdd = W (W^T Q + B+ (b - B W^T Q)), B = A W; W is the 3x3 chassis block and a diagonal
+    for j in range(3, DOF):
+        factor[j, j] = spin
+    _solve(factor, force, rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
+
+
+def _solve(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray, count: int,
+           matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray,
+           out: np.ndarray) -> None:
+    """qdd = W (W^T Q + B+ (b - B W^T Q)), B = A W, of one robot (``batch_constrained_acceleration``).
+
+    W is the robot's factor of M^-1: lower triangular, its off-diagonal entries in the 3 x 3 chassis
+    block. ``vectors`` rows 1-4 are scratch (row 0 may hold Q).
+    """
     scaled = vectors[1]
     for i in range(3):
         value = 0.0
@@ -279,50 +295,83 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
             value += factor[k, i] * force[k]
         scaled[i] = value
     for i in range(3, DOF):
-        scaled[i] = spin * force[i]
+        scaled[i] = factor[i, i] * force[i]
     if count > 0:
+        misfit = vectors[2]
         for r in range(count):
-            misfit = rhs[r]
+            value_r = rhs[r]
             for j in range(3):
                 value = 0.0
                 for k in range(j, 3):
                     value += rows[r, k] * factor[k, j]
                 matrix[r, j] = value
-                misfit -= value * scaled[j]
+                value_r -= value * scaled[j]
             for j in range(3, DOF):
-                value = rows[r, j] * spin
+                value = rows[r, j] * factor[j, j]
                 matrix[r, j] = value
-                misfit -= value * scaled[j]
-            vectors[2, r] = misfit
-        moment = vectors[3]
-        largest = 0.0
+                value_r -= value * scaled[j]
+            misfit[r] = value_r
+        _minimum_norm(matrix, misfit, count, gram, lower, vectors, scratch, vectors[4])
         for i in range(DOF):
-            value = 0.0
-            for r in range(count):
-                value += matrix[r, i] * vectors[2, r]
-            moment[i] = value
-            for j in range(i + 1):
-                entry = 0.0
-                for r in range(count):
-                    entry += matrix[r, i] * matrix[r, j]
-                gram[i, j] = gram[j, i] = entry
-            largest = max(largest, gram[i, i])
-        solution = vectors[4]
-        if _cholesky(gram, DOF, lower) > _WELL_CONDITIONED * largest:
-            for i in range(DOF):
-                solution[i] = moment[i]
-            _substitute(lower, DOF, solution)
-        else:
-            _rank_revealing(gram, moment, scratch, lower, solution)
-        for i in range(DOF):
-            scaled[i] += solution[i]
+            scaled[i] += vectors[4, i]
     for i in range(3):
         value = 0.0
         for k in range(i + 1):
             value += factor[i, k] * scaled[k]
         out[i] = value
     for i in range(3, DOF):
-        out[i] = spin * scaled[i]
+        out[i] = factor[i, i] * scaled[i]
+
+
+def _minimum_norm(matrix: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray,
+                  vectors: np.ndarray, scratch: np.ndarray, solution: np.ndarray) -> None:
+    """B+ r for one robot's B (count x 7): normal equations, or the pivoted fallback (``minimum_norm_least_squares``).
+
+    Uses ``vectors`` row 3 as scratch.
+    """
+    moment = vectors[3]
+    largest = 0.0
+    for i in range(DOF):
+        value = 0.0
+        for r in range(count):
+            value += matrix[r, i] * rhs[r]
+        moment[i] = value
+        for j in range(i + 1):
+            entry = 0.0
+            for r in range(count):
+                entry += matrix[r, i] * matrix[r, j]
+            gram[i, j] = gram[j, i] = entry
+        largest = max(largest, gram[i, i])
+    if _cholesky(gram, DOF, lower) > _WELL_CONDITIONED * largest:
+        for i in range(DOF):
+            solution[i] = moment[i]
+        _substitute(lower, DOF, solution)
+    else:
+        _rank_revealing(gram, moment, scratch, lower, solution)
+
+
+def _scratch(rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """matrix, gram, lower, vectors and the fallback's scratch for problems of up to ``rows`` rows."""
+    return (np.zeros((max(rows, 1), DOF)), np.zeros((DOF, DOF)), np.zeros((DOF, DOF)),
+            np.zeros((5, max(rows, DOF))), np.zeros((5, DOF, DOF)))
+
+
+def _accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None:
+    """``_solve`` of every robot, on one thread: called several times a step, a solve is too short to pay
+    for waking the others (on a machine others load, that costs more than it gains)."""
+    count = rows.shape[1]
+    matrix, gram, lower, vectors, scratch = _scratch(count)
+    for robot in range(rows.shape[0]):
+        _solve(factor[robot], force[robot], rows[robot], rhs[robot], count, matrix, gram, lower, vectors, scratch,
+               out[robot])
+
+
+def _minimum_norms(matrix: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None:
+    """``_minimum_norm`` of every robot, on one thread (as ``_accelerations``)."""
+    count = matrix.shape[1]
+    _, gram, lower, vectors, scratch = _scratch(count)
+    for robot in range(matrix.shape[0]):
+        _minimum_norm(matrix[robot], rhs[robot], count, gram, lower, vectors, scratch, out[robot])
 
 
 def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
@@ -375,8 +424,28 @@ _substitute = _compile(_substitute, inline="always")
 _solve_factored = _compile(_solve_factored)
 _solve_positive = _compile(_solve_positive)
 _rank_revealing = _compile(_rank_revealing)
+_minimum_norm = _compile(_minimum_norm, inline="always")
+_solve = _compile(_solve, inline="always")
+_scratch = _compile(_scratch)
 _acceleration = _compile(_acceleration, inline="always")
+_accelerations = _compile(_accelerations)
+_minimum_norms = _compile(_minimum_norms)
 _steps = _compile(_steps, parallel=True)
+
+
+def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``batch_constrained_acceleration`` compiled robot by robot, for the robots' own factors W (N, 7, 7)."""
+    out = np.empty(force.shape)
+    _accelerations(np.ascontiguousarray(factor), np.ascontiguousarray(force), np.ascontiguousarray(rows),
+                   np.ascontiguousarray(rhs), out)
+    return out
+
+
+def minimum_norm_solutions(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``minimum_norm_least_squares`` compiled robot by robot, for B (N, k, 7)."""
+    out = np.empty((matrix.shape[0], DOF))
+    _minimum_norms(np.ascontiguousarray(matrix), np.ascontiguousarray(rhs), out)
+    return out
 
 
 def robot_constants(robots: Any, alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:

@@ -94,7 +94,8 @@ class BatchSimulation:
                  gains: BatchGains | None = None, contact: str = IDEAL, engine: str = NUMPY) -> None:
         """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own.
 
-        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``) wherever the contact is ideal.
+        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``) wherever the contact is ideal
+        and the compiled solve everywhere else.
         """
         POSITIVE.check('time step', dt)
         check_contact_model(contact)
@@ -103,6 +104,10 @@ class BatchSimulation:
         if engine == NUMBA and not kernel.available():
             raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
         self.engine = engine
+        compiled = engine == NUMBA
+        self._accelerations = kernel.constrained_accelerations if compiled else batch_constrained_acceleration
+        """The batch's solve: the compiled one robot by robot for engine 'numba' (coulomb contact, outputs too)."""
+        self._least_squares = kernel.minimum_norm_solutions if compiled else minimum_norm_least_squares
         self.robots = RobotBatch(robots)
         self.dt = dt
         self.gains = gains or BatchGains.of(self.robots)
@@ -193,7 +198,7 @@ class BatchSimulation:
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:, :DOF], y[:, DOF:]
         force, rows, rhs, _ = self._contact_problem(t, q, qd, self._slipping_rows, self._bounds)
-        acceleration = batch_constrained_acceleration(self.robots.mass_inverse_factor(q), force, rows, rhs)
+        acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         return np.concatenate((qd, acceleration), axis=1)
 
     def _motion(self, t: float, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray | None,
@@ -205,7 +210,7 @@ class BatchSimulation:
             rows, rhs = rows * keep[:, :, None], rhs * keep
         if friction is not None:
             force = force + friction
-        acceleration = batch_constrained_acceleration(self.robots.mass_inverse_factor(q), force, rows, rhs)
+        acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         misfit = stacked_product(rows, acceleration) - rhs
         return BatchMotion(acceleration, stacked_product(self.robots.mass_matrix(q), acceleration) - force,
                            np.sqrt(np.sum(misfit * misfit, axis=1)))
@@ -214,7 +219,7 @@ class BatchSimulation:
         """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the rows that do not slip (= qd - W B+ A qd)."""
         rows = self._problem(self.t, q, qd)[1] * ~slipping_rows[:, :, None]
         factor = self.robots.mass_inverse_factor(q)
-        return qd - stacked_product(factor, minimum_norm_least_squares(rows @ factor, stacked_product(rows, qd)))
+        return qd - stacked_product(factor, self._least_squares(rows @ factor, stacked_product(rows, qd)))
 
     def _measure(self, q: np.ndarray, qd: np.ndarray, motion: BatchMotion,
                  friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
