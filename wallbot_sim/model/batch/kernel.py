@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from wallbot_sim.model.batch.solver import _RELATIVE_CUTOFF, _WELL_CONDITIONED
+from wallbot_sim.model.batch.robots import RobotBatch
+from wallbot_sim.model.batch.solver import RANK_CUTOFF, WELL_CONDITIONED
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
 
@@ -135,7 +136,7 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
         largest = max(largest, gram[j, j])
         for i in range(size):
             schur[i, j] = gram[i, j]
-    cut = _RELATIVE_CUTOFF * largest
+    cut = RANK_CUTOFF * largest
     for _ in range(size):
         best, pivot = -1, -math.inf
         for j in range(size):
@@ -342,7 +343,7 @@ def _minimum_norm(matrix: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndar
                 entry += matrix[r, i] * matrix[r, j]
             gram[i, j] = gram[j, i] = entry
         largest = max(largest, gram[i, i])
-    if _cholesky(gram, DOF, lower) > _WELL_CONDITIONED * largest:
+    if _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
         for i in range(DOF):
             solution[i] = moment[i]
         _substitute(lower, DOF, solution)
@@ -448,7 +449,7 @@ def minimum_norm_solutions(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return out
 
 
-def robot_constants(robots: Any, alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
+def robot_constants(robots: RobotBatch, alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
     """(N, 24) per robot, in ``_acceleration``'s order, from a ``RobotBatch`` and the Baumgarte gains."""
     return np.ascontiguousarray(np.column_stack((
         robots.total_mass, robots.yaw_inertia, robots.spin_inertia, robots.first_moment, robots.gravity,
