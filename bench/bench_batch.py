@@ -1,15 +1,21 @@
-"""Robot-steps per second of the batched core, beside the single-robot loop measured in the same run.
+"""Robot-steps per second of the batched core, both engines, beside the single-robot loop measured in the same run.
 
 The circle with the full constraint set (trajectory, tangent heading, belt, non-lateral, nonslip) and
 the ideal contact. The single-robot loop is ``Simulation.step`` on one robot; the batch is
-``BatchSimulation.step`` on N robots with slightly different body masses. Timings are wall clock,
-the best of ``--repeats`` rounds; each round measures the single loop and every batch size in turn,
-so load from other processes on the machine hits them alike.
+``BatchSimulation.run`` on N robots with slightly different body masses, with the NumPy engine
+(whole-batch array passes) and the compiled one (numba, when installed: each robot's steps fused,
+the robots split over the cores). Timings are wall clock, the best of ``--repeats`` rounds; each
+round measures the single loop and every batch in turn, so load from other processes on the
+machine hits them alike. Beside each wall-clock rate is the rate per CPU-second the process got
+(its threads' CPU time): on a machine others load, that says what the code would do with the
+cores to itself.
 
-What limits the batch: a batch step costs t(N) = t0 + N c(N). t0, measured at N = 1, is the cost that
-does not grow with N (Python and NumPy call overhead of ~200 array operations per step); c(N) is the
-per-robot cost of the array work, printed for every size (it grows once the working set, a few kB
-per robot, leaves the cache). The per-stage split at the fastest size says where c goes.
+What limits the NumPy engine: a batch step costs t(N) = t0 + N c(N). t0, measured at N = 1, is the
+cost that does not grow with N (Python and NumPy call overhead of ~200 array operations per step);
+c(N) is the per-robot cost of the array work, printed for every size (it grows once the working
+set, a few kB per robot, leaves the cache). The per-stage split at its fastest size says where c
+goes. The compiled engine is bound by arithmetic: its cost per robot-step on one core is printed,
+and its limit is the cores over that.
 
     python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--robot-steps 40000]
 """
@@ -26,7 +32,11 @@ import numpy as np
 
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.model.batch import BatchSimulation, batch_constrained_acceleration, solver
+from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.control.sampling import (
+    CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot)
+from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController, batch_constrained_acceleration, kernel
+from wallbot_sim.model.batch import solver
 
 SELECTION = 'belt,non_lateral,nonslip'
 MAX_BATCH_STEPS = 400
@@ -35,18 +45,24 @@ MAX_BATCH_STEPS = 400
 
 def best_seconds(action: Callable[[], None], repeats: int) -> float:
     """The shortest wall time of ``repeats`` runs of ``action``."""
-    best = float('inf')
+    return best_times(action, repeats)[0]
+
+
+def best_times(action: Callable[[], None], repeats: int) -> tuple[float, float]:
+    """The shortest wall time and the shortest CPU time (all threads) of ``repeats`` runs of ``action``."""
+    wall = cpu = float('inf')
     for _ in range(repeats):
-        started = time.perf_counter()
+        started, started_cpu = time.perf_counter(), time.process_time()
         action()
-        best = min(best, time.perf_counter() - started)
-    return best
+        wall, cpu = min(wall, time.perf_counter() - started), min(cpu, time.process_time() - started_cpu)
+    return wall, cpu
 
 
-def batch_of(size: int, selection: ConstraintSelection | None = None) -> BatchSimulation:
+def batch_of(size: int, selection: ConstraintSelection | None = None, engine: str = 'numpy') -> BatchSimulation:
     params = load_robot_parameters()
     robots = [Robot(params.replace(body_mass=params.body_mass * (1.0 + 0.2 * i / size))) for i in range(size)]
-    return BatchSimulation.from_scenario(robots, load_scenario('circle'), selection or ConstraintSelection.parse(SELECTION))
+    return BatchSimulation.from_scenario(robots, load_scenario('circle'),
+                                         selection or ConstraintSelection.parse(SELECTION), engine=engine)
 
 
 def single_run_seconds(steps: int) -> float:
@@ -60,6 +76,32 @@ def single_run_seconds(steps: int) -> float:
         for _ in range(steps):
             simulation.step()
     return best_seconds(run, 1) / steps
+
+
+def closed_loop_rates(size: int, steps: int, repeats: int, engines: list[str]) -> tuple[float, dict[str, float]]:
+    """Robot-steps/s of the single robot and of a batch of ``size`` (each engine) under the example controller with
+    coulomb contact.
+
+    The figure-8, the driven set, controller mass scales 0.8-1.2: ``simulate --controller --contact coulomb``.
+    """
+    params, scenario = load_robot_parameters(), load_scenario('figure8')
+    selection = ConstraintSelection.structural(trajectory=False)
+    robot = Robot(params)
+
+    def single_loop() -> None:
+        q0, qd0 = scenario.initial_state(robot)
+        simulation = Simulation(robot, scenario.reference, selection, q0, qd0, contact='coulomb')
+        simulation.run(steps * simulation.dt,
+                       close_loop(simulation, SampledController(TrackingController(robot, scenario.reference))))
+
+    def batch_loop(engine: str) -> None:
+        batch = BatchSimulation.from_scenario([robot] * size, scenario, selection, contact='coulomb', engine=engine)
+        scales = np.linspace(0.8, 1.2, size)
+        loop = BatchTrackingController([controller_robot(params, scale) for scale in scales], scenario.reference,
+                                       ControllerGains(), CONTROL_RATE_HZ, MAX_WHEEL_TORQUE)
+        batch.run(steps, loop.hook(batch))
+    return steps / best_seconds(single_loop, repeats), {
+        engine: size * steps / best_seconds(lambda: batch_loop(engine), repeats) for engine in engines}
 
 
 def check_agreement(batch: BatchSimulation) -> None:
@@ -100,43 +142,73 @@ def main() -> None:
     parser.add_argument('--repeats', type=int, default=7, help='measurements per figure (the best is kept)')
     args = parser.parse_args()
     sizes = [int(size) for size in args.sizes.split(',')]
-    print(f'# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}; '
-          f'load average {os.getloadavg()[0]:.1f} at start; circle, {SELECTION} + trajectory, ideal contact')
-    batches = {size: batch_of(size) for size in sizes}
+    engines = ['numpy'] + (['numba'] if kernel.available() else [])
+    print(f'# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}'
+          f'{", numba " + kernel.numba.__version__ if kernel.available() else ", no numba"}; load average '
+          f'{os.getloadavg()[0]:.1f} at start; circle, {SELECTION} + trajectory, ideal contact')
+    batches = {(engine, size): batch_of(size, engine=engine) for engine in engines for size in sizes}
     for batch in batches.values():
-        batch.step()  # first step: allocations and caches warm
-    single_seconds, batch_seconds = float('inf'), dict.fromkeys(sizes, float('inf'))
+        batch.step()  # first step: allocations, caches warm, the kernel compiled (or loaded from its cache)
+    single_seconds = float('inf')
+    wall, cpu = dict.fromkeys(batches, float('inf')), dict.fromkeys(batches, float('inf'))
     for _ in range(args.repeats):  # round robin, best of each: load from other processes hits all alike
         single_seconds = min(single_seconds, single_run_seconds(args.single_steps))
-        for size, batch in batches.items():
-            steps = max(2, min(round(args.robot_steps / size), MAX_BATCH_STEPS))
-            batch_seconds[size] = min(batch_seconds[size], best_seconds(lambda: batch.run(steps), 1) / steps)
+        for key, batch in batches.items():
+            size = key[1]
+            limit = MAX_BATCH_STEPS if key[0] == 'numpy' else 10 * MAX_BATCH_STEPS
+            steps = max(2, min(round(args.robot_steps / size), limit))
+            seconds, cpu_seconds = best_times(lambda: batch.run(steps), 1)
+            wall[key], cpu[key] = min(wall[key], seconds / steps), min(cpu[key], cpu_seconds / steps)
     single = 1.0 / single_seconds
     print(f'single-robot loop: {single:10.0f} robot-steps/s')
-    print(f'{"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
-    overhead = batch_seconds.get(1)
-    rates = {size: size / seconds for size, seconds in batch_seconds.items()}
-    for size, seconds in batch_seconds.items():
+    print(f'{"engine":>6s} {"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"per CPU-s":>10s} '
+          f'{"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
+    rates = {key: key[1] / seconds for key, seconds in wall.items()}
+    for (engine, size), seconds in wall.items():
+        overhead = wall.get((engine, 1))
         beyond = '' if overhead is None or size == 1 else f'{(seconds - overhead) / size * 1e9:26.0f}'
-        print(f'{size:10d} {rates[size]:14.0f} {rates[size] / single:9.1f} {seconds * 1e3:8.2f} {beyond}')
-    check_agreement(batches[sizes[-1]])
-    fastest = max(rates, key=rates.get)
-    print(f'fastest: N = {fastest}, {rates[fastest]:.0f} robot-steps/s = {rates[fastest] / single:.1f} x the single loop')
-    driven = batch_of(fastest, ConstraintSelection.structural(trajectory=False))
-    driven.set_motor_torque((0.5, 0.4))
-    driven.step()
-    steps = max(2, round(args.robot_steps / fastest))
-    seconds = best_seconds(lambda: driven.run(steps), args.repeats) / steps
-    print(f'driven set without the trajectory task (B of rank 5: the rank-revealing path), N = {fastest}: '
-          f'{fastest / seconds:.0f} robot-steps/s')
+        print(f'{engine:>6s} {size:10d} {rates[engine, size]:14.0f} {rates[engine, size] / single:9.1f} '
+              f'{size / cpu[engine, size]:10.0f} {seconds * 1e3:8.2f} {beyond}')
+    for engine in engines:
+        check_agreement(batches[engine, sizes[-1]])
+        fastest = max((size for size in sizes), key=lambda size: rates[engine, size])
+        rate = rates[engine, fastest]
+        print(f'{engine}: fastest N = {fastest}, {rate:.0f} robot-steps/s = {rate / single:.1f} x the single loop')
+        driven = batch_of(fastest, ConstraintSelection.structural(trajectory=False), engine)
+        driven.set_motor_torque((0.5, 0.4))
+        driven.step()
+        steps = max(2, round(args.robot_steps / fastest))
+        seconds = best_seconds(lambda: driven.run(steps), args.repeats) / steps
+        print(f'  driven set without the trajectory task (B of rank 5: the rank-revealing path), N = {fastest}: '
+              f'{fastest / seconds:.0f} robot-steps/s')
+    fastest = max((size for size in sizes), key=lambda size: rates['numpy', size])
     batch = batch_of(fastest)
     batch.run(3)
     split = stage_split(batch, args.repeats)
     stage = sum(seconds for name, seconds in split.items() if not name.startswith(' '))
-    print(f'one RK4 stage at N = {fastest} ({stage / fastest * 1e9:.0f} ns per robot; a step is 4 stages and the '
-          f'RK4 sums):')
+    print(f'numpy: one RK4 stage at N = {fastest} ({stage / fastest * 1e9:.0f} ns per robot; a step is 4 stages and '
+          f'the RK4 sums):')
     for name, seconds in split.items():
         print(f'  {name:26s} {seconds / fastest * 1e9:6.0f} ns per robot  {seconds / stage:5.1%}')
+    if kernel.available():
+        size = max(sizes)
+        batch = batches['numba', size]
+        threads = kernel.numba.get_num_threads()
+        steps = max(2, min(round(args.robot_steps / size), 10 * MAX_BATCH_STEPS))
+        timings = {}
+        for count in sorted({1, threads}):  # one thread, then all: how far the second core was there to take
+            kernel.numba.set_num_threads(count)
+            timings[count] = best_times(lambda: batch.run(steps), args.repeats)
+        kernel.numba.set_num_threads(threads)
+        per_robot = timings[1][1] / steps / size
+        print(f'numba at N = {size}: one thread {size * steps / timings[1][0]:.0f} robot-steps/s, {threads} threads '
+              f'{size * steps / timings[threads][0]:.0f} ({timings[1][0] / timings[threads][0]:.2f}x); '
+              f'one robot-step costs {per_robot * 1e9:.0f} ns of one core: with the {os.cpu_count()} cores to itself '
+              f'at most {os.cpu_count() / per_robot:.0f} robot-steps/s')
+    single_rate, batch_rates = closed_loop_rates(1000, 200, min(args.repeats, 3), engines)
+    print(f'under the controller with coulomb contact (figure-8, driven set): single robot {single_rate:.0f} '
+          f'robot-steps/s; N = 1000: ' + ', '.join(f'{engine} {rate:.0f} ({rate / single_rate:.1f}x)'
+                                                   for engine, rate in batch_rates.items()))
     print(f'load average {os.getloadavg()[0]:.1f} at end')
 
 

@@ -10,13 +10,18 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
     ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
 from wallbot_sim.model.batch import (
-    BATCH_MODULES, BatchSimulation, batch_constrained_acceleration, minimum_norm_least_squares)
+    BATCH_MODULES, BatchRecorder, BatchSimulation, RobotBatch, batch_constrained_acceleration,
+    minimum_norm_least_squares)
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import wrap_angles
 from wallbot_sim.model.constraint_set import MODULES
 from wallbot_sim.model.constraints import wrap_angle
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.solver import constrained_acceleration
 
+ENGINES = ['numpy', pytest.param('numba', marks=pytest.mark.skipif(not kernel.available(),
+                                                                  reason='numba is not installed'))]
+"""The batch's engines, each held to the same agreement."""
 TOLERANCE = 1e-9
 """Relative agreement asked of the batch, states and forces, robot by robot."""
 
@@ -49,10 +54,13 @@ def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray)
 
 
 def run_both(robots: list[Robot], scenario, selection: ConstraintSelection, q0: np.ndarray, qd0: np.ndarray,
-             steps: int, torques: np.ndarray | None = None, every: int = 50) -> None:
-    """Step the batch and one Simulation per robot side by side, comparing states and forces every ``every`` steps."""
+             steps: int, torques: np.ndarray | None = None, every: int = 50, engine: str = 'numpy') -> None:
+    """Step the batch and one Simulation per robot side by side, comparing states and forces every ``every`` steps.
+
+    Between comparisons the batch runs ``run`` (the compiled engine's steps in one call).
+    """
     reference = scenario.reference if selection.trajectory else None
-    batch = BatchSimulation(robots, reference, selection, q0, qd0)
+    batch = BatchSimulation(robots, reference, selection, q0, qd0, engine=engine)
     singles = [Simulation(robot, reference, selection, q0[i], qd0[i]) for i, robot in enumerate(robots)]
     if torques is not None:
         batch.set_motor_torque(torques)
@@ -74,7 +82,8 @@ def run_both(robots: list[Robot], scenario, selection: ConstraintSelection, q0: 
                     for key, value in zip(keys, values):
                         store[key].append(value)
         if step < steps:
-            batch.step()
+            if step % every == 0:
+                batch.run(min(every, steps - step))
             for single in singles:
                 single.step()
     for i in range(len(robots)):
@@ -87,16 +96,19 @@ def run_both(robots: list[Robot], scenario, selection: ConstraintSelection, q0: 
 
 
 @pytest.mark.parametrize('scenario_name', ['circle', 'figure8'])
-def test_full_set_with_the_trajectory_task_agrees_robot_by_robot(scenario_name):
+@pytest.mark.parametrize('engine', ENGINES)
+def test_full_set_with_the_trajectory_task_agrees_robot_by_robot(scenario_name, engine):
     """simulate --scenario circle --constraints belt,non_lateral,nonslip, for random robots from random starts."""
     rng = np.random.default_rng(11)
     robots = random_robots(rng, 6)
     scenario = load_scenario(scenario_name)
     q0, qd0 = perturbed_starts(rng, robots, scenario)
-    run_both(robots, scenario, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=400)
+    run_both(robots, scenario, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=400,
+             engine=engine)
 
 
-def test_driven_set_without_the_trajectory_task_agrees_robot_by_robot():
+@pytest.mark.parametrize('engine', ENGINES)
+def test_driven_set_without_the_trajectory_task_agrees_robot_by_robot(engine):
     """Belt, non-lateral, nonslip, motor torques per robot: A has dependent rows, so B has dependent columns."""
     rng = np.random.default_rng(12)
     robots = random_robots(rng, 6)
@@ -104,7 +116,7 @@ def test_driven_set_without_the_trajectory_task_agrees_robot_by_robot():
     q0[:, 2] = rng.uniform(-np.pi, np.pi, 6)
     qd0 = rng.normal(0.0, 0.05, (6, DOF))
     run_both(robots, load_scenario('circle'), ConstraintSelection.structural(trajectory=False), q0, qd0, steps=400,
-             torques=rng.uniform(-2.0, 2.0, (6, 2)))
+             torques=rng.uniform(-2.0, 2.0, (6, 2)), engine=engine)
 
 
 @pytest.mark.parametrize('constraints, heading', [
@@ -113,13 +125,14 @@ def test_driven_set_without_the_trajectory_task_agrees_robot_by_robot():
     ('belt', None),                       # consistent, dependent columns (the spins the belt leaves free)
     ('none', None),                       # the trajectory task alone
 ], ids=['inconsistent-and-rank-deficient', 'inconsistent', 'rank-deficient', 'trajectory-only'])
-def test_least_squares_compromise_per_robot_agrees(constraints, heading):
+@pytest.mark.parametrize('engine', ENGINES)
+def test_least_squares_compromise_per_robot_agrees(constraints, heading, engine):
     rng = np.random.default_rng(13)
     robots = random_robots(rng, 5)
     scenario = load_scenario('circle')
     q0, qd0 = perturbed_starts(rng, robots, scenario)
     selection = ConstraintSelection.parse(constraints, tangent_heading=heading)
-    run_both(robots, scenario, selection, q0, qd0, steps=300)
+    run_both(robots, scenario, selection, q0, qd0, steps=300, engine=engine)
 
 
 def test_the_inconsistent_case_really_is_a_compromise():
@@ -179,6 +192,26 @@ def test_batched_acceleration_matches_the_single_solver_on_random_problems():
     assert np.allclose(batch_constrained_acceleration(factors, forces, rows, rhs), expected, rtol=1e-10, atol=1e-12)
 
 
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+@pytest.mark.parametrize('rank', [7, 5, 0])
+def test_compiled_solves_match_the_numpy_ones_robot_by_robot(rank):
+    """The robots' own factors W and rows making B = A W random of a given rank (so of moderate condition):
+    qdd, and B+ r, as the NumPy engine gives them."""
+    rng = np.random.default_rng(17 + rank)
+    robots = RobotBatch(random_robots(rng, 30))
+    factors = robots.mass_inverse_factor(rng.normal(size=(30, DOF)))
+    forces = rng.normal(size=(30, DOF))
+    rows = rng.normal(size=(30, 9, rank)) @ rng.normal(size=(30, rank, DOF)) @ np.linalg.inv(factors)
+    rhs = rng.normal(size=(30, 9))
+    expected = batch_constrained_acceleration(factors, forces, rows, rhs)
+    assert np.allclose(kernel.constrained_accelerations(factors, forces, rows, rhs), expected, rtol=1e-9,
+                       atol=1e-9 * np.max(np.abs(expected)))
+    matrices = rows @ factors
+    expected = minimum_norm_least_squares(matrices, rhs)
+    assert np.allclose(kernel.minimum_norm_solutions(matrices, rhs), expected, rtol=1e-9,
+                       atol=1e-9 * max(1.0, np.max(np.abs(expected))))
+
+
 def test_mass_matrix_and_factor_match_the_robot_model():
     rng = np.random.default_rng(3)
     robots = random_robots(rng, 8)
@@ -202,6 +235,8 @@ def test_bad_batches_are_refused_with_a_reason():
     robot = Robot(load_robot_parameters())
     selection = ConstraintSelection.parse('belt')
     reference = load_scenario('circle').reference
+    with pytest.raises(ParameterError, match="unknown engine 'cuda'"):
+        BatchSimulation([robot], reference, selection, np.zeros((1, DOF)), np.zeros((1, DOF)), engine='cuda')
     with pytest.raises(ParameterError, match='at least one robot'):
         BatchSimulation([], reference, selection, np.zeros((0, DOF)), np.zeros((0, DOF)))
     with pytest.raises(ParameterError, match=r'shape \(2, 7\)'):
@@ -212,19 +247,41 @@ def test_bad_batches_are_refused_with_a_reason():
         BatchSimulation([robot], None, selection, np.zeros((1, DOF)), np.zeros((1, DOF)))
 
 
-def test_a_diverging_robot_stops_the_batch_unchanged_and_is_named():
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_diverging_robot_stops_the_batch_unchanged_and_is_named(engine):
     """A robot whose state stops being finite is reported by index; no robot's state moves."""
     params = load_robot_parameters()
     robots = [Robot(params), Robot(params)]
     q0, qd0 = np.zeros((2, DOF)), np.zeros((2, DOF))
     qd0[1, 2] = 1e200  # its centripetal and resistance terms overflow at once
-    batch = BatchSimulation(robots, None, ConstraintSelection.parse('none', trajectory=False), q0, qd0)
+    batch = BatchSimulation(robots, None, ConstraintSelection.parse('none', trajectory=False), q0, qd0, engine=engine)
     with pytest.raises(DivergedError, match=r'robot\(s\) \[1\]'):
         batch.step()
     assert batch.steps == 0 and np.array_equal(batch.qd, qd0)
 
 
-def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_a_compiled_run_that_diverges_stops_every_robot_at_the_step_before():
+    """One robot overflows after some steps: the batch is left at the step before, as step by step."""
+    params = load_robot_parameters().replace(com_offset=(0.03, 0.0))
+    robots = [Robot(params), Robot(params)]
+    q0, qd0 = np.zeros((2, DOF)), np.zeros((2, DOF))
+    qd0[1, 2] = 1e153  # its centripetal force m_b c thd^2 is finite for a step, then overflows
+    selection = ConstraintSelection.parse('none', trajectory=False)
+    stepped = BatchSimulation(robots, None, selection, q0, qd0)
+    with pytest.raises(DivergedError) as by_step:
+        for _ in range(50):
+            stepped.step()
+    compiled = BatchSimulation(robots, None, selection, q0, qd0, engine='numba')
+    with pytest.raises(DivergedError) as by_run:
+        compiled.run(50)
+    assert str(by_run.value) == str(by_step.value)
+    assert compiled.steps == stepped.steps > 0
+    assert np.allclose(compiled.q, stepped.q, rtol=1e-12) and np.allclose(compiled.qd, stepped.qd, rtol=1e-12)
+
+
+@pytest.mark.parametrize('engine', ENGINES)
+def test_a_reference_that_comes_to_rest_agrees_through_the_stop(engine):
     """SmoothStop: the heading task has no direction once the reference rests, and holds the heading."""
     rng = np.random.default_rng(14)
     robots = random_robots(rng, 4)
@@ -232,7 +289,8 @@ def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
     stopping = Scenario('stop', SmoothStop(circle.reference, duration=0.1, stop_time=0.2), 1.0, circle.initial)
     q0, qd0 = perturbed_starts(rng, robots, stopping)
     assert tangent_heading(stopping.reference.sample(0.35)) is None
-    run_both(robots, stopping, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=450)
+    run_both(robots, stopping, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0, steps=450,
+             engine=engine)
 
 
 def test_wrapped_angles_match_the_single_robot_wrap():
@@ -241,3 +299,22 @@ def test_wrapped_angles_match_the_single_robot_wrap():
     expected = [wrap_angle(angle) for angle in angles]
     assert np.allclose(wrap_angles(angles), expected, rtol=0.0, atol=1e-14)
     assert np.all((wrap_angles(angles) > -np.pi) & (wrap_angles(angles) <= np.pi))
+
+
+def test_the_recorder_keeps_per_robot_time_series_of_the_instants_asked():
+    rng = np.random.default_rng(16)
+    robots = random_robots(rng, 3)
+    scenario = load_scenario('circle')
+    batch = BatchSimulation.from_scenario(robots, scenario, ConstraintSelection.parse('belt'))
+    recorder = BatchRecorder(('q', 'tracking_error', 'loads'), every=10)
+    final = batch.run(30, recorder)
+    series = recorder.series()
+    assert np.allclose(series['t'], [0.0, 0.01, 0.02, 0.03])
+    assert series['q'].shape == (4, 3, DOF) and series['loads'].shape == (4, 3, 4)
+    assert np.array_equal(series['q'][-1], final.q)
+    assert np.array_equal(series['tracking_error'][-1], final.tracking_error)
+    again = BatchSimulation.from_scenario(robots, scenario, ConstraintSelection.parse('belt'))
+    again.run(20)
+    assert np.array_equal(series['q'][2], again.q)
+    with pytest.raises(ParameterError, match="no field 'torque'"):
+        BatchRecorder(('q', 'torque'))

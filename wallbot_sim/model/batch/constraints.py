@@ -12,6 +12,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
+from wallbot_sim.model.constraints import NonLateral, Nonslip
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import stacked_product
@@ -39,7 +40,11 @@ class BatchGains:
 
 
 class BatchConstraint(Protocol):
-    """One constraint of every robot of the batch."""
+    """One constraint of every robot of the batch.
+
+    A wheel-wall contact module also has ``channels`` and ``row_wheels`` as its single-robot
+    module (``ContactConstraint``): the friction channel of each row and the wheels bounding it.
+    """
 
     name: str
 
@@ -73,6 +78,8 @@ class BatchNonLateral:
     """Row [-sin th, cos th, 0, ...], b = thd v_long - gam v_lat."""
 
     name = 'non_lateral'
+    channels = NonLateral.channels
+    row_wheels = NonLateral.row_wheels
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains
@@ -91,6 +98,8 @@ class BatchNonslip:
     """One row per wheel: [-cos th, -sin th, s_i, r at column 3+i], b = thd v_lat - gam h_i."""
 
     name = 'nonslip'
+    channels = Nonslip.channels
+    row_wheels = Nonslip.row_wheels
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains

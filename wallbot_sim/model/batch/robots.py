@@ -37,6 +37,16 @@ class RobotBatch:
         self.resistance_gain = np.array([p.rolling_resistance * robot.adsorption.normal_force_per_wheel
                                          for p, robot in zip(params, self.robots)])
         self.velocity_epsilon2 = np.array([p.velocity_epsilon for p in params]) ** 2
+        self.adhesion_force = np.array([robot.adsorption.applied_force for robot in self.robots])
+        """F_ad (N,): the robot file's adhesion_force, or k_ad F_min."""
+        self.half_wheelbase = np.array([p.half_wheelbase for p in params])
+        self.half_track = np.array([p.half_track for p in params])
+        self.com_height = np.array([p.com_height for p in params])
+        self.static_friction = np.array([p.wall_friction for p in params])
+        self.kinetic_friction = np.array([p.kinetic_friction for p in params])
+        self.stick_velocity = np.array([p.stick_velocity for p in params])
+        self.wheel_offsets = np.array([robot.wheel_offsets for robot in self.robots])
+        """d_i (N, 4, 2)."""
         chassis = np.stack((self.total_mass, self.total_mass, self.yaw_inertia), axis=1)
         self._diagonal = np.concatenate((chassis, np.repeat(self.spin_inertia[:, None], 4, axis=1)), axis=1)
 

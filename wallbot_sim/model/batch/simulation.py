@@ -1,26 +1,30 @@
-"""N robots in time: one RK4 step advances them all (``Simulation`` with the ideal contact, over a batch)."""
+"""N robots in time: one RK4 step advances them all (``Simulation`` over a batch)."""
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, build_batch_modules
+from wallbot_sim.model.batch.contact import (
+    BatchCoulomb, BatchMotion, ContactRows, detached_wheels, drive_forces, friction_use, normal_loads)
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
+from wallbot_sim.model.batch.solver import batch_constrained_acceleration, minimum_norm_least_squares, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
 from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError
-from wallbot_sim.model.trajectories import LastSample, Reference
+from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample
 
 
 class BatchOutputs(NamedTuple):
-    """The solution of every robot at one instant."""
+    """The solution of every robot at one instant (``StepOutputs`` with the robot index first)."""
 
     t: float
     q: np.ndarray
@@ -30,40 +34,114 @@ class BatchOutputs(NamedTuple):
     acceleration: np.ndarray
     """qdd (N, 7)."""
     constraint_force: np.ndarray
-    """Q_c = M qdd - Q (N, 7)."""
+    """Q_c = M qdd - Q (N, 7) (Q_f, the kinetic friction, apart: ``friction_force``)."""
     residual: np.ndarray
-    """|A qdd - b| (N,)."""
+    """|A qdd - b| (N,) over the rows in the solve."""
+    motor_torque: np.ndarray
+    """(tau_L, tau_R) held over the next step (N, 2)."""
+    drive: np.ndarray
+    """(F_L, F_R, F_lat) (N, 3): the channel forces of the whole contact wrench (constraint force plus Q_f)."""
+    loads: np.ndarray
+    """Normal loads N_1..N_4 (N, 4)."""
+    use: np.ndarray
+    """Friction use of the channels (left, right, lateral) (N, 3)."""
+    slipping: np.ndarray
+    """(N, 3) bool: the slipping channels (never with ideal contact)."""
+    friction_force: np.ndarray
+    """Q_f (N, 7), zero while none of a robot's channels slips."""
+    detached: np.ndarray
+    """(N,) bool: the robots stopped by a lifted wheel (their state is the one they detached at)."""
+    reference: ReferenceSample | None
+
+    @property
+    def size(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def wheel_torques(self) -> np.ndarray:
+        """Total torque on each wheel (N, 4): constraint torque, kinetic friction and its share of the motor."""
+        motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)
+        return self.constraint_force[:, 3:] + motor + self.friction_force[:, 3:]
+
+    @property
+    def tracking_error(self) -> np.ndarray:
+        """Distance of each centre from the reference point (N,) (m); NaN without a reference."""
+        if self.reference is None:
+            return np.full(self.size, np.nan)
+        offset = self.q[:, :2] - np.asarray(self.reference.position)
+        return np.hypot(offset[:, 0], offset[:, 1])
+
+
+NUMPY, NUMBA = 'numpy', 'numba'
+ENGINES = (NUMPY, NUMBA)
+"""How the ideal-contact steps are computed: whole-batch NumPy array passes, or the compiled kernel."""
+
+StepHook = Callable[[BatchOutputs], None]
+"""Called with the outputs of every instant (``Simulation.run``'s ``on_step`` over a batch)."""
 
 
 class BatchSimulation:
     """N robots, one reference and one set of active constraints, advanced together by RK4 at a fixed step.
 
-    The contact is ideal (every constraint held, whatever force it takes).
+    ``contact`` 'ideal': every constraint held, whatever force it takes. 'coulomb' (without the
+    trajectory task, as ``Simulation``): each robot's friction channels stick or slip on their own;
+    a robot one of whose wheels lifts off stops where it detached (``detached``, ``t_detached``,
+    ``detached_wheel``) while the others go on.
     """
 
     def __init__(self, robots: Sequence[Robot], reference: Reference | None, selection: ConstraintSelection,
                  q0: np.ndarray, qd0: np.ndarray, dt: float = DEFAULT_STEP, t0: float = 0.0,
-                 gains: BatchGains | None = None) -> None:
-        """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own."""
+                 gains: BatchGains | None = None, contact: str = IDEAL, engine: str = NUMPY) -> None:
+        """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own.
+
+        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``) wherever the contact is ideal
+        and the compiled solve everywhere else.
+        """
         POSITIVE.check('time step', dt)
+        check_contact_model(contact)
+        if engine not in ENGINES:
+            raise ParameterError(f'unknown engine {engine!r} (use {" or ".join(ENGINES)})')
+        if engine == NUMBA and not kernel.available():
+            raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+        self.engine = engine
+        compiled = engine == NUMBA
+        self._accelerations = kernel.constrained_accelerations if compiled else batch_constrained_acceleration
+        """The batch's solve: the compiled one robot by robot for engine 'numba' (coulomb contact, outputs too)."""
+        self._least_squares = kernel.minimum_norm_solutions if compiled else minimum_norm_least_squares
         self.robots = RobotBatch(robots)
         self.dt = dt
         self.gains = gains or BatchGains.of(self.robots)
+        self.reference = reference
         shared = LastSample(reference) if reference is not None else None
         self.modules: list[BatchConstraint] = build_batch_modules(selection, self.robots, shared, self.gains)
         self.selection = selection
+        self.contact = contact
         self.initial_time = t0
         self._y = _state_matrix(self.robots.size, q0, qd0)
         self.motor_torque = np.zeros((self.robots.size, 2))
         self.steps = 0
+        counts = [module.rows(t0, self._y[:, :DOF], self._y[:, DOF:])[0].shape[1] for module in self.modules]
+        self._coulomb = BatchCoulomb(self.robots, ContactRows(self.modules, counts)) if contact == COULOMB else None
+        self._slipping_rows: np.ndarray | None = None
+        """(N, k) rows out of the solve over this step, or None while no robot slips."""
+        self._bounds: np.ndarray | None = None
+        """mu_k N_k of the slipping rows over this step (N, k)."""
+        self.detached = np.zeros(self.size, dtype=bool)
+        self.t_detached = np.full(self.size, np.nan)
+        """When each detached robot's wheel lifted off (s); NaN for the others."""
+        self.detached_wheel = np.zeros(self.size, dtype=int)
+        """The wheel (1..4) that lifted off, 0 for a robot still on the wall."""
+        self._cached: BatchOutputs | None = None
+        self._constants: np.ndarray | None = None
+        """The compiled engine's per-robot constants, made on its first step."""
 
     @classmethod
     def from_scenario(cls, robots: Sequence[Robot], scenario: Scenario, selection: ConstraintSelection,
-                      dt: float = DEFAULT_STEP) -> BatchSimulation:
+                      dt: float = DEFAULT_STEP, contact: str = IDEAL, engine: str = NUMPY) -> BatchSimulation:
         """Every robot at the scenario's initial state (each with its own rolling spin rates)."""
         states = [scenario.initial_state(robot) for robot in robots]
         return cls(robots, scenario.reference, selection, np.array([q for q, _ in states]),
-                   np.array([qd for _, qd in states]), dt)
+                   np.array([qd for _, qd in states]), dt, contact=contact, engine=engine)
 
     @property
     def size(self) -> int:
@@ -85,12 +163,18 @@ class BatchSimulation:
         """(N, 7) generalized velocities (copy)."""
         return self._y[:, DOF:].copy()
 
+    @property
+    def coulomb_applies(self) -> bool:
+        """Whether friction limits the contact: coulomb contact and no trajectory task."""
+        return self._coulomb is not None and not self.selection.trajectory
+
     def set_motor_torque(self, torques: np.ndarray) -> None:
         """Side motor torques (N m), (N, 2) or one (2,) pair for all, held from the next step on."""
         torques = np.broadcast_to(np.asarray(torques, dtype=float), (self.size, 2))
         if not np.all(np.isfinite(torques)):
             raise ParameterError('motor torques must be finite')
         self.motor_torque = torques.copy()
+        self._cached = None
 
     def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Q (N, 7) and the rows A (N, k, 7), b (N, k) of every module, stacked in order."""
@@ -101,26 +185,132 @@ class BatchSimulation:
         return (force, np.concatenate([part[0] for part in parts], axis=1),
                 np.concatenate([part[1] for part in parts], axis=1))
 
+    def _contact_problem(self, t: float, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray | None,
+                         bounds: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Q + Q_f, A and b without the slipping rows (zeroed), and Q_f; the modules' rows are their velocity rows."""
+        force, rows, rhs = self._problem(t, q, qd)
+        if slipping_rows is None or self._coulomb is None:
+            return force, rows, rhs, np.zeros_like(force)
+        friction = self._coulomb.friction(rows, qd, bounds)
+        keep = ~slipping_rows
+        return force + friction, rows * keep[:, :, None], rhs * keep, friction
+
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:, :DOF], y[:, DOF:]
-        force, rows, rhs = self._problem(t, q, qd)
-        acceleration = batch_constrained_acceleration(self.robots.mass_inverse_factor(q), force, rows, rhs)
+        force, rows, rhs, _ = self._contact_problem(t, q, qd, self._slipping_rows, self._bounds)
+        acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         return np.concatenate((qd, acceleration), axis=1)
 
-    def outputs(self) -> BatchOutputs:
-        """Accelerations, constraint forces and residuals of every robot at the current state."""
-        q, qd = self.q, self.qd
-        force, rows, rhs = self._problem(self.t, q, qd)
-        acceleration = batch_constrained_acceleration(self.robots.mass_inverse_factor(q), force, rows, rhs)
+    def _motion(self, t: float, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray | None,
+                friction: np.ndarray | None) -> BatchMotion:
+        """qdd, Q_c and residual at (t, q, qd) with the slipping rows out and Q_f (N, 7) added."""
+        force, rows, rhs = self._problem(t, q, qd)
+        if slipping_rows is not None:
+            keep = ~slipping_rows
+            rows, rhs = rows * keep[:, :, None], rhs * keep
+        if friction is not None:
+            force = force + friction
+        acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         misfit = stacked_product(rows, acceleration) - rhs
-        return BatchOutputs(self.t, q, qd, acceleration,
-                            stacked_product(self.robots.mass_matrix(q), acceleration) - force,
-                            np.sqrt(np.sum(misfit * misfit, axis=1)))
+        return BatchMotion(acceleration, stacked_product(self.robots.mass_matrix(q), acceleration) - force,
+                           np.sqrt(np.sum(misfit * misfit, axis=1)))
+
+    def _project(self, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray) -> np.ndarray:
+        """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the rows that do not slip (= qd - W B+ A qd)."""
+        rows = self._problem(self.t, q, qd)[1] * ~slipping_rows[:, :, None]
+        factor = self.robots.mass_inverse_factor(q)
+        return qd - stacked_product(factor, self._least_squares(rows @ factor, stacked_product(rows, qd)))
+
+    def _measure(self, q: np.ndarray, qd: np.ndarray, motion: BatchMotion,
+                 friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        loads = normal_loads(self.robots, q, qd, motion.acceleration)
+        drive = drive_forces(q[:, 2], motion.constraint_force[:, :3] + friction[:, :3], self.robots.half_track)
+        return loads, friction_use(self.robots, drive, loads)
+
+    def outputs(self) -> BatchOutputs:
+        """Every robot's outputs at the current state (computed once; the next step reuses their solve).
+
+        With coulomb contact this is where each robot's stick/slip transitions of the boundary are made.
+        """
+        if self._cached is not None:
+            return self._cached
+        t, q, qd = self.t, self._y[:, :DOF], self._y[:, DOF:]
+        if self.coulomb_applies:
+            assert self._coulomb is not None
+            qd, solution = self._coulomb.settle(
+                ~self.detached, qd, self.dt,
+                lambda velocities: self._problem(t, q, velocities)[1],
+                lambda slipping_rows, friction, velocities: self._motion(t, q, velocities, slipping_rows, friction),
+                lambda slipping_rows, velocities: self._project(q, velocities, slipping_rows),
+                lambda motion, friction, velocities: self._measure(q, velocities, motion, friction))
+            self._y = np.concatenate((q, qd), axis=1)
+            q = self._y[:, :DOF]
+            slipping = self._coulomb.slipping.copy()
+            if slipping.any():
+                self._slipping_rows = self._coulomb.rows.slipping_rows(slipping)
+                self._bounds = self._coulomb.bounds(slipping, self._coulomb.loads)
+            else:
+                self._slipping_rows = self._bounds = None
+            motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
+        else:
+            motion = self._motion(t, q, qd, None, None)
+            friction = np.zeros_like(qd)
+            loads, use = self._measure(q, qd, motion, friction)
+            slipping = np.zeros((self.size, 3), dtype=bool)
+        drive = drive_forces(q[:, 2], motion.constraint_force[:, :3] + friction[:, :3], self.robots.half_track)
+        reference = self.reference.sample(t) if self.reference is not None else None
+        self._cached = BatchOutputs(t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force,
+                                    motion.residual, self.motor_torque.copy(), drive, loads, use, slipping, friction,
+                                    self.detached.copy(), reference)
+        return self._cached
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the steps go through the compiled kernel (engine 'numba' and the contact ideal)."""
+        return self.engine == NUMBA and not self.coulomb_applies
+
+    def _compiled_steps(self, steps: int) -> None:
+        """``steps`` steps by the kernel; on divergence, the batch at the step before it and DivergedError."""
+        if self._constants is None:
+            self._constants = kernel.robot_constants(self.robots, self.gains.alpha, self.gains.beta)
+        references = kernel.reference_samples(self.reference, self.initial_time, self.steps, steps, self.dt)
+        active = tuple(self.selection.active_names())
+        y, diverged = kernel.advance(self._y, steps, self.dt, references, active, self._constants, self.motor_torque)
+        if np.any(diverged >= 0):
+            first = int(np.min(diverged[diverged >= 0]))
+            if first > 0:
+                self._compiled_steps(first)
+            robots = np.flatnonzero(diverged == first)
+            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
+                                f'at t = {self.t + self.dt:.3f} s')
+        self._y = y
+        self.steps += steps
+        self._cached = None
 
     def step(self) -> None:
-        """Advance every robot one RK4 step; DivergedError (states unchanged) if one stops being finite."""
+        """Advance every robot one RK4 step; DivergedError (states unchanged) if one stops being finite.
+
+        With coulomb contact a robot with a wheel lifted off at this instant is detached first: it
+        keeps its state from here on.
+        """
+        if self.compiled:
+            self._compiled_steps(1)
+            return
+        k1 = None
+        if self.coulomb_applies:
+            out = self.outputs()
+            wheel = detached_wheels(out.loads)
+            newly = (wheel > 0) & ~self.detached
+            self.detached_wheel[newly] = wheel[newly]
+            self.t_detached[newly] = self.t
+            self.detached |= newly
+            k1 = np.concatenate((out.qd, out.acceleration), axis=1)
+        elif self._cached is not None:
+            k1 = np.concatenate((self._cached.qd, self._cached.acceleration), axis=1)
         with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
-            y = rk4_step(self._derivative, self.t, self._y, self.dt)
+            y = rk4_step(self._derivative, self.t, self._y, self.dt, k1)
+        if self.detached.any():
+            y[self.detached] = self._y[self.detached]
         finite = np.all(np.isfinite(y), axis=1)
         if not finite.all():
             robots = np.flatnonzero(~finite)
@@ -128,11 +318,54 @@ class BatchSimulation:
                                 f'at t = {self.t + self.dt:.3f} s')
         self.steps += 1
         self._y = y
+        self._cached = None
 
-    def run(self, steps: int) -> None:
-        """Advance ``steps`` steps."""
+    def run(self, steps: int, on_step: StepHook | None = None) -> BatchOutputs | None:
+        """Advance ``steps`` steps; ``on_step`` sees the outputs at every instant, both ends included.
+
+        Returns the final outputs when there is an ``on_step`` (without one, none are computed).
+        """
+        if on_step is None and self.compiled:
+            self._compiled_steps(steps)
+            return None
         for _ in range(steps):
+            if on_step is not None:
+                on_step(self.outputs())
             self.step()
+        if on_step is None:
+            return None
+        on_step(self.outputs())
+        return self.outputs()
+
+
+class BatchRecorder:
+    """A step hook keeping chosen fields of ``BatchOutputs`` every ``every`` instants: per-robot time series.
+
+    ``series()`` gives 't' (T,) and each field stacked over time, robot index second: q (T, N, 7),
+    tracking_error (T, N), ... (any field or property of ``BatchOutputs``).
+    """
+
+    def __init__(self, fields: Sequence[str], every: int = 1) -> None:
+        unknown = [name for name in fields if not hasattr(BatchOutputs, name)]
+        if unknown:
+            raise ParameterError(f'BatchOutputs has no field {unknown[0]!r}')
+        if every < 1:
+            raise ParameterError(f'every must be >= 1, got {every}')
+        self.fields, self.every = tuple(fields), every
+        self._count = 0
+        self._times: list[float] = []
+        self._values: dict[str, list[np.ndarray]] = {name: [] for name in self.fields}
+
+    def __call__(self, out: BatchOutputs) -> None:
+        if self._count % self.every == 0:
+            self._times.append(out.t)
+            for name in self.fields:
+                self._values[name].append(np.array(getattr(out, name)))
+        self._count += 1
+
+    def series(self) -> dict[str, np.ndarray]:
+        """'t' and every recorded field, stacked over the recorded instants."""
+        return {'t': np.array(self._times), **{name: np.array(values) for name, values in self._values.items()}}
 
 
 def _state_matrix(size: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:

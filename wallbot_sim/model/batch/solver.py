@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
-_RELATIVE_CUTOFF = 1e-11
+RANK_CUTOFF = 1e-11
 """Rank cut on the pivots of B^T B, relative to its largest diagonal entry. The pivots square B's
 singular values, so this drops directions below ~3e-6 of B's largest. Exactly redundant rows leave
 pivots at round-off (~1e-16 relative); the robot's independent directions stay far above (~1e-5
 for the full constraint set)."""
-_WELL_CONDITIONED = 1e-6
+WELL_CONDITIONED = 1e-6
 """The smallest unpivoted Cholesky pivot of B^T B (relative) for which a batch takes the plain solve."""
 
 
@@ -39,7 +39,7 @@ def minimum_norm_least_squares(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarra
     gram = np.swapaxes(matrix, 1, 2) @ matrix
     moment = stacked_product(np.swapaxes(matrix, 1, 2), rhs)
     lower, pivots = _cholesky(gram)
-    floor = _WELL_CONDITIONED * np.max(np.diagonal(gram, axis1=1, axis2=2), axis=1)
+    floor = WELL_CONDITIONED * np.max(np.diagonal(gram, axis1=1, axis2=2), axis=1)
     if np.all(pivots > floor):
         # Every robot's B is safely of full column rank: an unpivoted Cholesky does not reveal rank
         # below that floor, so a batch with any smaller pivot goes the rank-revealing way.
@@ -109,7 +109,7 @@ def independent_columns(gram: np.ndarray) -> np.ndarray:
     count, size = gram.shape[0], gram.shape[-1]
     diagonal = np.arange(size)
     schur = np.moveaxis(gram, 0, -1).copy()  # (n, n, N), batch last as in _cholesky
-    cut = _RELATIVE_CUTOFF * np.max(schur[diagonal, diagonal], axis=0)
+    cut = RANK_CUTOFF * np.max(schur[diagonal, diagonal], axis=0)
     kept = np.zeros((size, count), dtype=bool)
     for _ in range(size):
         pivots = np.where(kept, -np.inf, schur[diagonal, diagonal])
