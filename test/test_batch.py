@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from model_helpers import random_parameters
+from batch_helpers import ENGINES, TOLERANCE, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
     ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop, tangent_heading)
@@ -18,40 +18,6 @@ from wallbot_sim.model.constraint_set import MODULES
 from wallbot_sim.model.constraints import wrap_angle
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.solver import constrained_acceleration
-
-ENGINES = ['numpy', pytest.param('numba', marks=pytest.mark.skipif(not kernel.available(),
-                                                                  reason='numba is not installed'))]
-"""The batch's engines, each held to the same agreement."""
-TOLERANCE = 1e-9
-"""Relative agreement asked of the batch, states and forces, robot by robot."""
-
-
-def random_robots(rng: np.random.Generator, count: int) -> list[Robot]:
-    """Robots of random parameters (CoM off the centre), half with an adhesion force of their own."""
-    robots = []
-    for i in range(count):
-        params = random_parameters(rng)
-        if i % 2:
-            params = params.replace(adhesion_force=float(rng.uniform(1.0, 3.0)) * params.gravity * 10.0)
-        robots.append(Robot(params))
-    return robots
-
-
-def perturbed_starts(rng: np.random.Generator, robots: list[Robot], scenario) -> tuple[np.ndarray, np.ndarray]:
-    """Each robot at the scenario's start, moved and set moving a little differently."""
-    states = [scenario.initial_state(robot) for robot in robots]
-    q0 = np.array([q for q, _ in states]) + rng.normal(0.0, [0.02, 0.02, 0.1, 0.5, 0.5, 0.5, 0.5], (len(robots), DOF))
-    qd0 = np.array([qd for _, qd in states]) + rng.normal(0.0, [0.02, 0.02, 0.1, 0.5, 0.5, 0.5, 0.5],
-                                                            (len(robots), DOF))
-    return q0, qd0
-
-
-def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray) -> None:
-    """|batch - single| within TOLERANCE of the single robot's largest magnitude of that quantity."""
-    scale = np.max(np.abs(single_values))
-    error = np.max(np.abs(batch_values - single_values))
-    assert error <= TOLERANCE * scale, f'{name}: batch differs by {error:.3g}, {error / scale:.3g} relative'
-
 
 def run_both(robots: list[Robot], scenario, selection: ConstraintSelection, q0: np.ndarray, qd0: np.ndarray,
              steps: int, torques: np.ndarray | None = None, every: int = 50, engine: str = 'numpy') -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from model_helpers import random_parameters
-from test_batch import ENGINES, assert_agree, perturbed_starts, random_robots
+from batch_helpers import ENGINES, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.model.batch import BatchSimulation

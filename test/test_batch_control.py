@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from test_batch import ENGINES, assert_agree
+from batch_helpers import ENGINES, assert_agree
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import ControllerGains, TrackingController
 from wallbot_sim.control.sampling import (

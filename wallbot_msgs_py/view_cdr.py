@@ -242,7 +242,8 @@ def odometry_pose(message: _Reader) -> OdometryPose:
 @_read
 def joint_arrays(message: _Reader) -> JointArrays:
     """The stamp, names and values of a serialized sensor_msgs/JointState."""
-    stamp_ns, _frame = message.stamp_ns(), message.string()
+    stamp_ns = message.stamp_ns()
+    message.string()  # frame_id: joint states carry none of use here
     names = tuple(message.string() for _ in range(message.uint32()))
     return JointArrays(stamp_ns, names, message.double_sequence(), message.double_sequence(),
                        message.double_sequence())
