@@ -40,7 +40,7 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     assert meta['version'] == 9 and meta['storage_identifier'] == 'mcap'
     names = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
-    assert set(names) == {t.resolve() for t in topics.RECORDED}
+    assert set(names) == {t.resolve() for t in topics.NOISELESS_RECORDED}
     path_qos = names['/wallbot/reference_path']['topic_metadata']['offered_qos_profiles'][0]
     assert path_qos['durability'] == 'transient_local' and path_qos['reliability'] == 'reliable'
 
@@ -155,7 +155,7 @@ def test_without_ros_the_headless_bag_holds_the_same_messages(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     a, b = by_topic(with_ros), by_topic(without_ros)
-    assert sorted(a) == sorted(b) == sorted(t.resolve() for t in topics.RECORDED)
+    assert sorted(a) == sorted(b) == sorted(t.resolve() for t in topics.NOISELESS_RECORDED)
     for topic in a:
         if topic == '/diagnostics':
             assert [diagnostics_without_wall_clock(m, same_moments=True) for m in a[topic]] == \

@@ -50,6 +50,10 @@ position: 0 for the wheels, then each channel's friction use |F| / (mu_s N) (abo
 velocity: 0 for the wheels, then 1 for a slipping channel, 0 for a sticking one."""
 DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
 CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
+GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
+"""The simulated state itself, as ``odom`` carries it without sensor noise: published beside a
+noisy ``odom`` (the dynamics' ``odom_noise_*`` parameters), so a bag keeps the truth; a run without
+noise has no messages on it."""
 WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray', depth=10)
 REFERENCE = Topic('reference', 'nav_msgs/msg/Odometry', depth=100)
 REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiDOFJointTrajectory',
@@ -80,8 +84,10 @@ STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTA
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
+            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM)
 """Topics a run records, in this order."""
+NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic is not GROUND_TRUTH_ODOM)
+"""Topics a run without sensor noise records: its odom is the truth, ground_truth/odom is not published."""
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'
@@ -127,7 +133,12 @@ CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.va
 
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
-    for topic in RECORDED + (WHEEL_TORQUE_CMD,):
-        if name in (topic.name, topic.resolve()) or name.rsplit('/', 1)[-1] == topic.name.lstrip('/'):
+    known = RECORDED + (WHEEL_TORQUE_CMD,)
+    for topic in known:
+        if name in (topic.name, topic.resolve()):
+            return topic
+    # a name in another namespace (/robot2/odom); the longest match (ground_truth/odom, not odom)
+    for topic in sorted(known, key=lambda topic: -len(topic.name)):
+        if name.endswith(f'/{topic.name.lstrip("/")}'):
             return topic
     raise KeyError(name)
