@@ -66,11 +66,11 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
 
 
 def test_headless_clock_goes_at_the_clock_rate_and_with_the_last_state(tmp_path):
-    """/clock as the dynamics node publishes it by default: the first state of every 1 / CLOCK_RATE_HZ
+    """The robot's clock as the dynamics node publishes it by default: the first state of every 1 / CLOCK_RATE_HZ
     of simulation time and the state the run ends at (0.25 s, off that grid); odometry every step."""
     from wallbot_sim import messages
     bag, _ = _simulate(tmp_path, duration=0.25)
-    clock = [m.clock.sec * 10**9 + m.clock.nanosec for _, m in _mcap_messages(bag, '/clock')]
+    clock = [m.clock.sec * 10**9 + m.clock.nanosec for _, m in _mcap_messages(bag, '/wallbot/clock')]
     period_ns = round(1e9 / messages.CLOCK_RATE_HZ)
     assert clock == [*range(0, 250_000_000, period_ns), 250_000_000]
     odom = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in _mcap_messages(bag, '/wallbot/odom')]

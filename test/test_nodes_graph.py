@@ -81,6 +81,7 @@ def test_topics_types_and_1khz_odometry(graph):
     expected = {'/wallbot/odom': 'nav_msgs/msg/Odometry', '/wallbot/wheel_states': 'sensor_msgs/msg/JointState',
                 '/wallbot/constraint_wrench': 'geometry_msgs/msg/WrenchStamped',
                 '/wallbot/drive_forces': 'sensor_msgs/msg/JointState', '/clock': 'rosgraph_msgs/msg/Clock',
+                '/wallbot/clock': 'rosgraph_msgs/msg/Clock',
                 '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
                 '/wallbot/reference': 'nav_msgs/msg/Odometry', '/wallbot/reference_path': 'nav_msgs/msg/Path',
                 '/wallbot/reference_trajectory': 'trajectory_msgs/msg/MultiDOFJointTrajectory',
@@ -313,7 +314,7 @@ def test_namespace_remap_runs_a_second_robot(process_runner):
         graph.wait_for(lambda: '/robot2/dynamics' in graph.node.get_fully_qualified_node_names(), 10,
                        'node /robot2/dynamics')
         names = dict(graph.node.get_topic_names_and_types())
-        assert '/robot2/odom' in names and '/wallbot/odom' not in names and '/clock' in names
+        assert '/robot2/odom' in names and '/wallbot/odom' not in names and '/robot2/clock' in names
         assert graph.call(SetBool, '/robot2/dynamics/pause', SetBool.Request(data=True)).success
     finally:
         graph.close()

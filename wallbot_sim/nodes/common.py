@@ -18,11 +18,17 @@ from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 
+from wallbot_msgs_py import topics
 from wallbot_sim.model import ModelError
 from wallbot_sim.model.numbers import NumberRange
 
 COORDINATE = NumberRange(-1e4, 1e4)
 """A position on the wall (m) as a parameter: no wall is 10 km wide."""
+ROBOT_CLOCK_ARGS = ['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP]
+"""Node arguments (``Node(cli_args=...)``) of every node that follows simulation time: its
+``use_sim_time`` time source, which rclpy subscribes on the absolute ``/clock``, follows the
+robot's own ``clock`` in the node's namespace instead (whatever ``-r __ns:=`` made it), so several
+robots in one domain each keep their own time. Node-local rules come before the command line's."""
 WHEEL_TORQUE_LIMIT = NumberRange(1e-3, 1e4)
 """The largest |torque| per side a wheel_torque_cmd may carry (N m): the dynamics refuses larger
 commands, the controller clamps to it."""

@@ -21,7 +21,7 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import declare, param_dict, parameter_result, range_reasons, run
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare, param_dict, parameter_result, range_reasons, run
 from wallbot_sim.urdf import robot_urdf
 
 GAIN_RANGE = NumberRange(1e-6, 1e4)
@@ -33,7 +33,8 @@ class ConstraintConfigNode(Node):
     """Owns the switches; publishes the active set (transient-local) at start and on every change."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS,
+                         **kwargs)
         self.switches = {switch.parameter: bool(declare(self, switch.parameter, switch.default, switch.description))
                          for switch in topics.CONSTRAINT_MODULES.values()}
         robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '

@@ -54,7 +54,7 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (WHEEL_TORQUE_LIMIT, declare, heard_by_every, param_dict, parameter_result,
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, heard_by_every, param_dict, parameter_result,
                                       range_reasons, run)
 
 NODE_NAME = 'controller'
@@ -105,7 +105,7 @@ class ControllerNode(Node):
     """odom + reference_trajectory -> wheel_torque_cmd at rate_hz of simulation time."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         defaults = ControllerGains()
         self.values = {
             'rate_hz': declare(self, 'rate_hz', CONTROL_RATE_HZ, 'control rate in simulation time (Hz; 1000 / rate_hz '

@@ -1,4 +1,5 @@
-"""dynamics_node: the constrained model integrated with RK4, owning simulation time and /clock.
+"""dynamics_node: the constrained model integrated with RK4, owning simulation time: its robot's
+``clock`` (and the domain's ``/clock`` with ``domain_clock``, topics.DOMAIN_CLOCK).
 
 Threads. The stepping runs in a dedicated loop thread (``dynamics_loop``, which holds the loop's
 state and decisions, free of ROS); the executor (main thread) only receives messages, service
@@ -183,6 +184,10 @@ class DynamicsNode(Node):
                                        allowed=RANGES['snapshot_period']),
             'step_count': declare(self, 'step_count', 1, 'steps one ~/step call takes while paused',
                                   allowed=RANGES['step_count']),
+            'domain_clock': declare(self, 'domain_clock', True,
+                                    "also publish the robot's clock on the domain's /clock, which ROS tools "
+                                    'with use_sim_time follow; false for every robot but one in a domain',
+                                    read_only=True),
             'resume_wait': declare(self, 'resume_wait', 2.0,
                                    'wall seconds from the first constraint set to wait for a keeper of snapshots '
                                    '(resume_state) to continue from; 0 = always start from the initial state',
@@ -213,6 +218,9 @@ class DynamicsNode(Node):
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
         self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
+        self.domain_clock_pub = (self.create_publisher(ClockMsg, topics.DOMAIN_CLOCK.name,
+                                                       qos_profile(topics.DOMAIN_CLOCK))
+                                 if p['domain_clock'] else None)
         levels = NoiseLevels(*(float(p[name]) for name in NOISE_PARAMETERS))
         self.noise = SensorNoise(levels, p['noise_seed']) if levels.on else None
         self.encoder = StepEncoder(p['odom_frame_id'], p['base_frame_id'], levels.pose_variances(),
@@ -327,8 +335,12 @@ class DynamicsNode(Node):
 
         def send() -> None:
             for topic, data in encoded:
-                if clock or topic is not topics.CLOCK:
+                if topic is not topics.CLOCK:
                     self.publishers_[topic].publish(data)
+                elif clock:
+                    self.publishers_[topic].publish(data)
+                    if self.domain_clock_pub is not None:
+                        self.domain_clock_pub.publish(data)
         return send
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:

@@ -12,8 +12,8 @@ Parameter changes replan from the current simulation time; a clock that jumps ba
 (``LatestRequestWorker``), so the node answers parameter and service requests at once
 whatever it is planning.
 
-Time. The node follows ``/clock`` (``use_sim_time``) and does its work in one callback per
-``/clock`` message, which the dynamics publishes at its ``clock_rate_hz`` (10 Hz by default):
+Time. The node follows its robot's ``clock`` (``use_sim_time``, remapped from ``/clock`` onto
+it: topics.CLOCK) and does its work in one callback per clock message, which the dynamics publishes at its ``clock_rate_hz`` (10 Hz by default):
 it checks the plan, then publishes the reference pose for every point of the
 ``publish_rate_hz`` grid of simulation time the clock has passed since the last message (at most
 MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
@@ -41,7 +41,7 @@ from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import (COORDINATE, choice_reason, declare, param_dict, parameter_result,
+from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, param_dict, parameter_result,
                                       range_reasons, run)
 
 MAX_POSE_BURST = 100
@@ -127,7 +127,7 @@ class TrajectoryNode(Node):
     """Plans the reference, keeps the plan ahead of simulation time, publishes the reference pose."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_TRAJECTORY, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_TRAJECTORY, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
         self.values = {
             'shape': declare(self, 'shape', 'circle', 'reference shape', choices=SHAPES),
