@@ -42,9 +42,14 @@ def test_the_noise_has_its_levels_and_the_same_seed_gives_the_same_noise():
 
 
 def test_the_odometry_carries_the_noise_variance_and_the_truth_goes_beside_it():
-    from test_step_cdr import moving_outputs
+    from wallbot_sim.config import load_robot_parameters
+    from wallbot_sim.model import Circle, ConstraintSelection, Robot, Simulation
 
-    out = moving_outputs()
+    sim = Simulation(Robot(load_robot_parameters()), Circle(), ConstraintSelection.parse('belt'),
+                     np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), np.zeros(7))
+    for _ in range(5):
+        sim.step()
+    out = sim.outputs()
     encoder = StepEncoder('map', 'chassis', LEVELS.pose_variances(), LEVELS.twist_variances(), ground_truth=True)
     sensed = SensorNoise(LEVELS, 1).sense(out.q, out.qd)
     encoded = encoder.encode(out, sensed)

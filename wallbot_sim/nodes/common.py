@@ -81,7 +81,7 @@ def choice_words(choices: Sequence[str]) -> str:
 
 def choice_reason(name: str, value: object, choices: Sequence[str]) -> str | None:
     """The one-line reason why ``value`` is not one of ``choices``, or None."""
-    return None if value in choices else f'{name} must be {choice_words(choices)}; got {value!r}'
+    return None if value in choices else f'{name} must be one of {", ".join(choices)}, got {value!r}'
 
 
 def range_reasons(values: dict, ranges: dict[str, NumberRange]) -> list[str]:
