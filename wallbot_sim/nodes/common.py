@@ -35,7 +35,8 @@ commands, the controller clamps to it."""
 
 
 def declare(node: Node, name: str, default, description: str, *, allowed: NumberRange | None = None,
-            choices: Sequence[str] = (), read_only: bool = False):
+            low: float | None = None, high: float | None = None, choices: Sequence[str] = (),
+            read_only: bool = False):
     """Declare ``name`` with a descriptor a ROS user can discover; return its value.
 
     A numeric parameter needs ``allowed``, a range with both ends: the descriptor carries the
@@ -44,8 +45,10 @@ def declare(node: Node, name: str, default, description: str, *, allowed: Number
     within 1e-6 relative of an end through) and what an interval cannot say (a gap like "0 or
     at least 0.001"). A start value it refuses is a ValueError in its words. An enumerated string
     parameter lists its ``choices`` in the description and in ``additional_constraints``, as the
-    ROS tools show them.
+    ROS tools show them. ``low`` and ``high`` are short for ``allowed=NumberRange(low, high)``.
     """
+    if low is not None or high is not None:
+        allowed = NumberRange(low, high)
     numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
     if numeric != (allowed is not None):
         raise TypeError(f'parameter {name}: a range is given for a number, and only for a number')
@@ -60,13 +63,13 @@ def declare(node: Node, name: str, default, description: str, *, allowed: Number
         reason = allowed.reason(name, value)
         if reason:
             raise ValueError(reason)
-        low, high = allowed.bounds()
-        if low is None or high is None:
+        start, end = allowed.bounds()
+        if start is None or end is None:
             raise TypeError(f'parameter {name}: a descriptor range needs both ends')
         if isinstance(default, int):
-            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+            descriptor.integer_range = [IntegerRange(from_value=int(start), to_value=int(end), step=1)]
         else:
-            descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high),
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(start), to_value=float(end),
                                                                   step=0.0)]
     descriptor.read_only = read_only
     descriptor.type = node.describe_parameter(name).type
