@@ -199,7 +199,8 @@ def test_two_robots_side_by_side(tmp_path, process_runner, driven):
                 start(ns, 'controller', 'controller')
         for ns in ROBOTS:  # recorder and controller hear odom before the dynamics starts
             wait_for(lambda ns=ns: probe.count_subscribers(f'{ns}/odom') == 1 + driven
-                     and probe.count_publishers(f'{ns}/wheel_torque_cmd') == driven, 30, f'{ns} recorder and controller')
+                     and probe.count_publishers(f'{ns}/wheel_torque_cmd') == driven, 30,
+                     f'{ns} recorder and controller')
         for ns, config in ROBOTS.items():
             start(ns, 'dynamics', 'dynamics', *config['dynamics'], 'wait_for_recorder:=true', f'stop_at:={duration}',
                   *(('wait_for_command:=true', 'lockstep_every:=5') if driven else ()))

@@ -76,7 +76,7 @@ def test_a_noisy_run_records_the_truth_and_simulates_it(tmp_path, process_runner
     """The graph with noise on: the bag has the noisy odom and ground_truth/odom; the run data's
     state is the truth, the same states ``simulate`` computes without noise (the noise never
     reaches the simulation), and its sensed odometry differs from it by the noise."""
-    import rclpy
+    rclpy = pytest.importorskip('rclpy')
     from rosgraph_msgs.msg import Clock
 
     from wallbot_msgs_py.qos import qos_profile

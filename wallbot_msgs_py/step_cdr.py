@@ -111,7 +111,8 @@ class _OdometryTemplate:
     """nav_msgs/Odometry bytes: the pose of the centre in ``frame``, the twist in ``child``, the
     covariances' diagonals fixed (row-major 6 x 6, x y z roll pitch yaw)."""
 
-    def __init__(self, frame: str, child: str, pose_variances: Sequence[float], twist_variances: Sequence[float]) -> None:
+    def __init__(self, frame: str, child: str, pose_variances: Sequence[float],
+                 twist_variances: Sequence[float]) -> None:
         odom = _Template()
         self.stamp = odom.header(frame)
         odom.string(child)

@@ -113,8 +113,8 @@ def trajectory_message(plan: Plan, fallback_yaw: float = 0.0, frame: str = topic
 
 def path_message(plan: Plan, max_poses: int = 2000, fallback_yaw: float = 0.0,
                  frame: str = topics.WALL_FRAME) -> bytes:
-    """``reference_path`` (CDR) in ``frame`` (the wall): the plan's points with their tangent heading, at most ``max_poses``
-    (evenly strided, the last point always kept)."""
+    """``reference_path`` (CDR) in ``frame`` (the wall): the plan's points with their tangent
+    heading, at most ``max_poses`` (evenly strided, the last point always kept)."""
     stride = max(1, -(-len(plan.times) // max_poses))
     indices = list(range(0, len(plan.times), stride))
     if indices[-1] != len(plan.times) - 1:

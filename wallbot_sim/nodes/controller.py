@@ -54,8 +54,8 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, heard_by_every, param_dict, parameter_result,
-                                      range_reasons, run)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, heard_by_every, param_dict,
+                                      parameter_result, range_reasons, run)
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -115,7 +115,8 @@ class ControllerNode(Node):
             'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s)',
                             allowed=RANGES['beta']),
             'look_ahead': declare(self, 'look_ahead', defaults.look_ahead,
-                                  'distance of the steered point ahead of the centre (m)', allowed=RANGES['look_ahead']),
+                                  'distance of the steered point ahead of the centre (m)',
+                                  allowed=RANGES['look_ahead']),
             'integral': declare(self, 'integral', defaults.integral, 'integral gain (1/s^3; 0 = off)',
                                 allowed=RANGES['integral']),
             'integral_zone': declare(self, 'integral_zone', defaults.integral_zone,

@@ -133,7 +133,8 @@ class DynamicsNode(Node):
                                   read_only=True),
             'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
                                allowed=RANGES['rate_hz']),
-            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps', allowed=RANGES['publish_every']),
+            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps',
+                                     allowed=RANGES['publish_every']),
             'clock_rate_hz': declare(self, 'clock_rate_hz', messages.CLOCK_RATE_HZ,
                                      'clock messages per second of simulation time (at most one per published '
                                      'step, and always the state before a stop); the per-step topics carry '

@@ -13,8 +13,8 @@ Parameter changes replan from the current simulation time; a clock that jumps ba
 whatever it is planning.
 
 Time. The node follows its robot's ``clock`` (``use_sim_time``, remapped from ``/clock`` onto
-it: topics.CLOCK) and does its work in one callback per clock message, which the dynamics publishes at its ``clock_rate_hz`` (10 Hz by default):
-it checks the plan, then publishes the reference pose for every point of the
+it: topics.CLOCK) and does its work in one callback per clock message, which the dynamics
+publishes at its ``clock_rate_hz`` (10 Hz by default): it checks the plan, then publishes the reference pose for every point of the
 ``publish_rate_hz`` grid of simulation time the clock has passed since the last message (at most
 MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
 whatever the clock's rate, and at the default rates the node wakes ten times per simulated second
@@ -41,8 +41,8 @@ from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, param_dict, parameter_result,
-                                      range_reasons, run)
+from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, param_dict,
+                                      parameter_result, range_reasons, run)
 
 MAX_POSE_BURST = 100
 """Most reference poses published for one /clock message (the newest ones): a clock that jumps
@@ -139,7 +139,8 @@ class TrajectoryNode(Node):
             'duration': declare(self, 'duration', 0.0,
                                 'seconds of simulation time to follow the shape, then stop smoothly; 0 = forever',
                                 allowed=RANGES['duration']),
-            'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s)', allowed=RANGES['stop_time']),
+            'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s)',
+                                 allowed=RANGES['stop_time']),
             'publish_rate_hz': declare(self, 'publish_rate_hz', messages.PUBLISH_RATE_HZ,
                                        'rate of the reference pose in simulation time (Hz)',
                                        allowed=RANGES['publish_rate_hz']),

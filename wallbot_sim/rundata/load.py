@@ -1,8 +1,8 @@
 """One loader for a run: a recorded bag or a ``simulate`` CSV, as the same arrays.
 
 Bag: odometry stamps define the time base, and the state is the simulated one: ``ground_truth/odom``
-when the bag has it (a run with sensor noise), with the noisy ``odom`` kept as ``RunData.sensed``; wheel states, constraint wrench and drive forces are
-matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
+when the bag has it (a run with sensor noise), with the noisy ``odom`` kept as ``RunData.sensed``;
+wheel states, constraint wrench and drive forces are matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
 present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
 residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
