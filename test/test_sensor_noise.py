@@ -18,9 +18,9 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 
 LEVELS = NoiseLevels(position=0.01, heading=0.02, linear=0.03, angular=0.04, encoder=0.05, encoder_velocity=0.5)
-NOISE_PARAMETERS = {'odom_noise_position': 0.01, 'odom_noise_heading': 0.02, 'odom_noise_linear': 0.03,
+NOISY_DYNAMICS = {'odom_noise_position': 0.01, 'odom_noise_heading': 0.02, 'odom_noise_linear': 0.03,
                     'odom_noise_angular': 0.04, 'encoder_noise': 0.05, 'encoder_velocity_noise': 0.5,
-                    'noise_seed': 7}
+                    'noise_seed': 7, 'odom_frame_id': 'map', 'base_frame_id': 'chassis'}
 
 
 def test_the_noise_has_its_levels_and_the_same_seed_gives_the_same_noise():
@@ -101,7 +101,7 @@ def test_a_noisy_run_records_the_truth_and_simulates_it(tmp_path, process_runner
     try:
         for spec in specs:
             if spec.name == 'dynamics':
-                spec = dataclasses.replace(spec, parameters={**spec.parameters, **NOISE_PARAMETERS})
+                spec = dataclasses.replace(spec, parameters={**spec.parameters, **NOISY_DYNAMICS})
             procs[spec.name] = process_runner.start(spec.command(), spec.name)
         deadline = time.monotonic() + 120
         while not (progress and progress[-1] >= duration - 1e-9):
@@ -132,5 +132,7 @@ def test_a_noisy_run_records_the_truth_and_simulates_it(tmp_path, process_runner
     phi_noise = run.phi - exact.phi
     assert abs(phi_noise.std() / 0.05 - 1.0) < 0.1
     first_odom = next(raw for raw in messages(tmp_path / 'bag', [topics.ODOM.resolve()]))
-    covariance = np.reshape(bagio.deserialize(first_odom.data, first_odom.type).pose.covariance, (6, 6))
+    odom = bagio.deserialize(first_odom.data, first_odom.type)
+    assert (odom.header.frame_id, odom.child_frame_id) == ('map', 'chassis')  # the frame parameters
+    covariance = np.reshape(odom.pose.covariance, (6, 6))
     assert np.allclose(np.diag(covariance), [1e-4, 1e-4, 0.0, 0.0, 0.0, 4e-4], rtol=0, atol=1e-18)
