@@ -80,6 +80,8 @@ setup(
             'constraint_config_node = wallbot_sim.nodes.constraint_config:main',
             'recorder_node = wallbot_sim.nodes.recorder:main',
             'tracking_controller_node = wallbot_sim.nodes.controller:main',
+            'cmd_vel_node = wallbot_sim.nodes.cmd_vel:main',
+            'joint_bridge_node = wallbot_sim.nodes.joint_bridge:main',
         ],
     },
 )

@@ -69,6 +69,7 @@ CONTACT_CASES = (  # name, heading, side torques, adhesion force (None: the robo
     ('climb', math.pi / 2, (2.0, 1.95), None, 'sticks, turning'),
     ('slide', 0.0, (0.0, 0.0), 100.0, 'lateral slip'),
     ('spin', math.pi / 2, (3.0, 3.0), None, 'both sides slip'),
+    ('turn', math.pi / 2, (3.5, 2.0), None, 'slips, turning'),
 )
 
 

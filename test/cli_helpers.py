@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 WALLBOT = [sys.executable, '-m', 'wallbot_sim.cli.main']
@@ -36,3 +38,16 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) 
     assert len(lines) == 1, result.stderr
     for fragment in fragments:
         assert fragment in lines[0]
+
+
+def wait_for_output(process_runner, name: str, pattern: str, timeout: float) -> re.Match:
+    """The first match of ``pattern`` in what ``name`` wrote, once it is there (failing if the
+    process exits or ``timeout`` passes first)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        found = re.search(pattern, process_runner.output(name), re.MULTILINE)
+        if found:
+            return found
+        assert process_runner.processes[name].poll() is None, process_runner.output(name)
+        assert time.monotonic() < deadline, f'no {pattern!r} from {name}: ' + process_runner.output(name)
+        time.sleep(0.1)

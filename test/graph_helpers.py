@@ -27,7 +27,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
-         'constraint_config': 'wallbot_sim.nodes.constraint_config'}
+         'constraint_config': 'wallbot_sim.nodes.constraint_config', 'controller': 'wallbot_sim.nodes.controller',
+         'cmd_vel': 'wallbot_sim.nodes.cmd_vel', 'joint_bridge': 'wallbot_sim.nodes.joint_bridge'}
 MS = 1_000_000
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from cli_helpers import WALLBOT
+from cli_helpers import WALLBOT, wait_for_output
 from wallbot_msgs_py import bagio, codec
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.rundata import summarize
@@ -195,19 +195,6 @@ def test_a_domain_another_run_holds_is_refused(tmp_path, ros_domain):
     assert len(lines) == 1 and f'ROS_DOMAIN_ID {ros_domain.domain_id} is in use by another run' in lines[0], \
         result.stderr
     assert result.stdout == '' and not (tmp_path / 'run').exists()
-
-
-def wait_for_output(process_runner, name: str, pattern: str, timeout: float) -> re.Match:
-    """The first match of ``pattern`` in what ``name`` wrote, once it is there (failing if the
-    process exits or ``timeout`` passes first)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        found = re.search(pattern, process_runner.output(name), re.MULTILINE)
-        if found:
-            return found
-        assert process_runner.processes[name].poll() is None, process_runner.output(name)
-        assert time.monotonic() < deadline, f'no {pattern!r} from {name}: ' + process_runner.output(name)
-        time.sleep(0.1)
 
 
 def test_another_terminal_attaches_with_the_printed_export_until_ctrl_c(tmp_path, process_runner):

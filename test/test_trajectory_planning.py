@@ -193,3 +193,51 @@ def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(held_planner
     assert stamps == list(range(0, 300_000_001, period))
     x = [m.pose.pose.position.x for m in poses]
     assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
+
+
+def test_with_wait_for_recorder_the_first_plan_waits_until_a_recorder_hears_reference(ros_domain):
+    """The reference poses are volatile: a run that records must not start (the dynamics starts on
+    the first plan) before the recorder's reference subscription is matched to this node."""
+    rclpy = pytest.importorskip('rclpy')
+    import time
+
+    from nav_msgs.msg import Odometry
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from wallbot_msgs_py import topics
+    from wallbot_msgs_py.qos import qos_profile
+    from wallbot_sim.nodes.trajectory import TrajectoryNode
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = probe = None
+    executor = SingleThreadedExecutor(context=context)
+    try:
+        node = TrajectoryNode(context=context,
+                              parameter_overrides=[Parameter('wait_for_recorder', Parameter.Type.BOOL, True)])
+        probe = rclpy.create_node('recorder_probe', namespace=topics.NAMESPACE, context=context)
+        executor.add_node(node)
+        executor.add_node(probe)
+        probe.create_publisher(Clock, topics.RECORD_PROGRESS.name, qos_profile(topics.RECORD_PROGRESS))
+        # a recorder known, but not listening on reference: still no plan
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        assert node.count_publishers(node.resolve_topic_name(topics.RECORD_PROGRESS.name)) == 1
+        assert node.plan is None and not node.planner.busy and node.recorder_check is not None
+        probe.create_subscription(Odometry, topics.REFERENCE.name, lambda _msg: None, qos_profile(topics.REFERENCE))
+        deadline = time.monotonic() + 30.0
+        while node.plan is None:
+            assert time.monotonic() < deadline, 'no plan after the recorder subscribed reference'
+            executor.spin_once(timeout_sec=0.02)
+        assert node.reference_pub.get_subscription_count() == 1 and node.recorder_check is None
+    finally:
+        if node is not None:
+            node.close()
+        executor.shutdown()
+        for n in (probe, node):
+            if n is not None:
+                n.destroy_node()
+        rclpy.shutdown(context=context)

@@ -78,6 +78,16 @@ the dynamics places it there at its next step boundary."""
 ROBOT_DESCRIPTION = Topic('robot_description', 'std_msgs/msg/String', Durability.TRANSIENT_LOCAL, depth=1)
 """The robot's URDF, generated from the robot file, published once by constraint_config; transient-local
 like robot_state_publisher's, so RViz, Foxglove or a controller_manager started later receive it."""
+CMD_VEL = Topic('cmd_vel', 'geometry_msgs/msg/TwistStamped', depth=10)
+"""Velocity command of the robot (base_link: linear.x m/s, angular.z rad/s) for cmd_vel_node; a
+geometry_msgs/msg/Twist instead when its ``use_stamped_vel`` is false."""
+CMD_VEL_UNSTAMPED_TYPE = 'geometry_msgs/msg/Twist'
+JOINT_STATES = Topic('joint_states', 'sensor_msgs/msg/JointState', depth=10)
+"""The four wheel joints (WHEEL_JOINTS) as joint_state_broadcaster publishes them: position (rad),
+velocity (rad/s), effort (N m, as wheel_states), at joint_bridge_node's ``rate_hz`` of simulation time."""
+JOINT_COMMANDS = Topic('joint_commands', 'sensor_msgs/msg/JointState', depth=10)
+"""Effort per wheel joint (topic_based_ros2_control's command topic), summed per side into the side
+motor torques by joint_bridge_node (wallbot_sim.control.joint_interface)."""
 RECORD_PROGRESS = Topic('record_progress', 'rosgraph_msgs/msg/Clock', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a recorder: the newest stamp up to which it has written /clock and every message
 of STEP_STAMPED.
@@ -116,6 +126,8 @@ NODE_DYNAMICS = 'dynamics'
 NODE_TRAJECTORY = 'trajectory'
 NODE_CONSTRAINT_CONFIG = 'constraint_config'
 NODE_RECORDER = 'recorder'
+NODE_CMD_VEL = 'cmd_vel_controller'
+NODE_JOINT_BRIDGE = 'joint_bridge'
 
 
 @dataclass(frozen=True)
@@ -145,7 +157,7 @@ CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.va
 
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
-    known = RECORDED + (WHEEL_TORQUE_CMD,)
+    known = RECORDED + (WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS)
     for topic in known:
         if name in (topic.name, topic.resolve()):
             return topic

@@ -14,6 +14,7 @@ from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.graph import NodeSpec
 from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
+from wallbot_sim.model.scenario import InitialPose
 
 RECORDER = 'recorder'
 CONTROLLER = 'controller'
@@ -23,11 +24,26 @@ EXECUTABLES = {
     'wallbot_sim.nodes.trajectory': 'trajectory_node',
     'wallbot_sim.nodes.controller': 'tracking_controller_node',
     'wallbot_sim.nodes.dynamics': 'dynamics_node',
+    'wallbot_sim.nodes.cmd_vel': 'cmd_vel_node',
+    'wallbot_sim.nodes.joint_bridge': 'joint_bridge_node',
 }
 """Each node module's console script (setup.py entry points): what ``ros2 run`` and launch start."""
 CONTROL_STEPS = 5
 """Dynamics steps per control period: the controller's default 200 Hz at the dynamics' 1 kHz. The
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
+CMD_VEL_STEPS = 10
+"""Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""
+DRIVES = {'cmd_vel': (topics.NODE_CMD_VEL, 'wallbot_sim.nodes.cmd_vel'),
+          'joint_commands': (topics.NODE_JOINT_BRIDGE, 'wallbot_sim.nodes.joint_bridge')}
+"""``run rest --drive NAME``: the node that turns the user's commands into wheel_torque_cmd."""
+DRIVE_TOPICS = {'cmd_vel': (topics.WHEEL_TORQUE_CMD, topics.CMD_VEL),
+                'joint_commands': (topics.WHEEL_TORQUE_CMD, topics.JOINT_COMMANDS, topics.JOINT_STATES)}
+"""What a driven run records besides topics.RECORDED (wheel_torque_cmd: the torques applied)."""
+REST = InitialPose(0.0, 0.0, 0.0, True)
+"""Where a driven run starts: at rest at the origin, facing +X."""
+SIM_TIME = {'use_sim_time': True}
+"""The nodes that are not the clock's owner (the dynamics) nor the recorder (its log time is the
+receive time) follow their robot's clock, so their logs and stamps are simulation time."""
 
 
 class GraphDescriptionError(ValueError):
@@ -68,19 +84,56 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         specs.append(NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder))
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     specs += [
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot}),
+        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot, **SIM_TIME}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
-            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1]}),
+            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
+            'wait_for_recorder': bag is not None, **SIM_TIME}),
     ]
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
-            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None}))
-    specs.append(NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
+            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME}))
+    specs.append(_dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+                           adhesion_force, CONTROL_STEPS if closed_loop else None))
+    return specs
+
+
+def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor: float = 1.0,
+                          bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
+                          contact_model: str = 'ideal', adhesion_force: float | None = None) -> list[NodeSpec]:
+    """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
+    trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
+
+    ``cmd_vel``: cmd_vel_node, the dynamics waiting for it and in lockstep with its loop.
+    ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
+    wait, since the commands come from the user's controller_manager (zero torque until then).
+    """
+    if drive not in DRIVES:
+        raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
+    name, module = DRIVES[drive]
+    specs = []
+    if bag is not None:
+        recorder = {'output': str(bag), 'topics': [t.name for t in (*topics.RECORDED, *DRIVE_TOPICS[drive])]}
+        specs.append(NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder))
+    robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
+    specs += [
+        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
+                 {**switches_from_selection(DRIVEN), **robot, **SIM_TIME}),
+        NodeSpec(name, module, {**robot, **SIM_TIME}),
+        _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+                  adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None),
+    ]
+    return specs
+
+
+def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,
+              robot: dict[str, str], contact_model: str, adhesion_force: float | None,
+              lockstep_every: int | None) -> NodeSpec:
+    """The dynamics node; ``lockstep_every`` set: it waits for its controller and runs in lockstep."""
+    return NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
-        'wait_for_recorder': bag is not None, 'realtime_priority': int(realtime_priority),
+        'wait_for_recorder': recorded, 'realtime_priority': int(realtime_priority),
         **robot,
         'contact_model': contact_model,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
-        **({'wait_for_command': True, 'lockstep_every': CONTROL_STEPS} if closed_loop else {})}))
-    return specs
+        **({'wait_for_command': True, 'lockstep_every': lockstep_every} if lockstep_every else {})})

@@ -17,6 +17,7 @@ import sys
 import time
 from datetime import datetime
 from pathlib import Path
+from typing import Callable
 
 from wallbot_msgs_py import codec, topics
 from wallbot_sim import messages
@@ -28,13 +29,16 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
                                 claim_domain_id)
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
-from wallbot_sim.graph_description import CONTROLLER, RECORDER, GraphDescriptionError, describe_graph
+from wallbot_sim.graph_description import (CONTROLLER, DRIVES, RECORDER, GraphDescriptionError, describe_driven_graph,
+                                           describe_graph)
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
+REST = 'rest'
+"""The scenario of a run driven by the user (--drive): no trajectory, at rest at the origin."""
 ALL_STRUCTURAL = ','.join(STRUCTURAL)
 OPTIONAL = (CONTROLLER,)
 """Nodes whose exit does not end the run: without its controller the dynamics falls back to zero
@@ -63,7 +67,8 @@ def domain_id(text: str) -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument('scenario', help='circle, figure8, or a scenario YAML path')
+    parser.add_argument('scenario', help=f'circle, figure8, a scenario YAML path, or {REST} (with --drive: at rest '
+                                         'at the origin, driven by your commands)')
     parser.add_argument('--constraints', default=ALL_STRUCTURAL,
                         help=f'{SELECTION_SYNTAX} (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
@@ -90,6 +95,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "
                              '(model mismatch; default 1.0)')
+    parser.add_argument('--drive', choices=tuple(DRIVES),
+                        help=f'with scenario {REST}: drive the robot yourself, cmd_vel (cmd_vel_node, a wheel-speed '
+                             'PI loop; teleop_twist_keyboard) or joint_commands (joint_bridge_node: ros2_control '
+                             'topics joint_states, joint_commands); the command topics are recorded')
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -182,10 +191,12 @@ def check_nodes(graph: Graph, reported: set[str]) -> None:
                   'the dynamics falls back to zero torque after command_timeout, the run goes on', file=sys.stderr)
 
 
-def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress) -> None:
+def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Progress,
+              reference: bool = True) -> None:
     """Start the graph, return once the recorder holds ``duration`` seconds (0: only by an
     exception, Ctrl-C's KeyboardInterrupt), and stop it (also when interrupted); NodeDied if an
-    essential node exits."""
+    essential node exits. ``reference``: the graph has a trajectory node, whose last reference
+    pose is waited for."""
     monitor = Monitor()
     reported: set[str] = set()
     try:
@@ -209,10 +220,17 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         # The summary's residual is the maximum the diagnostics carry for each window of steps:
         # wait for the window that holds the last steps, published after the dynamics stopped.
         deadline = time.monotonic() + FINAL_WAIT
-        while (not (monitor.dynamics_stopped() and monitor.reference_reached(duration))
+        while (not (monitor.dynamics_stopped() and (not reference or monitor.reference_reached(duration)))
                and time.monotonic() < deadline):
             check_nodes(graph, reported)
             monitor.spin(0.1)
+        missing = [what for what, seen in (('the dynamics\' diagnostics of its stop', monitor.dynamics_stopped()),
+                                           ('the last reference pose', not reference
+                                            or monitor.reference_reached(duration)))
+                   if not seen]
+        if missing:
+            print(f'\nwallbot-sim run: {" and ".join(missing)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
+                  f'early (logs in {graph.log_dir})', file=sys.stderr)
     finally:
         graph.signal_all(first=(RECORDER,))  # the recorder's bag ends at its signal
         monitor.close()  # while the nodes leave DDS too
@@ -220,6 +238,11 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
 
 
 def main(args: argparse.Namespace) -> int:
+    if (args.scenario == REST) != (args.drive is not None):
+        raise CliError(f'--drive and scenario {REST} go together: {REST} has no trajectory to track, a drive '
+                       'replaces it')
+    if args.drive is not None:
+        return main_driven(args)
     scenario = load_scenario(args.scenario)
     selection = ConstraintSelection.parse(args.constraints, tangent_heading=args.tangent_heading)
     if args.tangent_heading and not selection.non_lateral:
@@ -237,9 +260,43 @@ def main(args: argparse.Namespace) -> int:
     elif args.controller_mass_scale != 1.0:
         raise CliError('--controller-mass-scale needs --controller')
     if args.contact == 'coulomb' and not args.controller:
-        raise CliError("--contact coulomb needs --controller: with the trajectory task on, the task's force is a "
-                       'virtual actuator, not friction')
+        raise CliError("--contact coulomb needs --controller or --drive: with the trajectory task on, the task's force "
+                       'is a virtual actuator, not friction')
     robot_file = Path(args.robot).resolve() if args.robot else None
+    loop = '' if mass_scale is None else f' under tracking_controller_node (mass scale {mass_scale:g})'
+
+    def describe(bag: Path) -> list[NodeSpec]:
+        try:
+            return describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
+                                  controller_mass_scale=mass_scale, robot_file=robot_file,
+                                  contact_model=args.contact, adhesion_force=args.adhesion_force)
+        except GraphDescriptionError as error:
+            raise CliError(str(error)) from None
+    return run_described(args, describe, f'{scenario.name}, {selection.label()}{loop}', duration, robot_file)
+
+
+def main_driven(args: argparse.Namespace) -> int:
+    """``run rest --drive DRIVE``: the driven robot at rest at the origin under the user's commands."""
+    if args.constraints != ALL_STRUCTURAL or args.tangent_heading is not None or args.controller:
+        raise CliError(f'--drive runs the driven robot ({", ".join(DRIVEN.active_names())}, no trajectory task): '
+                       'drop --constraints, --tangent-heading and --controller')
+    if args.controller_mass_scale != 1.0:
+        raise CliError('--controller-mass-scale needs --controller')
+    duration = 0.0 if args.duration is None else args.duration
+    robot_file = Path(args.robot).resolve() if args.robot else None
+
+    def describe(bag: Path) -> list[NodeSpec]:
+        return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
+                                     robot_file=robot_file, contact_model=args.contact,
+                                     adhesion_force=args.adhesion_force)
+    return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
+                         reference=False)
+
+
+def run_described(args: argparse.Namespace, describe: Callable[[Path], list[NodeSpec]], title: str,
+                  duration: float, robot_file: Path | None, reference: bool = True) -> int:
+    """Claim a domain, run the graph ``describe`` gives for the bag's path, summarize and plot."""
+    factor = args.real_time_factor
     params = load_robot_parameters(robot_file)
     robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
     try:
@@ -249,22 +306,16 @@ def main(args: argparse.Namespace) -> int:
     with claim:
         out = output_directory(args.out, args.scenario)
         bag = out / 'bag'
-        try:
-            specs = describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
-                                   controller_mass_scale=mass_scale, robot_file=robot_file,
-                                   contact_model=args.contact, adhesion_force=args.adhesion_force)
-        except GraphDescriptionError as error:
-            raise CliError(str(error)) from None
+        specs = describe(bag)
         print(f'{claim.export_line()}  # in another terminal, to see this run with ros2 topic, RViz, ...', flush=True)
         os.environ.update(claim.env())  # the monitor node joins the run's domain
         graph = Graph(out / 'logs', claim.env())
-        loop = '' if mass_scale is None else f' under tracking_controller_node (mass scale {mass_scale:g})'
         length = f'{duration:g} s' if duration > 0 else 'until Ctrl-C'
-        print(f'wallbot-sim run: {scenario.name}, {selection.label()}{loop}, {length} at real-time factor {factor:g}, '
+        print(f'wallbot-sim run: {title}, {length} at real-time factor {factor:g}, '
               f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
-            run_graph(graph, specs, duration, progress)
+            run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
             raise CliError(f'{died}; partial bag kept in {bag}', code=1) from None
         except KeyboardInterrupt:

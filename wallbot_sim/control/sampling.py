@@ -54,14 +54,16 @@ class TorqueCommand:
         return (self.tau_left, self.tau_right) != self.requested
 
 
-class SampledController:
-    """A TrackingController acting at ``rate_hz`` of simulation time on planar states."""
+class ControlInstants:
+    """Which states a controller sampled at ``rate_hz`` of simulation time acts on.
 
-    def __init__(self, controller: TrackingController, rate_hz: int = CONTROL_RATE_HZ,
-                 max_wheel_torque: float = MAX_WHEEL_TORQUE) -> None:
-        self.controller = controller
+    It acts on the first state stamped at or after each multiple of the period. A stamp earlier
+    than the last one is a rewind: back into the first period is a restart (a reset or a fresh
+    dynamics), back less far a dynamics resumed after a kill, acting again from the next instant.
+    """
+
+    def __init__(self, rate_hz: int) -> None:
         self.rate_hz = rate_hz
-        self.max_wheel_torque = max_wheel_torque
         self.next_due_ns: int | None = None
         self.last_stamp_ns: int | None = None
 
@@ -74,12 +76,11 @@ class SampledController:
         self.rate_hz, self.next_due_ns = rate_hz, None
 
     def observe(self, stamp_ns: int) -> Rewind | None:
-        """Note the stamp of a state as it arrives; if time went back, say how far (and act on it)."""
+        """Note the stamp of a state as it arrives; if time went back, say how far."""
         rewind = None
         if self.last_stamp_ns is not None and stamp_ns < self.last_stamp_ns:
             if stamp_ns < self.period_ns:
                 rewind = Rewind.RESTART
-                self.controller.reset()
                 self.next_due_ns = None
             else:
                 rewind = Rewind.RESUME
@@ -91,14 +92,48 @@ class SampledController:
         """Whether the state stamped ``stamp_ns`` is one the controller acts on."""
         return self.next_due_ns is None or stamp_ns >= self.next_due_ns
 
+    def acted(self, stamp_ns: int) -> None:
+        """The state stamped ``stamp_ns`` was acted on: the next is due one period on."""
+        period = self.period_ns
+        self.next_due_ns = (stamp_ns // period + 1) * period
+
+
+class SampledController:
+    """A TrackingController acting at ``rate_hz`` of simulation time on planar states."""
+
+    def __init__(self, controller: TrackingController, rate_hz: int = CONTROL_RATE_HZ,
+                 max_wheel_torque: float = MAX_WHEEL_TORQUE) -> None:
+        self.controller = controller
+        self.instants = ControlInstants(rate_hz)
+        self.max_wheel_torque = max_wheel_torque
+
+    @property
+    def period_ns(self) -> int:
+        return self.instants.period_ns
+
+    def set_rate(self, rate_hz: int) -> None:
+        """A new control rate: act on the next state."""
+        self.instants.set_rate(rate_hz)
+
+    def observe(self, stamp_ns: int) -> Rewind | None:
+        """Note the stamp of a state as it arrives; if time went back, say how far (and act on it)."""
+        rewind = self.instants.observe(stamp_ns)
+        if rewind is Rewind.RESTART:
+            self.controller.reset()
+        return rewind
+
+    def due(self, stamp_ns: int) -> bool:
+        """Whether the state stamped ``stamp_ns`` is one the controller acts on."""
+        return self.instants.due(stamp_ns)
+
     def command(self, state: PlanarState) -> TorqueCommand:
         """The torques for the state (taken as acted on: the next is due one period on).
 
         The wheels' spin rates are their rolling values (the driven robot's wheels roll on the
         wall), so a state as odometry carries it is enough. ModelError if the torques are not finite.
         """
+        self.instants.acted(state.stamp_ns)
         period = self.period_ns
-        self.next_due_ns = (state.stamp_ns // period + 1) * period
         robot = self.controller.robot
         q, qd = np.zeros(DOF), np.zeros(DOF)
         q[:3] = state.x, state.y, state.theta

@@ -12,6 +12,7 @@ row belongs to and which wheels' loads bound it.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable, NamedTuple, Sequence
 
@@ -210,19 +211,23 @@ class CoulombContact:
         slipping = self.slipping if slipping is None else slipping
         if not slipping:
             return None
-        parts = [(module, rows, self.kinetic_friction * (wheels @ loads))
+        parts = [(module.velocity_rows, rows, -self.kinetic_friction * (wheels @ loads))
                  for module, rows, wheels in self._layout_of(modules).slipping_rows(frozenset(slipping))]
         if not parts:
             return None
-        eps2 = self.epsilon ** 2
+        epsilon = self.epsilon
+
+        def part_friction(velocity_rows_of: Callable[[np.ndarray], np.ndarray], rows: np.ndarray | None,
+                          bound: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+            velocity_rows = velocity_rows_of(q) if rows is None else velocity_rows_of(q)[rows]
+            slip = velocity_rows @ qd
+            return (bound * slip / np.hypot(slip, epsilon)) @ velocity_rows
+
+        if len(parts) == 1:  # one slipping module (the usual case): no sum to form
+            return functools.partial(part_friction, *parts[0])
 
         def friction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-            total = np.zeros(qd.shape[0])
-            for module, rows, bound in parts:
-                velocity_rows = module.velocity_rows(q) if rows is None else module.velocity_rows(q)[rows]
-                slip = velocity_rows @ qd
-                total -= (bound * slip / np.sqrt(slip * slip + eps2)) @ velocity_rows
-            return total
+            return sum(part_friction(*part, q, qd) for part in parts)
         return friction
 
     def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
@@ -264,8 +269,8 @@ class CoulombContact:
         present = self._layout_of(modules).present
         self.slipping = self.slipping & present
         result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
-        predicted = qd + dt * result.motion.acceleration
-        candidates = self._stopping(modules, self.slipping, q, qd, predicted)
+        candidates = (self._stopping(modules, self.slipping, q, qd, qd + dt * result.motion.acceleration)
+                      if self.slipping else None)
         while candidates:
             trial = self.slipping - candidates
             trial_qd = project(self.active_modules(modules, trial), qd)
@@ -299,11 +304,17 @@ class CoulombContact:
             motion = evaluate(active, friction, qd)
             loads, use = measure(motion, friction, qd)
             if function is None or not self._layout_of(modules).load_dependent(frozenset(slipping)) \
-                    or np.max(np.abs(loads - held)) <= _LOAD_TOLERANCE * np.sum(np.abs(loads)):
+                    or _converged(loads.tolist(), held.tolist()):
                 return ContactSolution(motion, friction, loads, use, held, active, function)
             held = loads
         raise ModelError('normal loads and kinetic friction found no consistent value in '
                          f'{_LOAD_ITERATIONS} iterations (loads {np.round(loads, 3).tolist()} N)')
+
+
+def _converged(loads: list[float], held: list[float]) -> bool:
+    """Whether the loads the friction held are the loads it produced, to _LOAD_TOLERANCE."""
+    return (max(abs(new - old) for new, old in zip(loads, held))
+            <= _LOAD_TOLERANCE * sum(abs(load) for load in loads))
 
 
 def _within_limit(use: FrictionUse, channel: str) -> bool:

@@ -67,8 +67,9 @@ class ContactOutputs:
     @property
     def detached_wheel(self) -> int | None:
         """The wheel (1..4) with the most negative load, or None while every load is >= 0."""
-        lowest = int(np.argmin(self.loads))
-        return lowest + 1 if self.loads[lowest] < 0.0 else None
+        loads = self.loads.tolist()
+        lowest = min(loads)
+        return loads.index(lowest) + 1 if lowest < 0.0 else None
 
 
 @dataclass(frozen=True)

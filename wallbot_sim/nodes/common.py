@@ -12,6 +12,7 @@ from typing import Callable, Iterable, Sequence
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -218,3 +219,47 @@ def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) 
     """{name: value} of a parameter callback's list; only the names in ``known`` when given."""
     names = None if known is None else set(known)
     return {p.name: p.value for p in parameters if names is None or p.name in names}
+
+
+class HeldCommands:
+    """A command publisher whose messages go out only once the sender of ``state_topic`` hears them.
+
+    A lockstep dynamics publishes a state once its odometry reaches the controller; a command
+    answering it is lost if the command publisher has not matched the dynamics' subscription yet
+    (discovery is per direction), and the dynamics would wait for it. So until the publisher is
+    heard by every node publishing ``state_topic`` (``heard_by_every``; asked again whenever the
+    number of ``state_topic`` publishers changes, e.g. a restarted dynamics) the newest command
+    is held, and a steady timer sends it once it will be heard.
+    """
+
+    CHECK_PERIOD = 0.02
+    """Wall seconds between checks."""
+
+    def __init__(self, node: Node, publisher: Publisher, state_topic: str) -> None:
+        self.node, self.publisher = node, publisher
+        self.state_topic = node.resolve_topic_name(state_topic)
+        self.heard = False
+        self.state_publishers = 0
+        self.unsent = None
+        node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _heard(self) -> bool:
+        if not self.heard:
+            self.heard = heard_by_every(self.node, self.publisher, self.state_topic)
+        return self.heard
+
+    def send(self, message: object) -> bool:
+        """Publish ``message`` now if it will be heard (True), else hold it as the newest (False)."""
+        if self._heard():
+            self.publisher.publish(message)
+            return True
+        self.unsent = message
+        return False
+
+    def _check(self) -> None:
+        count = self.node.count_publishers(self.state_topic)
+        if count != self.state_publishers:
+            self.state_publishers, self.heard = count, False
+        if self.unsent is not None and self._heard():
+            message, self.unsent = self.unsent, None
+            self.publisher.publish(message)

@@ -54,13 +54,11 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, heard_by_every, param_dict,
-                                      parameter_result, range_reasons, run)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, heard_by_every,
+                                      param_dict, parameter_result, range_reasons, run)
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
-HEARING_CHECK = 0.02
-"""Wall seconds between checks that the dynamics hears this node's commands."""
 """Seconds between repeated log lines of one kind."""
 GAIN_NAMES = ('alpha', 'beta', 'look_ahead', 'integral', 'integral_zone')
 KEPT_PLANS = 3
@@ -139,10 +137,6 @@ class ControllerNode(Node):
         self.controller.reference = self.plans
         self.loop = SampledController(self.controller, self.values['rate_hz'], float(self.values['max_wheel_torque']))
         self.pending: bytes | None = None
-        self.unsent: Float64MultiArray | None = None
-        self.dynamics_hears = False
-        self.odom_publishers = 0
-        self.odom_sub = None
         self.commands = 0
         self.clamped = 0
 
@@ -151,10 +145,11 @@ class ControllerNode(Node):
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY))
         if self.values['wait_for_recorder']:
-            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded)
+            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded,
+                                                    clock=Clock(clock_type=ClockType.STEADY_TIME))
         else:
             self._subscribe_odom()
-        self.create_timer(HEARING_CHECK, self._check_hearing, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.delivery = HeldCommands(self, self.command_pub, topics.ODOM.name)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
@@ -174,8 +169,7 @@ class ControllerNode(Node):
     def _subscribe_odom(self) -> None:
         # raw: of the 1 kHz odometry only the messages acted on are decoded (the stamp is read
         # from the CDR bytes), which keeps the controller's CPU share low on a busy machine
-        self.odom_sub = self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM),
-                                                 raw=True)
+        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
 
     def _subscribe_when_recorded(self) -> None:
         """wait_for_recorder: subscribe odom once a recorder hears wheel_torque_cmd.
@@ -235,36 +229,9 @@ class ControllerNode(Node):
             self.get_logger().warning(f'torques {command.requested[0]:.3f}, {command.requested[1]:.3f} N m clamped to '
                                       f'+-{self.loop.max_wheel_torque:g} N m', throttle_duration_sec=THROTTLE)
         self.commands += 1
-        message = Float64MultiArray(data=[command.tau_left, command.tau_right])
-        if self._dynamics_hears():
-            self.command_pub.publish(message)
-        else:
-            self.unsent = message
+        if not self.delivery.send(Float64MultiArray(data=[command.tau_left, command.tau_right])):
             self.get_logger().info('holding the command until the dynamics hears wheel_torque_cmd',
                                    throttle_duration_sec=THROTTLE)
-
-    # --- delivery ------------------------------------------------------------------------------
-    def _dynamics_hears(self) -> bool:
-        """Whether the node publishing odom subscribes wheel_torque_cmd and this publisher is matched
-        to every discovered subscription of it (checked until true, again when odom's publishers change).
-
-        The dynamics publishes a state once its odom reaches this node; the command answering it
-        is lost if this publisher has not matched the dynamics' subscription yet (discovery is
-        per direction), and a lockstep dynamics would then wait for it for ever.
-        """
-        if not self.dynamics_hears:
-            self.dynamics_hears = heard_by_every(self, self.command_pub, self.resolve_topic_name(topics.ODOM.name))
-        return self.dynamics_hears
-
-    def _check_hearing(self) -> None:
-        """Steady timer: a change of odom's publishers (a dynamics restarted) asks again; a held
-        command goes out once it will be heard."""
-        count = self.odom_sub.get_publisher_count() if self.odom_sub is not None else 0
-        if count != self.odom_publishers:
-            self.odom_publishers, self.dynamics_hears = count, False
-        if self.unsent is not None and self._dynamics_hears():
-            message, self.unsent = self.unsent, None
-            self.command_pub.publish(message)
 
     # --- parameters ----------------------------------------------------------------------------
     def _on_set(self, parameters):

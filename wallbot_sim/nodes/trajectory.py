@@ -19,6 +19,13 @@ publishes at its ``clock_rate_hz`` (10 Hz by default): it checks the plan, then 
 MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
 whatever the clock's rate, and at the default rates the node wakes ten times per simulated second
 instead of once per pose and once per plan check.
+
+Recording. With ``wait_for_recorder`` (``wallbot-sim run`` sets it when it records), the first
+plan is built only once a recorder (a node publishing ``record_progress``) subscribes
+``reference`` and every discovered subscription of it is matched to this node's publisher. The
+dynamics starts on that plan, so the bag holds every reference pose from t = 0: the poses are
+volatile, and discovery runs per pair of nodes, so the dynamics hearing the recorder says nothing
+about this node's publisher.
 """
 
 from __future__ import annotations
@@ -28,6 +35,8 @@ import threading
 from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry, Path
+from rclpy.clock import Clock as WallClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -41,8 +50,8 @@ from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, param_dict,
-                                      parameter_result, range_reasons, run)
+from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, heard_by_every,
+                                      param_dict, parameter_result, range_reasons, run)
 
 MAX_POSE_BURST = 100
 """Most reference poses published for one /clock message (the newest ones): a clock that jumps
@@ -61,6 +70,8 @@ RANGES = {
 """What each numeric parameter accepts (its descriptor's range, and the node's check). With every
 other parameter at its default, each end is a usable plan: 10 samples of 0.05 s fill 0.5 s, 250 s
 at 0.05 s and 10 s at 0.002 s are MAX_PLAN_SAMPLES."""
+RECORDER_CHECK = 0.02
+"""Seconds (steady clock) between checks whether a recorder hears ``reference`` (wait_for_recorder)."""
 
 
 def make_reference(values: dict):
@@ -155,6 +166,9 @@ class TrajectoryNode(Node):
         reasons = check_values(self.values)
         if reasons:
             raise ValueError('; '.join(reasons))
+        wait_for_recorder = declare(self, 'wait_for_recorder', False,
+                                    'plan only once a recorder (record_progress) is matched on reference, so a '
+                                    'recording holds every reference pose', read_only=True)
         self.trajectory_pub = self.create_publisher(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name,
                                                     qos_profile(topics.REFERENCE_TRAJECTORY))
         self.path_pub = self.create_publisher(Path, topics.REFERENCE_PATH.name, qos_profile(topics.REFERENCE_PATH))
@@ -170,7 +184,12 @@ class TrajectoryNode(Node):
         """Grid index (simulation time / pose period) of the newest reference pose published."""
         self.clock_ns: int | None = None
         self.pose_lock = threading.Lock()  # poses go out from the executor and, for a new plan, the planner
-        self.replan(self._now())
+        self.recorder_check = None
+        if wait_for_recorder:
+            self.recorder_check = self.create_timer(RECORDER_CHECK, self._plan_when_recorded,
+                                                    clock=WallClock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self.replan(self._now())
         self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
 
     def _now(self) -> float:
@@ -181,6 +200,14 @@ class TrajectoryNode(Node):
         self.clock_ns = now_ns
         self._check_plan(now_ns * 1e-9)
         self._publish_reference(now_ns)
+
+    def _plan_when_recorded(self) -> None:
+        if not heard_by_every(self, self.reference_pub, self.resolve_topic_name(topics.RECORD_PROGRESS.name)):
+            return
+        self.destroy_timer(self.recorder_check)
+        self.recorder_check = None
+        self.get_logger().info('a recorder hears reference: planning')
+        self.replan(self._now())
 
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
@@ -258,8 +285,8 @@ class TrajectoryNode(Node):
         self.values.update(changes)
         if 'publish_rate_hz' in changes:
             self.last_pose = None  # a new grid: it starts at the next clock
-        if set(changes) - {'publish_rate_hz'}:
-            self.replan(self._now())
+        if set(changes) - {'publish_rate_hz'} and self.recorder_check is None:
+            self.replan(self._now())  # (a node still waiting for its recorder plans the new values then)
 
 
 def main(args: list[str] | None = None) -> None:

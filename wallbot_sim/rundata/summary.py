@@ -84,9 +84,10 @@ def format_summary(summary: RunSummary) -> str:
     s = summary
     return '\n'.join([
         f'run:                 {s.path} ({s.duration:.3f} s, {s.odom_count} odometry messages)',
-        f'tracking error:      final {s.final_tracking_error:.3e} m, peak {s.peak_tracking_error:.3e} m, '
-        + (f'peak after 5 s {s.peak_tracking_error_after_5s:.3e} m' if s.duration >= 5.0
-           else 'no peak after 5 s (the run is shorter than 5 s)'),
+        ('tracking error:      none (no reference recorded: a driven run)' if math.isnan(s.peak_tracking_error) else
+         f'tracking error:      final {s.final_tracking_error:.3e} m, peak {s.peak_tracking_error:.3e} m, '
+         + (f'peak after 5 s {s.peak_tracking_error_after_5s:.3e} m' if s.duration >= 5.0
+            else 'no peak after 5 s (the run is shorter than 5 s)')),
         f'constraint wrench:   peak |F_X| {s.peak_constraint_force_x:.3f} N, |F_Y| {s.peak_constraint_force_y:.3f} N, '
         f'|M_Z| {s.peak_constraint_torque_z:.4f} N m',
         f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '

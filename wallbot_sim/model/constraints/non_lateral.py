@@ -22,6 +22,7 @@ class NonLateral:
 
     def __init__(self, gains: BaumgarteGains) -> None:
         self.gains = gains
+        self._rows_theta, self._rows = math.nan, np.zeros((1, 7))
 
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         theta = float(q[2])
@@ -33,7 +34,13 @@ class NonLateral:
                 np.array([thd * v_long - self.gains.velocity_gain * v_lat]))
 
     def velocity_rows(self, q: np.ndarray) -> np.ndarray:
-        return np.array([[-math.sin(q[2]), math.cos(q[2]), 0.0, 0.0, 0.0, 0.0, 0.0]])
+        """A (read-only; the last one is kept: coulomb contact asks again at the same heading)."""
+        theta = float(q[2])
+        if theta != self._rows_theta:
+            rows = np.array([[-math.sin(theta), math.cos(theta), 0.0, 0.0, 0.0, 0.0, 0.0]])
+            rows.flags.writeable = False
+            self._rows_theta, self._rows = theta, rows
+        return self._rows
 
     def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self.velocity_rows(q) @ qd

@@ -25,12 +25,17 @@ class Nonslip:
         self._template = np.zeros((4, 7))
         self._template[:, 2] = lateral_offsets
         self._template[:, 3:] = wheel_radius * np.eye(4)
+        self._rows_theta, self._rows = math.nan, self._template
 
     def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        """A (read-only; the last one is kept: coulomb contact asks again at the same heading)."""
         theta = float(q[2])
-        rows = self._template.copy()
-        rows[:, :2] = (-math.cos(theta), -math.sin(theta))
-        return rows
+        if theta != self._rows_theta:
+            rows = self._template.copy()
+            rows[:, :2] = (-math.cos(theta), -math.sin(theta))
+            rows.flags.writeable = False
+            self._rows_theta, self._rows = theta, rows
+        return self._rows
 
     def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self.velocity_rows(q) @ qd

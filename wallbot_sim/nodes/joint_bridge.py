@@ -1,0 +1,100 @@
+"""joint_bridge_node (``/wallbot/joint_bridge``): the wheels in ros2_control's topic conventions.
+
+* publishes ``joint_states`` (sensor_msgs/JointState, as joint_state_broadcaster does): the four
+  wheel joints of the URDF (``wheel_left_front``, ...) with position (spin angle, rad), velocity
+  (rad/s) and effort (N m: the total torque on the wheel, motor share plus constraint torque, as
+  ``wheel_states`` carries it), stamped in simulation time, at ``rate_hz`` (50 by default) of
+  simulation time: the ``wheel_states`` message at or after each multiple of 1 / ``rate_hz``,
+  republished. A controller_manager reads states at its own update rate; 1 kHz would only load
+  the graph.
+* subscribes ``joint_commands`` (sensor_msgs/JointState with one effort per wheel joint, what
+  topic_based_ros2_control's hardware interface publishes for effort command interfaces) and
+  sends the side torques (``wallbot_sim.control.joint_interface``: each side's two efforts summed,
+  the belt couples the wheels of a side) on ``wheel_torque_cmd``. A malformed message (joints
+  missing, duplicated or unknown, efforts missing or not finite, a side over ``max_wheel_torque``)
+  is refused with one log line and never reaches the simulation.
+
+The dynamics holds each command for its ``command_timeout`` (0.5 s of simulation time), then
+falls back to zero torque; a controller_manager writing at its update rate keeps it fresh.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from wallbot_msgs_py import codec, topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.control.joint_interface import side_torques
+from wallbot_sim.control.sampling import ControlInstants
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, param_dict, parameter_result, run
+
+THROTTLE = 1.0
+"""Seconds between repeated log lines of one kind."""
+STATE_RATE_HZ = 50
+
+
+class JointBridgeNode(Node):
+    """wheel_states -> joint_states at rate_hz; joint_commands -> wheel_torque_cmd."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__(topics.NODE_JOINT_BRIDGE, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
+        rate_hz = declare(self, 'rate_hz', STATE_RATE_HZ, 'joint_states per second of simulation time',
+                          low=1, high=1000, read_only=True)
+        self.max_torque = float(declare(self, 'max_wheel_torque', 5.0, "largest accepted |side total| of the "
+                                        "efforts (N m; the dynamics' limit)", allowed=WHEEL_TORQUE_LIMIT))
+        self.robot_file = declare(self, 'robot_file', '', 'unused: accepted so that every node of a run takes the '
+                                  'same robot file', read_only=True)
+        self.instants = ControlInstants(int(rate_hz))
+        self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES))
+        self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
+                                                 qos_profile(topics.WHEEL_TORQUE_CMD))
+        # raw: of the 1 kHz wheel states only those republished are decoded
+        self.create_subscription(JointState, topics.WHEEL_STATES.name, self._on_wheel_states,
+                                 qos_profile(topics.WHEEL_STATES), raw=True)
+        self.create_subscription(JointState, topics.JOINT_COMMANDS.name, self._on_joint_commands,
+                                 qos_profile(topics.JOINT_COMMANDS))
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        self.get_logger().info(f'joint_states at {rate_hz} Hz of simulation time; joint_commands efforts -> '
+                               f'wheel_torque_cmd (side totals within +-{self.max_torque:g} N m)')
+
+    def _on_wheel_states(self, data: bytes) -> None:
+        stamp_ns = codec.leading_stamp_ns(data)
+        if stamp_ns is None:
+            self.get_logger().error('ignoring a malformed wheel_states message', throttle_duration_sec=THROTTLE)
+            return
+        self.instants.observe(stamp_ns)
+        if not self.instants.due(stamp_ns):
+            return
+        self.instants.acted(stamp_ns)
+        self.state_pub.publish(deserialize_message(data, JointState))
+
+    def _on_joint_commands(self, msg: JointState) -> None:
+        try:
+            left, right = side_torques(list(msg.name), list(msg.effort), self.max_torque)
+        except ValueError as error:
+            self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
+            return
+        self.command_pub.publish(Float64MultiArray(data=[left, right]))
+
+    def _on_set(self, parameters):
+        changes = param_dict(parameters, ('max_wheel_torque',))
+        return parameter_result(WHEEL_TORQUE_LIMIT.reason(name, value) for name, value in changes.items())
+
+    def _after_set(self, parameters) -> None:
+        changes = param_dict(parameters, ('max_wheel_torque',))
+        if changes:
+            self.max_torque = float(changes['max_wheel_torque'])
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.exit(run(JointBridgeNode, args))
+
+
+if __name__ == '__main__':
+    main()
