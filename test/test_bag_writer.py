@@ -40,7 +40,7 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
     meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     assert meta['version'] == 9 and meta['storage_identifier'] == 'mcap'
     names = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
-    assert set(names) == {t.resolve() for t in topics.RECORDED}
+    assert set(names) == {t.resolve() for t in topics.NOISELESS_RECORDED}
     path_qos = names['/wallbot/reference_path']['topic_metadata']['offered_qos_profiles'][0]
     assert path_qos['durability'] == 'transient_local' and path_qos['reliability'] == 'reliable'
 
@@ -66,11 +66,11 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
 
 
 def test_headless_clock_goes_at_the_clock_rate_and_with_the_last_state(tmp_path):
-    """/clock as the dynamics node publishes it by default: the first state of every 1 / CLOCK_RATE_HZ
+    """The robot's clock as the dynamics node publishes it by default: the first state of every 1 / CLOCK_RATE_HZ
     of simulation time and the state the run ends at (0.25 s, off that grid); odometry every step."""
     from wallbot_sim import messages
     bag, _ = _simulate(tmp_path, duration=0.25)
-    clock = [m.clock.sec * 10**9 + m.clock.nanosec for _, m in _mcap_messages(bag, '/clock')]
+    clock = [m.clock.sec * 10**9 + m.clock.nanosec for _, m in _mcap_messages(bag, '/wallbot/clock')]
     period_ns = round(1e9 / messages.CLOCK_RATE_HZ)
     assert clock == [*range(0, 250_000_000, period_ns), 250_000_000]
     odom = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in _mcap_messages(bag, '/wallbot/odom')]
@@ -155,7 +155,7 @@ def test_without_ros_the_headless_bag_holds_the_same_messages(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     a, b = by_topic(with_ros), by_topic(without_ros)
-    assert sorted(a) == sorted(b) == sorted(t.resolve() for t in topics.RECORDED)
+    assert sorted(a) == sorted(b) == sorted(t.resolve() for t in topics.NOISELESS_RECORDED)
     for topic in a:
         if topic == '/diagnostics':
             assert [diagnostics_without_wall_clock(m, same_moments=True) for m in a[topic]] == \

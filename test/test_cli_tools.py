@@ -97,7 +97,7 @@ def test_info_rates_each_topic_over_its_own_span(tmp_path):
     result = wallbot('info', bag)
     assert result.returncode == 0, result.stderr
     lines = {line.split()[0]: line for line in result.stdout.splitlines() if line.startswith('  /')}
-    assert '1000.0 Hz' in lines['/clock'] and '1001 msgs' in lines['/clock']
+    assert '1000.0 Hz' in lines['/wallbot/clock'] and '1001 msgs' in lines['/wallbot/clock']
     assert '100.0 Hz' in lines['/wallbot/record_progress'] and '11 msgs' in lines['/wallbot/record_progress']
 
 

@@ -150,7 +150,11 @@ ROBOTS = {  # namespace: scenario as parameters (different shapes and places: cr
 }
 
 
-def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runner):
+@pytest.mark.parametrize('driven', [True, False], ids=['each_with_its_controller', 'each_on_its_trajectory_task'])
+def test_two_robots_side_by_side(tmp_path, process_runner, driven):
+    """Two robots in one domain started with nothing but ``-r __ns:=``: each robot's nodes follow
+    its own clock (both dynamics also publish the domain's /clock, as nobody set domain_clock
+    false: no node of a robot listens to it), and each tracks its path."""
     import rclpy
     duration = 10.5
     context = rclpy.Context()
@@ -162,15 +166,14 @@ def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runn
     executor = rclpy.executors.SingleThreadedExecutor(context=context)
     executor.add_node(probe)
     progress = {ns: -1.0 for ns in ROBOTS}
-    for ns in ROBOTS:  # how far each robot's recorder got (its newest /clock written)
+    for ns in ROBOTS:  # how far each robot's recorder got (the newest clock it wrote)
         probe.create_subscription(Clock, f'{ns}/record_progress',
                                   lambda msg, ns=ns: progress.__setitem__(ns, msg.clock.sec + msg.clock.nanosec * 1e-9),
                                   qos_profile(topics.RECORD_PROGRESS))
     procs = {}
 
     def start(ns: str, name: str, module: str, *params: str):
-        args = [sys.executable, '-m', f'wallbot_sim.nodes.{module}', '--ros-args', '-r', f'__ns:={ns}',
-                '-r', f'/clock:={ns}/clock']  # each robot has its own simulation time
+        args = [sys.executable, '-m', f'wallbot_sim.nodes.{module}', '--ros-args', '-r', f'__ns:={ns}']
         for param in params:
             args += ['-p', param]
         procs[f'{ns[1:]}_{name}'] = process_runner.start(args, f'{ns[1:]}_{name}')
@@ -189,21 +192,27 @@ def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runn
         for ns, config in ROBOTS.items():
             start(ns, 'recorder', 'recorder', f'output:={tmp_path / ns[1:]}', 'topics:=[' + ','.join(
                 t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)) + ']')
-            start(ns, 'constraint_config', 'constraint_config', 'trajectory_task:=false', 'belt:=true',
-                  'non_lateral:=true', 'nonslip:=true')
+            start(ns, 'constraint_config', 'constraint_config', f'trajectory_task:={str(not driven).lower()}',
+                  'belt:=true', 'non_lateral:=true', 'nonslip:=true')
             start(ns, 'trajectory', 'trajectory', *config['trajectory'])
-            start(ns, 'controller', 'controller')
+            if driven:
+                start(ns, 'controller', 'controller')
         for ns in ROBOTS:  # recorder and controller hear odom before the dynamics starts
-            wait_for(lambda ns=ns: probe.count_subscribers(f'{ns}/odom') == 2
-                     and probe.count_publishers(f'{ns}/wheel_torque_cmd') == 1, 30, f'{ns} recorder and controller')
+            wait_for(lambda ns=ns: probe.count_subscribers(f'{ns}/odom') == 1 + driven
+                     and probe.count_publishers(f'{ns}/wheel_torque_cmd') == driven, 30,
+                     f'{ns} recorder and controller')
         for ns, config in ROBOTS.items():
-            start(ns, 'dynamics', 'dynamics', *config['dynamics'], 'wait_for_command:=true', 'lockstep_every:=5',
-                  'wait_for_recorder:=true',
-                  f'stop_at:={duration}')
+            start(ns, 'dynamics', 'dynamics', *config['dynamics'], 'wait_for_recorder:=true', f'stop_at:={duration}',
+                  *(('wait_for_command:=true', 'lockstep_every:=5') if driven else ()))
         for ns in ROBOTS:
             wait_for(lambda ns=ns: progress[ns] >= duration - 1e-9, 60, f'{ns} recorded up to {duration} s')
             # one publisher per robot topic: nobody answers on the other robot's topics
-            assert probe.count_publishers(f'{ns}/odom') == 1 and probe.count_publishers(f'{ns}/wheel_torque_cmd') == 1
+            assert probe.count_publishers(f'{ns}/odom') == 1 and probe.count_publishers(f'{ns}/clock') == 1
+            assert probe.count_publishers(f'{ns}/wheel_torque_cmd') == driven
+        # the robots' nodes follow their own clocks, none the domain's /clock both dynamics publish
+        assert probe.count_publishers('/clock') == 2
+        assert not [i.node_namespace for i in probe.get_subscriptions_info_by_topic('/clock')
+                    if i.node_namespace in ROBOTS]
     finally:
         for name, proc in procs.items():  # recorders with SIGINT: a closed bag
             if name.endswith('recorder'):
@@ -223,11 +232,13 @@ def test_two_robots_side_by_side_each_with_its_controller(tmp_path, process_runn
         after = run.err[run.t >= 10.0]
         assert run.t[-1] >= duration - 1e-9 and np.max(after) < 5e-3, f'{ns}: {np.max(after):.3e} m'
         results[ns] = run
-        check_commands(tmp_path / ns[1:], duration)
+        if driven:
+            check_commands(tmp_path / ns[1:], duration)
     # no cross-talk: each robot stays around its own path (the figure-8 within |x| <= 1 m, the circle around x = 3)
     assert np.max(np.abs(results['/r1'].x)) < 1.01 and np.min(results['/r2'].x) > 1.95
-    print(f'\ntwo robots: error after 10 s {np.max(results["/r1"].err[results["/r1"].t >= 10]) * 1e3:.3f} mm (r1), '
-          f'{np.max(results["/r2"].err[results["/r2"].t >= 10]) * 1e3:.3f} mm (r2)')
+    errors = {ns: np.max(run.err[run.t >= 10]) * 1e3 for ns, run in results.items()}
+    print(f'\ntwo robots ({"driven" if driven else "trajectory task"}): error after 10 s {errors["/r1"]:.3f} mm (r1), '
+          f'{errors["/r2"]:.3f} mm (r2)')
 
 
 # --- the node's own checks (no closed loop) ------------------------------------------------------
@@ -256,8 +267,9 @@ def test_cdr_stamp_and_odometry_decoding():
     assert isinstance(Odometry(), type(msg))
 
 
-@pytest.mark.parametrize('param, reason', [('alpha:=-1.0', 'alpha must be > 0'), ('mass_scale:=0.0', 'mass_scale must be > 0'),
-                                           ('integral:=-2.0', 'integral must be >= 0'),
+@pytest.mark.parametrize('param, reason', [('alpha:=-1.0', 'alpha must be in [0.001, 10000]'),
+                                           ('mass_scale:=0.0', 'mass_scale must be in [0.001, 1000]'),
+                                           ('integral:=-2.0', 'integral must be in [0, 1e+06]'),
                                            ('max_wheel_torque:=.nan', 'max_wheel_torque must be a finite number')])
 def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, reason):
     proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args', '-p', param],

@@ -41,7 +41,8 @@ def test_every_layering_contract_is_kept(linter):
     ('wallbot_sim/cli/compare.py', 'from wallbot_sim.cli import plot', 'never imports another verb'),
     ('wallbot_sim/model/robot.py', 'import rclpy', 'wallbot_sim.model is pure NumPy'),
     ('wallbot_sim/rundata/load.py', 'from wallbot_sim.cli.errors import CliError', 'know nothing of the command line'),
-    ('wallbot_sim/nodes/dynamics_loop.py', 'import rclpy', 'the dynamics loop, its pacer and its resume gate know no ROS'),
+    ('wallbot_sim/nodes/dynamics_loop.py', 'import rclpy',
+     'the dynamics loop, its pacer, its resume gate and its sensor noise know no ROS'),
     ('wallbot_sim/urdf.py', 'import std_msgs', 'the URDF generator knows no ROS'),
     ('wallbot_sim/view.py', 'import visualization_msgs', 'what the viewer draws and encodes'),
 ], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'urdf', 'view'])

@@ -218,6 +218,10 @@ def test_initial_pose_validation():
                         (pose(q=(0.1, 0.0, 0.0, 0.995)), 'not a turn about Z')]:
         with pytest.raises(ValueError, match=reason):
             codec.initial_pose(bad)
+    # a graph whose odom_frame_id is 'map' takes poses in 'map' and refuses 'wall'
+    assert codec.initial_pose(pose(frame='map'), 'map')[:2] == (0.3, -0.4)
+    with pytest.raises(ValueError, match="frame 'wall', not 'map'"):
+        codec.initial_pose(pose(), 'map')
 
 
 def test_diagnostics_builder():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 
 import pytest
 
@@ -80,3 +81,133 @@ def test_run_refuses_exactly_the_real_time_factors_the_dynamics_node_refuses(dyn
         assert 'real_time_factor' in result.reason
     else:
         assert result.successful, f'the command line accepts {factor!r}, the node refuses it: {result.reason}'
+
+
+# --- every node's parameters, as a ROS user discovers them ----------------------------------------
+ENUMERATED = {'shape', 'contact_model'}
+"""String parameters that take one of a few values (the test checks they list them)."""
+
+
+class ParameterClient:
+    """The parameter services of one node, called as ``ros2 param describe`` / ``set`` call them."""
+
+    def __init__(self, graph, node: str) -> None:
+        from rcl_interfaces.srv import DescribeParameters, ListParameters, SetParameters
+        self.graph, self.node = graph, node
+        self.clients = {kind: graph.node.create_client(kind, f'{node}/{service}')
+                        for kind, service in ((ListParameters, 'list_parameters'),
+                                              (DescribeParameters, 'describe_parameters'),
+                                              (SetParameters, 'set_parameters'))}
+        for client in self.clients.values():
+            assert client.wait_for_service(timeout_sec=20.0), f'{client.srv_name} not available'
+
+    def _call(self, kind, request):
+        future = self.clients[kind].call_async(request)
+        self.graph.wait_for(future.done, 10.0, f'a response of {self.node}')
+        return future.result()
+
+    def descriptors(self) -> list:
+        from rcl_interfaces.srv import DescribeParameters, ListParameters
+        names = self._call(ListParameters, ListParameters.Request()).result.names
+        return list(self._call(DescribeParameters, DescribeParameters.Request(names=names)).descriptors)
+
+    def set(self, name: str, value) -> tuple[bool, str]:
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+        result, = self._call(SetParameters, SetParameters.Request(
+            parameters=[Parameter(name, value=value).to_parameter_msg()])).results
+        return result.successful, result.reason
+
+
+def _range_of(descriptor):
+    """(low, high, is_integer) of a numeric descriptor's range, or None if it has none."""
+    for ranges, integer in ((descriptor.floating_point_range, False), (descriptor.integer_range, True)):
+        if len(ranges):
+            return min(ranges[0].from_value, ranges[0].to_value), max(ranges[0].from_value, ranges[0].to_value), integer
+    return None
+
+
+def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(process_runner, tmp_path):
+    """Each node of the graph (graph_description.EXECUTABLES) alone in a namespace of its own, so
+    none of them runs; through its parameter services: every integer and double parameter has a
+    range, each end is accepted and the nearest number outside is refused (rclpy lets numbers
+    within 1e-6 of an end through: the node's own check must refuse them); every enumerated
+    parameter lists its values and accepts exactly those."""
+    from rcl_interfaces.msg import ParameterType
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.parameter import parameter_value_to_python
+
+    from graph_helpers import Graph
+    from wallbot_sim.graph_description import EXECUTABLES
+
+    graph = Graph(process_runner)
+    try:
+        namespaces = {}
+        for index, module in enumerate(EXECUTABLES):
+            namespace = f'/ranges_{index}'
+            extra = ['-p', f'output:={tmp_path / "bag"}'] if module.endswith('.recorder') else []
+            graph.procs[module] = process_runner.start(
+                [sys.executable, '-m', module, '--ros-args', '-r', f'__ns:={namespace}', *extra], module)
+            namespaces[namespace] = module
+
+        def started():
+            found = {(ns, name) for name, ns in graph.node.get_node_names_and_namespaces() if ns in namespaces
+                     and not name.startswith('_')}
+            return found if {ns for ns, _ in found} == set(namespaces) else None
+        nodes = graph.wait_for(started, 30.0, 'every node')
+        problems, checked, enumerated = [], 0, set()
+        for namespace, name in sorted(nodes):
+            client = ParameterClient(graph, f'{namespace}/{name}')
+            descriptors = client.descriptors()
+            names = [d.name for d in descriptors]
+            values = dict(zip(names, graph.call(GetParameters, f'{namespace}/{name}/get_parameters',
+                                                GetParameters.Request(names=names)).values))
+            for descriptor in descriptors:
+                where = f'{namespaces[namespace]} {descriptor.name}'
+                default = parameter_value_to_python(values[descriptor.name])
+                if descriptor.type == ParameterType.PARAMETER_STRING and (
+                        descriptor.name in ENUMERATED or descriptor.additional_constraints.startswith('one of: ')):
+                    enumerated.add(descriptor.name)
+                    choices = descriptor.additional_constraints.removeprefix('one of: ').split(', ')
+                    if not descriptor.additional_constraints.startswith('one of: ') or default not in choices:
+                        problems.append(f'{where}: lists no choices ({descriptor.additional_constraints!r})')
+                        continue
+                    if descriptor.additional_constraints not in descriptor.description:
+                        problems.append(f'{where}: the description does not list the choices')
+                    for choice in choices:
+                        if not client.set(descriptor.name, choice)[0]:
+                            problems.append(f'{where}: its choice {choice!r} is refused')
+                    if client.set(descriptor.name, 'no_such_choice')[0]:
+                        problems.append(f'{where}: accepts a value not among its choices')
+                    client.set(descriptor.name, default)
+                    continue
+                if descriptor.type not in (ParameterType.PARAMETER_INTEGER, ParameterType.PARAMETER_DOUBLE):
+                    continue
+                checked += 1
+                span = _range_of(descriptor)
+                if span is None:
+                    problems.append(f'{where}: no range')
+                    continue
+                low, high, integer = span
+                if not low <= default <= high:
+                    problems.append(f'{where}: default {default!r} outside [{low!r}, {high!r}]')
+                if descriptor.read_only:
+                    continue
+                outside = (low - 1, high + 1) if integer else (math.nextafter(low, -math.inf),
+                                                               math.nextafter(high, math.inf))
+                for value in (low, high):
+                    accepted, reason = client.set(descriptor.name, value)
+                    if not accepted:
+                        problems.append(f'{where}: refuses {value!r}, an end of its range: {reason}')
+                    client.set(descriptor.name, default)
+                for value in outside:
+                    accepted, _reason = client.set(descriptor.name, value)
+                    if accepted:
+                        problems.append(f'{where}: accepts {value!r}, outside its range [{low!r}, {high!r}]')
+                        client.set(descriptor.name, default)
+        assert checked >= 40 and ENUMERATED <= enumerated, (checked, enumerated)
+        assert not problems, '\n'.join(problems)
+        for module, proc in graph.procs.items():
+            assert proc.poll() is None, f'{module} exited:\n{process_runner.output(module)}'
+    finally:
+        graph.close()

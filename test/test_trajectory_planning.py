@@ -98,6 +98,23 @@ def test_plans_cover_at_most_the_horizon_and_a_finite_run_ends_at_rest():
     assert check_values({**DEFAULTS, 'horizon': 1000.0, 'sample_dt': 0.001})  # 10^6 samples: refused
 
 
+def test_the_reference_messages_carry_the_odom_frame_id():
+    pytest.importorskip('rclpy')
+    from wallbot_msgs_py import bagio, topics
+    from wallbot_sim import messages
+    from wallbot_sim.nodes.trajectory import PlanRequest, build_plan
+
+    built = build_plan(PlanRequest(DEFAULTS, 0.0, 0.0, 'map'))
+    plan = bagio.deserialize(built.trajectory, topics.REFERENCE_TRAJECTORY.type)
+    path = bagio.deserialize(built.path, topics.REFERENCE_PATH.type)
+    assert plan.header.frame_id == path.header.frame_id == 'map'
+    assert {pose.header.frame_id for pose in path.poses} == {'map'}
+    pose, _yaw = messages.reference_message(built.reference.sample(1.0), 1.0, frame='map')
+    assert bagio.deserialize(pose, topics.REFERENCE.type).header.frame_id == 'map'
+    default = build_plan(PlanRequest(DEFAULTS, 0.0, 0.0))
+    assert bagio.deserialize(default.trajectory, topics.REFERENCE_TRAJECTORY.type).header.frame_id == 'wall'
+
+
 class HeldPlanner:
     """A trajectory node whose plan builds block until ``release`` is set (``building`` is set when one starts)."""
 

@@ -85,14 +85,14 @@ def quaternion_yaw(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def initial_pose(msg: Any) -> tuple[float, float, float]:
+def initial_pose(msg: Any, wall_frame: str = topics.WALL_FRAME) -> tuple[float, float, float]:
     """(x, y, heading) of an ``initialpose`` (PoseWithCovarianceStamped); ValueError naming what is
-    wrong: a frame other than ``wall`` (the graph has no tf to convert it), a non-finite number, an
+    wrong: a frame other than ``wall_frame`` (the graph has no tf to convert it), a non-finite number, an
     orientation that is not a turn about the wall's normal Z. The covariance is not used."""
     frame = msg.header.frame_id
-    if frame != topics.WALL_FRAME:
-        raise ValueError(f'initialpose: frame {frame!r}, not {topics.WALL_FRAME!r} (set the fixed frame to '
-                         f'{topics.WALL_FRAME!r})')
+    if frame != wall_frame:
+        raise ValueError(f'initialpose: frame {frame!r}, not {wall_frame!r} (set the fixed frame to '
+                         f'{wall_frame!r})')
     position, q = msg.pose.pose.position, msg.pose.pose.orientation
     values = (position.x, position.y, position.z, q.x, q.y, q.z, q.w)
     if not all(math.isfinite(v) for v in values):
@@ -134,8 +134,8 @@ class PlanarState(NamedTuple):
 
 
 def odometry(t: float, x: float, y: float, theta: float, xd: float, yd: float, thd: float,
-             child: str = topics.BASE_FRAME) -> bytes:
-    """nav_msgs/Odometry: pose in ``wall``, the wall-frame velocity (xd, yd) rotated into ``child``."""
+             child: str = topics.BASE_FRAME, frame: str = topics.WALL_FRAME) -> bytes:
+    """nav_msgs/Odometry: pose in ``frame`` (the wall), the wall-frame velocity (xd, yd) rotated into ``child``."""
     types = _types()
     c, s = math.cos(theta), math.sin(theta)
     pose = types['geometry_msgs/msg/Pose'](position=_point(x, y), orientation=yaw_quaternion(theta))
@@ -143,7 +143,7 @@ def odometry(t: float, x: float, y: float, theta: float, xd: float, yd: float, t
                                              angular=_vector(0.0, 0.0, thd))
     zeros = np.zeros(36, dtype=np.float64)
     msg = types['nav_msgs/msg/Odometry'](
-        header=header(t, topics.WALL_FRAME), child_frame_id=child,
+        header=header(t, frame), child_frame_id=child,
         pose=types['geometry_msgs/msg/PoseWithCovariance'](pose=pose, covariance=zeros),
         twist=types['geometry_msgs/msg/TwistWithCovariance'](twist=twist, covariance=zeros.copy()))
     return _serialize(msg, topics.ODOM)
@@ -186,10 +186,10 @@ class PlanSamples(NamedTuple):
     accelerations: list[Vec2]
 
 
-def trajectory(plan: PlanSamples, headings: Sequence[tuple[float, float]]) -> bytes:
+def trajectory(plan: PlanSamples, headings: Sequence[tuple[float, float]], frame: str = topics.WALL_FRAME) -> bytes:
     """``reference_trajectory``: the plan as one MultiDOFJointTrajectory.
 
-    header.stamp = the first sample time, frame ``wall``; one joint (``base_link``) whose
+    header.stamp = the first sample time, ``frame`` (the wall); one joint (``base_link``) whose
     points carry the position (transforms[0].translation), velocity (velocities[0].linear)
     and acceleration (accelerations[0].linear) of the centre at header.stamp +
     time_from_start. ``headings`` (angle, rate) per sample fill the rotation and angular
@@ -206,7 +206,7 @@ def trajectory(plan: PlanSamples, headings: Sequence[tuple[float, float]]) -> by
             accelerations=[types['geometry_msgs/msg/Twist'](linear=_vector(a[0], a[1]), angular=_vector())],
             time_from_start=duration(to_nanoseconds(t) - start_ns)))
     msg = types['trajectory_msgs/msg/MultiDOFJointTrajectory'](
-        header=header(plan.times[0], topics.WALL_FRAME), joint_names=[topics.BASE_FRAME], points=points)
+        header=header(plan.times[0], frame), joint_names=[topics.BASE_FRAME], points=points)
     return _serialize(msg, topics.REFERENCE_TRAJECTORY)
 
 
@@ -241,14 +241,14 @@ def plan_samples_from_cdr(data: bytes) -> PlanSamples:
     return plan_samples(msg)
 
 
-def path(stamped_poses: Iterable[tuple[float, float, float, float]], t: float) -> bytes:
-    """``reference_path`` stamped ``t``: poses (time, x, y, yaw) in ``wall``."""
+def path(stamped_poses: Iterable[tuple[float, float, float, float]], t: float, frame: str = topics.WALL_FRAME) -> bytes:
+    """``reference_path`` stamped ``t``: poses (time, x, y, yaw) in ``frame`` (the wall)."""
     types = _types()
     poses = [types['geometry_msgs/msg/PoseStamped'](
-        header=header(tp, topics.WALL_FRAME),
+        header=header(tp, frame),
         pose=types['geometry_msgs/msg/Pose'](position=_point(x, y), orientation=yaw_quaternion(yaw)))
         for tp, x, y, yaw in stamped_poses]
-    return _serialize(types['nav_msgs/msg/Path'](header=header(t, topics.WALL_FRAME), poses=poses),
+    return _serialize(types['nav_msgs/msg/Path'](header=header(t, frame), poses=poses),
                       topics.REFERENCE_PATH)
 
 

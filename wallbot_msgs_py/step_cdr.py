@@ -10,10 +10,11 @@ serializes for the same message (XCDR1, little endian; checked by test_step_cdr.
 node publishes them as serialized messages, and ``simulate --bag`` writes them unchanged with
 or without a ROS install.
 
-Field meanings (REP 103/105, as ``codec`` documents them): odom pose of the centre in
-``wall``, twist (v_long, v_lat, thd) in ``base_link``; wheel_states position / velocity /
+Field meanings (REP 103/105, as ``codec`` documents them): odom pose of the centre in the
+odom frame (``wall`` by default), twist (v_long, v_lat, thd) in the base frame (``base_link``),
+covariance diagonals the sensor noise's variances (zero: the exact simulated state); wheel_states position / velocity /
 effort per wheel in WHEEL_JOINTS order, effort = constraint torque + motor torque;
-constraint_wrench Q_c on the chassis (F_X, F_Y, M_Z) in ``wall``; drive_forces effort
+constraint_wrench Q_c on the chassis (F_X, F_Y, M_Z) in the odom frame; drive_forces effort
 (F_L, F_R, F_lat) of DRIVE_JOINTS; wheel_contact as topics.WHEEL_CONTACT says; every stamp the
 simulation time.
 """
@@ -22,7 +23,7 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Any, Protocol
+from typing import Any, Protocol, Sequence
 
 from wallbot_msgs_py import topics
 
@@ -37,6 +38,14 @@ class StepState(Protocol):
     wheel_torques: Any
     chassis_wrench: Any
     drive: Any
+
+
+class SensedState(Protocol):
+    """What a sensor reports of a step's state: q, qd (7 each) as the robot measures them."""
+
+    q: Any
+    qd: Any
+
 
 ENCAPSULATION = b'\x00\x01\x00\x00'
 """CDR, little endian (what rmw_fastrtps writes)."""
@@ -98,22 +107,62 @@ class _Template:
         return offset
 
 
+class _OdometryTemplate:
+    """nav_msgs/Odometry bytes: the pose of the centre in ``frame``, the twist in ``child``, the
+    covariances' diagonals fixed (row-major 6 x 6, x y z roll pitch yaw)."""
+
+    def __init__(self, frame: str, child: str, pose_variances: Sequence[float],
+                 twist_variances: Sequence[float]) -> None:
+        odom = _Template()
+        self.stamp = odom.header(frame)
+        odom.string(child)
+        self.position = odom.doubles(3)
+        self.orientation = odom.doubles(4)
+        _diagonal(odom, odom.doubles(36), pose_variances)
+        self.twist = odom.doubles(6)
+        _diagonal(odom, odom.doubles(36), twist_variances)
+        self.data = odom.data
+
+    def encode(self, sec: int, nanosec: int, q: list[float], qd: list[float]) -> bytes:
+        data = self.data
+        x, y, theta = q[0], q[1], q[2]
+        xd, yd, thd = qd[0], qd[1], qd[2]
+        c, s = math.cos(theta), math.sin(theta)
+        _STAMP.pack_into(data, self.stamp, sec, nanosec)
+        _TWO.pack_into(data, self.position, x, y)
+        _TWO.pack_into(data, self.orientation + 16, math.sin(0.5 * theta), math.cos(0.5 * theta))
+        _TWO.pack_into(data, self.twist, c * xd + s * yd, -s * xd + c * yd)
+        _ONE.pack_into(data, self.twist + 40, thd)
+        return bytes(data)
+
+
+def _diagonal(template: _Template, offset: int, variances: Sequence[float]) -> None:
+    for i, variance in enumerate(variances):
+        _ONE.pack_into(template.data, offset + 8 * (6 * i + i), variance)
+
+
+NO_VARIANCE = (0.0,) * 6
+"""The covariance diagonal of an exact state: the simulation's own (ground truth, or odometry without noise)."""
+
+
 class StepEncoder:
     """Encodes the messages of one step; ``encode`` returns (Topic, bytes) in publishing order.
 
-    The order is odom, wheel_states, constraint_wrench, drive_forces, wheel_contact, /clock (last, so a
-    subscriber that has seen a clock stamp knows the step's other messages were sent before it).
+    The order is odom, wheel_states, constraint_wrench, drive_forces, wheel_contact, then
+    ground_truth/odom when it is published, /clock last (so a subscriber that has seen a clock
+    stamp knows the step's other messages were sent before it).
+
+    ``odom_frame`` and ``base_frame`` name the frames of every message that has one (odom, the
+    wrench); ``pose_variances`` and ``twist_variances`` (6 each) are the odometry covariance's
+    diagonal. With ``ground_truth`` the exact odometry is encoded too, as ``topics.GROUND_TRUTH_ODOM``.
     """
 
-    def __init__(self) -> None:
-        odom = _Template()
-        self._odom_stamp = odom.header(topics.WALL_FRAME)
-        odom.string(topics.BASE_FRAME)
-        self._odom_position = odom.doubles(3)
-        self._odom_orientation = odom.doubles(4)
-        odom.doubles(36)  # pose covariance: unknown (zeros)
-        self._odom_twist = odom.doubles(6)
-        odom.doubles(36)
+    def __init__(self, odom_frame: str = topics.WALL_FRAME, base_frame: str = topics.BASE_FRAME,
+                 pose_variances: Sequence[float] = NO_VARIANCE, twist_variances: Sequence[float] = NO_VARIANCE,
+                 ground_truth: bool = False) -> None:
+        self._odom = _OdometryTemplate(odom_frame, base_frame, pose_variances, twist_variances)
+        self._truth = (_OdometryTemplate(odom_frame, base_frame, NO_VARIANCE, NO_VARIANCE) if ground_truth
+                       else None)
 
         wheels = _Template()
         self._wheels_stamp = wheels.header('')
@@ -124,7 +173,7 @@ class StepEncoder:
         self._wheels_effort = wheels.double_sequence(count)
 
         wrench = _Template()
-        self._wrench_stamp = wrench.header(topics.WALL_FRAME)
+        self._wrench_stamp = wrench.header(odom_frame)
         self._wrench_force = wrench.doubles(3)
         self._wrench_torque = wrench.doubles(3)
 
@@ -147,24 +196,17 @@ class StepEncoder:
         clock = _Template()
         self._clock_stamp = clock.stamp()
 
-        self._odom, self._wheels, self._wrench = odom.data, wheels.data, wrench.data
+        self._wheels, self._wrench = wheels.data, wrench.data
         self._drive, self._clock = drive.data, clock.data
         self._wheel_values = struct.Struct(f'<{count}d')
 
-    def encode(self, out: StepState) -> list[tuple[topics.Topic, bytes]]:
-        """The five messages of ``out`` as CDR bytes (new bytes objects, safe to keep)."""
+    def encode(self, out: StepState, sensed: SensedState | None = None) -> list[tuple[topics.Topic, bytes]]:
+        """The messages of ``out`` as CDR bytes (new bytes objects, safe to keep); odom and
+        wheel_states carry ``sensed`` when given (a measurement of ``out``), else ``out``'s state."""
         sec, nanosec = divmod(round(out.t * 1e9), NS_PER_S)
-        q, qd = out.q.tolist(), out.qd.tolist()
-        x, y, theta = q[0], q[1], q[2]
-        xd, yd, thd = qd[0], qd[1], qd[2]
-        c, s = math.cos(theta), math.sin(theta)
-
-        odom = self._odom
-        _STAMP.pack_into(odom, self._odom_stamp, sec, nanosec)
-        _TWO.pack_into(odom, self._odom_position, x, y)
-        _TWO.pack_into(odom, self._odom_orientation + 16, math.sin(0.5 * theta), math.cos(0.5 * theta))
-        _TWO.pack_into(odom, self._odom_twist, c * xd + s * yd, -s * xd + c * yd)
-        _ONE.pack_into(odom, self._odom_twist + 40, thd)
+        true_q, true_qd = out.q.tolist(), out.qd.tolist()
+        q, qd = (sensed.q.tolist(), sensed.qd.tolist()) if sensed is not None else (true_q, true_qd)
+        encoded = [(topics.ODOM, self._odom.encode(sec, nanosec, q, qd))]
 
         wheels, values = self._wheels, self._wheel_values
         _STAMP.pack_into(wheels, self._wheels_stamp, sec, nanosec)
@@ -190,6 +232,9 @@ class StepEncoder:
         _THREE.pack_into(contact, self._contact_effort + 32, *state.limits)
 
         _STAMP.pack_into(self._clock, self._clock_stamp, sec, nanosec)
-        return [(topics.ODOM, bytes(odom)), (topics.WHEEL_STATES, bytes(wheels)),
-                (topics.CONSTRAINT_WRENCH, bytes(wrench)), (topics.DRIVE_FORCES, bytes(drive)),
-                (topics.WHEEL_CONTACT, bytes(contact)), (topics.CLOCK, bytes(self._clock))]
+        encoded += [(topics.WHEEL_STATES, bytes(wheels)), (topics.CONSTRAINT_WRENCH, bytes(wrench)),
+                    (topics.DRIVE_FORCES, bytes(drive)), (topics.WHEEL_CONTACT, bytes(contact))]
+        if self._truth is not None:
+            encoded.append((topics.GROUND_TRUTH_ODOM, self._truth.encode(sec, nanosec, true_q, true_qd)))
+        encoded.append((topics.CLOCK, bytes(self._clock)))
+        return encoded

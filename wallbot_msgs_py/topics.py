@@ -1,7 +1,9 @@
 """Topic names, message types and QoS of the wallbot graph: the one place that knows them.
 
 Names without a leading slash are relative: they resolve in the node's namespace
-(``/wallbot`` by default), so ``--ros-args -r __ns:=/robot2`` runs a second robot.
+(``/wallbot`` by default), so ``--ros-args -r __ns:=/robot2`` runs a second robot. That includes
+the robot's simulation time, ``clock``: each robot is a simulation of its own, with a time of its
+own (see CLOCK).
 Types are standard common_interfaces messages, written as rosbag2 type names.
 This module imports no ROS package, so bag tools can use it without an install.
 """
@@ -49,7 +51,21 @@ effort: each wheel's normal load (N), then each channel's friction limit mu_s N_
 position: 0 for the wheels, then each channel's friction use |F| / (mu_s N) (above 1 it slips);
 velocity: 0 for the wheels, then 1 for a slipping channel, 0 for a sticking one."""
 DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
-CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
+CLOCK = Topic('clock', 'rosgraph_msgs/msg/Clock')
+"""The robot's simulation time, published by its dynamics, in its namespace (``/wallbot/clock``):
+two robots in one domain are two simulations whose times differ (started, paused, reset apart).
+Every other node of the robot follows it: it subscribes ``clock``, and its ``use_sim_time`` time
+source (rclpy's, fixed on the absolute ``/clock``) is remapped onto it (``ROBOT_CLOCK_REMAP``)."""
+DOMAIN_CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
+"""The domain's ``/clock``, what ROS tools with ``use_sim_time`` follow (RViz, ``ros2 bag record
+--use-sim-time``): the same messages as CLOCK, published by the dynamics whose ``domain_clock``
+parameter is true (the default; set it false on every robot but one when several share a domain)."""
+ROBOT_CLOCK_REMAP = '/clock:=clock'
+"""The node-local remapping that makes a node's ``use_sim_time`` follow its robot's CLOCK."""
+GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
+"""The simulated state itself, as ``odom`` carries it without sensor noise: published beside a
+noisy ``odom`` (the dynamics' ``odom_noise_*`` parameters), so a bag keeps the truth; a run without
+noise has no messages on it."""
 WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray', depth=10)
 REFERENCE = Topic('reference', 'nav_msgs/msg/Odometry', depth=100)
 REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiDOFJointTrajectory',
@@ -97,8 +113,10 @@ STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTA
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS)
+            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM)
 """Topics a run records, in this order."""
+NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic is not GROUND_TRUTH_ODOM)
+"""Topics a run without sensor noise records: its odom is the truth, ground_truth/odom is not published."""
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'
@@ -147,7 +165,12 @@ CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.va
 
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
-    for topic in RECORDED + (WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS):
-        if name in (topic.name, topic.resolve()) or name.rsplit('/', 1)[-1] == topic.name.lstrip('/'):
+    known = RECORDED + (WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS)
+    for topic in known:
+        if name in (topic.name, topic.resolve()):
+            return topic
+    # a name in another namespace (/robot2/odom); the longest match (ground_truth/odom, not odom)
+    for topic in sorted(known, key=lambda topic: -len(topic.name)):
+        if name.endswith(f'/{topic.name.lstrip("/")}'):
             return topic
     raise KeyError(name)

@@ -46,7 +46,7 @@ REST = InitialPose(0.0, 0.0, 0.0, True)
 """Where a driven run starts: at rest at the origin, facing +X."""
 SIM_TIME = {'use_sim_time': True}
 """The nodes that are not the clock's owner (the dynamics) nor the recorder (its log time is the
-receive time) follow /clock, so their logs and stamps are simulation time."""
+receive time) follow their robot's clock, so their logs and stamps are simulation time."""
 
 
 class GraphDescriptionError(ValueError):

@@ -106,20 +106,22 @@ def plan_headings(plan: Plan, fallback_yaw: float = 0.0) -> list[tuple[float, fl
     return result
 
 
-def trajectory_message(plan: Plan, fallback_yaw: float = 0.0) -> bytes:
-    """``reference_trajectory`` of ``plan`` (CDR)."""
-    return codec.trajectory(codec.PlanSamples(*plan), plan_headings(plan, fallback_yaw))
+def trajectory_message(plan: Plan, fallback_yaw: float = 0.0, frame: str = topics.WALL_FRAME) -> bytes:
+    """``reference_trajectory`` of ``plan`` (CDR) in ``frame`` (the wall)."""
+    return codec.trajectory(codec.PlanSamples(*plan), plan_headings(plan, fallback_yaw), frame)
 
 
-def path_message(plan: Plan, max_poses: int = 2000, fallback_yaw: float = 0.0) -> bytes:
-    """``reference_path`` (CDR): the plan's points with their tangent heading, at most ``max_poses``
-    (evenly strided, the last point always kept)."""
+def path_message(plan: Plan, max_poses: int = 2000, fallback_yaw: float = 0.0,
+                 frame: str = topics.WALL_FRAME) -> bytes:
+    """``reference_path`` (CDR) in ``frame`` (the wall): the plan's points with their tangent
+    heading, at most ``max_poses`` (evenly strided, the last point always kept)."""
     stride = max(1, -(-len(plan.times) // max_poses))
     indices = list(range(0, len(plan.times), stride))
     if indices[-1] != len(plan.times) - 1:
         indices.append(len(plan.times) - 1)
     headings = plan_headings(plan, fallback_yaw)
-    return codec.path([(plan.times[i], *plan.positions[i], headings[i][0]) for i in indices], plan.times[0])
+    return codec.path([(plan.times[i], *plan.positions[i], headings[i][0]) for i in indices], plan.times[0],
+                      frame)
 
 
 def plan_from_message(msg: Any) -> Plan:
@@ -132,8 +134,9 @@ def plan_from_cdr(data: bytes) -> Plan:
     return Plan(*codec.plan_samples_from_cdr(data))
 
 
-def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0.0) -> tuple[bytes, float]:
-    """``reference`` at time t (CDR) and the heading it carries.
+def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0.0,
+                      frame: str = topics.WALL_FRAME) -> tuple[bytes, float]:
+    """``reference`` at time t (CDR, pose in ``frame``, the wall) and the heading it carries.
 
     The child frame ``reference`` points along the path (the tangent heading; ``fallback_yaw``
     while the reference is at rest), so the twist is (speed, 0, turning rate) in that frame,
@@ -142,7 +145,8 @@ def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0
     heading = tangent_heading(sample)
     yaw = heading.angle if heading is not None else fallback_yaw
     rate = heading.rate if heading is not None else 0.0
-    data = codec.odometry(t, *sample.position, yaw, *sample.velocity, rate, child=topics.REFERENCE_FRAME)
+    data = codec.odometry(t, *sample.position, yaw, *sample.velocity, rate, child=topics.REFERENCE_FRAME,
+                          frame=frame)
     return data, yaw
 
 

@@ -35,7 +35,7 @@ class HeadlessBagWriter:
 
     def __init__(self, writer: BagWriter, simulation: Simulation, namespace: str = topics.NAMESPACE) -> None:
         self.writer, self.simulation = writer, simulation
-        self._conn = {t.name: writer.add_graph_topic(t, namespace) for t in topics.RECORDED}
+        self._conn = {t.name: writer.add_graph_topic(t, namespace) for t in topics.NOISELESS_RECORDED}
         self._step = StepEncoder()
         self._clock_schedule = messages.ClockSchedule(messages.CLOCK_RATE_HZ)
         self._unwritten_clock: tuple[float, bytes] | None = None

@@ -5,8 +5,9 @@ recorded receive times scaled by ``--rate``, with each topic's QoS taken from th
 QoS (reliability, durability; depth from the bag, or the interface layer when not recorded).
 Every half history depth a topic's publisher waits until its readers have acknowledged, so a
 replay faster than a subscriber can take is slowed down instead of losing messages.
-``--clock`` publishes /clock with the bag's time (at most ``--clock-rate`` Hz), so nodes with
-``use_sim_time`` follow the replay.
+``--clock`` publishes the bag's time (at most ``--clock-rate`` Hz) on the domain's /clock and on
+the robot's clock (/wallbot/clock), so ROS tools and this project's nodes with ``use_sim_time``
+follow the replay.
 """
 
 from __future__ import annotations
@@ -83,7 +84,8 @@ def main(args: argparse.Namespace) -> int:
     bag = info(args.bag)
     names = resolve_topics(bag, args.topics)
     if args.clock:
-        names = [n for n in names if n != graph.CLOCK.name]  # /clock comes from the replay itself
+        # the clock comes from the replay itself (a robot's clock, or a bag's /clock)
+        names = [n for n in names if n.rsplit('/', 1)[-1] != graph.CLOCK.name]
     if not names:
         raise CliError(f'{args.bag}: nothing to play')
 
@@ -107,11 +109,12 @@ def main(args: argparse.Namespace) -> int:
                                                          publisher_qos(topic.offered_qos, name))
             except (ImportError, AttributeError, ValueError):
                 raise CliError(f'{name}: message type {topic.type} is not installed') from None
-        clock_pub = None
+        clock_pubs = []
         if args.clock:
             from rclpy.qos import QoSProfile
             from rosgraph_msgs.msg import Clock
-            clock_pub = node.create_publisher(Clock, graph.CLOCK.name, QoSProfile(depth=graph.CLOCK.depth))
+            clock_pubs = [node.create_publisher(Clock, clock.name, QoSProfile(depth=clock.depth))
+                          for clock in (graph.CLOCK, graph.DOMAIN_CLOCK)]
             clock_msg = Clock()
         deadline = time.monotonic() + args.wait_subscribers
         while args.wait_subscribers and time.monotonic() < deadline and \
@@ -133,9 +136,10 @@ def main(args: argparse.Namespace) -> int:
                 delay = due - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
-                if clock_pub is not None and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
+                if clock_pubs and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
                     clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(raw.timestamp, 1_000_000_000)
-                    clock_pub.publish(clock_msg)
+                    for clock_pub in clock_pubs:
+                        clock_pub.publish(clock_msg)
                     last_clock = time.monotonic()
                 publisher = publishers[raw.topic]
                 publisher.publish(raw.data)

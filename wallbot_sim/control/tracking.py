@@ -20,7 +20,7 @@ import numpy as np
 from wallbot_sim.model import BaumgarteGains, ConstraintSelection, DriveForces, ParameterError, Reference, Robot
 from wallbot_sim.model.constraint_set import build_modules
 from wallbot_sim.model.constraints import LookAheadPointTask
-from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE
+from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.outputs import drive_forces, side_motor_torques
 from wallbot_sim.model.simulation import constrained_motion
 
@@ -28,8 +28,8 @@ DRIVEN = ConstraintSelection.structural(trajectory=False)
 """The constraints of the driven robot: belts, no side slip, wheels rolling on the wall."""
 
 
-GAIN_RANGES = {'alpha': POSITIVE, 'beta': POSITIVE, 'look_ahead': POSITIVE, 'integral': NON_NEGATIVE,
-               'integral_zone': POSITIVE}
+GAIN_RANGES = {'alpha': NumberRange(1e-3, 1e4), 'beta': NumberRange(1e-3, 1e4), 'look_ahead': NumberRange(1e-4, 10.0),
+               'integral': NumberRange(0.0, 1e6), 'integral_zone': NumberRange(1e-4, 10.0)}
 """The accepted values of each of the ControllerGains (the controller node's parameters of the same names)."""
 
 

@@ -22,8 +22,9 @@ from dataclasses import dataclass
 
 from wallbot_sim.model.numbers import NumberRange
 
-POSITIVE_LIMIT = NumberRange(0.0, 1e3, low_open=True)
-"""A velocity or acceleration limit (finite, > 0)."""
+POSITIVE_LIMIT = NumberRange(1e-6, 1e3)
+"""A velocity or acceleration limit: above 0, from 1e-6 on so that a parameter descriptor's closed
+range says exactly what is accepted."""
 GAIN = NumberRange(0.0, 1e3)
 """A PI gain (>= 0)."""
 

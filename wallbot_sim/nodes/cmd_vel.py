@@ -40,20 +40,20 @@ from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, AxisLimits, WheelSpeedController,
                                              WheelSpeedSettings)
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import HeldCommands, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
+                                      parameter_result, run)
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
 RATE_HZ = 100
 """Default control rate (Hz of simulation time): every 10th state of the 1 kHz dynamics."""
-GEOMETRY = NumberRange(0.0, 10.0, low_open=True)
-TIMEOUT = NumberRange(0.0, 1e3, low_open=True)
-TORQUE = NumberRange(0.0, 1e3, low_open=True)
+GEOMETRY = NumberRange(1e-4, 10.0)
+TIMEOUT = NumberRange(1e-3, 1e3)
 RANGES = {
     'wheel_separation': GEOMETRY, 'wheel_radius': GEOMETRY, 'cmd_vel_timeout': TIMEOUT,
     'linear.x.max_velocity': POSITIVE_LIMIT, 'linear.x.max_acceleration': POSITIVE_LIMIT,
     'angular.z.max_velocity': POSITIVE_LIMIT, 'angular.z.max_acceleration': POSITIVE_LIMIT,
-    'wheel_speed_kp': GAIN, 'wheel_speed_ki': GAIN, 'max_wheel_torque': TORQUE,
+    'wheel_speed_kp': GAIN, 'wheel_speed_ki': GAIN, 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
 }
 
 
@@ -75,7 +75,7 @@ class CmdVelNode(Node):
     """cmd_vel + odom -> wheel_torque_cmd at rate_hz of simulation time."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_CMD_VEL, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_CMD_VEL, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         robot_file = declare(self, 'robot_file', '', 'robot parameter YAML giving the default wheel_separation and '
                              'wheel_radius; empty = installed config/robot.yaml', read_only=True)
         robot = load_robot_parameters(robot_file or None)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import copy
 import os
 import signal
 import sys
 import threading
 import time
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Sequence
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
@@ -18,32 +19,80 @@ from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 
+from wallbot_msgs_py import topics
 from wallbot_sim.model import ModelError
 from wallbot_sim.model.numbers import NumberRange
 
+COORDINATE = NumberRange(-1e4, 1e4)
+"""A position on the wall (m) as a parameter: no wall is 10 km wide."""
+ROBOT_CLOCK_ARGS = ['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP]
+"""Node arguments (``Node(cli_args=...)``) of every node that follows simulation time: its
+``use_sim_time`` time source, which rclpy subscribes on the absolute ``/clock``, follows the
+robot's own ``clock`` in the node's namespace instead (whatever ``-r __ns:=`` made it), so several
+robots in one domain each keep their own time. Node-local rules come before the command line's."""
+WHEEL_TORQUE_LIMIT = NumberRange(1e-3, 1e4)
+"""The largest |torque| per side a wheel_torque_cmd may carry (N m): the dynamics refuses larger
+commands, the controller clamps to it."""
 
-def declare(node: Node, name: str, default, description: str, *, low: float | None = None,
-            high: float | None = None, allowed: NumberRange | None = None, read_only: bool = False):
-    """Declare ``name`` with a descriptor (description, range if given); return its value.
 
-    Ranges are closed [low, high], or the interval holding every value ``allowed`` accepts; rclpy
-    refuses out-of-range sets with a reason. Finiteness, strict bounds and gaps are checked by each
-    node's parameter callback (``NumberRange.reason``).
+def declare(node: Node, name: str, default, description: str, *, allowed: NumberRange | None = None,
+            low: float | None = None, high: float | None = None, choices: Sequence[str] = (),
+            read_only: bool = False):
+    """Declare ``name`` with a descriptor a ROS user can discover; return its value.
+
+    A numeric parameter needs ``allowed``, a range with both ends: the descriptor carries the
+    closed interval holding every value it accepts (``ros2 param describe`` shows it), and the
+    node's own check refuses, with the same ``allowed``, every value outside it (rclpy lets values
+    within 1e-6 relative of an end through) and what an interval cannot say (a gap like "0 or
+    at least 0.001"). A start value it refuses is a ValueError in its words. An enumerated string
+    parameter lists its ``choices`` in the description and in ``additional_constraints``, as the
+    ROS tools show them. ``low`` and ``high`` are short for ``allowed=NumberRange(low, high)``.
     """
-    if allowed is not None:
-        low, high = allowed.bounds()
-    descriptor = ParameterDescriptor(description=description, read_only=read_only)
     if low is not None or high is not None:
-        if isinstance(default, bool) or not isinstance(default, (int, float)):
-            raise TypeError(f'range on non-numeric parameter {name}')
-        if low is None or high is None:
-            raise TypeError(f'a descriptor range of {name} needs both ends')
+        allowed = NumberRange(low, high)
+    numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
+    if numeric != (allowed is not None):
+        raise TypeError(f'parameter {name}: a range is given for a number, and only for a number')
+    descriptor = ParameterDescriptor(description=description)
+    if choices:
+        descriptor.additional_constraints = choice_words(choices)
+        descriptor.description = f'{description} ({descriptor.additional_constraints})'
+    # declared first without a range or read-only (rclpy keeps this object: a copy is declared)
+    value = node.declare_parameter(name, default, copy.copy(descriptor)).value
+    if allowed is not None:
+        # the node's own words for a refused start value, not rclpy's range exception
+        reason = allowed.reason(name, value)
+        if reason:
+            raise ValueError(reason)
+        start, end = allowed.bounds()
+        if start is None or end is None:
+            raise TypeError(f'parameter {name}: a descriptor range needs both ends')
         if isinstance(default, int):
-            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+            descriptor.integer_range = [IntegerRange(from_value=int(start), to_value=int(end), step=1)]
         else:
-            descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high),
+            descriptor.floating_point_range = [FloatingPointRange(from_value=float(start), to_value=float(end),
                                                                   step=0.0)]
-    return node.declare_parameter(name, default, descriptor).value
+    descriptor.read_only = read_only
+    descriptor.type = node.describe_parameter(name).type
+    node.set_descriptor(name, descriptor)
+    return value
+
+
+def choice_words(choices: Sequence[str]) -> str:
+    """How an enumerated parameter's allowed values are written: 'one of: a, b'."""
+    return 'one of: ' + ', '.join(choices)
+
+
+def choice_reason(name: str, value: object, choices: Sequence[str]) -> str | None:
+    """The one-line reason why ``value`` is not one of ``choices``, or None."""
+    return None if value in choices else f'{name} must be one of {", ".join(choices)}, got {value!r}'
+
+
+def range_reasons(values: dict, ranges: dict[str, NumberRange]) -> list[str]:
+    """The reasons why the numbers among ``values`` are refused by their ``ranges`` (names not in
+    ``values`` are not checked)."""
+    return [reason for name, allowed in ranges.items() if name in values
+            for reason in [allowed.reason(name, values[name])] if reason]
 
 
 def parameter_result(reasons: Iterable[str | None]) -> SetParametersResult:

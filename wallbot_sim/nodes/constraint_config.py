@@ -20,16 +20,21 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
-from wallbot_sim.model.numbers import POSITIVE
-from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare, param_dict, parameter_result, range_reasons, run
 from wallbot_sim.urdf import robot_urdf
+
+GAIN_RANGE = NumberRange(1e-6, 1e4)
+"""What each Baumgarte gain accepts (1/s): the model's "> 0" written as a range a descriptor can
+carry (1e-6 1/s is no stabilization in any run's time)."""
 
 
 class ConstraintConfigNode(Node):
     """Owns the switches; publishes the active set (transient-local) at start and on every change."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS,
+                         **kwargs)
         self.switches = {switch.parameter: bool(declare(self, switch.parameter, switch.default, switch.description))
                          for switch in topics.CONSTRAINT_MODULES.values()}
         robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
@@ -37,14 +42,10 @@ class ConstraintConfigNode(Node):
         params = load_robot_parameters(robot_file or None)
         gains = BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
         self.gains = {
-            'baumgarte_alpha': declare(self, 'baumgarte_alpha', float(gains.alpha),
-                                       'Baumgarte gain alpha (1/s, > 0)', low=0.0, high=1e4),
-            'baumgarte_beta': declare(self, 'baumgarte_beta', float(gains.beta),
-                                      'Baumgarte gain beta (1/s, > 0)', low=0.0, high=1e4),
+            name: declare(self, name, float(value), description, allowed=GAIN_RANGE)
+            for name, value, description in (('baumgarte_alpha', gains.alpha, 'Baumgarte gain alpha (1/s)'),
+                                             ('baumgarte_beta', gains.beta, 'Baumgarte gain beta (1/s)'))
         }
-        reason = self._check(self.gains)
-        if reason:
-            raise ValueError(reason)
         self.publisher = self.create_publisher(DiagnosticStatus, topics.CONSTRAINTS.name,
                                                qos_profile(topics.CONSTRAINTS))
         self.add_on_set_parameters_callback(self._on_set)
@@ -59,8 +60,7 @@ class ConstraintConfigNode(Node):
 
     @staticmethod
     def _check(values: dict) -> str | None:
-        reasons = [POSITIVE.reason(name, values[name]) for name in codec.GAINS if name in values]
-        return '; '.join(r for r in reasons if r) or None
+        return '; '.join(range_reasons(values, dict.fromkeys(codec.GAINS, GAIN_RANGE))) or None
 
     def _on_set(self, parameters):
         values = param_dict(parameters)

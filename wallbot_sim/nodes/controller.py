@@ -53,8 +53,9 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
                                           controller_robot)
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
-from wallbot_sim.model.numbers import POSITIVE
-from wallbot_sim.nodes.common import HeldCommands, declare, heard_by_every, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, heard_by_every,
+                                      param_dict, parameter_result, range_reasons, run)
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -88,45 +89,48 @@ class Plans:
         return self.plans[0][1].sample(t)
 
 
+RANGES = {**GAIN_RANGES, 'rate_hz': NumberRange(1, 1000), 'mass_scale': NumberRange(1e-3, 1e3),
+          'max_wheel_torque': WHEEL_TORQUE_LIMIT}
+"""What each numeric parameter accepts: its descriptor's range and the node's own check."""
+
+
 def check_values(values: dict) -> list[str]:
     """Reasons why a full set of controller parameters is unusable (empty if fine)."""
-    ranges = {**GAIN_RANGES, 'mass_scale': POSITIVE, 'max_wheel_torque': POSITIVE}
-    reasons = [allowed.reason(name, values[name]) for name, allowed in ranges.items()]
-    rate = values['rate_hz']
-    if isinstance(rate, bool) or not isinstance(rate, int) or not 1 <= rate <= 1000:
-        reasons.append(f'rate_hz must be an integer in [1, 1000], got {rate!r}')
-    return [r for r in reasons if r]
+    return range_reasons(values, RANGES)
 
 
 class ControllerNode(Node):
     """odom + reference_trajectory -> wheel_torque_cmd at rate_hz of simulation time."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         defaults = ControllerGains()
         self.values = {
             'rate_hz': declare(self, 'rate_hz', CONTROL_RATE_HZ, 'control rate in simulation time (Hz; 1000 / rate_hz '
-                                                     'should be a whole number of dynamics steps)', low=1, high=1000),
-            'alpha': declare(self, 'alpha', defaults.alpha, 'velocity gain 2 alpha of the look-ahead task (1/s, > 0)'),
-            'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s, > 0)'),
+                               'should be a whole number of dynamics steps)', allowed=RANGES['rate_hz']),
+            'alpha': declare(self, 'alpha', defaults.alpha, 'velocity gain 2 alpha of the look-ahead task (1/s)',
+                             allowed=RANGES['alpha']),
+            'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s)',
+                            allowed=RANGES['beta']),
             'look_ahead': declare(self, 'look_ahead', defaults.look_ahead,
-                                  'distance of the steered point ahead of the centre (m, > 0)'),
-            'integral': declare(self, 'integral', defaults.integral, 'integral gain (1/s^3, >= 0; 0 = off)'),
+                                  'distance of the steered point ahead of the centre (m)',
+                                  allowed=RANGES['look_ahead']),
+            'integral': declare(self, 'integral', defaults.integral, 'integral gain (1/s^3; 0 = off)',
+                                allowed=RANGES['integral']),
             'integral_zone': declare(self, 'integral_zone', defaults.integral_zone,
-                                     'integrate the error only within this distance of the path (m, > 0)'),
+                                     'integrate the error only within this distance of the path (m)',
+                                     allowed=RANGES['integral_zone']),
             'robot_file': declare(self, 'robot_file', '', "the controller's robot parameter YAML; "
                                   'empty = installed config/robot.yaml', read_only=True),
             'mass_scale': declare(self, 'mass_scale', 1.0, "body_mass of the controller's robot copy relative to "
-                                  "the file's (model mismatch; > 0)"),
+                                  "the file's (model mismatch)", allowed=RANGES['mass_scale']),
             'max_wheel_torque': declare(self, 'max_wheel_torque', MAX_WHEEL_TORQUE,
-                                        'commands are clamped to +-this (N m, > 0; the dynamics\' limit)'),
+                                        "commands are clamped to +-this (N m; the dynamics' limit)",
+                                        allowed=RANGES['max_wheel_torque']),
             'wait_for_recorder': declare(self, 'wait_for_recorder', False,
                                          'subscribe odom only once a recorder (record_progress) is matched on '
                                          'wheel_torque_cmd, so a recording holds every command', read_only=True),
         }
-        reasons = check_values(self.values)
-        if reasons:
-            raise ValueError('; '.join(reasons))
         self.file_params = load_robot_parameters(self.values['robot_file'] or None)
         self.plans = Plans()
         self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values))

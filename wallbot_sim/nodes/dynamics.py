@@ -1,4 +1,5 @@
-"""dynamics_node: the constrained model integrated with RK4, owning simulation time and /clock.
+"""dynamics_node: the constrained model integrated with RK4, owning simulation time: its robot's
+``clock`` (and the domain's ``/clock`` with ``domain_clock``, topics.DOMAIN_CLOCK).
 
 Threads. The stepping runs in a dedicated loop thread (``dynamics_loop``, which holds the loop's
 state and decisions, free of ROS); the executor (main thread) only receives messages, service
@@ -70,11 +71,42 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
-from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
-from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
+from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.nodes.common import (COORDINATE, WHEEL_TORQUE_LIMIT, choice_reason, declare, heard_by_every,
+                                      param_dict, parameter_result, range_reasons, run)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, Pacer
+from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
+
+NOISE_PARAMETERS = {
+    'odom_noise_position': 'standard deviation of the Gaussian noise on the published odometry X and Y (m); '
+                           '0 = exact',
+    'odom_noise_heading': 'standard deviation of the noise on the published odometry yaw (rad); 0 = exact',
+    'odom_noise_linear': 'standard deviation of the noise on each linear velocity of the published odometry '
+                         '(m/s); 0 = exact',
+    'odom_noise_angular': 'standard deviation of the noise on the published odometry turning rate (rad/s); 0 = exact',
+    'encoder_noise': 'standard deviation of the noise on each wheel angle in wheel_states (rad); 0 = exact',
+    'encoder_velocity_noise': 'standard deviation of the noise on each wheel speed in wheel_states (rad/s); 0 = exact',
+}
+"""The sensor noise parameters, in the order of ``NoiseLevels``' fields. Any of them above 0 also
+publishes the exact state on ground_truth/odom."""
+RANGES = {
+    'initial_x': COORDINATE, 'initial_y': COORDINATE, 'initial_theta': NumberRange(-1e4, 1e4),
+    'rate_hz': NumberRange(1, 100_000), 'publish_every': NumberRange(1, 1_000_000),
+    'clock_rate_hz': NumberRange(1e-3, 1e6), 'real_time_factor': REAL_TIME_FACTOR,
+    'command_timeout': NumberRange(1e-3, 3600.0), 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
+    'stop_at': NumberRange(0.0, 1e9), 'lockstep_every': NumberRange(0, 1_000_000),
+    'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': NumberRange(0, 99),
+    'adhesion_force': NumberRange(0.0, 1e6), 'backpressure_window': NumberRange(1, 1_000_000),
+    'snapshot_period': NumberRange(0.0, 1e6), 'step_count': NumberRange(1, 1_000_000),
+    'resume_wait': NumberRange(0.0, 60.0),
+    'odom_noise_position': NumberRange(0.0, 10.0), 'odom_noise_heading': NumberRange(0.0, 10.0),
+    'odom_noise_linear': NumberRange(0.0, 100.0), 'odom_noise_angular': NumberRange(0.0, 100.0),
+    'encoder_noise': NumberRange(0.0, 10.0), 'encoder_velocity_noise': NumberRange(0.0, 1000.0),
+    'noise_seed': NumberRange(0, 2**31 - 1),
+}
+"""What each numeric parameter accepts: its descriptor's range and the node's own check."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -89,29 +121,35 @@ class DynamicsNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_DYNAMICS, namespace=topics.NAMESPACE, **kwargs)
         p = {
-            'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset'),
-            'initial_y': declare(self, 'initial_y', 0.0, 'initial Y of the centre (m); applies at start and reset'),
-            'initial_theta': declare(self, 'initial_theta', 0.0, 'initial heading (rad); applies at start and reset'),
+            'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset',
+                                 allowed=RANGES['initial_x']),
+            'initial_y': declare(self, 'initial_y', 0.0, 'initial Y of the centre (m); applies at start and reset',
+                                 allowed=RANGES['initial_y']),
+            'initial_theta': declare(self, 'initial_theta', 0.0, 'initial heading (rad); applies at start and reset',
+                                     allowed=RANGES['initial_theta']),
             'initial_at_rest': declare(self, 'initial_at_rest', True,
                                        'start at rest; false: with the reference velocity at t = 0, wheels rolling'),
             'robot_file': declare(self, 'robot_file', '', 'robot parameter YAML; empty = installed config/robot.yaml',
                                   read_only=True),
             'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
-                               low=1, high=100000),
-            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps', low=1, high=1000000),
+                               allowed=RANGES['rate_hz']),
+            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps',
+                                     allowed=RANGES['publish_every']),
             'clock_rate_hz': declare(self, 'clock_rate_hz', messages.CLOCK_RATE_HZ,
-                                     '/clock messages per second of simulation time (at most one per published '
+                                     'clock messages per second of simulation time (at most one per published '
                                      'step, and always the state before a stop); the per-step topics carry '
-                                     'every published step', low=0.001, high=1e6, read_only=True),
+                                     'every published step', allowed=RANGES['clock_rate_hz'], read_only=True),
             'real_time_factor': declare(self, 'real_time_factor', 1.0,
                                         'simulation seconds per wall second; 0 = as fast as possible',
-                                        allowed=REAL_TIME_FACTOR),
+                                        allowed=RANGES['real_time_factor']),
             'command_timeout': declare(self, 'command_timeout', 0.5,
-                                       'seconds of simulation time a wheel_torque_cmd is held (> 0)'),
+                                       'seconds of simulation time a wheel_torque_cmd is held',
+                                       allowed=RANGES['command_timeout']),
             'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
-                                        'largest accepted |torque| per side in wheel_torque_cmd (N m, > 0)'),
+                                        'largest accepted |torque| per side in wheel_torque_cmd (N m)',
+                                        allowed=RANGES['max_wheel_torque']),
             'stop_at': declare(self, 'stop_at', 0.0, 'pause when simulation time reaches this (s); 0 = never',
-                               low=0.0, high=1e9),
+                               allowed=RANGES['stop_at']),
             'wait_for_recorder': declare(self, 'wait_for_recorder', False,
                                          'do not start until a recorder (record_progress) hears every topic',
                                          read_only=True),
@@ -122,34 +160,49 @@ class DynamicsNode(Node):
             'lockstep_every': declare(self, 'lockstep_every', 0,
                                       'driven mode: after publishing every Nth step, wait for the command '
                                       'answering that state before stepping on (at most lockstep_timeout); 0 = off',
-                                      low=0, high=1000000),
+                                      allowed=RANGES['lockstep_every']),
             'lockstep_timeout': declare(self, 'lockstep_timeout', 2.0,
                                         'wall seconds lockstep waits for a command before stepping on without it '
                                         'until commands return (a dead controller costs this once)',
-                                        low=0.01, high=60.0),
+                                        allowed=RANGES['lockstep_timeout']),
             'realtime_priority': declare(self, 'realtime_priority', 0,
                                          'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
                                          '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
-                                         low=0, high=99),
+                                         allowed=RANGES['realtime_priority']),
             'contact_model': declare(self, 'contact_model', 'ideal',
                                      'wheel-wall contact: ideal, or coulomb (channels stick or slip, a wheel lifting '
-                                     'off pauses the run; acts while the trajectory task is off)'),
+                                     'off pauses the run; acts while the trajectory task is off)',
+                                     choices=CONTACT_MODELS),
             'adhesion_force': declare(self, 'adhesion_force', 0.0,
-                                      "force pressing the robot to the wall (N); 0 = the robot file's"),
+                                      "force pressing the robot to the wall (N); 0 = the robot file's",
+                                      allowed=RANGES['adhesion_force']),
             'backpressure_window': declare(self, 'backpressure_window', 200,
                                            'max steps ahead of a recorder\'s record_progress (any factor)',
-                                           low=1, high=1000000),
+                                           allowed=RANGES['backpressure_window']),
             'snapshot_period': declare(self, 'snapshot_period', 0.01,
                                        'simulation seconds between state snapshots (kept by the recorder for a '
                                        'restart); 0 = only at events (start, reset, pause, switch, plan)',
-                                       low=0.0, high=1e6),
+                                       allowed=RANGES['snapshot_period']),
             'step_count': declare(self, 'step_count', 1, 'steps one ~/step call takes while paused',
-                                  low=1, high=1000000),
+                                  allowed=RANGES['step_count']),
+            'domain_clock': declare(self, 'domain_clock', True,
+                                    "also publish the robot's clock on the domain's /clock, which ROS tools "
+                                    'with use_sim_time follow; false for every robot but one in a domain',
+                                    read_only=True),
             'resume_wait': declare(self, 'resume_wait', 2.0,
                                    'wall seconds from the first constraint set to wait for a keeper of snapshots '
                                    '(resume_state) to continue from; 0 = always start from the initial state',
-                                   low=0.0, high=60.0,
-                                   read_only=True),
+                                   allowed=RANGES['resume_wait'], read_only=True),
+            'odom_frame_id': declare(self, 'odom_frame_id', topics.WALL_FRAME,
+                                     'frame of the odometry pose, the constraint wrench and initialpose (the wall)',
+                                     read_only=True),
+            'base_frame_id': declare(self, 'base_frame_id', topics.BASE_FRAME,
+                                     "the odometry's child frame (the robot's centre), in which its twist is given",
+                                     read_only=True),
+            **{name: declare(self, name, 0.0, description, allowed=RANGES[name], read_only=True)
+               for name, description in NOISE_PARAMETERS.items()},
+            'noise_seed': declare(self, 'noise_seed', 0, 'seed of the sensor noise (the same seed, the same noise)',
+                                  allowed=RANGES['noise_seed'], read_only=True),
         }
         reasons = self._check(p)
         if reasons:
@@ -166,7 +219,16 @@ class DynamicsNode(Node):
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
         self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
-        self.encoder = StepEncoder()
+        self.domain_clock_pub = (self.create_publisher(ClockMsg, topics.DOMAIN_CLOCK.name,
+                                                       qos_profile(topics.DOMAIN_CLOCK))
+                                 if p['domain_clock'] else None)
+        levels = NoiseLevels(*(float(p[name]) for name in NOISE_PARAMETERS))
+        self.noise = SensorNoise(levels, p['noise_seed']) if levels.on else None
+        self.encoder = StepEncoder(p['odom_frame_id'], p['base_frame_id'], levels.pose_variances(),
+                                   levels.twist_variances(), ground_truth=levels.on)
+        if levels.on:
+            self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(
+                Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
 
         self.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, self._on_constraints,
                                  qos_profile(topics.CONSTRAINTS))
@@ -247,26 +309,15 @@ class DynamicsNode(Node):
 
     def _on_initialpose(self, msg: PoseWithCovarianceStamped) -> None:
         try:
-            self.loop.post(Teleport(*codec.initial_pose(msg)))
+            self.loop.post(Teleport(*codec.initial_pose(msg, self.params['odom_frame_id'])))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
     @staticmethod
     def _check(values: dict) -> list[str]:
-        reasons = []
-        for name in ('initial_x', 'initial_y', 'initial_theta'):
-            if name in values:
-                reasons.append(FINITE.reason(name, values[name]))
-        for name in ('command_timeout', 'max_wheel_torque'):
-            if name in values:
-                reasons.append(POSITIVE.reason(name, values[name]))
-        if 'contact_model' in values and values['contact_model'] not in CONTACT_MODELS:
-            reasons.append(f'contact_model must be one of {", ".join(CONTACT_MODELS)}, got {values["contact_model"]!r}')
-        for name in ('stop_at', 'adhesion_force', 'snapshot_period'):
-            if name in values:
-                reasons.append(NON_NEGATIVE.reason(name, values[name]))
-        if 'real_time_factor' in values:
-            reasons.append(REAL_TIME_FACTOR.reason('real_time_factor', values['real_time_factor']))
+        reasons = range_reasons(values, RANGES)
+        if 'contact_model' in values:
+            reasons.append(choice_reason('contact_model', values['contact_model'], CONTACT_MODELS))
         return [r for r in reasons if r]
 
     def _on_set(self, parameters):
@@ -280,12 +331,17 @@ class DynamicsNode(Node):
 
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
-        encoded = self.encoder.encode(out)
+        sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
+        encoded = self.encoder.encode(out, sensed)
 
         def send() -> None:
             for topic, data in encoded:
-                if clock or topic is not topics.CLOCK:
+                if topic is not topics.CLOCK:
                     self.publishers_[topic].publish(data)
+                elif clock:
+                    self.publishers_[topic].publish(data)
+                    if self.domain_clock_pub is not None:
+                        self.domain_clock_pub.publish(data)
         return send
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:

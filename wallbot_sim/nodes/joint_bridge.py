@@ -31,27 +31,22 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, param_dict, parameter_result, run
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
 STATE_RATE_HZ = 50
-TORQUE = NumberRange(0.0, 1e3, low_open=True)
 
 
 class JointBridgeNode(Node):
     """wheel_states -> joint_states at rate_hz; joint_commands -> wheel_torque_cmd."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_JOINT_BRIDGE, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_JOINT_BRIDGE, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         rate_hz = declare(self, 'rate_hz', STATE_RATE_HZ, 'joint_states per second of simulation time',
                           low=1, high=1000, read_only=True)
         self.max_torque = float(declare(self, 'max_wheel_torque', 5.0, "largest accepted |side total| of the "
-                                        "efforts (N m; the dynamics' limit)", allowed=TORQUE))
-        reason = TORQUE.reason('max_wheel_torque', self.max_torque)
-        if reason:
-            raise ValueError(reason)
+                                        "efforts (N m; the dynamics' limit)", allowed=WHEEL_TORQUE_LIMIT))
         self.robot_file = declare(self, 'robot_file', '', 'unused: accepted so that every node of a run takes the '
                                   'same robot file', read_only=True)
         self.instants = ControlInstants(int(rate_hz))
@@ -89,7 +84,7 @@ class JointBridgeNode(Node):
 
     def _on_set(self, parameters):
         changes = param_dict(parameters, ('max_wheel_torque',))
-        return parameter_result(TORQUE.reason(name, value) for name, value in changes.items())
+        return parameter_result(WHEEL_TORQUE_LIMIT.reason(name, value) for name, value in changes.items())
 
     def _after_set(self, parameters) -> None:
         changes = param_dict(parameters, ('max_wheel_torque',))

@@ -86,7 +86,9 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
         """Raw subscriptions writing into ``writer``."""
 
         def __init__(self) -> None:
-            super().__init__(NODE_NAME, namespace=topics.NAMESPACE)
+            # its use_sim_time (log times) follows the robot's clock, as nodes.common.ROBOT_CLOCK_ARGS
+            super().__init__(NODE_NAME, namespace=topics.NAMESPACE,
+                             cli_args=['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP])
             self.writer = writer
             self.stop = stop
             self.received = 0

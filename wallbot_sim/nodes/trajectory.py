@@ -12,9 +12,9 @@ Parameter changes replan from the current simulation time; a clock that jumps ba
 (``LatestRequestWorker``), so the node answers parameter and service requests at once
 whatever it is planning.
 
-Time. The node follows ``/clock`` (``use_sim_time``) and does its work in one callback per
-``/clock`` message, which the dynamics publishes at its ``clock_rate_hz`` (10 Hz by default):
-it checks the plan, then publishes the reference pose for every point of the
+Time. The node follows its robot's ``clock`` (``use_sim_time``, remapped from ``/clock`` onto
+it: topics.CLOCK) and does its work in one callback per clock message, which the dynamics
+publishes at its ``clock_rate_hz`` (10 Hz by default): it checks the plan, then publishes the reference pose for every point of the
 ``publish_rate_hz`` grid of simulation time the clock has passed since the last message (at most
 MAX_POSE_BURST of them), each stamped with its grid time. So the poses keep their rate and stamps
 whatever the clock's rate, and at the default rates the node wakes ten times per simulated second
@@ -46,25 +46,32 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
-from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
+from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import declare, heard_by_every, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, heard_by_every,
+                                      param_dict, parameter_result, range_reasons, run)
 
 MAX_POSE_BURST = 100
 """Most reference poses published for one /clock message (the newest ones): a clock that jumps
 ahead (a resumed run) is no reason to publish the whole interval."""
 MAX_PLAN_SAMPLES = 5_000
 """Largest plan accepted: every subscriber decodes a whole plan in one callback."""
-LIMITS = {'radius': 1e4, 'amplitude': 1e4, 'publish_rate_hz': 1e4, 'stop_time': 1e6}
-"""Upper bounds (m, Hz, s) on sizes that no wall, no subscriber and no smooth stop needs beyond."""
-MIN_PERIOD = 0.01
-"""A lap shorter than this (s) is no reference a robot can follow, and overflows its derivatives."""
+RANGES = {
+    'radius': NumberRange(1e-3, 1e4), 'amplitude': NumberRange(1e-3, 1e4),
+    'period': NumberRange(0.01, 1e6),  # a shorter lap is no reference a robot follows, and overflows derivatives
+    'center_x': COORDINATE, 'center_y': COORDINATE,
+    'duration': NumberRange(0.0, 1e9), 'stop_time': NumberRange(1e-3, 1e6),
+    'publish_rate_hz': NumberRange(1e-3, 1e4),  # below it 1 / rate is no usable timer period
+    'sample_dt': NumberRange(2e-3, 0.1),  # up to 0.1 s the interpolation is accurate
+    'horizon': NumberRange(0.5, 250.0),
+}
+"""What each numeric parameter accepts (its descriptor's range, and the node's check). With every
+other parameter at its default, each end is a usable plan: 10 samples of 0.05 s fill 0.5 s, 250 s
+at 0.05 s and 10 s at 0.002 s are MAX_PLAN_SAMPLES."""
 RECORDER_CHECK = 0.02
 """Seconds (steady clock) between checks whether a recorder hears ``reference`` (wait_for_recorder)."""
-MIN_PUBLISH_RATE = 1e-3
-"""Hz; below it the timer period 1 / rate is no usable period (at 1e-300 Hz it overflows rclpy's timer)."""
 
 
 def make_reference(values: dict):
@@ -81,28 +88,12 @@ def make_reference(values: dict):
 
 def check_values(values: dict) -> list[str]:
     """Reasons why a full set of trajectory parameters is unusable (empty if fine)."""
-    reasons = []
-    if values['shape'] not in SHAPES:
-        reasons.append(f'unknown shape {values["shape"]!r}: use {" or ".join(SHAPES)}')
-    for name in ('radius', 'amplitude', 'period', 'stop_time', 'publish_rate_hz', 'sample_dt', 'horizon'):
-        reasons.append(POSITIVE.reason(name, values[name]))
-    for name in ('center_x', 'center_y'):
-        reasons.append(FINITE.reason(name, values[name]))
-    reasons.append(NON_NEGATIVE.reason('duration', values['duration']))
-    if not reasons[-1] and values['sample_dt'] > 0.1:
-        reasons.append(f'sample_dt must be <= 0.1 s to keep the interpolation accurate, got {values["sample_dt"]!r}')
+    reasons = range_reasons(values, RANGES) + [choice_reason('shape', values['shape'], SHAPES)]
     reasons = [r for r in reasons if r]
     if reasons:
         return reasons
-    for name, limit in LIMITS.items():
-        if values[name] > limit:
-            reasons.append(f'{name} must be <= {limit:g}, got {values[name]!r}')
-    if values['publish_rate_hz'] < MIN_PUBLISH_RATE:
-        reasons.append(f'publish_rate_hz must be >= {MIN_PUBLISH_RATE:g}, got {values["publish_rate_hz"]!r}')
-    if values['period'] < MIN_PERIOD:
-        reasons.append(f'period must be >= {MIN_PERIOD:g} s, got {values["period"]!r}')
     if values['horizon'] < 10 * values['sample_dt']:
-        reasons.append('horizon must span at least 10 samples')
+        reasons.append('horizon must span at least 10 samples of sample_dt')
     if values['horizon'] / values['sample_dt'] > MAX_PLAN_SAMPLES:
         reasons.append(f'a plan of {values["horizon"]:g} s every {values["sample_dt"]:g} s would exceed '
                        f'{MAX_PLAN_SAMPLES} samples: raise sample_dt or shorten horizon')
@@ -116,6 +107,7 @@ class PlanRequest:
     values: dict
     now: float
     fallback_yaw: float
+    frame: str = topics.WALL_FRAME
 
 
 @dataclass(frozen=True)
@@ -138,33 +130,39 @@ def build_plan(request: PlanRequest) -> BuiltPlan:
     plan = messages.plan_ahead(reference, request.now, values['sample_dt'], values['horizon'], rest_at)
     first = tangent_heading(reference.sample(plan.times[0]))
     yaw = first.angle if first is not None else request.fallback_yaw
-    return BuiltPlan(plan, messages.sampled_reference(plan), messages.trajectory_message(plan, yaw),
-                     messages.path_message(plan, fallback_yaw=yaw), yaw, values['shape'])
+    return BuiltPlan(plan, messages.sampled_reference(plan), messages.trajectory_message(plan, yaw, request.frame),
+                     messages.path_message(plan, fallback_yaw=yaw, frame=request.frame), yaw, values['shape'])
 
 
 class TrajectoryNode(Node):
     """Plans the reference, keeps the plan ahead of simulation time, publishes the reference pose."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_TRAJECTORY, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_TRAJECTORY, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
         self.values = {
-            'shape': declare(self, 'shape', 'circle', 'reference shape: circle or figure8'),
-            'radius': declare(self, 'radius', 1.0, 'circle radius (m, > 0)'),
-            'amplitude': declare(self, 'amplitude', 1.0, 'figure-8 amplitude A (m, > 0)'),
-            'period': declare(self, 'period', 20.0, 'period of one lap (s, > 0)'),
-            'center_x': declare(self, 'center_x', 0.0, 'centre of the shape, wall X (m)'),
-            'center_y': declare(self, 'center_y', 0.0, 'centre of the shape, wall Y (m)'),
+            'shape': declare(self, 'shape', 'circle', 'reference shape', choices=SHAPES),
+            'radius': declare(self, 'radius', 1.0, 'circle radius (m)', allowed=RANGES['radius']),
+            'amplitude': declare(self, 'amplitude', 1.0, 'figure-8 amplitude A (m)', allowed=RANGES['amplitude']),
+            'period': declare(self, 'period', 20.0, 'period of one lap (s)', allowed=RANGES['period']),
+            'center_x': declare(self, 'center_x', 0.0, 'centre of the shape, wall X (m)', allowed=RANGES['center_x']),
+            'center_y': declare(self, 'center_y', 0.0, 'centre of the shape, wall Y (m)', allowed=RANGES['center_y']),
             'duration': declare(self, 'duration', 0.0,
                                 'seconds of simulation time to follow the shape, then stop smoothly; 0 = forever',
-                                low=0.0, high=1e9),
-            'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s, > 0)'),
+                                allowed=RANGES['duration']),
+            'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s)',
+                                 allowed=RANGES['stop_time']),
             'publish_rate_hz': declare(self, 'publish_rate_hz', messages.PUBLISH_RATE_HZ,
-                                       'rate of the reference pose in simulation time (Hz, > 0)'),
-            'sample_dt': declare(self, 'sample_dt', messages.SAMPLE_DT, 'plan sample spacing (s, in (0, 0.1])'),
+                                       'rate of the reference pose in simulation time (Hz)',
+                                       allowed=RANGES['publish_rate_hz']),
+            'sample_dt': declare(self, 'sample_dt', messages.SAMPLE_DT, 'plan sample spacing (s)',
+                                 allowed=RANGES['sample_dt']),
             'horizon': declare(self, 'horizon', messages.HORIZON,
-                               'seconds a plan covers when duration is 0 (renewed at half-way)'),
+                               'seconds a plan covers when duration is 0 (renewed at half-way); at least 10 and '
+                               f'at most {MAX_PLAN_SAMPLES} samples of sample_dt', allowed=RANGES['horizon']),
         }
+        self.frame = declare(self, 'odom_frame_id', topics.WALL_FRAME,
+                             'frame of the reference poses, path and plan (the wall)', read_only=True)
         reasons = check_values(self.values)
         if reasons:
             raise ValueError('; '.join(reasons))
@@ -214,7 +212,7 @@ class TrajectoryNode(Node):
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
         """Plan from ``now`` (rounded down to the sample grid) on the planner thread; returns at once."""
-        self.planner.submit(PlanRequest(dict(self.values), now, self.yaw))
+        self.planner.submit(PlanRequest(dict(self.values), now, self.yaw, self.frame))
 
     def _publish_plan(self, built: BuiltPlan) -> None:
         """Planner thread: publish plan and path, then make the plan the current reference."""
@@ -265,7 +263,7 @@ class TrajectoryNode(Node):
                 last = newest - 1
             for k in range(max(last, newest - MAX_POSE_BURST) + 1, newest + 1):
                 t = k * period_ns * 1e-9
-                data, self.yaw = messages.reference_message(reference.sample(t), t, self.yaw)
+                data, self.yaw = messages.reference_message(reference.sample(t), t, self.yaw, self.frame)
                 self.reference_pub.publish(data)
             self.last_pose = newest
 

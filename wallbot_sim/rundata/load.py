@@ -1,7 +1,8 @@
 """One loader for a run: a recorded bag or a ``simulate`` CSV, as the same arrays.
 
-Bag: odometry stamps define the time base; wheel states, constraint wrench and drive forces are
-matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
+Bag: odometry stamps define the time base, and the state is the simulated one: ``ground_truth/odom``
+when the bag has it (a run with sensor noise), with the noisy ``odom`` kept as ``RunData.sensed``;
+wheel states, constraint wrench and drive forces are matched by header stamp (NaN where a stamp has no message); the reference at those stamps is the
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
 present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
 residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
@@ -60,6 +61,9 @@ class RunData:
     """(N, 3) friction use of the left, right and lateral channels."""
     slip: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     """(N, 3) 1 where a channel slips, 0 where it sticks."""
+    sensed: np.ndarray = field(default_factory=lambda: np.empty((0, 6)))
+    """(N, 6) x, y, theta, vx, vy, omega as the noisy odometry reported them (a run with sensor
+    noise; NaN where a stamp has none), empty when the odometry was the simulated state itself."""
 
     def __len__(self) -> int:
         return len(self.t)
@@ -135,26 +139,28 @@ def _load_bag(path: Path, label: str) -> RunData:
     from wallbot_sim.bag.reader import info, messages
 
     bag = info(path)
-    by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics}
+    truth_suffix = f'/{topics.GROUND_TRUTH_ODOM.name}'
+    by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics if not t.name.endswith(truth_suffix)}
     want = {leaf: by_leaf.get(leaf) for leaf in ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces',
                                                  'wheel_contact', 'reference', 'reference_path',
                                                  'reference_trajectory', 'diagnostics')}
+    want['ground_truth'] = next((t.name for t in bag.topics if t.name.endswith(truth_suffix) and t.count), None)
     if want['odom'] is None:
         raise RunDataError(f'{path} has no odom topic: not a wallbot run')
     names = {v: k for k, v in want.items() if v is not None}
-    odom, wheels, wrench, drive, contact, ref, diag = (_LastRun() for _ in range(7))
+    odom, wheels, wrench, drive, contact, ref, diag, truth = (_LastRun() for _ in range(8))
     plan: dict = {}
     path_xy: tuple[list[float], list[float]] = ([], [])
     for raw in messages(path, list(names)):
         leaf = names[raw.topic]
         msg = bagio.deserialize(raw.data, raw.type)
         stamp = codec.stamp_nanoseconds(msg.header.stamp)
-        if leaf == 'odom':
+        if leaf in ('odom', 'ground_truth'):
             try:
                 state = codec.planar_state(msg)
             except ValueError as error:
                 raise RunDataError(f'{path}: {error}') from None
-            odom.put(stamp, (state.t, *state[1:]))
+            (odom if leaf == 'odom' else truth).put(stamp, (state.t, *state[1:]))
         elif leaf == 'wheel_states':
             wheels.put(stamp, sum((codec.joint_values(msg, topics.WHEEL_JOINTS, field)
                                    for field in ('position', 'velocity', 'effort')), ()))
@@ -184,6 +190,9 @@ def _load_bag(path: Path, label: str) -> RunData:
                     diag.put(stamp, float(value))
                 except ValueError:
                     pass
+    sensed = odom if truth else None
+    if truth:
+        odom = truth
     if not odom:
         raise RunDataError(f'{path} has no odometry messages')
     stamps = sorted(odom)
@@ -216,4 +225,5 @@ def _load_bag(path: Path, label: str) -> RunData:
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
                    w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, err, c[:, 0], c[:, 1], c[:, 2],
                    d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]), odom.restarts,
-                   loads=k[:, 0:4], use=k[:, 4:7], slip=k[:, 7:10])
+                   loads=k[:, 0:4], use=k[:, 4:7], slip=k[:, 7:10],
+                   sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)))
