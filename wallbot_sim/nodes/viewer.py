@@ -30,7 +30,7 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare, param_dict, parameter_result, run
 from wallbot_sim.nodes.recorder import message_class
 from wallbot_sim.view import Pose, Scene
 
@@ -69,7 +69,7 @@ class ViewerNode(Node):
     """Each frame: take the newest inputs, update the scene, publish markers (and tf, and the relay)."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__(topics.NODE_VIEWER, namespace=topics.NAMESPACE, **kwargs)
+        super().__init__(topics.NODE_VIEWER, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         self.rate_hz = float(declare(self, 'rate_hz', 30.0, 'frames per wall second', allowed=RATE_HZ))
         trail_points = declare(self, 'trail_points', 3000, 'points kept of the path travelled (one every '
                                '2 mm or more)', allowed=TRAIL_POINTS)
