@@ -265,3 +265,14 @@ def rclpy_fields(msg):
     if isinstance(msg, bytes) and len(msg) == 1:  # rclpy's byte fields (a status level)
         return msg[0]
     return msg
+
+
+def test_every_topic_of_the_contract_has_a_standard_type():
+    """`ros2 topic list -t` of the graph shows only types a standard Jazzy install has."""
+    from wallbot_msgs_py import topics
+
+    declared = [value for value in vars(topics).values() if isinstance(value, topics.Topic)]
+    assert len(declared) > 20
+    unusual = {topic.name: topic.type for topic in declared
+               if topic.type.split('/')[0] not in topics.STANDARD_PACKAGES or topic.type.split('/')[1] != 'msg'}
+    assert not unusual

@@ -89,6 +89,9 @@ def test_topics_types_and_1khz_odometry(graph):
                 '/wallbot/wheel_torque_cmd': 'std_msgs/msg/Float64MultiArray'}
     for name, kind in expected.items():
         assert names.get(name) == [kind], f'{name}: {names.get(name)}'
+    unusual = {name: kinds for name, kinds in names.items()
+               if any(kind.split('/')[0] not in topics.STANDARD_PACKAGES for kind in kinds)}
+    assert not unusual, f'topics of types a Jazzy install does not have: {unusual}'
     graph.wait_for(lambda: {'/wallbot/dynamics', '/wallbot/trajectory', '/wallbot/constraint_config'}
                    <= set(graph.node.get_fully_qualified_node_names()), 10, 'node names')
 

@@ -15,6 +15,11 @@ from enum import Enum
 
 NAMESPACE = '/wallbot'
 """Default namespace of every node."""
+STANDARD_PACKAGES = frozenset({
+    'std_msgs', 'geometry_msgs', 'nav_msgs', 'sensor_msgs', 'diagnostic_msgs', 'trajectory_msgs',
+    'visualization_msgs', 'rosgraph_msgs', 'rcl_interfaces', 'tf2_msgs'})
+"""Message packages of a standard ROS 2 Jazzy install: every topic of the graph has a type from one
+of them, so the ROS tools, RViz and Foxglove decode it without this project."""
 
 
 class Durability(Enum):
