@@ -60,6 +60,7 @@ setup(
         'pyyaml',
         'rosbags',
         'matplotlib',
+        'dask[distributed]',
     ],
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
