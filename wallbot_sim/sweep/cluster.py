@@ -30,16 +30,21 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     """Compute ``chunks`` (indices into ``spec.chunks()``) and give each one's rows to ``on_done`` as it
     finishes. ``scheduler``: an existing cluster's address (tcp://HOST:PORT, or tls://... with
     ``security``, a ``distributed.Security``); None: a local cluster of ``workers`` processes
-    (default: one per core)."""
+    (default: one per core; 1: the chunks one after the other in this process, without Dask)."""
     if not chunks:
+        return
+    count = workers or os.cpu_count() or 1
+    if scheduler is None and count == 1:  # one worker: this process, no cluster to start
+        for index in chunks:
+            on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
         return
     from dask.distributed import Client, LocalCluster, as_completed  # only when a sweep runs
 
     with ExitStack() as stack:
         if scheduler is None:
             cluster = stack.enter_context(LocalCluster(
-                n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, host=LOCAL_HOST,
-                dashboard_address=None, silence_logs=logging.ERROR))
+                n_workers=count, threads_per_worker=1, processes=True, host=LOCAL_HOST, dashboard_address=None,
+                silence_logs=logging.ERROR))
             client = stack.enter_context(Client(cluster))
         else:
             try:
