@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -168,17 +170,7 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
 
 
 def test_a_dask_cluster_losing_a_worker_gives_the_local_result(process_runner, tmp_path):
-    dask = Path(sys.executable).with_name('dask')
-    scheduler_file = tmp_path / 'scheduler.json'
-    process_runner.start([dask, 'scheduler', '--host', '127.0.0.1', '--port', 0, '--no-dashboard',
-                          '--scheduler-file', scheduler_file], 'scheduler')
-    workers = [process_runner.start([dask, 'worker', '--scheduler-file', scheduler_file, '--host', '127.0.0.1',
-                                     '--nthreads', 1, '--no-nanny', '--no-dashboard', '--name', f'w{k}'], f'w{k}')
-               for k in range(2)]
-    deadline = time.monotonic() + STALL
-    while not scheduler_file.exists() and time.monotonic() < deadline:
-        time.sleep(POLL)
-    address = json.loads(scheduler_file.read_text())['address']
+    address, workers = start_dask(process_runner, tmp_path, 2)
     values = {**BATCH_SPEC, 'grid': {'body_mass': [6.0, 9.0, 12.0]}, 'chunk_size': 1}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
     sweep = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out,
@@ -222,3 +214,43 @@ def test_bad_spec_file_is_one_line_on_the_command_line(tmp_path):
     spec = write_spec(tmp_path, {**BATCH_SPEC, 'grid': {'wheel_count': [4]}})
     assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'out'), 'spec.yaml', "'wheel_count'")
     assert not (tmp_path / 'out').exists()
+
+
+def start_dask(process_runner, folder: Path, workers: int, *options: object) -> tuple[str, list]:
+    """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes on 127.0.0.1 (no
+    nanny: killing a worker kills it); the scheduler's address and the worker processes."""
+    dask = Path(sys.executable).with_name('dask')
+    scheduler_file = folder / 'scheduler.json'
+    process_runner.start([dask, 'scheduler', '--host', '127.0.0.1', '--port', 0, '--no-dashboard',
+                          '--scheduler-file', scheduler_file, *options], 'scheduler')
+    deadline = time.monotonic() + STALL
+    while not scheduler_file.exists() and time.monotonic() < deadline:
+        time.sleep(POLL)
+    address = json.loads(scheduler_file.read_text())['address']
+    processes = [process_runner.start([dask, 'worker', address, '--host', '127.0.0.1', '--nthreads', 1,
+                                       '--no-nanny', '--no-dashboard', '--name', f'w{k}', *options], f'w{k}')
+                 for k in range(workers)]
+    return address, processes
+
+
+def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_runner, tmp_path):
+    openssl = shutil.which('openssl')
+    if openssl is None:
+        pytest.skip('no openssl command to make a self-signed certificate')
+    cert, key = tmp_path / 'cert.pem', tmp_path / 'key.pem'
+    subprocess.run([openssl, 'req', '-x509', '-newkey', 'rsa:2048', '-nodes', '-keyout', key, '-out', cert,
+                    '-days', '1', '-subj', '/CN=wallbot-sweep-test', '-addext', 'basicConstraints=critical,CA:TRUE'],
+                   check=True, capture_output=True)
+    tls = ['--protocol', 'tls', '--tls-ca-file', cert, '--tls-cert', cert, '--tls-key', key]
+    address, _workers = start_dask(process_runner, tmp_path, 1, *tls[2:])
+    assert address.startswith('tls://')
+    security = tmp_path / 'tls.yaml'
+    security.write_text(yaml.safe_dump({'tls_ca_file': str(cert), 'tls_client_cert': str(cert),
+                                        'tls_client_key': str(key)}), encoding='utf-8')
+    values = {**BATCH_SPEC, 'grid': {'body_mass': [6.0]}, 'samples': 1}
+    spec = write_spec(tmp_path, values)
+    assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'refused', '--quiet', '--scheduler',
+                                  address.replace('tls://', 'tcp://')), 'cannot reach the Dask scheduler')
+    run_sweep(spec, tmp_path / 'out', '--scheduler', address, '--security', security)
+    run_sweep(spec, tmp_path / 'local', '--workers', 1)
+    assert (tmp_path / 'out' / 'results.csv').read_text() == (tmp_path / 'local' / 'results.csv').read_text()
