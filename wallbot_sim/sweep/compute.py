@@ -17,7 +17,7 @@ import numpy as np
 
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
-from wallbot_sim.model import Robot, RobotParameters, Scenario, Simulation, StepOutputs
+from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
 from wallbot_sim.model.batch import BatchOutputs, BatchSimulation
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
@@ -41,8 +41,7 @@ class RunSettings:
     """What every robot of a sweep runs, as ``simulate`` would run it."""
 
     scenario: Scenario
-    selection: object
-    """The ConstraintSelection."""
+    selection: ConstraintSelection
     contact: str
     duration: float
     dt: float
