@@ -43,8 +43,8 @@ def write_spec(folder: Path, values: dict, name: str = 'spec.yaml') -> Path:
     return path
 
 
-def run_sweep(spec: Path, out: Path, *args: object) -> None:
-    result = wallbot('sweep', spec, '--out', out, '--quiet', *args)
+def run_sweep(spec: Path, out: Path, *args: object, figures: bool = False) -> None:
+    result = wallbot('sweep', spec, '--out', out, '--quiet', *args, *(() if figures else ('--no-figures',)))
     assert result.returncode == 0, result.stderr
 
 
@@ -52,7 +52,7 @@ def run_sweep(spec: Path, out: Path, *args: object) -> None:
 def batch_sweep(tmp_path_factory) -> Path:
     """BATCH_SPEC swept on a local cluster of two workers: its output directory."""
     folder = tmp_path_factory.mktemp('batch_sweep')
-    run_sweep(write_spec(folder, BATCH_SPEC), folder / 'out', '--workers', 2)
+    run_sweep(write_spec(folder, BATCH_SPEC), folder / 'out', '--workers', 2, figures=True)
     return folder / 'out'
 
 
@@ -153,7 +153,7 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
     values = {**CONTROLLER_SPEC, 'contact': 'ideal', 'duration': 0.5,
               'grid': {'body_mass': [6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0]}}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
-    command = [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out, '--workers', 1]
+    command = [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out, '--workers', 1, '--no-figures']
     sweep = process_runner.start(command, 'sweep')
     chunk_dir = out / 'chunks'
     while sweep.poll() is None and len(list(chunk_dir.glob('*.csv'))) < 1:
@@ -171,10 +171,10 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
 
 def test_a_dask_cluster_losing_a_worker_gives_the_local_result(process_runner, tmp_path):
     address, workers = start_dask(process_runner, tmp_path, 2)
-    values = {**BATCH_SPEC, 'grid': {'body_mass': [6.0, 9.0, 12.0]}, 'chunk_size': 1}
+    values = {**BATCH_SPEC, 'duration': 0.5, 'grid': {'body_mass': [6.0, 9.0, 12.0]}, 'chunk_size': 1}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
     sweep = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out,
-                                  '--scheduler', address], 'sweep')
+                                  '--scheduler', address, '--no-figures'], 'sweep')
     while sweep.poll() is None and not list((out / 'chunks').glob('*.csv')):
         time.sleep(POLL)
     assert sweep.poll() is None, process_runner.output('sweep')  # 5 of 6 chunks still to do: w0 holds one

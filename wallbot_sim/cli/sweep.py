@@ -22,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                             '(or tls://HOST:PORT with --security)')
     parser.add_argument('--security', help='with a tls:// scheduler: a YAML of the Dask TLS settings '
                                            '(tls_ca_file, tls_client_cert, tls_client_key)')
+    parser.add_argument('--no-figures', action='store_true', help='write results.csv only')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
 
 
@@ -83,10 +84,12 @@ def main(args: argparse.Namespace) -> int:
 
     run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
     results = directory.assemble()
-    names, rows = read_results(results)
-    figures = write_sweep_figures(names, rows, parameter_columns(spec), directory.path)
+    figures = []
+    if not args.no_figures:
+        names, rows = read_results(results)
+        figures = write_sweep_figures(names, rows, parameter_columns(spec), directory.path)
     if not args.quiet:
-        print(f'wrote {results} and {len(figures)} figures', file=sys.stderr)
+        print(f'wrote {results}' + (f' and {len(figures)} figures' if figures else ''), file=sys.stderr)
     return 0
 
 
