@@ -70,7 +70,9 @@ def measure(args: argparse.Namespace, spec) -> None:
     print(f'{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy '
           f'{np.__version__}; {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC; load average before '
           f'{os.getloadavg()[0]:.1f}')
-    command = [*WALLBOT, 'sweep', args.spec, '--out', args.out] + (['--workers', str(args.workers)] if args.workers else [])
+    command = [*WALLBOT, 'sweep', args.spec, '--out', args.out]
+    if args.workers:
+        command += ['--workers', str(args.workers)]
     started = time.perf_counter()
     subprocess.run(command, check=True)
     seconds = time.perf_counter() - started

@@ -153,7 +153,8 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
     values = {**CONTROLLER_SPEC, 'contact': 'ideal', 'duration': 0.5,
               'grid': {'body_mass': [6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0]}}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
-    command = [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out, '--workers', 1, '--no-figures']
+    command = [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out, '--workers', 1,
+               '--no-figures']
     sweep = process_runner.start(command, 'sweep')
     chunk_dir = out / 'chunks'
     while sweep.poll() is None and len(list(chunk_dir.glob('*.csv'))) < 1:

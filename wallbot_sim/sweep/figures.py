@@ -3,7 +3,7 @@
 | file | what |
 |---|---|
 | outputs_vs_KEY.png | every output against the varied parameter KEY, one panel per output |
-| map_OUTPUT.png | with two varied parameters: OUTPUT over both (e.g. the least adhesion force over body mass and CoM height) |
+| map_OUTPUT.png | with two varied parameters: OUTPUT over both (the least adhesion force over mass and CoM height) |
 
 Feasible robots (no slip, no detachment, friction use within 1) are drawn in blue, the others
 in red; a map outlines the feasible region and crosses out the robots outside it.

@@ -32,7 +32,7 @@ import numpy as np
 
 from wallbot_sim.config import load_robot_parameters, load_scenario, read_yaml
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.model import ConstraintSelection, ParameterError, RobotParameters, Scenario
+from wallbot_sim.model import DEFAULT_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
@@ -43,6 +43,7 @@ SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration',
             'controller_mass_scale', 'robot', 'chunk_size')
 VARIATION = ('grid', 'vary', 'samples', 'seed')
 TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
+"""The RK4 steps a spec's dt may be (s): those simulate --dt accepts."""
 CHUNK_ROBOT_STEPS = 1_500_000
 """Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 312 bytes per
 robot-step (about 470 MB), until each robot's run is summarized."""
@@ -113,7 +114,8 @@ def parse_spec(values: Any, folder: Path = Path('.')) -> SweepSpec:
             base.replace(**robot)
         except ParameterError as error:
             raise SweepError(f'robot {robot}: {error}') from None
-    return SweepSpec(settings, base, tuple(grid) + tuple(vary), robots, _count(values, 'chunk_size', default_chunk_size(settings)))
+    chunk_size = _count(values, 'chunk_size', default_chunk_size(settings))
+    return SweepSpec(settings, base, tuple(grid) + tuple(vary), robots, chunk_size)
 
 
 def default_chunk_size(settings: RunSettings) -> int:
@@ -151,7 +153,8 @@ def _settings(values: Mapping[str, Any], folder: Path) -> RunSettings:
         raise SweepError('contact: coulomb needs controller: true (the trajectory task\'s force is a virtual '
                          'actuator, not friction)')
     duration = _number(values, 'duration', POSITIVE, scenario.duration)
-    return RunSettings(scenario, selection, contact, duration, _number(values, 'dt', TIME_STEP, 1e-3), controller, scale)
+    time_step = _number(values, 'dt', TIME_STEP, DEFAULT_STEP)
+    return RunSettings(scenario, selection, contact, duration, time_step, controller, scale)
 
 
 def _grid(grid: Any) -> dict[str, list]:
