@@ -23,7 +23,8 @@ PANEL_COLUMNS = 4
 
 
 def write_sweep_figures(names: list[str], rows: list[list[float]], parameters: list[str], out_dir: Path) -> list[Path]:
-    """Write the figures of results (``names``: the header, ``rows``) over the ``parameters`` columns."""
+    """Write the figures of results (``names``: the header, ``rows``) over those ``parameters`` columns that
+    take more than one value (a key the spec fixes, e.g. a one-value grid, is no axis)."""
     import matplotlib
     matplotlib.use('Agg', force=True)
     import matplotlib.pyplot as plt
@@ -32,6 +33,7 @@ def write_sweep_figures(names: list[str], rows: list[list[float]], parameters: l
     table = np.array(rows, dtype=float).reshape(len(rows), len(names))
     column = {name: table[:, i] for i, name in enumerate(names)}
     feasible = column['feasible'] > 0.5
+    parameters = [name for name in parameters if len(np.unique(column[name])) > 1]
     outputs = [name for name in OUTPUTS if name != 'feasible']
     written = []
     for parameter in parameters:
