@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -17,6 +18,7 @@ import pytest
 import yaml
 
 from cli_helpers import assert_one_line_error, simulate, wallbot
+from wallbot_sim.cli.sweep import SweepProgress
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ParameterError
 from wallbot_sim.rundata import load_run, summarize
@@ -255,3 +257,14 @@ def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_
     run_sweep(spec, tmp_path / 'out', '--scheduler', address, '--security', security)
     run_sweep(spec, tmp_path / 'local', '--workers', 1)
     assert (tmp_path / 'out' / 'results.csv').read_text() == (tmp_path / 'local' / 'results.csv').read_text()
+
+
+def test_progress_shows_robots_done_throughput_and_time_left():
+    stream = io.StringIO()
+    progress = SweepProgress(robots=10, done=2, steps=1001, stream=stream)
+    progress.update(3, force=True)
+    line = stream.getvalue()
+    assert line.startswith('  5 / 10 robots') and line.endswith('s left\n')
+    rate = float(line.split('robots')[1].split('robot-steps/s')[0].replace(',', ''))
+    left = float(line.split('robot-steps/s')[1].split('s left')[0].replace(',', ''))
+    assert rate > 0 and left == pytest.approx(5 * 1001 / rate, abs=1.0)  # the 5 robots to do at that rate
