@@ -39,6 +39,7 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
             on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
         return
     from dask.distributed import Client, LocalCluster, as_completed  # only when a sweep runs
+    from distributed.scheduler import KilledWorker
 
     with ExitStack() as stack:
         if scheduler is None:
@@ -61,4 +62,9 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
                                    retries=RETRIES, pure=False)
             futures[future] = index
         for future in as_completed(futures):
-            on_done(futures[future], future.result())
+            try:
+                rows = future.result()
+            except KilledWorker:
+                raise SweepError(f'chunk {futures[future]}: every worker that ran it died (the scheduler\'s '
+                                 'allowed-failures); the finished chunks are kept') from None
+            on_done(futures[future], rows)
