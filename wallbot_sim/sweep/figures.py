@@ -6,7 +6,8 @@
 | map_OUTPUT.png | with two varied parameters: OUTPUT over both (the least adhesion force over mass and CoM height) |
 
 Feasible robots (no slip, no detachment, friction use within 1) are drawn in blue, the others
-in red; a map outlines the feasible region and crosses out the robots outside it.
+in red; a map outlines the feasible region and crosses out the robots outside it (with ideal
+contact, those whose friction use exceeds 1: they would slip on a real wall).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from wallbot_sim.sweep.compute import OUTPUTS
 MAP_OUTPUTS = ('least_adhesion_force', 'peak_motor_torque_left', 'peak_motor_torque_right', 'final_err')
 """The outputs drawn as maps over two varied parameters."""
 PANEL_COLUMNS = 4
+INFEASIBLE = 'not feasible: slips, lifts off or friction use > 1'
 
 
 def write_sweep_figures(names: list[str], rows: list[list[float]], parameters: list[str], out_dir: Path) -> list[Path]:
@@ -43,7 +45,7 @@ def write_sweep_figures(names: list[str], rows: list[list[float]], parameters: l
         for ax, output in zip(axes.flat, outputs):
             x, y = column[parameter], column[output]
             ax.plot(x[feasible], y[feasible], 'o', color='tab:blue', ms=3, label='feasible')
-            ax.plot(x[~feasible], y[~feasible], 'o', color='tab:red', ms=3, label='slips or detaches')
+            ax.plot(x[~feasible], y[~feasible], 'o', color='tab:red', ms=3, label=INFEASIBLE)
             ax.set_xlabel(parameter)
             ax.set_ylabel(output)
             ax.grid(True, alpha=0.3)
@@ -67,7 +69,7 @@ def write_sweep_figures(names: list[str], rows: list[list[float]], parameters: l
                 shading = ax.scatter(x[finite], y[finite], c=value[finite], cmap='viridis', s=25)
             fig.colorbar(shading, ax=ax, label=output)
             ax.plot(x[feasible], y[feasible], '.', color='white', ms=3, label='feasible')
-            ax.plot(x[~feasible], y[~feasible], 'x', color='red', ms=5, label='slips or detaches')
+            ax.plot(x[~feasible], y[~feasible], 'x', color='red', ms=5, label=INFEASIBLE)
             ax.set_xlabel(parameters[0])
             ax.set_ylabel(parameters[1])
             ax.legend(fontsize='small', loc='upper right')
