@@ -61,6 +61,7 @@ setup(
         'rosbags',
         'matplotlib',
         'numba',
+        'dask[distributed]',
     ],
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],

@@ -17,8 +17,9 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.model.errors import ModelError
 from wallbot_sim.plots.errors import PlotError
 from wallbot_sim.rundata.errors import RunDataError
+from wallbot_sim.sweep.errors import SweepError
 
-USER_ERRORS = (CliError, BagError, ModelError, PlotError, RunDataError)
+USER_ERRORS = (CliError, BagError, ModelError, PlotError, RunDataError, SweepError)
 """What a verb may raise for bad input: printed as one line, exit status 2 (or a CliError's code).
 The libraries' errors know nothing of the command line; this is the one place that maps them."""
 
@@ -31,6 +32,7 @@ VERBS = {
     'compare': 'wallbot_sim.cli.compare',
     'bag': 'wallbot_sim.cli.bag',
     'motors': 'wallbot_sim.cli.motors',
+    'sweep': 'wallbot_sim.cli.sweep',
 }
 
 

@@ -94,6 +94,12 @@ def _load_csv(path: Path, label: str) -> RunData:
         raise RunDataError(f'{path} has a non-numeric value') from None
     if rows.size == 0:
         raise RunDataError(f'{path} has no data rows')
+    return run_from_columns(rows, label)
+
+
+def run_from_columns(rows: np.ndarray, label: str) -> RunData:
+    """The run whose steps are ``rows`` (steps, len(CSV_COLUMNS)), in the order of CSV_COLUMNS: a simulate
+    CSV's numbers, read or still in memory."""
     col = {name: rows[:, i] for i, name in enumerate(CSV_COLUMNS)}
     return RunData(label, col['t'], col['x'], col['y'], col['theta'], col['vx'], col['vy'], col['omega'],
                    np.column_stack([col[f'phi{i}'] for i in range(1, 5)]),

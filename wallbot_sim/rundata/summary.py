@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wallbot_sim.rundata.load import load_run
+from wallbot_sim.rundata.load import RunData, load_run
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,11 @@ def _peak(values: np.ndarray) -> float:
 
 def summarize(path: Path | str) -> RunSummary:
     """Summary of a bag (or simulate CSV) at ``path``."""
-    run = load_run(Path(path))
+    return summarize_run(load_run(Path(path)), path)
+
+
+def summarize_run(run: RunData, path: Path | str) -> RunSummary:
+    """Summary of ``run``, loaded from ``path`` (or computed in memory: ``path`` then only names it)."""
     err = run.err
     late = err[run.t >= run.t[0] + 5.0]
     finite_err = err[np.isfinite(err)]

@@ -1,0 +1,270 @@
+"""``wallbot-sim sweep``: the spec, results.csv against single simulate runs, resumption, figures, Dask."""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from cli_helpers import assert_one_line_error, simulate, wallbot
+from wallbot_sim.cli.sweep import SweepProgress
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import ParameterError
+from wallbot_sim.rundata import load_run, summarize
+from wallbot_sim.rundata.motors import motor_report
+from wallbot_sim.sweep import SweepError, parse_spec
+from wallbot_sim.sweep.compute import OUTPUTS, batch_supports
+from wallbot_sim.sweep.store import read_results
+
+BATCH_SPEC = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', 'duration': 0.3,
+              'grid': {'body_mass': [6.0, 12.0]}, 'vary': {'com_height': [0.03, 0.08]}, 'samples': 2, 'seed': 4,
+              'chunk_size': 2}
+"""Four robots on the batch core (ideal contact, no controller)."""
+CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'coulomb', 'controller': True, 'controller_mass_scale': 1.2,
+                   'duration': 0.3, 'grid': {'adhesion_force': [200.0], 'com_height': [0.2, 0.4]}, 'chunk_size': 1}
+"""Two robots on the single-robot Simulation, the one with the higher CoM tipping off the wall at once."""
+POLL = 0.05
+STALL = 120.0
+"""Seconds after which a sweep that should have ended is stuck (not a timing requirement)."""
+
+
+def write_spec(folder: Path, values: dict, name: str = 'spec.yaml') -> Path:
+    path = folder / name
+    path.write_text(yaml.safe_dump(values), encoding='utf-8')
+    return path
+
+
+def run_sweep(spec: Path, out: Path, *args: object, figures: bool = False) -> None:
+    result = wallbot('sweep', spec, '--out', out, '--quiet', *args, *(() if figures else ('--no-figures',)))
+    assert result.returncode == 0, result.stderr
+
+
+@pytest.fixture(scope='module')
+def batch_sweep(tmp_path_factory) -> Path:
+    """BATCH_SPEC swept on a local cluster of two workers: its output directory."""
+    folder = tmp_path_factory.mktemp('batch_sweep')
+    run_sweep(write_spec(folder, BATCH_SPEC), folder / 'out', '--workers', 2, figures=True)
+    return folder / 'out'
+
+
+def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[str, float]:
+    """What simulate and the run summary / motor analysis give for one robot alone."""
+    params = load_robot_parameters().replace(**robot_values)
+    robot_file = folder / 'robot.yaml'
+    robot_file.write_text(yaml.safe_dump({key: list(value) if isinstance(value, tuple) else value
+                                          for key, value in params.__dict__.items()}), encoding='utf-8')
+    csv_path = folder / 'run.csv'
+    args = ['--scenario', spec_values['scenario'], '--duration', spec_values['duration'], '--robot', robot_file,
+            '--csv', csv_path, '--quiet', '--contact', spec_values.get('contact', 'ideal')]
+    if spec_values.get('controller'):
+        args += ['--controller', '--controller-mass-scale', spec_values['controller_mass_scale']]
+    else:
+        args += ['--constraints', spec_values['constraints']]
+    result = simulate(*args)
+    assert result.returncode in (0, 3), result.stderr  # 3: detached (a coulomb run ends there)
+    summary = summarize(csv_path)
+    run = load_run(csv_path)
+    report = motor_report(run, params)
+    contact = report.contact  # None when no step had finite friction use (a wheel off the wall at once)
+    use = contact.peak_use if contact is not None else (math.nan,) * 3
+    slipped, detached = summary.first_slip is not None, summary.lift_off is not None
+    return {'final_err': summary.final_tracking_error, 'peak_err_after_5s': summary.peak_tracking_error_after_5s,
+            'peak_abs_F_left': summary.peak_drive_force_left, 'peak_abs_F_right': summary.peak_drive_force_right,
+            'peak_abs_F_lateral': summary.peak_lateral_force, 'peak_motor_torque_left': report.left.peak_torque,
+            'peak_motor_torque_right': report.right.peak_torque, 'min_normal_load': float(np.min(run.loads)),
+            'max_use_L': use[0], 'max_use_R': use[1], 'max_use_lat': use[2],
+            'least_adhesion_force': contact.least_adhesion if contact is not None else math.nan,
+            'applied_adhesion_force': report.adsorption.applied, 'slipped': float(slipped),
+            'detached': float(detached), 't_detached': summary.lift_off[0] if detached else math.nan,
+            'max_residual': summary.max_residual,
+            'feasible': float(not slipped and not detached and all(value <= 1.0 for value in use))}
+
+
+def assert_rows_match_simulate(out: Path, spec_values: dict, folder: Path, rtol: float) -> None:
+    names, rows = read_results(out / 'results.csv')
+    spec = parse_spec(spec_values)
+    assert [row[0] for row in rows] == list(range(len(spec.robots)))
+    for row, robot_values in zip(rows, spec.robots):
+        got = dict(zip(names, row))
+        for key, value in robot_values.items():
+            assert got[key] == value
+        want = expected_row(robot_values, spec_values, folder)
+        assert set(want) == set(OUTPUTS)
+        for name in OUTPUTS:
+            assert got[name] == pytest.approx(want[name], rel=rtol, abs=1e-12, nan_ok=True), (name, robot_values)
+
+
+def test_batch_rows_agree_with_single_simulate_runs(batch_sweep, tmp_path):
+    assert batch_supports(parse_spec(BATCH_SPEC).settings)
+    assert_rows_match_simulate(batch_sweep, BATCH_SPEC, tmp_path, rtol=1e-9)
+
+
+def test_controller_rows_are_simulate_runs_exactly(tmp_path):
+    spec = parse_spec(CONTROLLER_SPEC)
+    assert not batch_supports(spec.settings)
+    run_sweep(write_spec(tmp_path, CONTROLLER_SPEC), tmp_path / 'out', '--workers', 1)
+    assert_rows_match_simulate(tmp_path / 'out', CONTROLLER_SPEC, tmp_path, rtol=0.0)
+    names, rows = read_results(tmp_path / 'out' / 'results.csv')
+    detached = [dict(zip(names, row))['detached'] for row in rows]
+    assert detached == [0.0, 1.0]  # the higher CoM lifts a wheel, the lower one holds
+
+
+def test_results_do_not_depend_on_workers_chunking_or_resumption(batch_sweep, tmp_path):
+    spec = write_spec(tmp_path, {**BATCH_SPEC, 'chunk_size': 3})
+    run_sweep(spec, tmp_path / 'rechunked', '--workers', 1)
+    rechunked = (tmp_path / 'rechunked' / 'results.csv').read_text()
+    names, rows = read_results(batch_sweep / 'results.csv')
+    assert read_results(tmp_path / 'rechunked' / 'results.csv')[0] == names
+    # other batches, other round-off: a robot's numbers do not depend on its batch beyond that
+    assert np.array(read_results(tmp_path / 'rechunked' / 'results.csv')[1]) == pytest.approx(
+        np.array(rows), rel=1e-12, abs=1e-15, nan_ok=True)
+    chunks = sorted((tmp_path / 'rechunked' / 'chunks').glob('*.csv'))
+    assert len(chunks) == 2
+    kept = chunks[0].stat().st_mtime_ns
+    chunks[1].unlink()
+    (tmp_path / 'rechunked' / 'results.csv').unlink()
+    run_sweep(spec, tmp_path / 'rechunked', '--workers', 1)
+    assert chunks[0].stat().st_mtime_ns == kept  # the finished chunk was not computed again
+    assert chunks[1].exists()
+    assert (tmp_path / 'rechunked' / 'results.csv').read_text() == rechunked
+
+
+def test_figures_show_each_output_against_each_parameter_and_the_map(batch_sweep):
+    for name in ('outputs_vs_body_mass', 'outputs_vs_com_height', 'map_least_adhesion_force'):
+        png = (batch_sweep / f'{name}.png').read_bytes()
+        assert png.startswith(b'\x89PNG') and len(png) > 10_000
+
+
+def test_another_spec_is_refused_in_a_sweep_directory(batch_sweep, tmp_path):
+    spec = write_spec(tmp_path, {**BATCH_SPEC, 'seed': 5})
+    assert_one_line_error(wallbot('sweep', spec, '--out', batch_sweep), 'holds another sweep')
+
+
+def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp_path):
+    values = {**CONTROLLER_SPEC, 'contact': 'ideal', 'duration': 0.5,
+              'grid': {'body_mass': [6.0, 7.0, 8.0, 9.0, 10.0, 11.0, 12.0, 13.0]}}
+    spec, out = write_spec(tmp_path, values), tmp_path / 'out'
+    command = [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out, '--workers', 1,
+               '--no-figures']
+    sweep = process_runner.start(command, 'sweep')
+    chunk_dir = out / 'chunks'
+    while sweep.poll() is None and len(list(chunk_dir.glob('*.csv'))) < 1:
+        time.sleep(POLL)
+    assert sweep.poll() is None, process_runner.output('sweep')
+    os.kill(sweep.pid, signal.SIGINT)
+    assert sweep.wait(STALL) == 130, process_runner.output('sweep')
+    finished = sorted(chunk_dir.glob('*.csv'))
+    assert 1 <= len(finished) < 8 and not (out / 'results.csv').exists()
+    assert not list(chunk_dir.glob('*.part'))
+    run_sweep(spec, out, '--workers', 1)
+    _names, rows = read_results(out / 'results.csv')
+    assert [row[1] for row in rows] == values['grid']['body_mass']
+
+
+def test_a_dask_cluster_losing_a_worker_gives_the_local_result(process_runner, tmp_path):
+    address, workers = start_dask(process_runner, tmp_path, 2)
+    values = {**BATCH_SPEC, 'duration': 0.5, 'grid': {'body_mass': [6.0, 9.0, 12.0]}, 'chunk_size': 1}
+    spec, out = write_spec(tmp_path, values), tmp_path / 'out'
+    sweep = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out,
+                                  '--scheduler', address, '--no-figures'], 'sweep')
+    while sweep.poll() is None and not list((out / 'chunks').glob('*.csv')):
+        time.sleep(POLL)
+    assert sweep.poll() is None, process_runner.output('sweep')  # 5 of 6 chunks still to do: w0 holds one
+    workers[0].kill()
+    assert sweep.wait(STALL) == 0, process_runner.output('sweep')
+    assert workers[1].poll() is None
+    assert 'Remove worker' in process_runner.output('scheduler')
+    local = tmp_path / 'local'
+    run_sweep(spec, local, '--workers', 1)
+    assert (out / 'results.csv').read_text() == (local / 'results.csv').read_text()
+
+
+@pytest.mark.parametrize('change, key', [
+    ({'grid': {'body_mas': [6.0]}}, "'body_mas'"),
+    ({'grid': {'body_mass': 6.0}}, 'grid: body_mass'),
+    ({'grid': {'body_mass': [-1.0]}}, 'body_mass'),
+    ({'vary': {'com_height': [0.08, 0.03]}, 'samples': 3}, 'vary: com_height'),
+    ({'vary': {'com_height': [0.03, 0.08]}, 'samples': None}, 'samples'),
+    ({'samples': 0, 'vary': {'com_height': [0.03, 0.08]}}, 'samples'),
+    ({'contact': 'sticky'}, 'contact'),
+    ({'contact': 'coulomb'}, 'contact'),
+    ({'duration': -1}, 'duration'),
+    ({'constraints': 'belt,wings'}, "'wings'"),
+    ({'controller': True}, 'constraints'),
+    ({'colour': 'red'}, "'colour'"),
+    ({'seed': 'x'}, 'seed'),
+    ({'grid': {'body_mass': [6.0]}, 'vary': {'body_mass': [6.0, 7.0]}, 'samples': 2}, "'body_mass'"),
+])
+def test_bad_spec_is_one_error_naming_the_key(change, key):
+    values = {name: value for name, value in {**BATCH_SPEC, **change}.items() if value is not None}
+    with pytest.raises((SweepError, ParameterError)) as error:
+        parse_spec(values)
+    assert key in str(error.value) and '\n' not in str(error.value)
+
+
+def test_bad_spec_file_is_one_line_on_the_command_line(tmp_path):
+    spec = write_spec(tmp_path, {**BATCH_SPEC, 'grid': {'wheel_count': [4]}})
+    assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'out'), 'spec.yaml', "'wheel_count'")
+    assert not (tmp_path / 'out').exists()
+
+
+def start_dask(process_runner, folder: Path, workers: int, *options: object) -> tuple[str, list]:
+    """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes on 127.0.0.1 (no
+    nanny: killing a worker kills it); the scheduler's address and the worker processes."""
+    dask = Path(sys.executable).with_name('dask')
+    scheduler_file = folder / 'scheduler.json'
+    process_runner.start([dask, 'scheduler', '--host', '127.0.0.1', '--port', 0, '--no-dashboard',
+                          '--scheduler-file', scheduler_file, *options], 'scheduler')
+    deadline = time.monotonic() + STALL
+    while not scheduler_file.exists() and time.monotonic() < deadline:
+        time.sleep(POLL)
+    address = json.loads(scheduler_file.read_text())['address']
+    processes = [process_runner.start([dask, 'worker', address, '--host', '127.0.0.1', '--nthreads', 1,
+                                       '--no-nanny', '--no-dashboard', '--name', f'w{k}', *options], f'w{k}')
+                 for k in range(workers)]
+    return address, processes
+
+
+def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_runner, tmp_path):
+    openssl = shutil.which('openssl')
+    if openssl is None:
+        pytest.skip('no openssl command to make a self-signed certificate')
+    cert, key = tmp_path / 'cert.pem', tmp_path / 'key.pem'
+    subprocess.run([openssl, 'req', '-x509', '-newkey', 'rsa:2048', '-nodes', '-keyout', key, '-out', cert,
+                    '-days', '1', '-subj', '/CN=wallbot-sweep-test', '-addext', 'basicConstraints=critical,CA:TRUE'],
+                   check=True, capture_output=True)
+    tls = ['--protocol', 'tls', '--tls-ca-file', cert, '--tls-cert', cert, '--tls-key', key]
+    address, _workers = start_dask(process_runner, tmp_path, 1, *tls[2:])
+    assert address.startswith('tls://')
+    security = tmp_path / 'tls.yaml'
+    security.write_text(yaml.safe_dump({'tls_ca_file': str(cert), 'tls_client_cert': str(cert),
+                                        'tls_client_key': str(key)}), encoding='utf-8')
+    values = {**BATCH_SPEC, 'grid': {'body_mass': [6.0]}, 'samples': 1}
+    spec = write_spec(tmp_path, values)
+    assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'refused', '--quiet', '--scheduler',
+                                  address.replace('tls://', 'tcp://')), 'cannot reach the Dask scheduler')
+    run_sweep(spec, tmp_path / 'out', '--scheduler', address, '--security', security)
+    run_sweep(spec, tmp_path / 'local', '--workers', 1)
+    assert (tmp_path / 'out' / 'results.csv').read_text() == (tmp_path / 'local' / 'results.csv').read_text()
+
+
+def test_progress_shows_robots_done_throughput_and_time_left():
+    stream = io.StringIO()
+    progress = SweepProgress(robots=10, done=2, steps=1001, stream=stream)
+    progress.update(3, force=True)
+    line = stream.getvalue()
+    assert line.startswith('  5 / 10 robots') and line.endswith('s left\n')
+    rate = float(line.split('robots')[1].split('robot-steps/s')[0].replace(',', ''))
+    left = float(line.split('robot-steps/s')[1].split('s left')[0].replace(',', ''))
+    assert rate > 0 and left == pytest.approx(5 * 1001 / rate, abs=1.0)  # the 5 robots to do at that rate

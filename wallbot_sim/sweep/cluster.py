@@ -1,0 +1,70 @@
+"""Chunks as Dask tasks: on a local cluster over this machine's cores, or on an existing cluster.
+
+Each chunk is one independent task (``compute.chunk_results`` of its robots). The scheduler hands a
+chunk whose worker died to another worker, up to ``distributed.scheduler.allowed-failures`` times; a
+chunk that raised is retried RETRIES times. Results come back to this process, which stores each
+chunk as it finishes, so the workers need the package but no shared file system.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import uuid
+from contextlib import ExitStack
+from typing import Callable, Sequence
+
+from wallbot_sim.sweep.compute import chunk_results
+from wallbot_sim.sweep.errors import SweepError
+from wallbot_sim.sweep.spec import SweepSpec
+
+RETRIES = 2
+"""Extra attempts of a chunk whose task raised (a dead worker's chunk is rescheduled besides)."""
+LOCAL_HOST = '127.0.0.1'
+"""The local cluster listens on the loopback interface only: nothing outside this machine reaches it."""
+CONNECT_TIMEOUT = '20s'
+
+
+def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, list[list[float]]], None],
+               workers: int | None = None, scheduler: str | None = None, security: object | None = None) -> None:
+    """Compute ``chunks`` (indices into ``spec.chunks()``) and give each one's rows to ``on_done`` as it
+    finishes. ``scheduler``: an existing cluster's address (tcp://HOST:PORT, or tls://... with
+    ``security``, a ``distributed.Security``); None: a local cluster of ``workers`` processes
+    (default: one per core; 1: the chunks one after the other in this process, without Dask)."""
+    if not chunks:
+        return
+    count = workers or os.cpu_count() or 1
+    if scheduler is None and count == 1:  # one worker: this process, no cluster to start
+        for index in chunks:
+            on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
+        return
+    from dask.distributed import Client, LocalCluster, as_completed  # only when a sweep runs
+    from distributed.scheduler import KilledWorker
+
+    with ExitStack() as stack:
+        if scheduler is None:
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=count, threads_per_worker=1, processes=True, host=LOCAL_HOST, dashboard_address=None,
+                silence_logs=logging.ERROR))
+            client = stack.enter_context(Client(cluster))
+        else:
+            try:
+                client = stack.enter_context(Client(scheduler, timeout=CONNECT_TIMEOUT, security=security))
+            except (OSError, TimeoutError, ValueError) as error:
+                raise SweepError(f'cannot reach the Dask scheduler at {scheduler}: {error}') from None
+        settings = client.scatter(spec.settings, broadcast=True)
+        ranges = spec.chunks()
+        run = uuid.uuid4().hex[:8]
+        futures = {}
+        for index in chunks:
+            robots = [spec.parameters(robot) for robot in ranges[index]]
+            future = client.submit(chunk_results, settings, robots, key=f'wallbot-sweep-{run}-chunk-{index:06d}',
+                                   retries=RETRIES, pure=False)
+            futures[future] = index
+        for future in as_completed(futures):
+            try:
+                rows = future.result()
+            except KilledWorker:
+                raise SweepError(f'chunk {futures[future]}: every worker that ran it died (the scheduler\'s '
+                                 'allowed-failures); the finished chunks are kept') from None
+            on_done(futures[future], rows)

@@ -1,0 +1,187 @@
+"""The work of one chunk: its robots' runs, each summarized as one results row.
+
+Every robot runs as ``wallbot-sim simulate`` runs it (same scenario, constraints, contact, controller,
+step), and its row holds the numbers the run summary and the motor analysis of ``wallbot_sim.rundata``
+give for that run's CSV. :func:`robot_steps` is the one place that chooses how the runs are computed:
+the batch core (``wallbot_sim.model.batch``) for what it supports, the single-robot ``Simulation``
+robot by robot otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterator, Sequence
+
+import numpy as np
+
+from wallbot_sim.control import TrackingController
+from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
+from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
+from wallbot_sim.model.batch import BatchOutputs, BatchSimulation
+from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
+from wallbot_sim.rundata.load import run_from_columns
+from wallbot_sim.rundata.motors import motor_report
+from wallbot_sim.rundata.summary import summarize_run
+
+OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
+           'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use_L', 'max_use_R',
+           'max_use_lat', 'least_adhesion_force', 'applied_adhesion_force', 'slipped', 'detached', 't_detached',
+           'max_residual', 'feasible')
+"""The results columns after a robot's parameters."""
+COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}
+FEASIBLE_USE = NumberRange(high=1.0)
+"""Friction use a feasible robot stays within: above 1 a channel would slip on a real wall."""
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """What every robot of a sweep runs, as ``simulate`` would run it."""
+
+    scenario: Scenario
+    selection: ConstraintSelection
+    contact: str
+    duration: float
+    dt: float
+    controller: bool
+    controller_mass_scale: float
+
+    @property
+    def steps(self) -> int:
+        """RK4 steps of each run (its CSV has one row more)."""
+        return round(self.duration / self.dt)
+
+
+def batch_supports(settings: RunSettings) -> bool:
+    """Whether the batch core runs these settings (ideal contact, no controller)."""
+    return settings.contact == 'ideal' and not settings.controller
+
+
+def robot_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
+    """Per robot, in order, its run's steps as a simulate CSV holds them: (steps + 1, len(CSV_COLUMNS))."""
+    if batch_supports(settings):
+        yield from _batch_steps(settings, robots)
+    else:
+        for params in robots:
+            yield _single_steps(settings, params)
+
+
+def chunk_results(settings: RunSettings, robots: Sequence[RobotParameters]) -> list[list[float]]:
+    """The OUTPUTS of each robot's run, in order."""
+    return [result_row(steps, params) for steps, params in zip(robot_steps(settings, robots), robots)]
+
+
+def result_row(steps: np.ndarray, params: RobotParameters) -> list[float]:
+    """OUTPUTS of one run from its steps, by the run summary and the motor analysis."""
+    run = run_from_columns(steps, 'sweep robot')
+    summary = summarize_run(run, 'sweep robot')
+    report = motor_report(run, params)
+    contact = report.contact
+    use = contact.peak_use if contact is not None else (math.nan,) * 3
+    slipped, detached = summary.first_slip is not None, summary.lift_off is not None
+    feasible = not slipped and not detached and all(FEASIBLE_USE.problem(value) is None for value in use)
+    return [summary.final_tracking_error, summary.peak_tracking_error_after_5s, summary.peak_drive_force_left,
+            summary.peak_drive_force_right, summary.peak_lateral_force, report.left.peak_torque,
+            report.right.peak_torque, float(np.nanmin(run.loads)), *use,
+            contact.least_adhesion if contact is not None else math.nan, report.adsorption.applied,
+            int(slipped), int(detached), summary.lift_off[0] if detached else math.nan, summary.max_residual,
+            int(feasible)]
+
+
+def _single_steps(settings: RunSettings, params: RobotParameters) -> np.ndarray:
+    robot = Robot(params)
+    q0, qd0 = settings.scenario.initial_state(robot)
+    simulation = Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0, dt=settings.dt,
+                            contact=settings.contact)
+    controller = None
+    if settings.controller:  # the controller's robot is the robot file's, its mass scaled
+        model = controller_robot(params, settings.controller_mass_scale)
+        controller = close_loop(simulation, SampledController(TrackingController(model, simulation.reference)))
+    rows: list[list[float]] = []
+
+    def on_step(out: StepOutputs) -> None:
+        rows.append(csv_row(out))
+        if controller is not None:  # after the state was recorded, as simulate answers a written state
+            controller(out)
+
+    try:
+        simulation.run(settings.duration, on_step)
+    except DetachedError:
+        pass  # the run ends where simulate's ends; its last step has the lifted wheel's negative load
+    return np.array(rows, dtype=float)
+
+
+def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
+    models = [Robot(params) for params in robots]
+    simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
+    columns = BatchColumns(models, settings.scenario)
+    steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
+    for k in range(settings.steps + 1):
+        if k:
+            simulation.step()
+        columns.fill(simulation.outputs(), steps[k])
+    for i in range(len(models)):
+        yield steps[:, i]
+
+
+class BatchColumns:
+    """A simulate CSV row of every robot of a batch with ideal contact, from the batch's outputs.
+
+    The derived outputs are those of ``Simulation`` (docs/model.md sections 8 and 11) over the batch:
+    drive forces of the constraint wrench, normal loads, friction use; no channel slips.
+    """
+
+    def __init__(self, robots: Sequence[Robot], scenario: Scenario) -> None:
+        params = [robot.params for robot in robots]
+        self.reference = scenario.reference
+        self.half_track = np.array([p.half_track for p in params])
+        self.mass = np.array([robot.total_mass for robot in robots])
+        self.first_moment = np.array([robot.first_moment for robot in robots])
+        self.weight = self.mass * np.array([p.gravity for p in params])
+        self.adhesion = np.array([robot.adsorption.applied_force for robot in robots])
+        self.static_friction = np.array([p.wall_friction for p in params])
+        h = np.array([p.com_height for p in params])
+        a, b = np.array([p.half_wheelbase for p in params]), self.half_track
+        offsets = np.array([robot.wheel_offsets for robot in robots])
+        self.load_gain_x = (0.25 * h / (a * a))[:, None] * offsets[:, :, 0]
+        self.load_gain_y = (0.25 * h / (b * b))[:, None] * offsets[:, :, 1]
+
+    def fill(self, out: BatchOutputs, rows: np.ndarray) -> None:
+        """Write the CSV row of every robot at ``out`` into ``rows`` (N, len(CSV_COLUMNS))."""
+        q, qd, qdd, force = out.q, out.qd, out.acceleration, out.constraint_force
+        ref = self.reference.sample(out.t).position
+        rows[:, COLUMN['t']] = out.t
+        rows[:, COLUMN['x']:COLUMN['x'] + 7] = q
+        rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = qd
+        rows[:, COLUMN['ref_x']], rows[:, COLUMN['ref_y']] = ref
+        rows[:, COLUMN['err']] = np.hypot(q[:, 0] - ref[0], q[:, 1] - ref[1])
+        rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = force
+        cos_t, sin_t = np.cos(q[:, 2]), np.sin(q[:, 2])
+        longitudinal = cos_t * force[:, 0] + sin_t * force[:, 1]
+        differential = force[:, 2] / self.half_track
+        drive = np.stack((0.5 * (longitudinal - differential), 0.5 * (longitudinal + differential),
+                          -sin_t * force[:, 0] + cos_t * force[:, 1]), axis=1)
+        rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = drive
+        rows[:, COLUMN['residual']] = out.residual
+        loads = self._loads(cos_t, sin_t, qd[:, 2], qdd)
+        rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = loads
+        limits = self.static_friction[:, None] * np.stack(
+            (loads[:, 0] + loads[:, 1], loads[:, 2] + loads[:, 3], self.adhesion), axis=1)
+        magnitude = np.abs(drive)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            use = np.where(limits > 0.0, magnitude / limits, np.where(magnitude == 0.0, 0.0, math.inf))
+        rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = use
+        rows[:, COLUMN['slip_L']:COLUMN['slip_L'] + 3] = 0.0
+
+    def _loads(self, cos_t: np.ndarray, sin_t: np.ndarray, rate: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """N_1..N_4 (N, 4): the least-norm loads balancing F_ad and the moment of gravity and inertia."""
+        sx, sy = self.first_moment[:, 0], self.first_moment[:, 1]
+        rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
+        inertial_x = self.mass * qdd[:, 0] - qdd[:, 2] * rsy - rate * rate * rsx
+        inertial_y = self.mass * qdd[:, 1] + qdd[:, 2] * rsx - rate * rate * rsy
+        fx, fy = -inertial_x, -self.weight - inertial_y
+        body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
+        return (0.25 * self.adhesion[:, None] + self.load_gain_x * body_x[:, None]
+                + self.load_gain_y * body_y[:, None])
