@@ -116,72 +116,24 @@ def _single_steps(settings: RunSettings, params: RobotParameters) -> np.ndarray:
 def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
     models = [Robot(params) for params in robots]
     simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
-    columns = BatchColumns(models, settings.scenario)
     steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
-    for k in range(settings.steps + 1):
-        if k:
-            simulation.step()
-        columns.fill(simulation.outputs(), steps[k])
+    instant = iter(steps)
+    simulation.run(settings.steps, lambda out: fill_rows(out, next(instant)))
     for i in range(len(models)):
         yield steps[:, i]
 
 
-class BatchColumns:
-    """A simulate CSV row of every robot of a batch with ideal contact, from the batch's outputs.
-
-    The derived outputs are those of ``Simulation`` (docs/model.md sections 8 and 11) over the batch:
-    drive forces of the constraint wrench, normal loads, friction use; no channel slips.
-    """
-
-    def __init__(self, robots: Sequence[Robot], scenario: Scenario) -> None:
-        params = [robot.params for robot in robots]
-        self.reference = scenario.reference
-        self.half_track = np.array([p.half_track for p in params])
-        self.mass = np.array([robot.total_mass for robot in robots])
-        self.first_moment = np.array([robot.first_moment for robot in robots])
-        self.weight = self.mass * np.array([p.gravity for p in params])
-        self.adhesion = np.array([robot.adsorption.applied_force for robot in robots])
-        self.static_friction = np.array([p.wall_friction for p in params])
-        h = np.array([p.com_height for p in params])
-        a, b = np.array([p.half_wheelbase for p in params]), self.half_track
-        offsets = np.array([robot.wheel_offsets for robot in robots])
-        self.load_gain_x = (0.25 * h / (a * a))[:, None] * offsets[:, :, 0]
-        self.load_gain_y = (0.25 * h / (b * b))[:, None] * offsets[:, :, 1]
-
-    def fill(self, out: BatchOutputs, rows: np.ndarray) -> None:
-        """Write the CSV row of every robot at ``out`` into ``rows`` (N, len(CSV_COLUMNS))."""
-        q, qd, qdd, force = out.q, out.qd, out.acceleration, out.constraint_force
-        ref = self.reference.sample(out.t).position
-        rows[:, COLUMN['t']] = out.t
-        rows[:, COLUMN['x']:COLUMN['x'] + 7] = q
-        rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = qd
-        rows[:, COLUMN['ref_x']], rows[:, COLUMN['ref_y']] = ref
-        rows[:, COLUMN['err']] = np.hypot(q[:, 0] - ref[0], q[:, 1] - ref[1])
-        rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = force
-        cos_t, sin_t = np.cos(q[:, 2]), np.sin(q[:, 2])
-        longitudinal = cos_t * force[:, 0] + sin_t * force[:, 1]
-        differential = force[:, 2] / self.half_track
-        drive = np.stack((0.5 * (longitudinal - differential), 0.5 * (longitudinal + differential),
-                          -sin_t * force[:, 0] + cos_t * force[:, 1]), axis=1)
-        rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = drive
-        rows[:, COLUMN['residual']] = out.residual
-        loads = self._loads(cos_t, sin_t, qd[:, 2], qdd)
-        rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = loads
-        limits = self.static_friction[:, None] * np.stack(
-            (loads[:, 0] + loads[:, 1], loads[:, 2] + loads[:, 3], self.adhesion), axis=1)
-        magnitude = np.abs(drive)
-        with np.errstate(divide='ignore', invalid='ignore'):
-            use = np.where(limits > 0.0, magnitude / limits, np.where(magnitude == 0.0, 0.0, math.inf))
-        rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = use
-        rows[:, COLUMN['slip_L']:COLUMN['slip_L'] + 3] = 0.0
-
-    def _loads(self, cos_t: np.ndarray, sin_t: np.ndarray, rate: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-        """N_1..N_4 (N, 4): the least-norm loads balancing F_ad and the moment of gravity and inertia."""
-        sx, sy = self.first_moment[:, 0], self.first_moment[:, 1]
-        rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
-        inertial_x = self.mass * qdd[:, 0] - qdd[:, 2] * rsy - rate * rate * rsx
-        inertial_y = self.mass * qdd[:, 1] + qdd[:, 2] * rsx - rate * rate * rsy
-        fx, fy = -inertial_x, -self.weight - inertial_y
-        body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
-        return (0.25 * self.adhesion[:, None] + self.load_gain_x * body_x[:, None]
-                + self.load_gain_y * body_y[:, None])
+def fill_rows(out: BatchOutputs, rows: np.ndarray) -> None:
+    """The simulate CSV row (``csv_row``) of every robot of a batch at ``out``, into ``rows`` (N, len(CSV_COLUMNS))."""
+    reference = out.reference.position if out.reference is not None else (math.nan, math.nan)
+    rows[:, COLUMN['t']] = out.t
+    rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
+    rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
+    rows[:, COLUMN['ref_x']], rows[:, COLUMN['ref_y']] = reference
+    rows[:, COLUMN['err']] = out.tracking_error
+    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = out.constraint_force
+    rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
+    rows[:, COLUMN['residual']] = out.residual
+    rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
+    rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = out.use
+    rows[:, COLUMN['slip_L']:COLUMN['slip_L'] + 3] = out.slipping
