@@ -52,7 +52,9 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
                 client = stack.enter_context(Client(scheduler, timeout=CONNECT_TIMEOUT, security=security))
             except (OSError, TimeoutError, ValueError) as error:
                 raise SweepError(f'cannot reach the Dask scheduler at {scheduler}: {error}') from None
-        settings = client.scatter(spec.settings, broadcast=True)
+        # settings go with every task (small): scattered data would die with the workers holding it,
+        # and a worker that joins later would not have it
+        settings = spec.settings
         ranges = spec.chunks()
         run = uuid.uuid4().hex[:8]
         futures = {}
