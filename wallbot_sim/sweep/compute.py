@@ -2,7 +2,7 @@
 
 Every robot runs as ``wallbot-sim simulate`` runs it (same scenario, constraints, contact, controller,
 step), and its row holds the numbers the run summary and the motor analysis of ``wallbot_sim.rundata``
-give for that run's CSV. :func:`robot_steps` is the one place that chooses how the runs are computed:
+give for that run's CSV. :func:`robot_runs` is the one place that chooses how the runs are computed:
 the batch core (``wallbot_sim.model.batch``) for what it supports, the single-robot ``Simulation``
 robot by robot otherwise.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterator, Sequence
+from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
@@ -59,38 +59,53 @@ def batch_supports(settings: RunSettings) -> bool:
     return settings.contact == 'ideal' and not settings.controller
 
 
-def robot_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
-    """Per robot, in order, its run's steps as a simulate CSV holds them: (steps + 1, len(CSV_COLUMNS))."""
+class RobotRun(NamedTuple):
+    """One robot's run as ``simulate`` makes it."""
+
+    steps: np.ndarray
+    """Its CSV rows (steps + 1, len(CSV_COLUMNS)), fewer if it detached."""
+    lift_off: DetachedError | None = None
+    """The lift-off that ended it, as simulate reports it (exit status 3). Its load need not be in the
+    rows: a command answered at the last written instant can lift a wheel at that same instant."""
+
+
+def robot_runs(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[RobotRun]:
+    """Per robot, in order, its run."""
     if batch_supports(settings):
-        yield from _batch_steps(settings, robots)
+        yield from (RobotRun(steps) for steps in _batch_steps(settings, robots))
     else:
         for params in robots:
-            yield _single_steps(settings, params)
+            yield _single_run(settings, params)
 
 
 def chunk_results(settings: RunSettings, robots: Sequence[RobotParameters]) -> list[list[float]]:
     """The OUTPUTS of each robot's run, in order."""
-    return [result_row(steps, params) for steps, params in zip(robot_steps(settings, robots), robots)]
+    return [result_row(run, params) for run, params in zip(robot_runs(settings, robots), robots)]
 
 
-def result_row(steps: np.ndarray, params: RobotParameters) -> list[float]:
-    """OUTPUTS of one run from its steps, by the run summary and the motor analysis."""
-    run = run_from_columns(steps, 'sweep robot')
+def result_row(robot_run: RobotRun, params: RobotParameters) -> list[float]:
+    """OUTPUTS of one run from its steps, by the run summary and the motor analysis (and simulate's
+    verdict on a lift-off)."""
+    run = run_from_columns(robot_run.steps, 'sweep robot')
     summary = summarize_run(run, 'sweep robot')
     report = motor_report(run, params)
     contact = report.contact
     use = contact.peak_use if contact is not None else (math.nan,) * 3
-    slipped, detached = summary.first_slip is not None, summary.lift_off is not None
+    lift_off = summary.lift_off
+    if lift_off is None and robot_run.lift_off is not None:
+        lift_off = (robot_run.lift_off.t, robot_run.lift_off.wheel, robot_run.lift_off.load)
+    min_load = float(np.nanmin(run.loads)) if lift_off is None else min(float(np.nanmin(run.loads)), lift_off[2])
+    slipped, detached = summary.first_slip is not None, lift_off is not None
     feasible = not slipped and not detached and all(FEASIBLE_USE.problem(value) is None for value in use)
     return [summary.final_tracking_error, summary.peak_tracking_error_after_5s, summary.peak_drive_force_left,
             summary.peak_drive_force_right, summary.peak_lateral_force, report.left.peak_torque,
-            report.right.peak_torque, float(np.nanmin(run.loads)), *use,
+            report.right.peak_torque, min_load, *use,
             contact.least_adhesion if contact is not None else math.nan, report.adsorption.applied,
-            int(slipped), int(detached), summary.lift_off[0] if detached else math.nan, summary.max_residual,
+            int(slipped), int(detached), lift_off[0] if detached else math.nan, summary.max_residual,
             int(feasible)]
 
 
-def _single_steps(settings: RunSettings, params: RobotParameters) -> np.ndarray:
+def _single_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
     robot = Robot(params)
     q0, qd0 = settings.scenario.initial_state(robot)
     simulation = Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0, dt=settings.dt,
@@ -108,9 +123,9 @@ def _single_steps(settings: RunSettings, params: RobotParameters) -> np.ndarray:
 
     try:
         simulation.run(settings.duration, on_step)
-    except DetachedError:
-        pass  # the run ends where simulate's ends; its last step has the lifted wheel's negative load
-    return np.array(rows, dtype=float)
+    except DetachedError as lift_off:  # the run ends where simulate's ends
+        return RobotRun(np.array(rows, dtype=float), lift_off)
+    return RobotRun(np.array(rows, dtype=float))
 
 
 def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
