@@ -6,6 +6,7 @@ import io
 import json
 import math
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -32,8 +33,9 @@ BATCH_SPEC = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', '
               'chunk_size': 2}
 """Four robots on the batch core (ideal contact, no controller)."""
 CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'coulomb', 'controller': True, 'controller_mass_scale': 1.2,
-                   'duration': 0.3, 'grid': {'adhesion_force': [200.0], 'com_height': [0.2, 0.4]}, 'chunk_size': 1}
-"""Two robots on the single-robot Simulation, the one with the higher CoM tipping off the wall at once."""
+                   'duration': 0.3, 'grid': {'adhesion_force': [200.0], 'com_height': [0.05, 0.4]}, 'chunk_size': 1}
+"""Two robots on the single-robot Simulation under the controller, the one with the higher CoM tipping off
+the wall at once."""
 POLL = 0.05
 STALL = 120.0
 """Seconds after which a sweep that should have ended is stuck (not a timing requirement)."""
@@ -78,15 +80,21 @@ def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[st
     report = motor_report(run, params)
     contact = report.contact  # None when no step had finite friction use (a wheel off the wall at once)
     use = contact.peak_use if contact is not None else (math.nan,) * 3
-    slipped, detached = summary.first_slip is not None, summary.lift_off is not None
+    lift_off = summary.lift_off
+    if result.returncode == 3:  # simulate's verdict: "detached: wheel W, normal load L N, t = T s"
+        found = re.search(r'detached: wheel (\d), normal load (\S+) N, t = (\S+) s', result.stderr)
+        assert found, result.stderr
+        lift_off = lift_off or (float(found[3]), int(found[1]), float(found[2]))
+    slipped, detached = summary.first_slip is not None, lift_off is not None
     return {'final_err': summary.final_tracking_error, 'peak_err_after_5s': summary.peak_tracking_error_after_5s,
             'peak_abs_F_left': summary.peak_drive_force_left, 'peak_abs_F_right': summary.peak_drive_force_right,
             'peak_abs_F_lateral': summary.peak_lateral_force, 'peak_motor_torque_left': report.left.peak_torque,
-            'peak_motor_torque_right': report.right.peak_torque, 'min_normal_load': float(np.min(run.loads)),
+            'peak_motor_torque_right': report.right.peak_torque,
+            'min_normal_load': min(float(np.min(run.loads)), lift_off[2] if detached else math.inf),
             'max_use_L': use[0], 'max_use_R': use[1], 'max_use_lat': use[2],
             'least_adhesion_force': contact.least_adhesion if contact is not None else math.nan,
             'applied_adhesion_force': report.adsorption.applied, 'slipped': float(slipped),
-            'detached': float(detached), 't_detached': summary.lift_off[0] if detached else math.nan,
+            'detached': float(detached), 't_detached': lift_off[0] if detached else math.nan,
             'max_residual': summary.max_residual,
             'feasible': float(not slipped and not detached and all(value <= 1.0 for value in use))}
 
@@ -117,7 +125,7 @@ def test_controller_rows_are_simulate_runs_exactly(tmp_path):
     assert_rows_match_simulate(tmp_path / 'out', CONTROLLER_SPEC, tmp_path, rtol=0.0)
     names, rows = read_results(tmp_path / 'out' / 'results.csv')
     detached = [dict(zip(names, row))['detached'] for row in rows]
-    assert detached == [0.0, 1.0]  # the higher CoM lifts a wheel, the lower one holds
+    assert detached == [0.0, 1.0]  # the higher CoM lifts a wheel, the robot file's holds
 
 
 def test_results_do_not_depend_on_workers_chunking_or_resumption(batch_sweep, tmp_path):
@@ -173,14 +181,18 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
 
 
 def test_a_dask_cluster_losing_a_worker_gives_the_local_result(process_runner, tmp_path):
-    address, workers = start_dask(process_runner, tmp_path, 2)
-    values = {**BATCH_SPEC, 'duration': 0.5, 'grid': {'body_mass': [6.0, 9.0, 12.0]}, 'chunk_size': 1}
+    """The first worker runs the sweep's chunks alone until one is done; then a second joins and the
+    first is killed with the rest of the queue on it: its chunks are retried, the results equal a
+    local run's."""
+    address, workers = start_dask(process_runner, tmp_path, 1)
+    values = {**BATCH_SPEC, 'duration': 0.5, 'grid': {'body_mass': [6.0, 8.0, 10.0, 12.0]}, 'chunk_size': 1}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
     sweep = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out,
                                   '--scheduler', address, '--no-figures'], 'sweep')
     while sweep.poll() is None and not list((out / 'chunks').glob('*.csv')):
         time.sleep(POLL)
-    assert sweep.poll() is None, process_runner.output('sweep')  # 5 of 6 chunks still to do: w0 holds one
+    assert sweep.poll() is None, process_runner.output('sweep')  # 7 of 8 chunks still to do, all on w0
+    workers.append(start_worker(process_runner, address, 'w1'))
     workers[0].kill()
     assert sweep.wait(STALL) == 0, process_runner.output('sweep')
     assert workers[1].poll() is None
@@ -230,10 +242,13 @@ def start_dask(process_runner, folder: Path, workers: int, *options: object) -> 
     while not scheduler_file.exists() and time.monotonic() < deadline:
         time.sleep(POLL)
     address = json.loads(scheduler_file.read_text())['address']
-    processes = [process_runner.start([dask, 'worker', address, '--host', '127.0.0.1', '--nthreads', 1,
-                                       '--no-nanny', '--no-dashboard', '--name', f'w{k}', *options], f'w{k}')
-                 for k in range(workers)]
-    return address, processes
+    return address, [start_worker(process_runner, address, f'w{k}', *options) for k in range(workers)]
+
+
+def start_worker(process_runner, address: str, name: str, *options: object):
+    """A single-threaded ``dask worker`` without a nanny (killing it kills the worker), on 127.0.0.1."""
+    return process_runner.start([Path(sys.executable).with_name('dask'), 'worker', address, '--host', '127.0.0.1',
+                                 '--nthreads', 1, '--no-nanny', '--no-dashboard', '--name', name, *options], name)
 
 
 def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_runner, tmp_path):
@@ -268,3 +283,17 @@ def test_progress_shows_robots_done_throughput_and_time_left():
     rate = float(line.split('robots')[1].split('robot-steps/s')[0].replace(',', ''))
     left = float(line.split('robot-steps/s')[1].split('s left')[0].replace(',', ''))
     assert rate > 0 and left == pytest.approx(5 * 1001 / rate, abs=1.0)  # the 5 robots to do at that rate
+
+
+def test_a_robot_lifted_by_the_command_answered_at_its_last_row_counts_as_detached(tmp_path):
+    """simulate exits 3 for a robot whose wheel the controller's first command lifts at t = 0, although
+    its one CSV row (written before that command) has every load positive: the sweep says detached
+    too, with that load, and not feasible."""
+    spec = {**CONTROLLER_SPEC, 'grid': {'adhesion_force': [200.0], 'com_height': [0.2]}}
+    run_sweep(write_spec(tmp_path, spec), tmp_path / 'out', '--workers', 1)
+    names, rows = read_results(tmp_path / 'out' / 'results.csv')
+    got = dict(zip(names, rows[0]))
+    assert (got['detached'], got['feasible'], got['t_detached']) == (1.0, 0.0, 0.0)
+    assert got['min_normal_load'] < 0.0
+    # simulate prints the lifted wheel's load to 0.01 N: that column agrees to its print, the others exactly
+    assert_rows_match_simulate(tmp_path / 'out', spec, tmp_path, rtol=1e-4)
