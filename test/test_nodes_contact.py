@@ -16,7 +16,6 @@ from sensor_msgs.msg import JointState  # noqa: E402
 
 from graph_helpers import Graph, start_graph  # noqa: E402
 from wallbot_msgs_py import topics  # noqa: E402
-from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim.paths import robot_yaml  # noqa: E402
 
 DRIVEN = ('trajectory_task:=false', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
@@ -25,9 +24,7 @@ DRIVEN = ('trajectory_task:=false', 'belt:=true', 'non_lateral:=true', 'nonslip:
 @pytest.fixture
 def graph(process_runner):
     g = Graph(process_runner)
-    g.received['contact'] = []
-    g.node.create_subscription(JointState, topics.WHEEL_CONTACT.resolve(g.namespace), g._keeper('contact'),
-                               qos_profile(topics.WHEEL_CONTACT))
+    g.subscribe('contact', JointState, topics.WHEEL_CONTACT.resolve(g.namespace), topics.WHEEL_CONTACT)
     try:
         yield g
     finally:
