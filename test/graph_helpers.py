@@ -58,12 +58,25 @@ class Graph:
                             (topics.REFERENCE_TRAJECTORY, MultiDOFJointTrajectory),
                             (topics.REFERENCE_PATH, Path), (topics.REFERENCE, Odometry)):
             self.subscribe(topic.name, kind, topic.resolve(namespace), topic)
-        self.torque_pub = self.node.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.resolve(namespace),
-                                                     qos_profile(topics.WHEEL_TORQUE_CMD))
+        self._torque_pub = None
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.spinner = threading.Thread(target=self._spin, daemon=True)
         self.spinner.start()
+
+    @property
+    def torque_pub(self):
+        """This test's wheel_torque_cmd publisher, matched to the dynamics' subscription.
+
+        Created on first use: an idle one would count as a controller for a dynamics with
+        wait_for_command, which would then start without waiting for the real one's subscription.
+        """
+        if self._torque_pub is None:
+            self._torque_pub = self.node.create_publisher(
+                Float64MultiArray, topics.WHEEL_TORQUE_CMD.resolve(self.namespace), qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.wait_for(lambda: self._torque_pub.get_subscription_count() > 0, 15,
+                      'the dynamics subscribing wheel_torque_cmd')
+        return self._torque_pub
 
     def subscribe(self, name: str, kind: type, topic_name: str, topic: topics.Topic) -> None:
         """Keep the messages of ``topic_name`` (with ``topic``'s QoS) as ``messages(name)``."""
