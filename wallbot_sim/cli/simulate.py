@@ -18,9 +18,9 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
-from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
+from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
@@ -29,8 +29,6 @@ REST = 'rest'
 """The scenario with no trajectory task: at rest at the origin, constant motor torques."""
 REST_DURATION = 1.0
 DRIVEN_CONSTRAINTS = ','.join(STRUCTURAL)
-TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
-"""RK4 steps --dt accepts (s)."""
 DETACHED_STATUS = 3
 
 

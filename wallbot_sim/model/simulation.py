@@ -14,7 +14,7 @@ from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
-from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
@@ -22,6 +22,8 @@ from wallbot_sim.model.trajectories import LastSample, Reference
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
+TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
+"""The RK4 steps the tools accept (s): simulate's --dt and a sweep's dt."""
 
 
 class DivergedError(ModelError):

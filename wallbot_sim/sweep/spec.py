@@ -32,7 +32,7 @@ import numpy as np
 
 from wallbot_sim.config import load_robot_parameters, load_scenario, read_yaml
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.model import DEFAULT_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
+from wallbot_sim.model import DEFAULT_STEP, TIME_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
@@ -42,8 +42,6 @@ from wallbot_sim.sweep.errors import SweepError
 SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration', 'dt', 'controller',
             'controller_mass_scale', 'robot', 'chunk_size')
 VARIATION = ('grid', 'vary', 'samples', 'seed')
-TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
-"""The RK4 steps a spec's dt may be (s): those simulate --dt accepts."""
 CHUNK_ROBOT_STEPS = 1_500_000
 """Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 312 bytes per
 robot-step (about 470 MB), until each robot's run is summarized."""
