@@ -82,7 +82,12 @@ def yaw_quaternion(yaw: float) -> Any:
 
 def quaternion_yaw(q: Any) -> float:
     """Rotation about Z of a quaternion, in (-pi, pi] (the only rotation this graph uses)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return yaw_of(q.x, q.y, q.z, q.w)
+
+
+def yaw_of(x: float, y: float, z: float, w: float) -> float:
+    """Rotation about Z of the quaternion (x, y, z, w), in (-pi, pi]."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def initial_pose(msg: Any, wall_frame: str = topics.WALL_FRAME) -> tuple[float, float, float]:

@@ -12,7 +12,6 @@ Reading an Odometry here took 7 us where rclpy's deserialization into a message 
 
 from __future__ import annotations
 
-import math
 import struct
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -20,6 +19,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from wallbot_msgs_py import codec
 from wallbot_msgs_py.step_cdr import ENCAPSULATION, NS_PER_S, _Template
 
 ARROW, CUBE, CYLINDER, LINE_STRIP = 0, 1, 3, 4
@@ -236,7 +236,7 @@ def odometry_pose(message: _Reader) -> OdometryPose:
     stamp_ns, frame = message.stamp_ns(), message.string()
     child = message.string()
     x, y, _z, qx, qy, qz, qw = message.doubles(7)
-    return OdometryPose(stamp_ns, frame, child, x, y, math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)))
+    return OdometryPose(stamp_ns, frame, child, x, y, codec.yaw_of(qx, qy, qz, qw))
 
 
 @_read
