@@ -242,17 +242,18 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         progress.update(duration, force=True)
         # The summary's residual is the maximum the diagnostics carry for each window of steps:
         # wait for the window that holds the last steps, published after the dynamics stopped.
+        def missing() -> list[str]:
+            return [what for what, seen in (("the dynamics' diagnostics of its stop", monitor.dynamics_stopped()),
+                                            ('the last reference pose', not reference
+                                             or monitor.reference_reached(duration)))
+                    if not seen]
         deadline = time.monotonic() + FINAL_WAIT
-        while (not (monitor.dynamics_stopped() and (not reference or monitor.reference_reached(duration)))
-               and time.monotonic() < deadline):
+        while missing() and time.monotonic() < deadline:
             check_nodes(graph, reported)
             monitor.spin(0.1)
-        missing = [what for what, seen in (('the dynamics\' diagnostics of its stop', monitor.dynamics_stopped()),
-                                           ('the last reference pose', not reference
-                                            or monitor.reference_reached(duration)))
-                   if not seen]
-        if missing:
-            print(f'\nwallbot-sim run: {" and ".join(missing)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
+        late = missing()
+        if late:
+            print(f'\nwallbot-sim run: {" and ".join(late)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
                   f'early (logs in {graph.log_dir})', file=sys.stderr)
     finally:
         graph.signal_all(first=(RECORDER,))  # the recorder's bag ends at its signal
