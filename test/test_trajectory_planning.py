@@ -226,13 +226,13 @@ def test_with_wait_for_recorder_the_first_plan_waits_until_a_recorder_hears_refe
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.02)
         assert node.count_publishers(node.resolve_topic_name(topics.RECORD_PROGRESS.name)) == 1
-        assert node.plan is None and not node.planner.busy and node.recorder_check is not None
+        assert node.plan is None and not node.planner.busy and node.recorder_wait.waiting
         probe.create_subscription(Odometry, topics.REFERENCE.name, lambda _msg: None, qos_profile(topics.REFERENCE))
         deadline = time.monotonic() + 30.0
         while node.plan is None:
             assert time.monotonic() < deadline, 'no plan after the recorder subscribed reference'
             executor.spin_once(timeout_sec=0.02)
-        assert node.reference_pub.get_subscription_count() == 1 and node.recorder_check is None
+        assert node.reference_pub.get_subscription_count() == 1 and not node.recorder_wait.waiting
     finally:
         if node is not None:
             node.close()

@@ -221,6 +221,38 @@ def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) 
     return {p.name: p.value for p in parameters if names is None or p.name in names}
 
 
+class WhenRecorded:
+    """Runs ``action`` once, when a recorder hears ``publisher`` (a node's ``wait_for_recorder``).
+
+    A recorder is a node publishing record_progress; it hears the publisher once it subscribes its
+    topic and every discovered subscription of that topic is matched to it (``heard_by_every``),
+    checked on a steady timer. Until then the node holds back what would start the run (the
+    controller's odom subscription, the trajectory node's first plan), so the bag misses nothing
+    of what it publishes from the start.
+    """
+
+    CHECK_PERIOD = 0.02
+    """Wall seconds between checks."""
+
+    def __init__(self, node: Node, publisher: Publisher, action: Callable[[], None], done: str) -> None:
+        self.node, self.publisher, self.action, self.done = node, publisher, action, done
+        self.progress_topic = node.resolve_topic_name(topics.RECORD_PROGRESS.name)
+        self.timer = node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @property
+    def waiting(self) -> bool:
+        """Whether ``action`` is still to run."""
+        return self.timer is not None
+
+    def _check(self) -> None:
+        if not heard_by_every(self.node, self.publisher, self.progress_topic):
+            return
+        self.node.destroy_timer(self.timer)
+        self.timer = None
+        self.node.get_logger().info(self.done)
+        self.action()
+
+
 class HeldCommands:
     """A command publisher whose messages go out only once the sender of ``state_topic`` hears them.
 

@@ -38,7 +38,6 @@ import sys
 
 import numpy as np
 from nav_msgs.msg import Odometry
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
@@ -54,7 +53,7 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, heard_by_every,
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, WhenRecorded, declare,
                                       param_dict, parameter_result, range_reasons, run)
 
 NODE_NAME = 'controller'
@@ -145,8 +144,10 @@ class ControllerNode(Node):
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY))
         if self.values['wait_for_recorder']:
-            self.recorder_check = self.create_timer(0.02, self._subscribe_when_recorded,
-                                                    clock=Clock(clock_type=ClockType.STEADY_TIME))
+            # a dynamics waiting for a controller (its wait_for_command) starts when this node
+            # subscribes odom: the recorder must hear the run's first commands
+            WhenRecorded(self, self.command_pub, self._subscribe_odom,
+                         'a recorder hears wheel_torque_cmd: subscribing odom')
         else:
             self._subscribe_odom()
         self.delivery = HeldCommands(self, self.command_pub, topics.ODOM.name)
@@ -170,20 +171,6 @@ class ControllerNode(Node):
         # raw: of the 1 kHz odometry only the messages acted on are decoded (the stamp is read
         # from the CDR bytes), which keeps the controller's CPU share low on a busy machine
         self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
-
-    def _subscribe_when_recorded(self) -> None:
-        """wait_for_recorder: subscribe odom once a recorder hears wheel_torque_cmd.
-
-        A dynamics node waiting for a controller (its wait_for_command) starts when this node
-        subscribes odom; before that, a recorder that publishes record_progress must subscribe
-        wheel_torque_cmd and every discovered subscription of it must be matched to this
-        publisher, or the first commands of the run could be sent before the recorder hears them.
-        """
-        if not heard_by_every(self, self.command_pub, self.resolve_topic_name(topics.RECORD_PROGRESS.name)):
-            return
-        self.recorder_check.cancel()
-        self.get_logger().info('a recorder hears wheel_torque_cmd: subscribing odom')
-        self._subscribe_odom()
 
     # --- callbacks -----------------------------------------------------------------------------
     def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:

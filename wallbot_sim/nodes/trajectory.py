@@ -35,8 +35,6 @@ import threading
 from dataclasses import dataclass
 
 from nav_msgs.msg import Odometry, Path
-from rclpy.clock import Clock as WallClock
-from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -50,7 +48,7 @@ from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, choice_reason, declare, heard_by_every,
+from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, WhenRecorded, choice_reason, declare,
                                       param_dict, parameter_result, range_reasons, run)
 
 MAX_POSE_BURST = 100
@@ -70,8 +68,6 @@ RANGES = {
 """What each numeric parameter accepts (its descriptor's range, and the node's check). With every
 other parameter at its default, each end is a usable plan: 10 samples of 0.05 s fill 0.5 s, 250 s
 at 0.05 s and 10 s at 0.002 s are MAX_PLAN_SAMPLES."""
-RECORDER_CHECK = 0.02
-"""Seconds (steady clock) between checks whether a recorder hears ``reference`` (wait_for_recorder)."""
 
 
 def make_reference(values: dict):
@@ -184,10 +180,10 @@ class TrajectoryNode(Node):
         """Grid index (simulation time / pose period) of the newest reference pose published."""
         self.clock_ns: int | None = None
         self.pose_lock = threading.Lock()  # poses go out from the executor and, for a new plan, the planner
-        self.recorder_check = None
+        self.recorder_wait = None
         if wait_for_recorder:
-            self.recorder_check = self.create_timer(RECORDER_CHECK, self._plan_when_recorded,
-                                                    clock=WallClock(clock_type=ClockType.STEADY_TIME))
+            self.recorder_wait = WhenRecorded(self, self.reference_pub, lambda: self.replan(self._now()),
+                                              'a recorder hears reference: planning')
         else:
             self.replan(self._now())
         self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
@@ -200,14 +196,6 @@ class TrajectoryNode(Node):
         self.clock_ns = now_ns
         self._check_plan(now_ns * 1e-9)
         self._publish_reference(now_ns)
-
-    def _plan_when_recorded(self) -> None:
-        if not heard_by_every(self, self.reference_pub, self.resolve_topic_name(topics.RECORD_PROGRESS.name)):
-            return
-        self.destroy_timer(self.recorder_check)
-        self.recorder_check = None
-        self.get_logger().info('a recorder hears reference: planning')
-        self.replan(self._now())
 
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
@@ -285,7 +273,7 @@ class TrajectoryNode(Node):
         self.values.update(changes)
         if 'publish_rate_hz' in changes:
             self.last_pose = None  # a new grid: it starts at the next clock
-        if set(changes) - {'publish_rate_hz'} and self.recorder_check is None:
+        if set(changes) - {'publish_rate_hz'} and not (self.recorder_wait and self.recorder_wait.waiting):
             self.replan(self._now())  # (a node still waiting for its recorder plans the new values then)
 
 
