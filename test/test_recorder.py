@@ -3,6 +3,7 @@
 * SIGTERM / SIGINT: the bag is complete (metadata, summary) and holds every message.
 * SIGKILL: `bag reindex` repairs it with at most the last second lost.
 * play: a subscriber receives every recorded odometry message, in order.
+* a signal handled in the middle of a callback never leaves a message logged after the stop.
 """
 
 from __future__ import annotations
@@ -155,3 +156,58 @@ def test_play_republishes_every_message(process_runner, tmp_path):
     assert player.wait(timeout=60) == 0, process_runner.output('play')
     assert subscriber.wait(timeout=60) == 0
     assert 'received 1001 in_order True' in process_runner.output('subscriber'), process_runner.output('subscriber')
+
+
+class _Writer:
+    """The BagWriter calls the recorder node makes, keeping the written log times."""
+
+    path = Path('memory')
+
+    def __init__(self) -> None:
+        self.log_times: list[int] = []
+
+    def flush_if_due(self) -> None:
+        pass
+
+    def connection(self, name: str) -> str:
+        return name
+
+    def write(self, _connection: str, log_ns: int, _data: bytes) -> None:
+        self.log_times.append(log_ns)
+
+
+class _HandlerRunsAtTheCheck:
+    """A stop whose signal handler runs right after a callback read ``requested`` (a Python
+    handler runs between any two bytecodes): the callback saw no stop, yet it came."""
+
+    signum: int | None = None
+    at_ns: int | None = None
+
+    @property
+    def requested(self) -> bool:
+        seen = self.signum is not None
+        if not seen:
+            self.signum, self.at_ns = signal.SIGINT, time.time_ns()
+        return seen
+
+
+def test_a_message_written_around_the_signal_is_not_logged_after_it(ros_domain):
+    import rclpy
+
+    from wallbot_msgs_py import topics
+    from wallbot_sim.nodes.recorder import _make_node
+    rclpy.init()
+    node = None
+    try:
+        writer, stop = _Writer(), _HandlerRunsAtTheCheck()
+        node = _make_node(writer, [topics.REFERENCE], stop)
+        name = node.resolve_topic_name(topics.REFERENCE.name)
+        node._on_message(topics.REFERENCE, name, b'')  # the handler runs inside its check
+        node._on_message(topics.REFERENCE, name, b'')  # the stop was there before it
+        assert stop.requested
+        assert writer.log_times[0] <= stop.at_ns, 'logged after the stop it was written before'
+        assert writer.log_times[1] == stop.at_ns
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

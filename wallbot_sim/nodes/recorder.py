@@ -150,11 +150,14 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
 
         def _on_message(self, topic: topics.Topic, name: str, data: bytes, received_ns: int | None = None) -> None:
             if received_ns is None:  # from the executor
+                # The time is read before the stop is checked: the handler may run between any two
+                # bytecodes, and a time read after the check could follow a stop it did not see.
                 # A callback that finds the stop requested is the one the signal handler ran in
                 # front of (one callback per spin_once, and the loop ends after it): its message
                 # was taken, so received, before the handler noted the stop
-                received_ns = (self._log_time(self.stop.at_ns) if self.stop.requested
-                               else self.get_clock().now().nanoseconds)
+                received_ns = self.get_clock().now().nanoseconds
+                if self.stop.requested:
+                    received_ns = min(received_ns, self._log_time(self.stop.at_ns))
             connection = self.writer.connection(name)
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
