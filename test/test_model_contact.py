@@ -11,7 +11,7 @@ from model_helpers import kinetic_energy, potential_energy, random_parameters, r
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Simulation
 from wallbot_sim.model.contact import DetachedError, unheld_slip
-from wallbot_sim.model.normal_loads import normal_loads
+from wallbot_sim.model.normal_loads import normal_load_gain, normal_loads
 
 DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
 
@@ -48,6 +48,18 @@ def test_normal_loads_are_the_least_norm_balance():
         qd, qdd = rng.normal(size=7), rng.normal(size=7) * 5
         expected = least_norm_loads(params, robot.adsorption.applied_force, q, qd, qdd)
         assert np.allclose(normal_loads(robot, q, qd, qdd), expected, rtol=1e-12, atol=1e-10)
+
+
+def test_the_loads_move_with_the_acceleration_through_the_body_forces():
+    """N(qdd) = N(0) + U (B qdd[:3]) (the affine form the kinetic friction's fixed point is solved with)."""
+    rng = np.random.default_rng(10)
+    for _ in range(50):
+        robot = Robot(random_parameters(rng))
+        q = np.concatenate((rng.uniform(-1, 1, 2), [rng.uniform(-math.pi, math.pi)], np.zeros(4)))
+        qd, qdd = rng.normal(size=7), rng.normal(size=7) * 5
+        arms, body = normal_load_gain(robot, q)
+        change = normal_loads(robot, q, qd, qdd) - normal_loads(robot, q, qd, np.zeros(7))
+        assert np.allclose(arms @ (body @ qdd[:3]), change, rtol=1e-12, atol=1e-12 * robot.adsorption.applied_force)
 
 
 def test_loads_at_rest_match_model_md():
@@ -184,6 +196,50 @@ def test_energy_is_dissipated_never_created_while_slipping(theta, torque, adhesi
     assert np.max(change - np.array(work)) < 1e-5 * exchanged
     if not transitions:
         assert np.max(np.abs(change - np.array(work))) < 1e-5 * exchanged
+
+
+def kinetic_friction_force(params: RobotParameters, adhesion: float, q, qd, slipping, loads) -> np.ndarray:
+    """Q_f of 9.3 written out row by row (nonslip rows of the slipping sides, the non-lateral row)."""
+    eps2 = params.velocity_epsilon ** 2
+    cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
+    v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
+    left, right, lateral = slipping
+    force = np.zeros(7)
+    if lateral:
+        force += -params.kinetic_friction * adhesion * v_lat / math.sqrt(v_lat ** 2 + eps2) * np.array(
+            [-sin_t, cos_t, 0, 0, 0, 0, 0])
+    for i, (_, dy) in enumerate(wheel_offsets(params)):
+        if left if dy > 0 else right:
+            slip = params.wheel_radius * qd[3 + i] - v_long + dy * qd[2]
+            row = np.array([-cos_t, -sin_t, dy, 0, 0, 0, 0])
+            row[3 + i] = params.wheel_radius
+            force -= params.kinetic_friction * loads[i] * slip / math.sqrt(slip ** 2 + eps2) * row
+    return force
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_the_loads_kinetic_friction_holds_are_the_loads_it_produces(seed):
+    """At every boundary of a turning slip (loads shifting step by step, CoM off the centre), Q_f
+    equals 9.3's friction of the very loads the solution reports (the loads-friction fixed point)."""
+    rng = np.random.default_rng(seed)
+    params = random_parameters(rng)
+    simulation = Simulation(Robot(params), None, DRIVEN, np.array([0.0, 0.0, math.pi / 2, 0, 0, 0, 0]),
+                            np.zeros(7), contact='coulomb')
+    weight = (params.body_mass + 4 * params.wheel_mass) * params.gravity
+    simulation.set_motor_torque(1.2 * weight * params.wheel_radius, 0.5 * weight * params.wheel_radius)
+    adhesion = simulation.robot.adsorption.applied_force
+    checked = 0
+
+    def check(out):
+        nonlocal checked
+        if out.contact.friction_force is None or not any(out.contact.slipping[:2]):
+            return
+        expected = kinetic_friction_force(params, adhesion, out.q, out.qd, out.contact.slipping, out.contact.loads)
+        assert np.allclose(out.contact.friction_force, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+        checked += 1
+
+    simulation.run(0.3, check)
+    assert checked > 200
 
 
 def test_a_sticking_coulomb_run_equals_the_ideal_run_bit_for_bit():

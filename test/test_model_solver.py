@@ -13,6 +13,7 @@ from wallbot_sim.model import (
     BaumgarteGains, Circle, FigureEight, Robot, SmoothStop, solve, solve_with_factor)
 from wallbot_sim.model.constraint_set import MODULES, make_module
 from wallbot_sim.model.constraints import TangentHeadingTask
+from wallbot_sim.model.solver import constrained_acceleration
 
 def make_modules(names, robot, reference, gains):
     return [make_module(name, robot, reference, gains) for name in names]
@@ -64,6 +65,22 @@ def test_solver_matches_kkt_and_udwadia_kalaba_on_consistent_sets(names):
     if 'trajectory' in names and 'non_lateral' in names:
         return  # non-lateral repeats a combination of the x, y task rows: consistent only by chance
     assert checked == 20
+
+
+@pytest.mark.parametrize('names', [('belt', 'non_lateral', 'nonslip'), ('trajectory', 'non_lateral', 'nonslip')],
+                         ids='+'.join)
+def test_several_forces_on_the_same_rows_are_solved_as_one_at_a_time(names):
+    """Force (7, m) with rhs (k, m): each column the motion of that force and right-hand side."""
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        robot, q, qd, rows, rhs, force = random_problem(rng, names)
+        factor = robot.mass_inverse_factor(q)
+        forces = np.column_stack((force, rng.normal(size=(7, 4))))
+        rhs_columns = np.column_stack((rhs, np.zeros((len(rhs), 4))))
+        together = constrained_acceleration(factor, forces, rows, rhs_columns)
+        for column in range(5):
+            alone = constrained_acceleration(factor, forces[:, column], rows, rhs_columns[:, column])
+            assert relative_error(together[:, column], alone) < 1e-12
 
 
 @pytest.mark.parametrize('names', [n for n in ALL_COMBINATIONS if 'trajectory' in n and 'non_lateral' in n], ids='+'.join)

@@ -12,7 +12,6 @@ row belongs to and which wheels' loads bound it.
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Callable, NamedTuple, Sequence
 
@@ -22,18 +21,19 @@ from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import CHANNELS, LATERAL, LEFT, RIGHT, ConstraintModule, ContactConstraint
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
+from wallbot_sim.model.normal_loads import normal_load_gain, normal_loads
 from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import Robot
-from wallbot_sim.model.solver import ConstrainedMotion
+from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, motion_of, solve_with_factor
 
 IDEAL, COULOMB = 'ideal', 'coulomb'
 CONTACT_MODELS = (IDEAL, COULOMB)
 WHEEL_POSITIONS = ('left front', 'left rear', 'right front', 'right rear')
 """Wheels 1..4 in the order of the generalized coordinates."""
 _LOAD_TOLERANCE = 1e-9
-"""Relative change of the held loads below which the loads-friction fixed point has converged."""
-_LOAD_ITERATIONS = 50
+"""Relative difference below which the loads the kinetic friction held are the loads it produced."""
+_IDENTITY2 = np.eye(2)
 
 
 def check_contact_model(name: str) -> str:
@@ -72,12 +72,40 @@ class _RowSubset:
         return self.velocity_rows(q) @ qd
 
 
-Evaluate = Callable[[Sequence[ConstraintModule], np.ndarray | None, np.ndarray], ConstrainedMotion]
-"""(active modules, Q_f or None, qd) -> the constrained motion at this instant."""
+Problem = Callable[[Sequence[ConstraintModule], np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""(active modules, qd) -> Q and their rows A, b stacked in order, at the boundary's time and coordinates."""
 Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
 """(active modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
 Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse]]
 """(motion, Q_f or None, qd) -> (normal loads, friction use)."""
+
+
+class KineticFriction:
+    """Q_f(q, qd) of the slipping rows with their bounding loads held over a step (9.3).
+
+    Each slipping row k with velocity row a_k and slip velocity v_k = a_k qd adds
+    Q_f -= mu_k N_k v_k / sqrt(v_k^2 + eps^2) a_k, N_k its bounding load: the traction of
+    wheel i (N_i, nonslip row) and the lateral friction (F_ad, non-lateral row).
+    """
+
+    def __init__(self, parts: Sequence[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray | None]],
+                 bounds: np.ndarray, epsilon: float) -> None:
+        self.parts = parts
+        """(a module's velocity_rows, its slipping rows or None for all of them)."""
+        self.bounds = bounds
+        """-mu_k N_k of each slipping row, in the order of the parts."""
+        self.epsilon = epsilon
+
+    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
+        """The slipping rows a_k at q, stacked."""
+        rows = [velocity_rows(q) if selected is None else velocity_rows(q)[selected]
+                for velocity_rows, selected in self.parts]
+        return rows[0] if len(rows) == 1 else np.concatenate(rows)
+
+    def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        rows = self.velocity_rows(q)
+        slip = rows @ qd
+        return (self.bounds * slip / np.hypot(slip, self.epsilon)) @ rows
 
 
 class ContactSolution(NamedTuple):
@@ -92,7 +120,7 @@ class ContactSolution(NamedTuple):
     """The loads the kinetic friction holds over the step."""
     active: Sequence[ConstraintModule]
     """The modules the solver sees over the step."""
-    function: Callable[[np.ndarray, np.ndarray], np.ndarray] | None
+    function: KineticFriction | None
     """Q_f(q, qd) over the step."""
 
 
@@ -111,6 +139,7 @@ class _Layout:
         self._active: dict[frozenset[str], list[ConstraintModule]] = {}
         self._slipping_rows: dict[frozenset[str], list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]] = {}
         self._load_dependent: dict[frozenset[str], bool] = {}
+        self._slipping_wheels: dict[frozenset[str], np.ndarray] = {}
         self._channel_rows: dict[frozenset[str], list[tuple[ContactConstraint, list[tuple[int, str]]]]] = {}
 
     def active(self, slipping: frozenset[str]) -> list[ConstraintModule]:
@@ -149,6 +178,14 @@ class _Layout:
             self._channel_rows[channels] = found
         return found
 
+    def slipping_wheels(self, slipping: frozenset[str]) -> np.ndarray:
+        """The wheels bounding each slipping row (rows x 4), stacked in the order of ``slipping_rows``."""
+        wheels = self._slipping_wheels.get(slipping)
+        if wheels is None:
+            wheels = np.concatenate([part_wheels for _module, _rows, part_wheels in self.slipping_rows(slipping)])
+            self._slipping_wheels[slipping] = wheels
+        return wheels
+
     def slipping_rows(self, slipping: frozenset[str]) -> list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]:
         """(module, its rows of ``slipping`` channels or None for all of them, the wheels bounding each row)."""
         parts = self._slipping_rows.get(slipping)
@@ -173,6 +210,8 @@ class CoulombContact:
         self.slipping: frozenset[str] = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
         """The loads bounding kinetic friction, held over a step like the motor torques."""
+        self._loads_moving = False
+        """Whether the held loads changed at the last boundary (the next one solves for them at once)."""
         self._layout = _Layout([])
 
     def _layout_of(self, modules: Sequence[ConstraintModule]) -> _Layout:
@@ -189,6 +228,7 @@ class CoulombContact:
         """Every channel sticking, loads at rest on a level share."""
         self.slipping = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
+        self._loads_moving = False
 
     # --- the problem the solver sees ---------------------------------------------------------
     def active_modules(self, modules: Sequence[ConstraintModule],
@@ -200,35 +240,18 @@ class CoulombContact:
         return self._layout_of(modules).active(frozenset(slipping))
 
     def friction_function(self, modules: Sequence[ConstraintModule], loads: np.ndarray,
-                          slipping: frozenset[str] | None = None
-                          ) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
-        """Q_f(q, qd) of the slipping rows with ``loads`` held; None while none slips.
-
-        Each slipping row k with velocity row a_k and slip velocity v_k = a_k qd adds
-        Q_f -= mu_k N_k v_k / sqrt(v_k^2 + eps^2) a_k, N_k its bounding load: the traction of
-        wheel i (N_i, nonslip row) and the lateral friction (F_ad, non-lateral row) of 9.3.
-        """
+                          slipping: frozenset[str] | None = None) -> KineticFriction | None:
+        """Q_f(q, qd) of the slipping rows with ``loads`` held; None while none slips."""
         slipping = self.slipping if slipping is None else slipping
         if not slipping:
             return None
-        parts = [(module.velocity_rows, rows, -self.kinetic_friction * (wheels @ loads))
-                 for module, rows, wheels in self._layout_of(modules).slipping_rows(frozenset(slipping))]
+        layout = self._layout_of(modules)
+        parts = layout.slipping_rows(frozenset(slipping))
         if not parts:
             return None
-        epsilon = self.epsilon
-
-        def part_friction(velocity_rows_of: Callable[[np.ndarray], np.ndarray], rows: np.ndarray | None,
-                          bound: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-            velocity_rows = velocity_rows_of(q) if rows is None else velocity_rows_of(q)[rows]
-            slip = velocity_rows @ qd
-            return (bound * slip / np.hypot(slip, epsilon)) @ velocity_rows
-
-        if len(parts) == 1:  # one slipping module (the usual case): no sum to form
-            return functools.partial(part_friction, *parts[0])
-
-        def friction(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-            return sum(part_friction(*part, q, qd) for part in parts)
-        return friction
+        wheels = layout.slipping_wheels(frozenset(slipping))
+        return KineticFriction([(module.velocity_rows, rows) for module, rows, _wheels in parts],
+                               -self.kinetic_friction * (wheels @ loads), self.epsilon)
 
     def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
         """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
@@ -256,8 +279,8 @@ class CoulombContact:
         return stopping
 
     # --- transitions at a step boundary ------------------------------------------------------
-    def settle(self, modules: Sequence[ConstraintModule], q: np.ndarray, qd: np.ndarray, dt: float,
-               evaluate: Evaluate, project: Project, measure: Measure) -> tuple[np.ndarray, ContactSolution]:
+    def settle(self, modules: Sequence[ConstraintModule], robot: Robot, q: np.ndarray, qd: np.ndarray, dt: float,
+               problem: Problem, project: Project, measure: Measure) -> tuple[np.ndarray, ContactSolution]:
         """Stick/slip transitions at this boundary, then the motion of the step.
 
         Slipping channels that are stopping (slower than v_st, or reversing within the step ``dt``)
@@ -268,13 +291,13 @@ class CoulombContact:
         """
         present = self._layout_of(modules).present
         self.slipping = self.slipping & present
-        result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
+        result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
         candidates = (self._stopping(modules, self.slipping, q, qd, qd + dt * result.motion.acceleration)
                       if self.slipping else None)
         while candidates:
             trial = self.slipping - candidates
             trial_qd = project(self.active_modules(modules, trial), qd)
-            trial_result = self._solve(modules, trial, q, trial_qd, evaluate, measure)
+            trial_result = self._solve(modules, robot, trial, q, trial_qd, problem, measure)
             holding = {channel for channel in candidates if _within_limit(trial_result.use, channel)}
             if holding == candidates:
                 self.slipping, qd, result = trial, trial_qd, trial_result
@@ -285,36 +308,86 @@ class CoulombContact:
             if not exceeded:
                 break
             self.slipping = self.slipping | exceeded
-            result = self._solve(modules, self.slipping, q, qd, evaluate, measure)
+            result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
+        self._loads_moving = bool(self.slipping) and not _converged(result.held.tolist(), self.loads.tolist())
         self.loads = result.held
         return qd, result
 
-    def _solve(self, modules: Sequence[ConstraintModule], slipping: frozenset[str], q: np.ndarray, qd: np.ndarray,
-               evaluate: Evaluate, measure: Measure) -> ContactSolution:
+    def _solve(self, modules: Sequence[ConstraintModule], robot: Robot, slipping: frozenset[str], q: np.ndarray,
+               qd: np.ndarray, problem: Problem, measure: Measure) -> ContactSolution:
         """The motion with ``slipping`` channels slipping, and the loads their friction holds.
 
-        Traction friction depends on the normal loads, which depend on the acceleration: the two
-        are iterated to their fixed point (a lateral slip is bounded by sum N_i = F_ad, which needs none).
+        Traction friction depends on the normal loads, which depend on the acceleration: the loads
+        the friction holds must be the loads it produces. In a steady slip the loads held over the
+        last step still are (one solve checks them); when they moved, ``_consistent_loads`` finds
+        them exactly, and while they keep moving from step to step it is used at once. A lateral
+        slip alone is bounded by sum N_i = F_ad, which needs neither.
         """
         active = self.active_modules(modules, slipping)
+        force, rows, rhs = problem(active, qd)
+        mass, factor = robot.mass_matrix(q), robot.mass_inverse_factor(q)
         held = self.loads
-        for _ in range(_LOAD_ITERATIONS):
-            function = self.friction_function(modules, held, slipping)
+        function = self.friction_function(modules, held, slipping)
+        exact = (function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
+                 and self._loads_moving)
+        if not exact:
             friction = None if function is None else function(q, qd)
-            motion = evaluate(active, friction, qd)
+            motion = solve_with_factor(mass, factor, force if friction is None else force + friction, rows, rhs)
             loads, use = measure(motion, friction, qd)
-            if function is None or not self._layout_of(modules).load_dependent(frozenset(slipping)) \
-                    or _converged(loads.tolist(), held.tolist()):
-                return ContactSolution(motion, friction, loads, use, held, active, function)
-            held = loads
-        raise ModelError('normal loads and kinetic friction found no consistent value in '
-                         f'{_LOAD_ITERATIONS} iterations (loads {np.round(loads, 3).tolist()} N)')
+            exact = (function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
+                     and not _converged(loads.tolist(), held.tolist()))
+        if exact:
+            per_load = self._friction_per_load(modules, function, slipping, q, qd)
+            held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
+            function = self.friction_function(modules, held, slipping)
+            friction = per_load @ held
+            motion = motion_of(mass, force + friction, rows, rhs, acceleration)
+            loads, use = measure(motion, friction, qd)
+        return ContactSolution(motion, friction, loads, use, held, active, function)
+
+    def _friction_per_load(self, modules: Sequence[ConstraintModule], function: KineticFriction,
+                           slipping: frozenset[str], q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """dQ_f/dN (7 x 4) at (q, qd): row k adds -mu_k v_k / sqrt(v_k^2 + eps^2) a_k per unit of its load."""
+        rows = function.velocity_rows(q)
+        slip = rows @ qd
+        wheels = self._layout_of(modules).slipping_wheels(frozenset(slipping))
+        return rows.T @ ((-self.kinetic_friction * slip / np.hypot(slip, self.epsilon))[:, None] * wheels)
+
+
+def _consistent_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, factor: np.ndarray, force: np.ndarray,
+                      rows: np.ndarray, rhs: np.ndarray, per_load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The loads h the kinetic friction Q_f = F h holds that are also the loads it produces, and qdd.
+
+    At a boundary everything is affine in h: qdd = qdd_0 + D h, D the solver's response to F (the
+    same solve with four more right-hand sides), and N = N(qdd_0) + U C h with C = B D[:3] (2 x 4;
+    ``normal_load_gain``: the loads move only through the two body-frame inertia forces). So the
+    fixed point h = N solves (I - U C) h = N(qdd_0), a rank-2 update of I:
+    h = N(qdd_0) + U (I_2 - C U)^-1 C N(qdd_0).
+    """
+    columns = constrained_acceleration(factor, np.concatenate((force[:, None], per_load), axis=1), rows,
+                                       np.concatenate((rhs[:, None], np.zeros((len(rhs), 4))), axis=1))
+    free, response = columns[:, 0], columns[:, 1:]
+    arms, body = normal_load_gain(robot, q)
+    coupling = body @ response[:3]  # the body-frame force per unit of each held load (2 x 4)
+    unheld = normal_loads(robot, q, qd, free)
+    held = unheld + arms @ _solve_2x2(_IDENTITY2 - coupling @ arms, coupling @ unheld)
+    return held, free + response @ held
 
 
 def _converged(loads: list[float], held: list[float]) -> bool:
     """Whether the loads the friction held are the loads it produced, to _LOAD_TOLERANCE."""
     return (max(abs(new - old) for new, old in zip(loads, held))
             <= _LOAD_TOLERANCE * sum(abs(load) for load in loads))
+
+
+def _solve_2x2(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """matrix^-1 vector by Cramer's rule (a general solver costs more than the rest of the fixed point)."""
+    (a, b), (c, d) = matrix.tolist()
+    x, y = vector.tolist()
+    determinant = a * d - b * c
+    if determinant == 0.0:
+        raise ModelError('normal loads and kinetic friction have no consistent value (singular coupling)')
+    return np.array([(d * x - b * y) / determinant, (a * y - c * x) / determinant])
 
 
 def _within_limit(use: FrictionUse, channel: str) -> bool:

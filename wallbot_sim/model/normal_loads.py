@@ -36,3 +36,24 @@ def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
     offsets = robot.wheel_offsets
     return (0.25 * robot.adsorption.applied_force + (0.25 * h * body_x / (a * a)) * offsets[:, 0]
             + (0.25 * h * body_y / (b * b)) * offsets[:, 1])
+
+
+
+def normal_load_gain(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How the loads follow the acceleration: N = N(qdd = 0) + U (B (xdd, ydd, thdd)).
+
+    B (2 x 3) maps the acceleration to the body-frame force F_b = R(th)^T m_t (g_vec - a_G), with
+    m_t a_G = (m_t xdd - thdd (R S s)_y, m_t ydd + thdd (R S s)_x) + terms in thd; U (4 x 2) holds
+    the moment arms h x_i / (4 a^2) and h y_i / (4 b^2) of ``normal_loads``. The loads move only
+    through those two forces.
+    """
+    params = robot.params
+    theta = float(q[2])
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    sx, sy = robot.first_moment.tolist()
+    rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
+    mass = robot.total_mass
+    body = np.array([[-cos_t * mass, -sin_t * mass, cos_t * rsy - sin_t * rsx],
+                     [sin_t * mass, -cos_t * mass, -sin_t * rsy - cos_t * rsx]])
+    a, b, h = params.half_wheelbase, params.half_track, params.com_height
+    return robot.wheel_offsets * (0.25 * h / (a * a), 0.25 * h / (b * b)), body

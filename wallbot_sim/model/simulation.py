@@ -265,7 +265,9 @@ class Simulation:
             if self.coulomb_applies:
                 velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(
-                    self._modules, q, velocities, self.dt, self._evaluate, self._project, self._measure)
+                    self._modules, self.robot, q, velocities, self.dt,
+                    lambda modules, qd: stack_problem(self.robot, modules, self._t, q, qd, self.motor_torque),
+                    self._project, self._measure)
                 if qd is not velocities:  # a channel stuck again: its slip was projected away
                     self._y = np.concatenate((q, qd))
                     q = self._y[:DOF]
@@ -283,14 +285,6 @@ class Simulation:
                 self.motor_torque, self._channel_forces(q, motion.constraint_force, friction), reference,
                 ContactOutputs(loads, use, self._limits(loads), slipping, friction))
         return self._cached
-
-    def _evaluate(self, modules: Sequence[ConstraintModule], friction: np.ndarray | None,
-                  qd: np.ndarray) -> ConstrainedMotion:
-        q = self._y[:DOF]
-        force, rows, rhs = stack_problem(self.robot, modules, self._t, q, qd, self.motor_torque)
-        if friction is not None:
-            force = force + friction
-        return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
 
     def _channel_forces(self, q: np.ndarray, constraint_force: np.ndarray,
                         friction: np.ndarray | None) -> DriveForces:

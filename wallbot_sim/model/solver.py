@@ -23,8 +23,8 @@ _RELATIVE_CUTOFF = 1e-10
 largest count as redundant. Exactly redundant rows leave them at round-off, ~1e-16 of the largest;
 the robot's independent rows stay far above the cut.
 """
-_lwork: dict[int, int] = {}
-"""LAPACK workspace size of dgelsy by row count (n = 7 columns)."""
+_lwork: dict[tuple[int, int], int] = {}
+"""LAPACK workspace size of dgelsy by row count and right-hand sides (n = 7 columns)."""
 
 
 class ConstrainedMotion(NamedTuple):
@@ -46,13 +46,13 @@ def solve(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray
         null_projector = np.eye(mass.shape[0]) - np.linalg.pinv(rows) @ rows
         stacked = np.vstack((null_projector @ mass, rows))
         acceleration = np.linalg.pinv(stacked) @ np.concatenate((null_projector @ force, rhs))
-    return _motion(mass, force, rows, rhs, acceleration)
+    return motion_of(mass, force, rows, rhs, acceleration)
 
 
 def solve_with_factor(mass: np.ndarray, inverse_factor: np.ndarray, force: np.ndarray,
                       rows: np.ndarray, rhs: np.ndarray) -> ConstrainedMotion:
     """The same qdd for a positive definite M, given W with W W^T = M^-1."""
-    return _motion(mass, force, rows, rhs, constrained_acceleration(inverse_factor, force, rows, rhs))
+    return motion_of(mass, force, rows, rhs, constrained_acceleration(inverse_factor, force, rows, rhs))
 
 
 def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows: np.ndarray,
@@ -63,6 +63,9 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
     such factor since qdd - a is the M-norm-smallest least-squares solution either way.
     B+ (b - A a) is the minimum-norm least-squares solution of one small LAPACK call (dgelsy:
     QR with column pivoting, then a complete orthogonal factorization of the rank found).
+
+    ``force`` (7, m) with ``rhs`` (k, m) solves m problems on the same rows in that one call
+    (qdd (7, m)): the response of the motion to several forces at once.
     """
     free = inverse_factor @ (inverse_factor.T @ force)
     count, size = rows.shape
@@ -70,10 +73,11 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
         return free
     misfit = rhs - rows @ free
     if count < size:
-        misfit = np.concatenate((misfit, np.zeros(size - count)))
-    work = _lwork.get(count)
+        misfit = np.concatenate((misfit, np.zeros((size - count, *misfit.shape[1:]))))
+    columns = 1 if misfit.ndim == 1 else misfit.shape[1]
+    work = _lwork.get((count, columns))
     if work is None:
-        work = _lwork[count] = int(_least_squares_lwork(count, size, 1, _RELATIVE_CUTOFF)[0])
+        work = _lwork[count, columns] = int(_least_squares_lwork(count, size, columns, _RELATIVE_CUTOFF)[0])
     _, solution, _, _, info = _least_squares(rows @ inverse_factor, misfit, np.zeros(size, dtype=np.int32),
                                              _RELATIVE_CUTOFF, work)
     if info != 0:
@@ -81,8 +85,9 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
     return free + inverse_factor @ solution[:size]
 
 
-def _motion(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
-            acceleration: np.ndarray) -> ConstrainedMotion:
+def motion_of(mass: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+              acceleration: np.ndarray) -> ConstrainedMotion:
+    """The solution with its acceleration ``qdd`` found: Q_c and the residual."""
     misfit = rows @ acceleration - rhs
     residual = math.sqrt(float(misfit @ misfit))
     return ConstrainedMotion(acceleration, mass @ acceleration - force, residual)
