@@ -328,21 +328,19 @@ class CoulombContact:
         mass, factor = robot.mass_matrix(q), robot.mass_inverse_factor(q)
         held = self.loads
         function = self.friction_function(modules, held, slipping)
-        exact = (function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
-                 and self._loads_moving)
-        if not exact:
+        dependent = function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
+        if not (dependent and self._loads_moving):
             friction = None if function is None else function(q, qd)
             motion = solve_with_factor(mass, factor, force if friction is None else force + friction, rows, rhs)
             loads, use = measure(motion, friction, qd)
-            exact = (function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
-                     and not _converged(loads.tolist(), held.tolist()))
-        if exact:
-            per_load = self._friction_per_load(modules, function, slipping, q, qd)
-            held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
-            function = self.friction_function(modules, held, slipping)
-            friction = per_load @ held
-            motion = motion_of(mass, force + friction, rows, rhs, acceleration)
-            loads, use = measure(motion, friction, qd)
+            if not dependent or _converged(loads.tolist(), held.tolist()):
+                return ContactSolution(motion, friction, loads, use, held, active, function)
+        per_load = self._friction_per_load(modules, function, slipping, q, qd)
+        held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
+        function = self.friction_function(modules, held, slipping)
+        friction = per_load @ held
+        motion = motion_of(mass, force + friction, rows, rhs, acceleration)
+        loads, use = measure(motion, friction, qd)
         return ContactSolution(motion, friction, loads, use, held, active, function)
 
     def _friction_per_load(self, modules: Sequence[ConstraintModule], function: KineticFriction,
