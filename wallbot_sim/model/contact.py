@@ -89,12 +89,20 @@ class KineticFriction:
     """
 
     def __init__(self, parts: Sequence[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray | None]],
-                 bounds: np.ndarray, epsilon: float) -> None:
+                 channels: Sequence[str], per_load: np.ndarray, loads: np.ndarray, epsilon: float) -> None:
         self.parts = parts
         """(a module's velocity_rows, its slipping rows or None for all of them)."""
-        self.bounds = bounds
-        """-mu_k N_k of each slipping row, in the order of the parts."""
+        self.channels = channels
+        """The channel of each slipping row, in the order of the parts."""
+        self.per_load = per_load
+        """-mu_k times the wheels bounding each row (rows x 4): the bounds are per_load @ N."""
+        self.loads = loads
+        self.bounds = per_load @ loads
         self.epsilon = epsilon
+
+    def holding(self, loads: np.ndarray) -> KineticFriction:
+        """The same rows with other loads held."""
+        return KineticFriction(self.parts, self.channels, self.per_load, loads, self.epsilon)
 
     def velocity_rows(self, q: np.ndarray) -> np.ndarray:
         """The slipping rows a_k at q, stacked."""
@@ -106,6 +114,26 @@ class KineticFriction:
         rows = self.velocity_rows(q)
         slip = rows @ qd
         return (self.bounds * slip / np.hypot(slip, self.epsilon)) @ rows
+
+    def force_per_load(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """dQ_f/dN (7 x 4) at (q, qd): Q_f = force_per_load @ N."""
+        rows = self.velocity_rows(q)
+        slip = rows @ qd
+        return rows.T @ ((slip / np.hypot(slip, self.epsilon))[:, None] * self.per_load)
+
+    def stopping(self, q: np.ndarray, qd: np.ndarray, predicted: np.ndarray, stick_velocity: float) -> set[str]:
+        """The channels whose every slip velocity a_k qd is below v_st or changes sign by ``predicted``.
+
+        The second test catches a slip that the regularized kinetic friction would reverse in one
+        step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
+        cycle of slip speeds that straddles v_st without ever falling below it.
+        """
+        rows = self.velocity_rows(q)
+        stopping = set(self.channels)
+        for channel, now, then in zip(self.channels, (rows @ qd).tolist(), (rows @ predicted).tolist()):
+            if not (abs(now) < stick_velocity or now * then < 0.0):
+                stopping.discard(channel)
+        return stopping
 
 
 class ContactSolution(NamedTuple):
@@ -139,7 +167,7 @@ class _Layout:
         self._active: dict[frozenset[str], list[ConstraintModule]] = {}
         self._slipping_rows: dict[frozenset[str], list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]] = {}
         self._load_dependent: dict[frozenset[str], bool] = {}
-        self._slipping_wheels: dict[frozenset[str], np.ndarray] = {}
+        self._slipping_channels: dict[frozenset[str], tuple[tuple[str, ...], np.ndarray]] = {}
         self._channel_rows: dict[frozenset[str], list[tuple[ContactConstraint, list[tuple[int, str]]]]] = {}
 
     def active(self, slipping: frozenset[str]) -> list[ConstraintModule]:
@@ -178,13 +206,16 @@ class _Layout:
             self._channel_rows[channels] = found
         return found
 
-    def slipping_wheels(self, slipping: frozenset[str]) -> np.ndarray:
-        """The wheels bounding each slipping row (rows x 4), stacked in the order of ``slipping_rows``."""
-        wheels = self._slipping_wheels.get(slipping)
-        if wheels is None:
-            wheels = np.concatenate([part_wheels for _module, _rows, part_wheels in self.slipping_rows(slipping)])
-            self._slipping_wheels[slipping] = wheels
-        return wheels
+    def slipping_channels(self, slipping: frozenset[str]) -> tuple[tuple[str, ...], np.ndarray]:
+        """The channel and the bounding wheels (rows x 4) of each slipping row, in the order of ``slipping_rows``."""
+        found = self._slipping_channels.get(slipping)
+        if found is None:
+            parts = self.slipping_rows(slipping)
+            channels = tuple(module.channels[row] for module, rows, _wheels in parts
+                             for row in (range(len(module.channels)) if rows is None else rows))
+            found = channels, np.concatenate([part_wheels for _module, _rows, part_wheels in parts])
+            self._slipping_channels[slipping] = found
+        return found
 
     def slipping_rows(self, slipping: frozenset[str]) -> list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]:
         """(module, its rows of ``slipping`` channels or None for all of them, the wheels bounding each row)."""
@@ -249,9 +280,9 @@ class CoulombContact:
         parts = layout.slipping_rows(frozenset(slipping))
         if not parts:
             return None
-        wheels = layout.slipping_wheels(frozenset(slipping))
-        return KineticFriction([(module.velocity_rows, rows) for module, rows, _wheels in parts],
-                               -self.kinetic_friction * (wheels @ loads), self.epsilon)
+        channels, wheels = layout.slipping_channels(frozenset(slipping))
+        return KineticFriction([(module.velocity_rows, rows) for module, rows, _wheels in parts], channels,
+                               -self.kinetic_friction * wheels, loads, self.epsilon)
 
     def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
         """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
@@ -260,23 +291,6 @@ class CoulombContact:
             slips = (module.velocity_rows(q) @ qd).tolist()
             speed = max([speed] + [abs(slips[row]) for row, _channel in rows])
         return speed
-
-    def _stopping(self, modules: Sequence[ConstraintModule], channels: frozenset[str], q: np.ndarray, qd: np.ndarray,
-                  predicted: np.ndarray) -> set[str]:
-        """The channels whose every slip velocity a_k qd is below v_st or changes sign within the step.
-
-        The second test catches a slip that the regularized kinetic friction would reverse in one
-        step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
-        cycle of slip speeds that straddles v_st without ever falling below it.
-        """
-        stopping = set(channels)
-        for module, rows in self._layout_of(modules).channel_rows(channels):
-            velocity_rows = module.velocity_rows(q)
-            now, then = (velocity_rows @ qd).tolist(), (velocity_rows @ predicted).tolist()
-            for row, channel in rows:
-                if not (abs(now[row]) < self.stick_velocity or now[row] * then[row] < 0.0):
-                    stopping.discard(channel)
-        return stopping
 
     # --- transitions at a step boundary ------------------------------------------------------
     def settle(self, modules: Sequence[ConstraintModule], robot: Robot, q: np.ndarray, qd: np.ndarray, dt: float,
@@ -292,8 +306,8 @@ class CoulombContact:
         present = self._layout_of(modules).present
         self.slipping = self.slipping & present
         result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
-        candidates = (self._stopping(modules, self.slipping, q, qd, qd + dt * result.motion.acceleration)
-                      if self.slipping else None)
+        candidates = (result.function.stopping(q, qd, qd + dt * result.motion.acceleration, self.stick_velocity)
+                      if result.function is not None else None)
         while candidates:
             trial = self.slipping - candidates
             trial_qd = project(self.active_modules(modules, trial), qd)
@@ -335,21 +349,13 @@ class CoulombContact:
             loads, use = measure(motion, friction, qd)
             if not dependent or _converged(loads.tolist(), held.tolist()):
                 return ContactSolution(motion, friction, loads, use, held, active, function)
-        per_load = self._friction_per_load(modules, function, slipping, q, qd)
+        per_load = function.force_per_load(q, qd)
         held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
-        function = self.friction_function(modules, held, slipping)
+        function = function.holding(held)
         friction = per_load @ held
         motion = motion_of(mass, force + friction, rows, rhs, acceleration)
         loads, use = measure(motion, friction, qd)
         return ContactSolution(motion, friction, loads, use, held, active, function)
-
-    def _friction_per_load(self, modules: Sequence[ConstraintModule], function: KineticFriction,
-                           slipping: frozenset[str], q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """dQ_f/dN (7 x 4) at (q, qd): row k adds -mu_k v_k / sqrt(v_k^2 + eps^2) a_k per unit of its load."""
-        rows = function.velocity_rows(q)
-        slip = rows @ qd
-        wheels = self._layout_of(modules).slipping_wheels(frozenset(slipping))
-        return rows.T @ ((-self.kinetic_friction * slip / np.hypot(slip, self.epsilon))[:, None] * wheels)
 
 
 def _consistent_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, factor: np.ndarray, force: np.ndarray,
