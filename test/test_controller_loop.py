@@ -278,10 +278,11 @@ def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, 
     assert reason in process_runner.output('controller')
 
 
-def test_controller_waits_for_a_recorder_before_subscribing_odom(process_runner):
-    """run --controller: the dynamics starts once the controller subscribes odom; with
-    wait_for_recorder the controller does that only when a recorder hears its commands, so the
-    bag holds every command from t = 0."""
+@pytest.mark.parametrize('node', ['controller', 'cmd_vel'])
+def test_a_commander_waits_for_a_recorder_before_subscribing_odom(process_runner, node):
+    """run --controller, run rest --drive cmd_vel: the dynamics starts once its commander subscribes
+    odom; with wait_for_recorder the commander does that only when a recorder hears its commands,
+    so the bag holds every command from t = 0."""
     import rclpy
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import Float64MultiArray
@@ -295,22 +296,22 @@ def test_controller_waits_for_a_recorder_before_subscribing_odom(process_runner)
     def wait_for(predicate, what: str) -> None:
         deadline = time.monotonic() + 30
         while not predicate():
-            assert proc.poll() is None, process_runner.output('controller')
+            assert proc.poll() is None, process_runner.output(node)
             if time.monotonic() > deadline:
-                pytest.fail(f'timed out waiting for {what}:\n{process_runner.output("controller")}')
+                pytest.fail(f'timed out waiting for {what}:\n{process_runner.output(node)}')
             time.sleep(0.05)
 
     try:
-        proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args',
-                                     '-p', 'wait_for_recorder:=true'], 'controller')
-        wait_for(lambda: probe.count_publishers(commands) == 1, 'the controller')
+        proc = process_runner.start([sys.executable, '-m', f'wallbot_sim.nodes.{node}', '--ros-args',
+                                     '-p', 'wait_for_recorder:=true'], node)
+        wait_for(lambda: probe.count_publishers(commands) == 1, f'the {node} node')
         time.sleep(1.0)
         assert probe.count_subscribers(odom) == 0, 'subscribed odom with no recorder listening'
         probe.create_publisher(Clock, topics.RECORD_PROGRESS.name, qos_profile(topics.RECORD_PROGRESS))
         probe.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, lambda _msg: None,
                                   qos_profile(topics.WHEEL_TORQUE_CMD))
         wait_for(lambda: probe.count_subscribers(odom) == 1, 'the odom subscription')
-        assert 'a recorder hears wheel_torque_cmd: subscribing odom' in process_runner.output('controller')
+        assert 'a recorder hears wheel_torque_cmd: subscribing odom' in process_runner.output(node)
     finally:
         probe.destroy_node()
         rclpy.try_shutdown(context=context)

@@ -20,7 +20,9 @@ resumed dynamics) carries on from the next instant.
 
 It answers every control instant, with zero-command torques while no command is live, so a
 dynamics in lockstep with it (``lockstep_every`` = 1000 / ``rate_hz``) steps only as fast as the loop
-answers and a run does not depend on CPU load.
+answers and a run does not depend on CPU load. With ``wait_for_recorder`` (``wallbot-sim run``
+sets it when it records) the node subscribes odom, and so lets such a dynamics start, only once
+a recorder hears ``wheel_torque_cmd``: the bag holds every command from t = 0.
 """
 
 from __future__ import annotations
@@ -40,8 +42,8 @@ from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, AxisLimits, WheelSpeedController,
                                              WheelSpeedSettings)
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
-                                      parameter_result, run)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, WhenRecorded, declare,
+                                     param_dict, parameter_result, run)
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
@@ -117,13 +119,22 @@ class CmdVelNode(Node):
         self.commands = HeldCommands(self, publisher, topics.ODOM.name)
         self.create_subscription(TwistStamped if self.use_stamped else Twist, topics.CMD_VEL.name, self._on_cmd_vel,
                                  qos_profile(topics.CMD_VEL))
-        # raw: of the 1 kHz odometry only the states acted on are decoded
-        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
+        if declare(self, 'wait_for_recorder', False, 'subscribe odom only once a recorder (record_progress) is '
+                   'matched on wheel_torque_cmd, so a recording holds every command', read_only=True):
+            # a dynamics waiting for its commander (wait_for_command) starts when this node
+            # subscribes odom: the recorder must hear the run's first commands
+            WhenRecorded(self, publisher, self._subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
+        else:
+            self._subscribe_odom()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
             f'cmd_vel ({"TwistStamped" if self.use_stamped else "Twist"}) -> wheel_torque_cmd at {self.rate_hz} Hz '
             'of simulation time; ' + ', '.join(f'{name} {value:g}' for name, value in self.values.items()))
+
+    def _subscribe_odom(self) -> None:
+        # raw: of the 1 kHz odometry only the states acted on are decoded
+        self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
 
     def _on_cmd_vel(self, msg) -> None:
         twist = msg.twist if self.use_stamped else msg
