@@ -19,16 +19,17 @@ def _reference(out: StepOutputs) -> Sequence[float]:
     return out.reference.position if out.reference is not None else (math.nan, math.nan)
 
 
+# arrays as lists: Python floats, not NumPy scalars one at a time (simulate writes a row every step)
 COLUMN_GROUPS: tuple[tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[float]]], ...] = (
     (('t',), lambda out: (out.t,)),
-    (('x', 'y', 'theta', 'phi1', 'phi2', 'phi3', 'phi4'), lambda out: out.q),
-    (('vx', 'vy', 'omega', 'dphi1', 'dphi2', 'dphi3', 'dphi4'), lambda out: out.qd),
+    (('x', 'y', 'theta', 'phi1', 'phi2', 'phi3', 'phi4'), lambda out: out.q.tolist()),
+    (('vx', 'vy', 'omega', 'dphi1', 'dphi2', 'dphi3', 'dphi4'), lambda out: out.qd.tolist()),
     (('ref_x', 'ref_y'), _reference),
     (('err',), lambda out: (out.tracking_error,)),
-    (('Fx', 'Fy', 'Mz', 'tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.constraint_force),
+    (('Fx', 'Fy', 'Mz', 'tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.constraint_force.tolist()),
     (('F_left', 'F_right', 'F_lateral'), lambda out: (out.drive.left, out.drive.right, out.drive.lateral)),
     (('residual',), lambda out: (out.residual,)),
-    (('N1', 'N2', 'N3', 'N4'), lambda out: out.contact.loads),
+    (('N1', 'N2', 'N3', 'N4'), lambda out: out.contact.loads.tolist()),
     (('use_L', 'use_R', 'use_lat'), lambda out: out.contact.use),
     (('slip_L', 'slip_R', 'slip_lat'), lambda out: [int(flag) for flag in out.contact.slipping]),
 )
