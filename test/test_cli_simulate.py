@@ -101,8 +101,8 @@ def test_a_line_is_the_text_the_csv_writer_writes():
     simulation.step()
     outs.append(simulation.outputs())
     # and one with what a diverging or detaching run shows: inf, nan, -0.0, tiny and huge numbers, slip flags
-    outs.append(outs[-1].__class__(**{**outs[-1].__dict__, 'q': np.array([np.inf, -np.inf, np.nan, -0.0, 1e-300,
-                                                                          1e300, 5e-324]), 'residual': np.float64(-0.0)}))
+    odd = np.array([np.inf, -np.inf, np.nan, -0.0, 1e-300, 1e300, 5e-324])
+    outs.append(outs[-1].__class__(**{**outs[-1].__dict__, 'q': odd, 'residual': np.float64(-0.0)}))
     for out in outs:
         text = io.StringIO(newline='')
         csv.writer(text).writerow(csv_row(out))

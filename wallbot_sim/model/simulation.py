@@ -352,7 +352,7 @@ class Simulation:
         self._cached = None
 
     def _compiled_now(self) -> CompiledDynamics | None:
-        """The compiled dynamics, configured for what is active, when they cover it (ideal contact, no extra modules)."""
+        """The compiled dynamics configured for what is active, when they cover it (ideal contact, no own modules)."""
         if self._compiled is None or self._friction is not None or self.coulomb_applies or self._extra_modules:
             return None
         return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)

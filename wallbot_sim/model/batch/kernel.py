@@ -14,6 +14,10 @@ agreement tests run both.
 engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
 what the fused step does not cover: coulomb contact, and the outputs step hooks see.
 
+``robot_motion`` and ``robot_step`` are one robot's motion at a state (qdd, Q, Q_c, residual) and its
+RK4 step, called once a step by ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``):
+the same derivative and RK4 step as the batch's fused loop.
+
 numba is optional: ``available()`` says whether it imported.
 """
 
