@@ -108,6 +108,19 @@ def test_least_squares_compromise_agrees(constraints, heading):
         assert pair.python.outputs().residual > 1e-3  # the set really cannot hold
 
 
+def test_a_run_from_a_later_start_with_another_step_agrees():
+    """t0 and dt of the simulation's own: the reference instants the kernel is given are the model's."""
+    rng = np.random.default_rng(25)
+    (robot,) = random_robots(rng, 1)
+    figure8 = load_scenario('figure8')
+    q0, qd0 = figure8.initial_state(robot)
+    pair = Pair(robot, figure8.reference, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0,
+                t0=3.7, dt=2e-3)
+    pair.run(300)
+    assert pair.numba.t == pytest.approx(3.7 + 300 * 2e-3)
+    pair.assert_agree()
+
+
 def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
     """SmoothStop: the heading task loses its direction as the reference rests."""
     circle = load_scenario('circle')
