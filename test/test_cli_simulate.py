@@ -82,3 +82,56 @@ def test_every_column_group_gives_one_value_per_name():
     for names, values in COLUMN_GROUPS:
         assert len(values(out)) == len(names), names
     assert len(csv_row(out)) == len(CSV_COLUMNS) == len(set(CSV_COLUMNS))
+
+
+def test_a_line_is_the_text_the_csv_writer_writes():
+    """csv_line (simulate's rows) against csv.writer on the same row, with the values a run can hold."""
+    import csv
+    import io
+
+    import numpy as np
+
+    from wallbot_sim.config import load_robot_parameters, load_scenario
+    from wallbot_sim.model import ConstraintSelection, Robot, Simulation
+    from wallbot_sim.rundata.csv_format import csv_line, csv_row
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    simulation = Simulation(robot, scenario.reference, ConstraintSelection(), *scenario.initial_state(robot))
+    outs = [simulation.outputs()]
+    simulation.step()
+    outs.append(simulation.outputs())
+    # and one with what a diverging or detaching run shows: inf, nan, -0.0, tiny and huge numbers, slip flags
+    odd = np.array([np.inf, -np.inf, np.nan, -0.0, 1e-300, 1e300, 5e-324])
+    outs.append(outs[-1].__class__(**{**outs[-1].__dict__, 'q': odd, 'residual': np.float64(-0.0)}))
+    for out in outs:
+        text = io.StringIO(newline='')
+        csv.writer(text).writerow(csv_row(out))
+        assert csv_line(out) == text.getvalue()
+
+
+@pytest.mark.parametrize('args', [
+    ['--scenario', 'circle', '--constraints', 'belt,non_lateral,nonslip'],
+    ['--scenario', 'figure8'],
+    ['--scenario', 'rest', '--torque', '1.5,-0.5', '--heading', '0.7'],
+], ids=['circle-full-set', 'figure8-trajectory', 'rest-driven'])
+def test_the_numba_engine_writes_the_python_engines_csv_to_1e9(tmp_path, args):
+    """--engine numba: the same header and instants, every column within 1e-9 of its largest magnitude (and of
+    1, for the columns that stay at round-off, such as a consistent set's residual), NaN where python has NaN."""
+    import numpy as np
+    tables = {}
+    for engine in ('python', 'numba'):
+        out = tmp_path / f'{engine}.csv'
+        result = simulate(*args, '--duration', '0.5', '--engine', engine, '--csv', str(out), '--quiet')
+        assert result.returncode == 0, result.stderr
+        header, rows = read_csv(out)
+        assert header == list(CSV_COLUMNS)
+        tables[engine] = np.array(rows)
+    python, numba = tables['python'], tables['numba']
+    assert python.shape == numba.shape == (501, len(CSV_COLUMNS))
+    assert np.array_equal(python[:, 0], numba[:, 0])
+    assert np.array_equal(np.isnan(python), np.isnan(numba))  # no reference: ref_x, ref_y, err
+    python, numba = np.nan_to_num(python), np.nan_to_num(numba)
+    scale = np.maximum(np.max(np.abs(python), axis=0), 1.0)
+    worst = np.max(np.abs(numba - python) / scale, axis=0)
+    assert np.all(worst <= 1e-9), dict(zip(CSV_COLUMNS, worst))
+    assert not np.array_equal(python, numba)  # the kernel computed it, not the Python model again

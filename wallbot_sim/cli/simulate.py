@@ -21,7 +21,8 @@ from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
+from wallbot_sim.model.simulation import ENGINES, PYTHON
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_line
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 
@@ -59,6 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--duration', type=number(POSITIVE), help='seconds to simulate (default: the scenario\'s)')
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
+    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
+                        help='how the ideal-contact steps are computed: python (the model), or numba (the batch\'s '
+                             'compiled kernel; coulomb contact stays python)')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -91,13 +95,14 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     if rest:
         heading = 0.0 if args.heading is None else args.heading
         q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
-        simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact)
+        simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact, engine=args.engine)
         simulation.set_motor_torque(*parse_torque(args.torque))
         return simulation, args.duration if args.duration is not None else REST_DURATION
     scenario = load_scenario(args.scenario)
     q0, qd0 = scenario.initial_state(robot)
     duration = args.duration if args.duration is not None else scenario.duration
-    return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact), duration
+    return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact,
+                      engine=args.engine), duration
 
 
 def build_controller(args: argparse.Namespace, simulation: Simulation) -> Callable[[StepOutputs], None] | None:
@@ -143,14 +148,13 @@ def main(args: argparse.Namespace) -> int:
                            'has no switch for it), so a bag cannot hold it: add non_lateral, or drop --bag')
         sinks.append(HeadlessBagWriter.open(Path(args.bag), simulation))
     with _open_csv(args.csv) as stream:
-        writer = csv.writer(stream) if stream is not None else None
-        if writer is not None:
-            writer.writerow(CSV_COLUMNS)
+        if stream is not None:
+            csv.writer(stream).writerow(CSV_COLUMNS)
 
         def on_step(out: StepOutputs) -> None:
             with signals.deferred():  # a signal ends the run between two complete steps
-                if writer is not None:
-                    writer.writerow(csv_row(out))
+                if stream is not None:
+                    stream.write(csv_line(out))
                 for sink in sinks:
                     sink.write(out)
             if controller is not None:  # after the state was written, as the graph answers a published state

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -20,10 +20,16 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.trajectories import LastSample, Reference
 
+if TYPE_CHECKING:
+    from wallbot_sim.model.compiled import CompiledDynamics
+
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
 TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
 """The RK4 steps the tools accept (s): simulate's --dt and a sweep's dt."""
+PYTHON, NUMBA = 'python', 'numba'
+ENGINES = (PYTHON, NUMBA)
+"""How the ideal-contact motion and steps are computed: the model's Python, or the batch's compiled kernel."""
 
 
 class DivergedError(ModelError):
@@ -49,14 +55,21 @@ class Simulation:
     or slip: the transitions of a step boundary are made when its outputs are computed (``step``
     computes them), and a wheel lifting off raises DetachedError from ``step`` after the outputs
     of that instant were available.
+
+    ``engine`` 'numba' computes the motion and the RK4 step by the batch's compiled kernel
+    (``model.compiled``) while the contact is ideal and no ``extra_modules`` are active; coulomb
+    contact and modules of your own stay on the Python path.
     """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
                  q0: np.ndarray, qd0: np.ndarray, dt: float = DEFAULT_STEP, t0: float = 0.0,
                  gains: BaumgarteGains | None = None, extra_modules: Sequence[ConstraintModule] = (),
-                 contact: str = IDEAL) -> None:
+                 contact: str = IDEAL, engine: str = PYTHON) -> None:
         """``extra_modules``: constraint modules of your own, active beside the selected ones."""
         POSITIVE.check('time step', dt)
+        if engine not in ENGINES:
+            raise ParameterError(f'unknown engine {engine!r} (use {" or ".join(ENGINES)})')
+        self.engine = engine
         self.robot = robot
         self.dt = dt
         self.gains = gains or BaumgarteGains(robot.params.baumgarte_alpha, robot.params.baumgarte_beta)
@@ -71,6 +84,7 @@ class Simulation:
         """Q_f of the slipping channels over this step, or None."""
         self.set_contact_model(contact)
         self._initial = (t0, _state_vector(q0, qd0))
+        self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         self.steps = 0
         self.reset()
@@ -276,7 +290,9 @@ class Simulation:
                 slipping = slip_flags(self._coulomb.slipping)
             else:
                 qd = self._y[DOF:]
-                motion = self.solve(self._t, q, qd)
+                compiled = self._compiled_now()
+                motion = (self.solve(self._t, q, qd) if compiled is None
+                          else compiled.motion(self._y, self.steps, self.motor_torque))
                 loads, use = self._measure(motion, None, qd)
                 slipping = (False, False, False)
             reference = self._reference.sample(self._t) if self._reference is not None else None
@@ -313,16 +329,27 @@ class Simulation:
             wheel = contact.detached_wheel
             if wheel is not None:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
-        with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
-            cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
-            k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
-            y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
-        if not np.all(np.isfinite(y)):
+        cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
+        compiled = self._compiled_now()
+        if compiled is not None:  # None when not finite
+            y = compiled.step(self._y, self.steps, self.motor_torque, None if cached is None else cached.acceleration)
+        else:
+            with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
+                k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
+                y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
+            y = y if np.all(np.isfinite(y)) else None
+        if y is None:
             raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
         self.steps += 1
         self._t = self._initial[0] + self.steps * self.dt
         self._y = y
         self._cached = None
+
+    def _compiled_now(self) -> CompiledDynamics | None:
+        """The compiled dynamics configured for what is active, when they cover it (ideal contact, no own modules)."""
+        if self._compiled is None or self._friction is not None or self.coulomb_applies or self._extra_modules:
+            return None
+        return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
 
     def run(self, duration: float, on_step: Callable[[StepOutputs], None] | None = None) -> StepOutputs:
         """Step for ``duration`` seconds; ``on_step`` sees the outputs at every instant, both ends included."""
@@ -351,6 +378,12 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
     force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
     return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
+
+
+def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
+    # imported here: model.compiled reaches the batch package, which imports this module
+    from wallbot_sim.model.compiled import CompiledDynamics
+    return CompiledDynamics(initial_time, dt)
 
 
 def _row_keys(module: ConstraintModule) -> list[tuple[str, str | None]]:

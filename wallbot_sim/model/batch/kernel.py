@@ -14,20 +14,24 @@ agreement tests run both.
 engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
 what the fused step does not cover: coulomb contact, and the outputs step hooks see.
 
+``robot_motion`` and ``robot_step`` are one robot's motion at a state (qdd, Q, Q_c, residual) and its
+RK4 step, called once a step by ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``):
+the same derivative and RK4 step as the batch's fused loop.
+
 numba is optional: ``available()`` says whether it imported.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import RANK_CUTOFF, WELL_CONDITIONED
 from wallbot_sim.model.robot import DOF
-from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
+from wallbot_sim.model.trajectories import Reference, tangent_heading
 
 try:
     import numba
@@ -39,8 +43,12 @@ except ImportError:  # the NumPy path needs nothing more
 MODULE_ORDER = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
 """The modules the kernel knows, in ``MODULES``' stacking order (its flags follow it)."""
 MODULE_ROWS = (2, 1, 2, 1, 4)
+MAX_ROWS = sum(MODULE_ROWS)
+"""The rows of every module at once."""
 REFERENCE_FIELDS = 10
 """A reference instant: position, velocity, acceleration (2 each), has heading, angle, rate, its rate."""
+NO_HEADING = (0.0, 0.0, 0.0, 0.0)
+"""The heading fields of a reference at rest (no direction)."""
 
 
 def available() -> bool:
@@ -54,22 +62,21 @@ def reference_samples(reference: Reference | None, initial_time: float, first_st
 
     The times are computed as ``BatchSimulation.t`` and ``rk4_step`` compute them.
     """
-    samples = np.zeros((steps, 3, REFERENCE_FIELDS))
     if reference is None:
-        return samples
-    shared = LastSample(reference)
+        return np.zeros((steps, 3, REFERENCE_FIELDS))
     half = 0.5 * dt
+    rows = []
+    instant, row = math.nan, ()
     for step in range(steps):
         t = initial_time + (first_step + step) * dt
-        for stage, instant in enumerate((t, t + half, t + dt)):
-            sample = shared.sample(instant)
-            samples[step, stage, 0:2] = sample.position
-            samples[step, stage, 2:4] = sample.velocity
-            samples[step, stage, 4:6] = sample.acceleration
-            heading = tangent_heading(sample)
-            if heading is not None:
-                samples[step, stage, 6:10] = (1.0, heading.angle, heading.rate, heading.acceleration)
-    return samples
+        for time in (t, t + half, t + dt):
+            if time != instant:  # a step's end is often the next step's start to the last bit
+                instant, sample = time, reference.sample(time)
+                heading = tangent_heading(sample)
+                row = (*sample.position, *sample.velocity, *sample.acceleration,
+                       *(NO_HEADING if heading is None else (1.0, *heading)))
+            rows.append(row)
+    return np.array(rows, dtype=float).reshape(steps, 3, REFERENCE_FIELDS)
 
 
 def _compile(function: Any, **options: Any) -> Any:
@@ -375,6 +382,38 @@ def _minimum_norms(matrix: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None
         _minimum_norm(matrix[robot], rhs[robot], count, gram, lower, vectors, scratch, out[robot])
 
 
+def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
+         dt: float, known: bool, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray,
+         gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, stage: np.ndarray,
+         slopes: np.ndarray) -> bool:
+    """One RK4 step of one robot from ``state`` (14,) into ``stage`` (``rk4_step``); whether it is finite.
+
+    ``references`` (3, 10): the reference at t, t + dt/2 and t + dt. ``known``: slopes[0, 7:] already
+    holds qdd at ``state`` (the outputs' solve, RK4's first stage).
+    """
+    half, sixth = 0.5 * dt, dt / 6.0
+    for k in range(4):
+        if k == 0:
+            for i in range(2 * DOF):
+                stage[i] = state[i]
+        else:
+            weight = dt if k == 3 else half
+            for i in range(2 * DOF):
+                stage[i] = state[i] + weight * slopes[k - 1, i]
+        for i in range(DOF):
+            slopes[k, i] = stage[DOF + i]
+        if k == 0 and known:
+            continue
+        instant = 0 if k == 0 else (2 if k == 3 else 1)
+        _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, rows, rhs, factor,
+                      matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
+    finite = True
+    for i in range(2 * DOF):
+        stage[i] = state[i] + sixth * (slopes[0, i] + 2.0 * (slopes[1, i] + slopes[2, i]) + slopes[3, i])
+        finite = finite and math.isfinite(stage[i])
+    return finite
+
+
 def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
            torques: np.ndarray, chunk: int, diverged: np.ndarray) -> None:
     """``steps`` RK4 steps of every robot, in place on y (N, 14) (``rk4_step`` of the derivative robot by robot).
@@ -383,41 +422,77 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
     """
     count = y.shape[0]
     for block in prange((count + chunk - 1) // chunk):
-        rows, rhs = np.zeros((10, DOF)), np.zeros(10)  # zero once: see _acceleration
-        factor, matrix = np.zeros((DOF, DOF)), np.zeros((10, DOF))
-        gram, lower = np.zeros((DOF, DOF)), np.zeros((DOF, DOF))
-        vectors, scratch = np.zeros((5, 10)), np.zeros((5, DOF, DOF))
+        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)  # zero once: see _acceleration
+        factor, matrix, gram, lower, vectors, scratch = _workspace()
         state, stage, slopes = np.zeros(2 * DOF), np.zeros(2 * DOF), np.zeros((4, 2 * DOF))
-        half, sixth = 0.5 * dt, dt / 6.0
         for robot in range(block * chunk, min(count, (block + 1) * chunk)):
             for i in range(2 * DOF):
                 state[i] = y[robot, i]
             for step in range(steps):
-                for k in range(4):
-                    if k == 0:
-                        for i in range(2 * DOF):
-                            stage[i] = state[i]
-                    else:
-                        weight = dt if k == 3 else half
-                        for i in range(2 * DOF):
-                            stage[i] = state[i] + weight * slopes[k - 1, i]
-                    for i in range(DOF):
-                        slopes[k, i] = stage[DOF + i]
-                    instant = 0 if k == 0 else (2 if k == 3 else 1)
-                    _acceleration(stage[:DOF], stage[DOF:], references[step, instant], flags, constants[robot],
-                                  torques[robot], rows, rhs, factor, matrix, gram, lower, vectors, scratch,
-                                  slopes[k, DOF:])
-                finite = True
-                for i in range(2 * DOF):
-                    stage[i] = state[i] + sixth * (slopes[0, i] + 2.0 * (slopes[1, i] + slopes[2, i]) + slopes[3, i])
-                    finite = finite and math.isfinite(stage[i])
-                if not finite:
+                if not _rk4(state, references[step], flags, constants[robot], torques[robot], dt, False, rows, rhs,
+                            factor, matrix, gram, lower, vectors, scratch, stage, slopes):
                     diverged[robot] = step
                     break
                 for i in range(2 * DOF):
                     state[i] = stage[i]
             for i in range(2 * DOF):
                 y[robot, i] = state[i]
+
+
+def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """factor W and ``_scratch`` for one robot's problems of up to MAX_ROWS rows."""
+    matrix, gram, lower, vectors, scratch = _scratch(MAX_ROWS)
+    return np.zeros((DOF, DOF)), matrix, gram, lower, vectors, scratch
+
+
+def robot_motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
+                 torque: np.ndarray, motion: np.ndarray) -> float:
+    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
+
+    ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
+    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R).
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    acceleration, force = motion[0], motion[1]
+    _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, rows, rhs, factor, matrix, gram, lower,
+                  vectors, scratch, acceleration)
+    for i in range(DOF):
+        force[i] = vectors[0, i]  # Q: _acceleration leaves it in vectors row 0
+    mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
+    cos_t, sin_t = math.cos(y[2]), math.sin(y[2])
+    ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx  # M's coupling entries (Robot.offset_moment_arm)
+    constraint = motion[2]
+    constraint[0] = mass * acceleration[0] + ux * acceleration[2] - force[0]
+    constraint[1] = mass * acceleration[1] + uy * acceleration[2] - force[1]
+    constraint[2] = ux * acceleration[0] + uy * acceleration[1] + yaw_inertia * acceleration[2] - force[2]
+    for i in range(3, DOF):
+        constraint[i] = spin_inertia * acceleration[i] - force[i]
+    squares = 0.0
+    for r in range(count):
+        misfit = -rhs[r]
+        for j in range(DOF):
+            misfit += rows[r, j] * acceleration[j]
+        squares += misfit * misfit
+    return math.sqrt(squares)
+
+
+def robot_step(y: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
+               dt: float, known: np.ndarray, out: np.ndarray) -> bool:
+    """One robot's RK4 step from y (14,) into out (14,); whether the new state is finite.
+
+    ``references`` (3, 10): the reference at t, t + dt/2, t + dt; ``known``: qdd at y (RK4's first stage,
+    e.g. from ``robot_motion``), or an empty array to compute it.
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    slopes = np.zeros((4, 2 * DOF))
+    given = known.shape[0] == DOF
+    if given:
+        for i in range(DOF):
+            slopes[0, DOF + i] = known[i]
+    return _rk4(y, references, flags, constants, torque, dt, given, rows, rhs, factor, matrix, gram, lower, vectors,
+                scratch, out, slopes)
 
 
 _cholesky = _compile(_cholesky, inline="always")
@@ -431,7 +506,11 @@ _scratch = _compile(_scratch)
 _acceleration = _compile(_acceleration, inline="always")
 _accelerations = _compile(_accelerations)
 _minimum_norms = _compile(_minimum_norms)
+_rk4 = _compile(_rk4, inline="always")
 _steps = _compile(_steps, parallel=True)
+_workspace = _compile(_workspace, inline="always")
+robot_motion = _compile(robot_motion)
+robot_step = _compile(robot_step)
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -457,10 +536,16 @@ def robot_constants(robots: RobotBatch, alpha: np.ndarray, beta: np.ndarray) -> 
         robots.lateral_offsets, robots.perpendicular_offsets.reshape(len(alpha), 8))))
 
 
+def module_flags(active: Sequence[str]) -> tuple[np.ndarray, int]:
+    """The kernel's flags (in MODULE_ORDER) of the modules named ``active``, and their row count."""
+    flags = np.array([name in active for name in MODULE_ORDER], dtype=np.bool_)
+    return flags, sum(rows for name, rows in zip(MODULE_ORDER, MODULE_ROWS) if name in active)
+
+
 def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active: tuple[str, ...],
             constants: np.ndarray, torques: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """y after ``steps`` steps (a new array), and (N,) the step each robot diverged at (-1: none)."""
-    flags = np.array([name in active for name in MODULE_ORDER], dtype=np.bool_)
+    flags, _ = module_flags(active)
     advanced = np.array(y, dtype=float, order='C')
     diverged = np.full(len(y), -1, dtype=np.int64)
     _steps(advanced, steps, dt, references, flags, constants, np.ascontiguousarray(torques), chunk, diverged)

@@ -1,0 +1,232 @@
+"""``Simulation(..., engine='numba')`` against the Python model, robot by robot and step by step.
+
+The compiled engine computes the motion (qdd, Q_c, residual) and the RK4 step by the batch's kernel;
+the outputs derived from the motion (drive forces, normal loads, friction use) and everything the
+configuration calls do are the model's own. Where the kernel does not apply (coulomb contact without
+the trajectory task, modules of your own) the run is the Python one, bit for bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from batch_helpers import TOLERANCE, assert_agree, perturbed_starts, random_robots
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import (
+    BaumgarteGains, ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop,
+    StepOutputs)
+from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.constraints import NonLateral
+from wallbot_sim.model.robot import DOF
+
+pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+
+QUANTITIES = ('q', 'qd', 'acceleration', 'constraint_force', 'drive', 'loads', 'use')
+
+
+def quantities(out: StepOutputs) -> dict[str, np.ndarray]:
+    """What a step reports, as arrays: states, motion, drive forces, normal loads, friction use, residual."""
+    return {'q': out.q, 'qd': out.qd, 'acceleration': out.acceleration, 'constraint_force': out.constraint_force,
+            'drive': np.array([out.drive.left, out.drive.right, out.drive.lateral]), 'loads': out.contact.loads,
+            'use': np.array(out.contact.use), 'residual': np.array([out.residual])}
+
+
+class Pair:
+    """The same robot on both engines, stepped together; every step's outputs kept for comparison."""
+
+    def __init__(self, robot: Robot, reference, selection: ConstraintSelection, q0: np.ndarray, qd0: np.ndarray,
+                 **options) -> None:
+        self.python = Simulation(robot, reference, selection, q0, qd0, **options)
+        self.numba = Simulation(robot, reference, selection, q0, qd0, engine='numba', **options)
+        self.history: dict[str, list[list[np.ndarray]]] = {'python': [], 'numba': []}
+
+    def both(self, call) -> list:
+        return [call(self.python), call(self.numba)]
+
+    def run(self, steps: int) -> None:
+        """``steps`` steps; the outputs at two instants of three (so the kernel also computes RK4's first stage)."""
+        for step in range(steps):
+            if step % 3 != 2:
+                for name in ('python', 'numba'):
+                    self.history[name].append(quantities(getattr(self, name).outputs()))
+            self.python.step()
+            self.numba.step()
+        assert self.python.steps == self.numba.steps and self.python.t == self.numba.t
+
+    def assert_agree(self, label: str = '') -> None:
+        """Every quantity within TOLERANCE of its largest magnitude over the run, the residual on the scale of
+        the accelerations (a consistent set's residual is round-off)."""
+        python, numba = self.history['python'], self.history['numba']
+        assert len(python) == len(numba) > 0
+        for key in QUANTITIES:
+            assert_agree(f'{label} {key}', np.array([o[key] for o in numba]), np.array([o[key] for o in python]))
+        residuals = np.array([[o['residual'][0] for o in python], [o['residual'][0] for o in numba]])
+        scale = max(np.max(residuals[0]), max(np.max(np.abs(o['acceleration'])) for o in python))
+        assert np.max(np.abs(residuals[1] - residuals[0])) <= TOLERANCE * scale, f'{label} residual'
+
+
+def pairs(seed: int, count: int, scenario, selection: ConstraintSelection) -> list[Pair]:
+    rng = np.random.default_rng(seed)
+    robots = random_robots(rng, count)
+    q0, qd0 = perturbed_starts(rng, robots, scenario)
+    reference = scenario.reference if selection.trajectory else None
+    return [Pair(robot, reference, selection, q0[i], qd0[i]) for i, robot in enumerate(robots)]
+
+
+@pytest.mark.parametrize('scenario_name', ['circle', 'figure8'])
+def test_full_set_with_the_trajectory_task_agrees(scenario_name):
+    for i, pair in enumerate(pairs(21, 3, load_scenario(scenario_name),
+                                   ConstraintSelection.parse('belt,non_lateral,nonslip'))):
+        pair.run(300)
+        pair.assert_agree(f'robot {i}')
+
+
+def test_driven_set_under_motor_torques_agrees():
+    """No trajectory task: belt, non-lateral, nonslip (B of rank 5, the pivoted solve) under torques."""
+    rng = np.random.default_rng(22)
+    for i, robot in enumerate(random_robots(rng, 3)):
+        q0 = np.zeros(DOF)
+        q0[2] = rng.uniform(-np.pi, np.pi)
+        pair = Pair(robot, None, ConstraintSelection.structural(trajectory=False), q0, rng.normal(0.0, 0.05, DOF))
+        pair.both(lambda simulation, torque=rng.uniform(-2.0, 2.0, 2): simulation.set_motor_torque(*torque))
+        pair.run(300)
+        pair.assert_agree(f'robot {i}')
+
+
+@pytest.mark.parametrize('constraints, heading', [
+    ('belt,non_lateral,nonslip', False),  # the centre task against non-lateral motion: inconsistent, rank-deficient
+    ('non_lateral', False),               # inconsistent, full column rank
+    ('belt', None),                       # consistent, dependent columns
+], ids=['inconsistent-and-rank-deficient', 'inconsistent', 'rank-deficient'])
+def test_least_squares_compromise_agrees(constraints, heading):
+    selection = ConstraintSelection.parse(constraints, tangent_heading=heading)
+    for i, pair in enumerate(pairs(23, 2, load_scenario('circle'), selection)):
+        pair.run(300)
+        pair.assert_agree(f'robot {i}')
+    if constraints.startswith('belt,'):
+        assert pair.python.outputs().residual > 1e-3  # the set really cannot hold
+
+
+def test_a_run_from_a_later_start_with_another_step_agrees():
+    """t0 and dt of the simulation's own: the reference instants the kernel is given are the model's."""
+    rng = np.random.default_rng(25)
+    (robot,) = random_robots(rng, 1)
+    figure8 = load_scenario('figure8')
+    q0, qd0 = figure8.initial_state(robot)
+    pair = Pair(robot, figure8.reference, ConstraintSelection.parse('belt,non_lateral,nonslip'), q0, qd0,
+                t0=3.7, dt=2e-3)
+    pair.run(300)
+    assert pair.numba.t == pytest.approx(3.7 + 300 * 2e-3)
+    pair.assert_agree()
+
+
+def test_a_reference_that_comes_to_rest_agrees_through_the_stop():
+    """SmoothStop: the heading task loses its direction as the reference rests."""
+    circle = load_scenario('circle')
+    stopping = Scenario('stop', SmoothStop(circle.reference, duration=0.1, stop_time=0.2), 1.0, circle.initial)
+    (pair,) = pairs(24, 1, stopping, ConstraintSelection.parse('belt,non_lateral,nonslip'))
+    pair.run(450)
+    pair.assert_agree()
+
+
+def test_configuration_calls_mid_run_act_the_same_on_both_engines():
+    """Constraint switches (with their projection and new gains), torques, a new reference, the adhesion
+    force, reset and restore, between steps: both engines go on agreeing."""
+    robot = Robot(load_robot_parameters().replace(com_offset=(0.02, -0.01)))
+    circle, figure8 = load_scenario('circle'), load_scenario('figure8')
+    q0, qd0 = circle.initial_state(robot)
+    pair = Pair(robot, circle.reference, ConstraintSelection.parse('belt'), q0, qd0)
+    pair.run(60)
+    reports = pair.both(lambda s: s.set_constraints(ConstraintSelection.parse('belt,non_lateral,nonslip')))
+    assert reports[1].violation_before == pytest.approx(reports[0].violation_before, rel=TOLERANCE)
+    assert reports[0].violation_before > 0.01 and reports[1].violation_after < 1e-12
+    pair.run(60)
+    pair.both(lambda s: s.set_constraints(ConstraintSelection.structural(trajectory=False), BaumgarteGains(8.0, 6.0)))
+    pair.both(lambda s: s.set_motor_torque(1.5, -0.5))
+    pair.run(60)
+    pair.both(lambda s: s.set_adhesion_force(250.0))
+    pair.both(lambda s: s.set_constraints(ConstraintSelection.parse('belt,non_lateral,nonslip')))
+    pair.both(lambda s: s.set_reference(figure8.reference))
+    pair.run(60)
+    saved = (pair.numba.steps, pair.numba.q, pair.numba.qd)
+    pair.run(30)
+    pair.both(lambda s: s.reset())
+    assert pair.numba.t == 0.0 and np.array_equal(pair.numba.q, q0) and np.array_equal(pair.numba.qd, qd0)
+    pair.run(30)
+    pair.both(lambda s: s.restore(*saved))
+    assert pair.numba.steps == saved[0]
+    pair.run(60)
+    pair.assert_agree()
+
+
+@pytest.fixture
+def kernel_calls(monkeypatch) -> dict[str, int]:
+    """How often the engine called the kernel's motion and step (counted, then passed on)."""
+    calls = {'robot_motion': 0, 'robot_step': 0}
+    for name in calls:
+        def counted(*args, _name=name, _function=getattr(kernel, name)):
+            calls[_name] += 1
+            return _function(*args)
+        monkeypatch.setattr(kernel, name, counted)
+    return calls
+
+
+def test_the_numba_engine_steps_by_the_kernel_and_the_python_one_never(kernel_calls):
+    robot = Robot(load_robot_parameters())
+    circle = load_scenario('circle')
+    Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot)).run(0.01)
+    assert kernel_calls == {'robot_motion': 0, 'robot_step': 0}
+    Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot), engine='numba').run(
+        0.01, lambda out: None)  # the outputs of every instant: the first stage of each step is theirs
+    assert kernel_calls == {'robot_motion': 11, 'robot_step': 10}
+
+
+def test_what_the_kernel_does_not_cover_runs_the_python_model_bit_for_bit(kernel_calls):
+    """Coulomb contact without the trajectory task, and modules of your own: the numba engine's run is the
+    Python run exactly (it falls back). Back on ideal contact the kernel takes over again."""
+    robot = Robot(load_robot_parameters().replace(adhesion_force=100.0))
+    pair = Pair(robot, None, ConstraintSelection.structural(trajectory=False), np.zeros(DOF), np.zeros(DOF),
+                contact='coulomb')
+    pair.both(lambda s: s.set_motor_torque(0.5, 0.5))
+    pair.run(60)
+    assert any(pair.python.outputs().contact.slipping)
+    for python, numba in zip(pair.history['python'], pair.history['numba']):
+        assert all(np.array_equal(python[key], numba[key]) for key in python)
+    assert kernel_calls['robot_step'] == 0
+    pair.both(lambda s: s.set_contact_model('ideal'))
+    pair.run(120)
+    pair.assert_agree()
+    assert kernel_calls['robot_step'] == 120
+
+    circle = load_scenario('circle')
+    q0, qd0 = circle.initial_state(robot)
+    lateral = NonLateral(BaumgarteGains())
+    alone = [Simulation(robot, circle.reference, ConstraintSelection(), q0, qd0, extra_modules=[lateral],
+                        engine=engine).run(0.05) for engine in ('python', 'numba')]
+    assert np.array_equal(alone[0].q, alone[1].q) and np.array_equal(alone[0].qd, alone[1].qd)
+    assert kernel_calls['robot_step'] == 120
+
+
+def test_a_diverging_state_stops_with_the_same_error_and_keeps_the_last_finite_state():
+    robot = Robot(load_robot_parameters().replace(com_offset=(0.03, 0.0)))
+    errors, states = [], []
+    for engine in ('python', 'numba'):
+        qd0 = np.zeros(DOF)
+        qd0[2] = 1e153  # the centripetal force m_b c thd^2 is finite for a step, then overflows
+        simulation = Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), qd0, engine=engine)
+        with pytest.raises(DivergedError, match='no longer finite') as error:
+            for _ in range(50):
+                simulation.step()
+        errors.append(str(error.value))
+        states.append((simulation.steps, simulation.q, simulation.qd))
+        assert np.all(np.isfinite(simulation.q)) and np.all(np.isfinite(simulation.qd))
+    assert errors[0] == errors[1]
+    assert states[0][0] == states[1][0] > 0
+    assert np.allclose(states[0][1], states[1][1], rtol=1e-12) and np.allclose(states[0][2], states[1][2], rtol=1e-12)
+
+
+def test_an_unknown_engine_is_refused_by_name():
+    robot = Robot(load_robot_parameters())
+    with pytest.raises(ParameterError, match="unknown engine 'fortran'"):
+        Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), np.zeros(DOF), engine='fortran')
