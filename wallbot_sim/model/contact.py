@@ -22,7 +22,7 @@ from wallbot_sim.model.constraints import CHANNELS, LATERAL, LEFT, RIGHT, Constr
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.normal_loads import normal_load_gain, normal_loads
-from wallbot_sim.model.outputs import StepOutputs
+from wallbot_sim.model.outputs import DriveForces, StepOutputs
 from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, motion_of, solve_with_factor
@@ -76,8 +76,8 @@ Problem = Callable[[Sequence[ConstraintModule], np.ndarray], tuple[np.ndarray, n
 """(active modules, qd) -> Q and their rows A, b stacked in order, at the boundary's time and coordinates."""
 Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
 """(active modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
-Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse]]
-"""(motion, Q_f or None, qd) -> (normal loads, friction use)."""
+Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse, DriveForces]]
+"""(motion, Q_f or None, qd) -> (normal loads, friction use, drive forces of the whole contact wrench)."""
 
 
 class KineticFriction:
@@ -144,6 +144,7 @@ class ContactSolution(NamedTuple):
     """Q_f at the boundary, None while no channel slips."""
     loads: np.ndarray
     use: FrictionUse
+    drive: DriveForces
     held: np.ndarray
     """The loads the kinetic friction holds over the step."""
     active: Sequence[ConstraintModule]
@@ -346,16 +347,16 @@ class CoulombContact:
         if not (dependent and self._loads_moving):
             friction = None if function is None else function(q, qd)
             motion = solve_with_factor(mass, factor, force if friction is None else force + friction, rows, rhs)
-            loads, use = measure(motion, friction, qd)
+            loads, use, drive = measure(motion, friction, qd)
             if not dependent or _converged(loads.tolist(), held.tolist()):
-                return ContactSolution(motion, friction, loads, use, held, active, function)
+                return ContactSolution(motion, friction, loads, use, drive, held, active, function)
         per_load = function.force_per_load(q, qd)
         held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
         function = function.holding(held)
         friction = per_load @ held
         motion = motion_of(mass, force + friction, rows, rhs, acceleration)
-        loads, use = measure(motion, friction, qd)
-        return ContactSolution(motion, friction, loads, use, held, active, function)
+        loads, use, drive = measure(motion, friction, qd)
+        return ContactSolution(motion, friction, loads, use, drive, held, active, function)
 
 
 def _consistent_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, factor: np.ndarray, force: np.ndarray,

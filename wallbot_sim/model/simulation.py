@@ -285,7 +285,8 @@ class Simulation:
                 if qd is not velocities:  # a channel stuck again: its slip was projected away
                     self._y = np.concatenate((q, qd))
                     q = self._y[:DOF]
-                motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
+                motion, friction, loads, use, drive = (solution.motion, solution.friction, solution.loads,
+                                                       solution.use, solution.drive)
                 self._active, self._friction = solution.active, solution.function
                 slipping = slip_flags(self._coulomb.slipping)
             else:
@@ -293,12 +294,12 @@ class Simulation:
                 compiled = self._compiled_now()
                 motion = (self.solve(self._t, q, qd) if compiled is None
                           else compiled.motion(self._y, self.steps, self.motor_torque))
-                loads, use = self._measure(motion, None, qd)
+                loads, use, drive = self._measure(motion, None, qd)
                 slipping = (False, False, False)
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
-                self.motor_torque, self._channel_forces(q, motion.constraint_force, friction), reference,
+                self.motor_torque, drive, reference,
                 ContactOutputs(loads, use, self._limits(loads), slipping, friction))
         return self._cached
 
@@ -308,14 +309,15 @@ class Simulation:
         return drive_forces(q[2], wrench, self.robot.params.half_track)
 
     def _measure(self, motion: ConstrainedMotion, friction: np.ndarray | None,
-                 qd: np.ndarray) -> tuple[np.ndarray, FrictionUse]:
-        """Normal loads (9.1) and friction use (9.2) of a motion at the current q and velocities ``qd``."""
+                 qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
+        """Normal loads (9.1), friction use (9.2) and the drive forces they come from, of a motion
+        at the current q and velocities ``qd``."""
         q = self._y[:DOF]
         loads = normal_loads(self.robot, q, qd, motion.acceleration)
         drive = self._channel_forces(q, motion.constraint_force, friction)
         adsorption = self.robot.adsorption
         return loads, friction_use((drive.left, drive.right, drive.lateral), loads, adsorption.applied_force,
-                                   self.robot.params.wall_friction)
+                                   self.robot.params.wall_friction), drive
 
     def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
         static = self.robot.params.wall_friction
