@@ -27,6 +27,12 @@ _UNKNOWN = np.empty(0)
 """``robot_step``'s "no first stage given"."""
 
 
+def require_numba() -> None:
+    """Raise ParameterError unless numba imported (the compiled engine can run)."""
+    if not kernel.available():
+        raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+
+
 class CompiledDynamics:
     """The motion at a state and the RK4 step of one robot, for what a ``Simulation`` has active now.
 
@@ -35,8 +41,7 @@ class CompiledDynamics:
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
-        if not kernel.available():
-            raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+        require_numba()
         self._initial_time, self._dt = initial_time, dt
         self._robot: Robot | None = None
         self._gains: BaumgarteGains | None = None
