@@ -18,6 +18,7 @@ from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import DOF, Robot
+from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
 from wallbot_sim.model.trajectories import Reference
 
@@ -37,7 +38,6 @@ def require_numba() -> None:
 def compile_kernel() -> None:
     """Compile the kernel's motion and RK4 step, or load them from numba's cache (which the first
     compilation on a machine writes, 20-60 s), so that no simulation's first numba step waits for it."""
-    from wallbot_sim.model.simulation import NUMBA, Simulation  # that module imports this one when it runs
     still = np.zeros(DOF)
     simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still,
                             still, engine=NUMBA)
