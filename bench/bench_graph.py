@@ -14,7 +14,11 @@ after the runs: its CPU seconds per simulated second. The machine-independent fo
 ratios: graph CPU per simulated second / model CPU per simulated second (target <= 0.6) and
 factor-0 speed / model speed (target >= 5).
 
-    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--markers | --foxglove]
+    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine python|numba]
+                                [--markers | --foxglove]
+
+``--engine`` is the dynamics' (``run --engine``; default python, the model); with numba the
+kernel is compiled here before the runs if numba's cache lacks it, so no run waits for it.
 
 ``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second, nothing
 subscribing its markers), ``--foxglove`` with ``run --foxglove`` (the viewer also serving the live
@@ -42,6 +46,8 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import ChildProcesses, child_processes, cpu_seconds
 from wallbot_sim.model import ConstraintSelection, Robot
+from wallbot_sim.model.compiled import compile_kernel
+from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
          'constraint_config': 'wallbot_sim.nodes.constraint_config', 'recorder': 'wallbot_sim.nodes.recorder'}
@@ -83,13 +89,14 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              viewer: list[str]) -> Run:
-    """Run the circle scenario at ``factor`` for ``duration`` simulated seconds, sampling /proc;
-    ``viewer``: the run's options that start the viewer (none: no viewer)."""
+              engine: str, viewer: list[str]) -> Run:
+    """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
+    ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer)."""
     name = f'run_factor_{factor:g}'
     nodes = {**NODES, 'viewer': 'wallbot_sim.nodes.viewer'} if viewer else NODES
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
-                          '--real-time-factor', factor, '--no-plots', '--out', out, *viewer], name)
+                          '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
+                          *viewer], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -141,19 +148,23 @@ def main() -> int:
                         help='wall seconds after every node is up before CPU is counted (default 3)')
     parser.add_argument('--model-seconds', type=float, default=2.0,
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
+    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
+                        help="the dynamics' engine (run --engine; default python)")
     choice = parser.add_mutually_exclusive_group()
     choice.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
     args = parser.parse_args()
     viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
+    if args.engine == NUMBA:
+        compile_kernel()
 
     claim = claim_domain_id()
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_graph_'))
     launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
-        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, viewer)
-        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, viewer)
+        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer)
+        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
@@ -167,7 +178,7 @@ def main() -> int:
     lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
-    print(f'\nwallbot-sim run circle, factor 1, {args.duration:g} simulated s; '
+    print(f'\nwallbot-sim run circle --engine {args.engine}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
     for node, seconds in realtime.cpu.items():
         print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per simulated s')
@@ -180,7 +191,7 @@ def main() -> int:
     (w0, d0), (w1, d1) = running[0], running[-1]
     speed = (float(d1['simulation time']) - float(d0['simulation time'])) / (w1 - w0)
     fast_wall = fast.window[1] - fast.window[0]
-    print(f'\nwallbot-sim run circle, factor 0, {args.fast_duration:g} simulated s:')
+    print(f'\nwallbot-sim run circle --engine {args.engine}, factor 0, {args.fast_duration:g} simulated s:')
     print(f'  simulated s per wall s: {speed:.2f}   (target >= 5)')
     print(f'  ratio to the two-pinv model\'s speed ({1 / model:.2f} simulated s per CPU s): {speed * model:.2f}'
           '   (target >= 5)')

@@ -12,6 +12,7 @@ Arguments (defaults as ``wallbot-sim run``):
   robot:=PATH.yaml                     robot parameter file (default: the installed config/robot.yaml)
   contact:=ideal|coulomb               wheel-wall contact model (coulomb with controller:=true)
   adhesion_force:=N                    adhesion force in N (default: the robot file's)
+  engine:=python|numba                 how the dynamics computes the ideal-contact steps (numba: compiled kernel)
   viewer:=false                        true: viewer_node publishes markers (and /tf with tf2_msgs installed)
 
 Example:
@@ -42,6 +43,8 @@ ARGUMENTS = {
     'robot': ('', 'robot parameter YAML (empty: the installed config/robot.yaml)'),
     'contact': ('ideal', 'wheel-wall contact model: ideal or coulomb (coulomb with controller:=true)'),
     'adhesion_force': ('', "adhesion force in N (empty: the robot file's)"),
+    'engine': ('python', "how the dynamics computes the ideal-contact steps: python, or numba (the batch's compiled "
+                         'kernel; it compiles on first use on a machine)'),
     'viewer': ('false', 'true: viewer_node publishes markers (and /tf where tf2_msgs is installed)'),
 }
 
@@ -59,7 +62,7 @@ def _graph(context, *args, **kwargs):
         realtime_priority=int(arg('realtime_priority')),
         robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
         adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None,
-        viewer=arg('viewer').strip().lower() == 'true')
+        viewer=arg('viewer').strip().lower() == 'true', engine=arg('engine'))
     return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], name=spec.name, namespace=topics.NAMESPACE,
                  output='screen', parameters=[dict(spec.parameters)])
             for spec in specs]

@@ -66,6 +66,33 @@ def test_run_records_what_simulate_computes(tmp_path, scenario, factor, duration
     assert len(plots) == len(FIGURES) and all(p.stat().st_size > 10_000 for p in plots)
 
 
+def test_a_graph_on_the_numba_engine_records_what_simulate_on_it_computes(tmp_path):
+    """run --engine numba (factor 0): the odometry is simulate --engine numba's exactly (the same
+    compiled steps on the same plans) and the Python model's to 1e-9 relative."""
+    from wallbot_sim.model.batch import kernel
+    if not kernel.available():
+        pytest.skip('numba is not installed')
+    from wallbot_sim.model.compiled import compile_kernel
+    compile_kernel()  # so that the node loads it from numba's cache instead of compiling it for up to a minute
+    out = tmp_path / 'run'
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--engine', 'numba',
+                             '--no-plots', '--out', str(out)], capture_output=True, text=True, timeout=240)
+    assert result.returncode == 0, result.stderr + result.stdout
+    recorded = odometry(out / 'bag')
+    bags = {}
+    for engine in ('numba', 'python'):
+        bags[engine] = tmp_path / engine
+        simulated = subprocess.run([*WALLBOT, 'simulate', '--scenario', 'circle', '--constraints',
+                                    'belt,non_lateral,nonslip', '--duration', '1', '--engine', engine, '--bag',
+                                    str(bags[engine]), '--quiet'], capture_output=True, text=True, timeout=240)
+        assert simulated.returncode == 0, simulated.stderr
+    assert len(recorded) == 1001 and np.array_equal(recorded, odometry(bags['numba']))
+    python = odometry(bags['python'])
+    assert np.array_equal(recorded[:, 0], python[:, 0])
+    scale = np.max(np.abs(python[:, 1:]), axis=0)
+    assert np.all(np.abs(recorded[:, 1:] - python[:, 1:]) <= 1e-9 * scale)
+
+
 def start_run(process_runner, out: Path, *extra: str) -> subprocess.Popen:
     """A long circle run, returned once its progress line shows more than a second simulated."""
     process = process_runner.start([*WALLBOT, 'run', 'circle', '--duration', '60', '--out', str(out), '--no-plots',
@@ -121,6 +148,7 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
     (['circle', '--constraints', 'belt', '--tangent-heading'], '--tangent-heading acts with non_lateral'),
     (['circle', '--foxglove', '0'], "argument --foxglove: must be a TCP port, 1..65535, got '0'"),
     (['circle', '--foxglove-host', '0.0.0.0'], '--foxglove-host needs --foxglove'),
+    (['circle', '--engine', 'fortran'], "argument --engine: invalid choice: 'fortran' (choose from 'python', 'numba')"),
 ])
 def test_bad_arguments_give_one_line(args, message):
     result = subprocess.run([*WALLBOT, 'run', *args], capture_output=True, text=True, timeout=60)

@@ -17,6 +17,8 @@ from wallbot_msgs_py import codec
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains, SampledReference
+from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.simulation import NUMBA, PYTHON
 from wallbot_sim.model.trajectories import Circle, sample_plan
 from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, ConstraintSwitch, Decision, DynamicsLoop, NewPlan,
                                              ParameterChange, Pause, RecordProgress, Reset, ResumeSnapshot, RunState,
@@ -28,7 +30,7 @@ PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=T
               real_time_factor=0.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
               wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
               contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
-              snapshot_period=0.01, resume_wait=0.0)
+              snapshot_period=0.01, resume_wait=0.0, engine='python')
 GAINS = BaumgarteGains(5.0, 5.0)
 SWITCHES = dict(belt=False, non_lateral=True, nonslip=True, tangent_heading=True)
 DRIVEN = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': False}), GAINS)
@@ -321,15 +323,19 @@ def test_a_reset_waits_for_lockstep_s_pending_answer():
     assert loop.sim.t == 0.0 and graph.times[-1] == 0.0 and loop.command is None
 
 
-def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph_saw():
-    first, first_graph, _log, _clock = make_loop(snapshot_period=0.005)
+NEEDS_NUMBA = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+
+
+@pytest.mark.parametrize('engine', [PYTHON, pytest.param(NUMBA, marks=NEEDS_NUMBA)])
+def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph_saw(engine):
+    first, first_graph, _log, _clock = make_loop(snapshot_period=0.005, engine=engine)
     first.post(DRIVEN)
     first.post(TorqueCommand((0.4, -0.2)))
     ticks(first, 12)
     kept = next(s for s in first_graph.snapshots if s.steps == 5)
     seen = replace(kept, seen_until_ns=codec.to_nanoseconds(8 * DT))  # the graph saw up to step 8
 
-    second, graph, log, _clock = make_loop(snapshot_period=0.005, resume_wait=2.0)
+    second, graph, log, _clock = make_loop(snapshot_period=0.005, resume_wait=2.0, engine=engine)
     second.post(DRIVEN)
     assert second.tick() is Decision.NOT_READY
     assert str(second.status) == 'waiting for a kept snapshot to resume from (resume_state)'
@@ -340,6 +346,47 @@ def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph
     for (t, q), (t_first, q_first) in zip(graph.published, first_graph.published[9:13]):
         assert t == t_first
         np.testing.assert_array_equal(q, q_first)
+    assert second.sim.engine == engine
+
+
+def run_through_every_rebuild(engine: str) -> tuple[FakeGraph, list[str]]:
+    """A tracking run through each path that builds a simulation (start, rate change, reset,
+    teleport) and a plan replaced mid-run; the published states and the engine of each simulation built."""
+    loop, graph, _log, _clock = make_loop(engine=engine)
+    engines = []
+    loop.post(TRACKING)
+    loop.post(plan(0.0, 0.05))
+    ticks(loop, 30)
+    engines.append(loop.sim.engine)
+    loop.post(plan(0.0, 0.3))
+    ticks(loop, 10)
+    loop.post(ParameterChange({'rate_hz': 500}))
+    ticks(loop, 10)
+    engines.append(loop.sim.engine)
+    loop.post(Reset())
+    ticks(loop, 10)
+    engines.append(loop.sim.engine)
+    loop.post(Pause(True))
+    loop.post(Teleport(0.2, -0.3, 1.0))
+    loop.post(Step(5))
+    ticks(loop, 6)
+    engines.append(loop.sim.engine)
+    return graph, engines
+
+
+@NEEDS_NUMBA
+def test_the_numba_engine_builds_every_simulation_and_agrees_with_the_python_engine():
+    """engine numba: each simulation the loop builds computes with the compiled kernel, and the
+    published states are the Python engine's to 1e-9 relative (the model's agreement, not bit for bit)."""
+    python, python_engines = run_through_every_rebuild(PYTHON)
+    numba, numba_engines = run_through_every_rebuild(NUMBA)
+    assert python_engines == [PYTHON] * 4 and numba_engines == [NUMBA] * 4
+    assert [t for t, _q in numba.published] == [t for t, _q in python.published]
+    # 41 states at 1 ms, 10 at 2 ms, 11 from the reset, the teleported state and its 5 steps
+    assert len(python.published) == 68 and np.array_equal(python.published[-6][1][:3], [0.2, -0.3, 1.0])
+    expected, computed = np.array([q for _t, q in python.published]), np.array([q for _t, q in numba.published])
+    scale = np.max(np.abs(expected), axis=0)
+    assert np.all(np.abs(computed - expected) <= 1e-9 * scale)
 
 
 def test_a_driven_start_waits_for_a_controller_and_its_first_command():

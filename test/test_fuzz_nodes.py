@@ -60,7 +60,7 @@ TRAJECTORY_DEFAULTS = {
     'use_sim_time': True, 'shape': 'circle', 'radius': 1.0, 'amplitude': 1.0, 'period': 20.0, 'center_x': 0.0,
     'center_y': 0.0, 'duration': 0.0, 'stop_time': 2.0, 'publish_rate_hz': 100.0, 'horizon': 10.0,
     'sample_dt': 0.05}
-EXTRA_NAMES = ('robot_file', 'wait_for_recorder', 'no_such_parameter', 'shape ', 'radius.x', 'qos_overrides')
+EXTRA_NAMES = ('robot_file', 'wait_for_recorder', 'engine', 'no_such_parameter', 'shape ', 'radius.x', 'qos_overrides')
 STEP_TOPICS = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'clock')
 LOG_LINE = re.compile(r'\[(?:WARN|WARNING)\] \[(\d+\.\d+)\] \[[^\]]*\]: rejected')
 

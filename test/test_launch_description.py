@@ -107,6 +107,15 @@ def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(lau
                                                 'dynamics_node']
 
 
+def test_engine_numba_is_the_dynamics_engine_as_run_engine_gives_it(launch_file):
+    nodes = launched_nodes(launch_file, engine='numba')
+    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
+                              engine='numba')
+    assert nodes == as_launched(expected) and nodes[-1]['parameters'][0]['engine'] == 'numba'
+    assert launched_nodes(launch_file)[-1]['parameters'][0]['engine'] == 'python'
+    assert describe_driven_graph('joint_commands', engine='numba')[-1].parameters['engine'] == 'numba'
+
+
 def test_a_driven_run_starts_the_viewer_before_the_dynamics_too():
     specs = describe_driven_graph('cmd_vel', foxglove_port=8765)
     assert [s.name for s in specs] == ['constraint_config', 'cmd_vel_controller', 'viewer', 'dynamics']

@@ -84,8 +84,20 @@ def test_run_refuses_exactly_the_real_time_factors_the_dynamics_node_refuses(dyn
 
 
 # --- every node's parameters, as a ROS user discovers them ----------------------------------------
-ENUMERATED = {'shape', 'contact_model'}
+ENUMERATED = {'shape', 'contact_model', 'engine'}
 """String parameters that take one of a few values (the test checks they list them)."""
+
+
+def test_an_unknown_engine_is_one_line_and_exit_status_1(process_runner):
+    """The dynamics' engine is read-only: a start value not among its choices stops the node at
+    start with one line naming it and the choices."""
+    dynamics = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.dynamics', '--ros-args',
+                                     '-p', 'engine:=fortran'], 'dynamics')
+    assert dynamics.wait(timeout=60) == 1
+    output = process_runner.output('dynamics')
+    errors = [line for line in output.splitlines() if line.startswith('error:')]
+    assert errors == ["error: engine must be one of python, numba, got 'fortran'"], output
+    assert 'Traceback' not in output
 
 
 class ParameterClient:
@@ -174,6 +186,8 @@ def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(p
                         continue
                     if descriptor.additional_constraints not in descriptor.description:
                         problems.append(f'{where}: the description does not list the choices')
+                    if descriptor.read_only:  # its start value is checked (test_an_unknown_engine_...)
+                        continue
                     for choice in choices:
                         if not client.set(descriptor.name, choice)[0]:
                             problems.append(f'{where}: its choice {choice!r} is refused')

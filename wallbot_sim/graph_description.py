@@ -16,6 +16,7 @@ from wallbot_sim.live_view import DEFAULT_HOST
 from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
 from wallbot_sim.model.scenario import InitialPose
+from wallbot_sim.model.simulation import PYTHON
 
 RECORDER = 'recorder'
 CONTROLLER = 'controller'
@@ -58,7 +59,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    controller_mass_scale: float | None = None, realtime_priority: int = 0,
                    robot_file: Path | None = None, contact_model: str = 'ideal',
                    adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
-                   foxglove_host: str = DEFAULT_HOST) -> list[NodeSpec]:
+                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -68,7 +69,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     constraint_config's gains and robot_description) None: the installed robot file;
     ``adhesion_force`` None: the robot file's. ``viewer``: the viewer node (markers, tf), started
     before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
-    it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``.
+    it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``. ``engine``: the
+    dynamics' (python or numba).
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -100,21 +102,22 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
             'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME}))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot)
     specs.append(_dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                           adhesion_force, CONTROL_STEPS if closed_loop else None))
+                           adhesion_force, CONTROL_STEPS if closed_loop else None, engine))
     return specs
 
 
 def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor: float = 1.0,
                           bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
                           contact_model: str = 'ideal', adhesion_force: float | None = None, viewer: bool = False,
-                          foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST) -> list[NodeSpec]:
+                          foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
+                          engine: str = PYTHON) -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
 
     ``cmd_vel``: cmd_vel_node, the dynamics waiting for it and in lockstep with its loop.
     ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
     wait, since the commands come from the user's controller_manager (zero torque until then).
-    ``viewer``, ``foxglove_port``, ``foxglove_host``: as for describe_graph.
+    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``: as for describe_graph.
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
@@ -133,7 +136,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                                 **({'wait_for_recorder': True} if bag is not None and drive == 'cmd_vel' else {})}),
         *_viewer(viewer, foxglove_port, foxglove_host, robot),
         _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                  adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None),
+                  adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine),
     ]
     return specs
 
@@ -148,13 +151,13 @@ def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[st
 
 def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,
               robot: dict[str, str], contact_model: str, adhesion_force: float | None,
-              lockstep_every: int | None) -> NodeSpec:
+              lockstep_every: int | None, engine: str) -> NodeSpec:
     """The dynamics node; ``lockstep_every`` set: it waits for its controller and runs in lockstep."""
     return NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': recorded, 'realtime_priority': int(realtime_priority),
         **robot,
-        'contact_model': contact_model,
+        'contact_model': contact_model, 'engine': engine,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': lockstep_every} if lockstep_every else {})})

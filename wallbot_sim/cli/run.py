@@ -35,6 +35,7 @@ from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
+from wallbot_sim.model.simulation import ENGINES, PYTHON
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
@@ -98,6 +99,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
+    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
+                        help="how the dynamics computes the ideal-contact steps: python (the model; the default), "
+                             "or numba (the batch's compiled kernel, the same states to 1e-9; it compiles on first "
+                             'use on a machine, then loads from the cache)')
     parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
@@ -295,7 +300,8 @@ def main(args: argparse.Namespace) -> int:
         try:
             return describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
                                   controller_mass_scale=mass_scale, robot_file=robot_file,
-                                  contact_model=args.contact, adhesion_force=args.adhesion_force, **viewer_options(args))
+                                  contact_model=args.contact, adhesion_force=args.adhesion_force, engine=args.engine,
+                                  **viewer_options(args))
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
     return run_described(args, describe, f'{scenario.name}, {selection.label()}{loop}', duration, robot_file)
@@ -314,7 +320,7 @@ def main_driven(args: argparse.Namespace) -> int:
     def describe(bag: Path) -> list[NodeSpec]:
         return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
                                      robot_file=robot_file, contact_model=args.contact,
-                                     adhesion_force=args.adhesion_force, **viewer_options(args))
+                                     adhesion_force=args.adhesion_force, engine=args.engine, **viewer_options(args))
     return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
                          reference=False)
 

@@ -16,7 +16,9 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import DOF, Robot
+from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
 from wallbot_sim.model.trajectories import Reference
 
@@ -27,6 +29,22 @@ _UNKNOWN = np.empty(0)
 """``robot_step``'s "no first stage given"."""
 
 
+def require_numba() -> None:
+    """Raise ParameterError unless numba imported (the compiled engine can run)."""
+    if not kernel.available():
+        raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+
+
+def compile_kernel() -> None:
+    """Compile the kernel's motion and RK4 step, or load them from numba's cache (which the first
+    compilation on a machine writes, 20-60 s), so that no simulation's first numba step waits for it."""
+    still = np.zeros(DOF)
+    simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still,
+                            still, engine=NUMBA)
+    simulation.step()
+    simulation.outputs()
+
+
 class CompiledDynamics:
     """The motion at a state and the RK4 step of one robot, for what a ``Simulation`` has active now.
 
@@ -35,8 +53,7 @@ class CompiledDynamics:
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
-        if not kernel.available():
-            raise ParameterError("engine 'numba' needs the numba package (pip install numba)")
+        require_numba()
         self._initial_time, self._dt = initial_time, dt
         self._robot: Robot | None = None
         self._gains: BaumgarteGains | None = None

@@ -72,6 +72,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
 from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 from wallbot_sim.nodes.common import (COORDINATE, WHEEL_TORQUE_LIMIT, choice_reason, declare, heard_by_every,
                                       param_dict, parameter_result, range_reasons, run)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
@@ -173,6 +174,11 @@ class DynamicsNode(Node):
                                      'wheel-wall contact: ideal, or coulomb (channels stick or slip, a wheel lifting '
                                      'off pauses the run; acts while the trajectory task is off)',
                                      choices=CONTACT_MODELS),
+            'engine': declare(self, 'engine', PYTHON,
+                              'how the ideal-contact steps are computed: python (the model), or numba (the '
+                              "batch's compiled kernel, the same states to 1e-9; it compiles on first use on a "
+                              'machine, then loads from the cache; coulomb contact stays python)',
+                              choices=ENGINES, read_only=True),
             'adhesion_force': declare(self, 'adhesion_force', 0.0,
                                       "force pressing the robot to the wall (N); 0 = the robot file's",
                                       allowed=RANGES['adhesion_force']),
@@ -207,6 +213,10 @@ class DynamicsNode(Node):
         reasons = self._check(p)
         if reasons:
             raise ValueError('; '.join(reasons))
+        if p['engine'] == NUMBA:
+            # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
+            from wallbot_sim.model.compiled import require_numba
+            require_numba()  # a missing package is said at start, not by a failing loop thread
         self.params = p
         self.loop = DynamicsLoop(p, load_robot_parameters(p['robot_file'] or None), self, self.get_logger(),
                                  Pacer(p['realtime_priority'], self.get_logger().warning))
@@ -318,6 +328,8 @@ class DynamicsNode(Node):
         reasons = range_reasons(values, RANGES)
         if 'contact_model' in values:
             reasons.append(choice_reason('contact_model', values['contact_model'], CONTACT_MODELS))
+        if 'engine' in values:
+            reasons.append(choice_reason('engine', values['engine'], ENGINES))
         return [r for r in reasons if r]
 
     def _on_set(self, parameters):

@@ -411,7 +411,7 @@ class DynamicsLoop:
     def _simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
         reference = self.plan.reference if self.plan is not None else None
         sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / self.params['rate_hz'],
-                         t0=t0, gains=self.gains, contact=self.params['contact_model'])
+                         t0=t0, gains=self.gains, contact=self.params['contact_model'], engine=self.params['engine'])
         sim.set_motor_torque(*torque)
         return sim
 
