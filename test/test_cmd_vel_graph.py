@@ -158,9 +158,13 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
     # 50 Hz of simulation time, each the wheel_states of its stamp
     stamps = [ns(msg) for msg in first]
     assert all(b - a == 20_000_000 for a, b in zip(stamps, stamps[1:]))
-    wheel_states = {ns(msg): msg for msg in graph.messages(topics.WHEEL_STATES.name)}
+    # the test hears wheel_states on a subscription of its own, which may lag the bridge's
+    def wheel_states() -> dict:
+        return {ns(msg): msg for msg in graph.messages(topics.WHEEL_STATES.name)}
+    graph.wait_for(lambda: set(stamps) <= wheel_states().keys(), 30, 'the wheel_states of the first joint_states')
+    twins = wheel_states()
     for msg in first:
-        twin = wheel_states[ns(msg)]
+        twin = twins[ns(msg)]
         assert (list(msg.position), list(msg.velocity), list(msg.effort)) == (
             list(twin.position), list(twin.velocity), list(twin.effort))
 
