@@ -49,8 +49,9 @@ def start_tracking_graph(graph: Graph, *dynamics: str, constraints: tuple[str, .
 def final_state(graph: Graph, t: float):
     """Pose, twist and wheel state published at simulation time t."""
     stamp = round(t * 1e9)
-    graph.wait_for(lambda: any(ns(m) == stamp for m in graph.messages(topics.WHEEL_STATES.name)), 20,
-                   f'wheel_states at {t} s')
+    for topic in (topics.WHEEL_STATES, topics.ODOM):  # each on its own subscription: one may lag the other
+        graph.wait_for(lambda: any(ns(m) == stamp for m in graph.messages(topic.name)), 20,
+                       f'{topic.name} at {t} s')
     odom = [m for m in graph.messages(topics.ODOM.name) if ns(m) == stamp]
     wheels = [m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) == stamp]
     assert len(odom) == len(wheels) == 1, f'{len(odom)} odometry messages stamped {t} s: a second publisher?'
@@ -250,7 +251,10 @@ def test_driven_mode_rejects_malformed_commands_and_times_out(graph):
                                        if m.velocity[0] > 0.0], 5, 'wheels driven by the command')[0]
     assert spinning.velocity[2] < 0.0 and spinning.effort[0] == pytest.approx(0.01, abs=1e-12)
     # held for command_timeout (0.3 s of simulation time), then zero torque and a warning
-    graph.wait_sim_time(ns(spinning) * 1e-9 + 0.5)
+    after = ns(spinning) + 500 * MS
+    graph.wait_sim_time(after * 1e-9)
+    graph.wait_for(lambda: ns(graph.messages(topics.WHEEL_STATES.name)[-1]) >= after, 20,
+                   'wheel_states as far as odometry')  # its own subscription may lag odom's
     driven = [m for m in graph.messages(topics.WHEEL_STATES.name) if ns(m) >= ns(spinning)]
     with_torque = [m for m in driven if m.effort[0] != 0.0]
     duration = (ns(with_torque[-1]) - ns(with_torque[0])) * 1e-9
