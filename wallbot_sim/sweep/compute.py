@@ -11,20 +11,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterator, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
-from wallbot_sim.model.batch import BatchOutputs, BatchSimulation
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
+
+if TYPE_CHECKING:
+    from wallbot_sim.model.batch import BatchOutputs
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
            'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use_L', 'max_use_R',
@@ -129,6 +131,9 @@ def _single_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
 
 
 def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
+    # imported here: the batch loads numba (a quarter second), which the CLI's other verbs, importing
+    # the sweep's errors and spec, do not need
+    from wallbot_sim.model.batch import BatchSimulation
     models = [Robot(params) for params in robots]
     simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
     steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
