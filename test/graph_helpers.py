@@ -115,6 +115,16 @@ class Graph:
                 self._decoded[name].extend(decoded)
             return list(self._decoded[name])
 
+    def newest(self, name: str):
+        """The newest message of ``name`` received, decoded alone (None before any): a poll that
+        needs only the latest state must not decode a kHz topic's backlog on every call."""
+        with self.lock:
+            if self._raw[name]:
+                data = self._raw[name][-1]
+            else:
+                return self._decoded[name][-1] if self._decoded[name] else None
+        return deserialize_message(data, self._kinds[name])
+
     def clear(self, name: str) -> None:
         with self.lock:
             self._raw[name].clear()
