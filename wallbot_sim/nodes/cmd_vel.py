@@ -42,8 +42,8 @@ from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, AxisLimits, WheelSpeedController,
                                              WheelSpeedSettings)
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, WhenRecorded, declare,
-                                     param_dict, parameter_result, run)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
+                                     parameter_result, run, subscribe_odom_when_recorded)
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
@@ -119,13 +119,7 @@ class CmdVelNode(Node):
         self.commands = HeldCommands(self, publisher, topics.ODOM.name)
         self.create_subscription(TwistStamped if self.use_stamped else Twist, topics.CMD_VEL.name, self._on_cmd_vel,
                                  qos_profile(topics.CMD_VEL))
-        if declare(self, 'wait_for_recorder', False, 'subscribe odom only once a recorder (record_progress) is '
-                   'matched on wheel_torque_cmd, so a recording holds every command', read_only=True):
-            # a dynamics waiting for its commander (wait_for_command) starts when this node
-            # subscribes odom: the recorder must hear the run's first commands
-            WhenRecorded(self, publisher, self._subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
-        else:
-            self._subscribe_odom()
+        subscribe_odom_when_recorded(self, publisher, self._subscribe_odom)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(

@@ -253,6 +253,20 @@ class WhenRecorded:
         self.action()
 
 
+def subscribe_odom_when_recorded(node: Node, command_pub: Publisher, subscribe_odom: Callable[[], None]) -> None:
+    """A commander's (tracking controller, cmd_vel node) read-only ``wait_for_recorder``, declared
+    here: with it, ``subscribe_odom`` runs once a recorder hears ``command_pub``; without, at once.
+
+    A dynamics waiting for its commander (its wait_for_command) starts when the commander
+    subscribes odom: the recorder must hear the run's first commands.
+    """
+    if declare(node, 'wait_for_recorder', False, 'subscribe odom only once a recorder (record_progress) is '
+               'matched on wheel_torque_cmd, so a recording holds every command', read_only=True):
+        WhenRecorded(node, command_pub, subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
+    else:
+        subscribe_odom()
+
+
 class HeldCommands:
     """A command publisher whose messages go out only once the sender of ``state_topic`` hears them.
 

@@ -53,8 +53,8 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, WhenRecorded, declare,
-                                      param_dict, parameter_result, range_reasons, run)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
+                                      parameter_result, range_reasons, run, subscribe_odom_when_recorded)
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -126,9 +126,6 @@ class ControllerNode(Node):
             'max_wheel_torque': declare(self, 'max_wheel_torque', MAX_WHEEL_TORQUE,
                                         "commands are clamped to +-this (N m; the dynamics' limit)",
                                         allowed=RANGES['max_wheel_torque']),
-            'wait_for_recorder': declare(self, 'wait_for_recorder', False,
-                                         'subscribe odom only once a recorder (record_progress) is matched on '
-                                         'wheel_torque_cmd, so a recording holds every command', read_only=True),
         }
         self.file_params = load_robot_parameters(self.values['robot_file'] or None)
         self.plans = Plans()
@@ -143,13 +140,7 @@ class ControllerNode(Node):
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY))
-        if self.values['wait_for_recorder']:
-            # a dynamics waiting for a controller (its wait_for_command) starts when this node
-            # subscribes odom: the recorder must hear the run's first commands
-            WhenRecorded(self, self.command_pub, self._subscribe_odom,
-                         'a recorder hears wheel_torque_cmd: subscribing odom')
-        else:
-            self._subscribe_odom()
+        subscribe_odom_when_recorded(self, self.command_pub, self._subscribe_odom)
         self.delivery = HeldCommands(self, self.command_pub, topics.ODOM.name)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
