@@ -31,7 +31,7 @@ import numpy as np
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import RANK_CUTOFF, WELL_CONDITIONED
 from wallbot_sim.model.robot import DOF
-from wallbot_sim.model.trajectories import Reference, tangent_heading
+from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
 
 try:
     import numba
@@ -65,13 +65,15 @@ def reference_samples(reference: Reference | None, initial_time: float, first_st
     if reference is None:
         return np.zeros((steps, 3, REFERENCE_FIELDS))
     half = 0.5 * dt
+    shared = LastSample(reference)  # a step's end is often the next step's start to the last bit
     rows = []
-    instant, row = math.nan, ()
+    sample, row = None, ()
     for step in range(steps):
         t = initial_time + (first_step + step) * dt
         for time in (t, t + half, t + dt):
-            if time != instant:  # a step's end is often the next step's start to the last bit
-                instant, sample = time, reference.sample(time)
+            current = shared.sample(time)
+            if current is not sample:  # a new instant: its row (the heading takes the most work)
+                sample = current
                 heading = tangent_heading(sample)
                 row = (*sample.position, *sample.velocity, *sample.acceleration,
                        *(NO_HEADING if heading is None else (1.0, *heading)))
