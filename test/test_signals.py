@@ -228,3 +228,20 @@ def test_run_stops_its_graph_at_once(process_runner, tmp_path):
     for pid in nodes:
         assert not Path(f'/proc/{pid}').exists() or 'zombie' in Path(f'/proc/{pid}/status').read_text()
     check_nothing_recorded_after(out / 'bag', signal.SIGINT, sent_ns)
+
+
+@pytest.mark.parametrize('sig, raised', [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, SystemExit)],
+                         ids=['SIGINT', 'SIGTERM'])
+def test_a_signal_inside_a_deferred_block_acts_when_it_ends(sig, raised):
+    from wallbot_sim.cli import signals
+    written = []
+    with pytest.raises(raised):
+        with signals.deferred:
+            signals.deferred.handle(sig, None)  # as Python runs the handler between two bytecodes
+            written.append('the whole record')
+        written.append('the next record')
+    assert written == ['the whole record']
+    with pytest.raises(raised):  # outside a block it acts at once
+        signals.deferred.handle(sig, None)
+    with signals.deferred:
+        pass  # nothing pending any more

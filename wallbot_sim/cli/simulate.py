@@ -152,7 +152,7 @@ def main(args: argparse.Namespace) -> int:
             csv.writer(stream).writerow(CSV_COLUMNS)
 
         def on_step(out: StepOutputs) -> None:
-            with signals.deferred():  # a signal ends the run between two complete steps
+            with signals.deferred:  # a signal ends the run between two complete steps
                 if stream is not None:
                     stream.write(csv_line(out))
                 for sink in sinks:
