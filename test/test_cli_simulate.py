@@ -93,7 +93,7 @@ def test_a_line_is_the_text_the_csv_writer_writes():
 
     from wallbot_sim.config import load_robot_parameters, load_scenario
     from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-    from wallbot_sim.rundata.csv_format import csv_line, csv_row
+    from wallbot_sim.rundata.csv_format import csv_line, csv_lines, csv_row
     robot = Robot(load_robot_parameters())
     scenario = load_scenario('circle')
     simulation = Simulation(robot, scenario.reference, ConstraintSelection(), *scenario.initial_state(robot))
@@ -107,6 +107,7 @@ def test_a_line_is_the_text_the_csv_writer_writes():
         text = io.StringIO(newline='')
         csv.writer(text).writerow(csv_row(out))
         assert csv_line(out) == text.getvalue()
+    assert csv_lines(np.array([csv_row(out) for out in outs])) == ''.join(map(csv_line, outs))  # a chunk's lines
 
 
 @pytest.mark.parametrize('args', [
@@ -135,3 +136,25 @@ def test_the_numba_engine_writes_the_python_engines_csv_to_1e9(tmp_path, args):
     worst = np.max(np.abs(numba - python) / scale, axis=0)
     assert np.all(worst <= 1e-9), dict(zip(CSV_COLUMNS, worst))
     assert not np.array_equal(python, numba)  # the kernel computed it, not the Python model again
+
+
+@pytest.mark.parametrize('args', [
+    ['--scenario', 'circle'],
+    ['--scenario', 'figure8', '--constraints', 'belt,non_lateral,nonslip'],
+    ['--scenario', 'rest', '--torque', '1.5,-0.5', '--heading', '0.7'],
+], ids=['circle', 'figure8-full-set', 'rest-driven'])
+def test_the_numba_engine_writes_its_csv_a_chunk_at_a_time_as_step_by_step(tmp_path, args):
+    """With only --csv the numba engine tabulates a chunk of steps per kernel call (Simulation.run_table): the
+    file is the bytes the same simulation writes step by step, a csv_line per step's outputs."""
+    from wallbot_sim.cli.main import build_parser
+    from wallbot_sim.cli.simulate import build_simulation
+    from wallbot_sim.rundata.csv_format import csv_line
+    command = [*args, '--duration', '2.5', '--engine', 'numba', '--quiet']
+    out = tmp_path / 'numba.csv'
+    result = simulate(*command, '--csv', str(out))
+    assert result.returncode == 0, result.stderr
+    simulation, duration = build_simulation(build_parser().parse_args(['simulate', *command, '--csv', '-']))
+    lines = [','.join(CSV_COLUMNS) + '\r\n']
+    simulation.run(duration, lambda step: lines.append(csv_line(step)))
+    assert len(lines) == 2502  # the header and 2,501 instants
+    assert out.read_bytes() == ''.join(lines).encode()

@@ -14,10 +14,11 @@ import pytest
 from batch_helpers import TOLERANCE, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
-    BaumgarteGains, ConstraintSelection, DivergedError, ParameterError, Robot, Scenario, Simulation, SmoothStop,
-    StepOutputs)
+    BaumgarteGains, ConstraintSelection, DivergedError, ModelError, ParameterError, Robot, Scenario, Simulation,
+    SmoothStop, StepOutputs)
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.constraints import NonLateral
+from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.robot import DOF
 
 pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
@@ -230,3 +231,91 @@ def test_an_unknown_engine_is_refused_by_name():
     robot = Robot(load_robot_parameters())
     with pytest.raises(ParameterError, match="unknown engine 'fortran'"):
         Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), np.zeros(DOF), engine='fortran')
+
+
+def step_by_step(simulation: Simulation, steps: int) -> list[StepOutputs]:
+    outputs = []
+    simulation.run(steps * simulation.dt, outputs.append)
+    return outputs
+
+
+def tabulated(simulation: Simulation, steps: int, chunk: int) -> tuple[list[StepTable], StepOutputs]:
+    tables = []
+    final = simulation.run_table(steps * simulation.dt, tables.append, chunk=chunk)
+    return tables, final
+
+
+def assert_table_is_the_steps(tables: list[StepTable], outputs: list[StepOutputs]) -> None:
+    """Every row equals its step's outputs to the bit."""
+    rows = {field: np.concatenate([getattr(table, field) for table in tables]) for field in StepTable._fields
+            if field != 'reference_position'}
+    assert len(rows['t']) == len(outputs)
+    expected = {'t': [o.t for o in outputs], 'q': [o.q for o in outputs], 'qd': [o.qd for o in outputs],
+                'acceleration': [o.acceleration for o in outputs],
+                'constraint_force': [o.constraint_force for o in outputs], 'residual': [o.residual for o in outputs],
+                'drive': [(o.drive.left, o.drive.right, o.drive.lateral) for o in outputs],
+                'loads': [o.contact.loads for o in outputs], 'use': [o.contact.use for o in outputs],
+                'slipping': [o.contact.slipping for o in outputs]}
+    for field, values in expected.items():
+        assert np.array_equal(rows[field], np.array(values)), field
+    errors = np.concatenate([table.tracking_error for table in tables])
+    assert np.array_equal(errors, [o.tracking_error for o in outputs], equal_nan=True)
+
+
+@pytest.mark.parametrize('scenario_name, constraints, chunk', [
+    ('circle', 'none', 1000), ('figure8', 'belt,non_lateral,nonslip', 7), ('circle', 'belt,non_lateral', 1)])
+def test_a_tabulated_run_is_the_step_by_step_run_to_the_bit(scenario_name, constraints, chunk):
+    """run_table (the kernel's robot_run a chunk at a time, loads and use by the batch's array functions)
+    against run's outputs step by step: chunks of 1 and 7 steps and one longer than the run, both ends."""
+    scenario = load_scenario(scenario_name)
+    rng = np.random.default_rng(31)
+    (robot,) = random_robots(rng, 1)
+    q0, qd0 = perturbed_starts(rng, [robot], scenario)
+    selection = ConstraintSelection.parse(constraints)
+    runs = [Simulation(robot, scenario.reference, selection, q0[0], qd0[0], engine='numba') for _ in range(2)]
+    outputs = step_by_step(runs[0], 250)
+    assert runs[1].tabulates
+    tables, final = tabulated(runs[1], 250, chunk)
+    assert_table_is_the_steps(tables, outputs)
+    assert len(tables) == -(-251 // chunk)
+    assert runs[1].steps == 250 and runs[1].t == runs[0].t and np.array_equal(final.q, runs[0].q)
+
+
+def test_a_tabulated_driven_run_under_torques_is_the_step_by_step_run():
+    rng = np.random.default_rng(32)
+    (robot,) = random_robots(rng, 1)
+    runs = []
+    for _ in range(2):
+        runs.append(Simulation(robot, None, ConstraintSelection.structural(trajectory=False), np.zeros(DOF),
+                               np.zeros(DOF), engine='numba'))
+        runs[-1].set_motor_torque(1.5, -0.7)
+    outputs = step_by_step(runs[0], 120)
+    tables, _final = tabulated(runs[1], 120, 50)
+    assert_table_is_the_steps(tables, outputs)
+    assert all(table.reference_position is None for table in tables)
+
+
+def test_a_tabulated_run_stops_at_a_diverging_state_as_the_steps_do():
+    robot = Robot(load_robot_parameters().replace(com_offset=(0.03, 0.0)))
+    qd0 = np.zeros(DOF)
+    qd0[2] = 1e153  # as the diverging test above: finite for a step, then overflows
+    runs = [Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), qd0, engine='numba')
+            for _ in range(2)]
+    outputs, tables = [], []
+    with pytest.raises(DivergedError) as by_steps:
+        runs[0].run(0.05, outputs.append)
+    with pytest.raises(DivergedError) as by_table:
+        runs[1].run_table(0.05, tables.append, chunk=4)
+    assert str(by_table.value) == str(by_steps.value)
+    assert_table_is_the_steps(tables, outputs)
+    assert runs[1].steps == runs[0].steps and np.array_equal(runs[1].q, runs[0].q)
+
+
+def test_only_the_compiled_ideal_engine_tabulates():
+    robot = Robot(load_robot_parameters())
+    still = np.zeros(DOF)
+    driven = ConstraintSelection.structural(trajectory=False)
+    assert not Simulation(robot, None, driven, still, still).tabulates
+    assert not Simulation(robot, None, driven, still, still, engine='numba', contact='coulomb').tabulates
+    with pytest.raises(ModelError, match='run_table needs the numba engine'):
+        Simulation(robot, None, driven, still, still).run_table(0.01, lambda _table: None)

@@ -21,8 +21,9 @@ from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
+from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.simulation import ENGINES, PYTHON
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_line
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_line, csv_lines, fill_rows
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 
@@ -162,7 +163,10 @@ def main(args: argparse.Namespace) -> int:
             progress.update(out.t)
 
         try:
-            final = simulation.run(duration, on_step)
+            if stream is not None and not sinks and controller is None and simulation.tabulates:
+                final = simulation.run_table(duration, _table_writer(stream, progress))
+            else:
+                final = simulation.run(duration, on_step)
         except DetachedError as detached:
             print(f'detached: wheel {detached.wheel}, normal load {detached.load:.2f} N, t = {detached.t:.3f} s '
                   f'({detached})', file=sys.stderr)
@@ -176,6 +180,21 @@ def main(args: argparse.Namespace) -> int:
         print(f'{simulation.selection.label()}{loop}: final tracking error {final.tracking_error:.3e} m, '
               f'residual {final.residual:.3e}', file=sys.stderr)
     return 0
+
+
+def _table_writer(stream: TextIO, progress: Progress) -> Callable[[StepTable], None]:
+    """``run_table``'s hook writing each chunk's CSV lines at once (``on_step``'s lines, a chunk at a time)."""
+    rows = np.empty((0, len(CSV_COLUMNS)))
+
+    def on_table(table: StepTable) -> None:
+        nonlocal rows
+        if len(rows) != len(table.t):
+            rows = np.empty((len(table.t), len(CSV_COLUMNS)))
+        fill_rows(table, rows)
+        with signals.deferred:  # a signal ends the run between two complete chunks
+            stream.write(csv_lines(rows))
+        progress.update(float(table.t[-1]))
+    return on_table
 
 
 class _open_csv:

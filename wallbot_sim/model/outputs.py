@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -107,3 +107,39 @@ class StepOutputs:
         if self.reference is None:
             return math.nan
         return math.hypot(self.q[0] - self.reference.position[0], self.q[1] - self.reference.position[1])
+
+
+class StepTable(NamedTuple):
+    """The outputs of consecutive instants of one robot as arrays, row k the k-th instant (ideal contact:
+    what ``StepOutputs`` holds, where a run tabulates a chunk of steps at once)."""
+
+    t: np.ndarray
+    """(T,)."""
+    q: np.ndarray
+    """(T, 7)."""
+    qd: np.ndarray
+    """(T, 7)."""
+    acceleration: np.ndarray
+    """qdd (T, 7)."""
+    constraint_force: np.ndarray
+    """Q_c (T, 7)."""
+    residual: np.ndarray
+    """(T,)."""
+    drive: np.ndarray
+    """(F_L, F_R, F_lat) (T, 3)."""
+    loads: np.ndarray
+    """N_1..N_4 (T, 4)."""
+    use: np.ndarray
+    """Friction use of the channels (left, right, lateral) (T, 3)."""
+    slipping: np.ndarray
+    """(T, 3) bool, never set with ideal contact."""
+    reference_position: np.ndarray | None
+    """The reference point (T, 2), None without a reference."""
+
+    @property
+    def tracking_error(self) -> np.ndarray:
+        """Distance of the centre from the reference point (T,) (m); NaN without a reference."""
+        if self.reference_position is None:
+            return np.full(len(self.t), np.nan)
+        offset = self.q[:, :2] - self.reference_position
+        return np.array([math.hypot(x, y) for x, y in offset.tolist()])  # StepOutputs' own, to the bit

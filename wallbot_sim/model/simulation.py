@@ -15,7 +15,7 @@ from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, StepTable, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.trajectories import LastSample, Reference
@@ -30,6 +30,8 @@ TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
 PYTHON, NUMBA = 'python', 'numba'
 ENGINES = (PYTHON, NUMBA)
 """How the ideal-contact motion and steps are computed: the model's Python, or the batch's compiled kernel."""
+TABLE_CHUNK = 1000
+"""Instants ``Simulation.run_table`` computes per call of the compiled kernel (a second at 1 kHz)."""
 
 
 class DivergedError(ModelError):
@@ -363,6 +365,41 @@ class Simulation:
         if on_step is not None:
             on_step(self.outputs())
         return self.outputs()
+
+
+    @property
+    def tabulates(self) -> bool:
+        """Whether ``run_table`` can run now: the compiled engine computes the steps (ideal contact)."""
+        return self._compiled_now() is not None
+
+    def run_table(self, duration: float, on_table: Callable[[StepTable], None],
+                  chunk: int = TABLE_CHUNK) -> StepOutputs:
+        """``run`` a chunk of up to ``chunk`` instants at a time, under constant motor torques: ``on_table``
+        gets their outputs as arrays, both ends of the run included, where ``tabulates``.
+
+        The states, accelerations, forces and residuals are those ``run`` gives, to the bit (the same
+        compiled motion and step); loads, friction use and drive forces come from the batch's array
+        functions, equal to the per-step ones to round-off.
+        """
+        count = round(duration / self.dt)
+        done = 0
+        while True:
+            compiled = self._compiled_now()
+            if compiled is None:
+                raise ModelError('run_table needs the numba engine with ideal contact (Simulation.tabulates)')
+            instants = min(chunk, count - done + 1)
+            steps = min(instants, count - done)
+            run = compiled.run(self._y, self.steps, self.motor_torque, instants, steps)
+            on_table(compiled.table(run, self._initial[0], self.steps))
+            self.steps += run.taken
+            self._t = self._initial[0] + self.steps * self.dt
+            self._y = run.states[run.taken].copy()
+            self._cached = None
+            done += run.taken
+            if run.taken < steps:
+                raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
+            if steps < instants:  # this chunk ended at the run's last instant
+                return self.outputs()
 
 
 def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,

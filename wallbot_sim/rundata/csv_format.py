@@ -10,9 +10,15 @@ friction use and ``slip_*`` the slip flags of the contact (docs/model.md section
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
+
+import numpy as np
 
 from wallbot_sim.model import StepOutputs
+from wallbot_sim.model.outputs import StepTable
+
+if TYPE_CHECKING:  # the batch package loads numba, which the CSV does not need
+    from wallbot_sim.model.batch import BatchOutputs
 
 
 def _reference(out: StepOutputs) -> Sequence[float]:
@@ -54,3 +60,34 @@ def csv_line(out: StepOutputs) -> str:
     each value as its repr; joining the reprs skips its per-field checks.
     """
     return ','.join(map(repr, csv_row(out))) + CSV_LINE_END
+
+
+COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}
+"""Each column's index."""
+_FLAGS = slice(COLUMN['slip_L'], COLUMN['slip_lat'] + 1)
+
+
+def fill_rows(out: StepTable | BatchOutputs, rows: np.ndarray) -> None:
+    """The CSV row (``csv_row``) of every instant of a table or robot of a batch into ``rows`` (rows, len(CSV_COLUMNS))."""
+    position = out.reference_position
+    rows[:, COLUMN['t']] = out.t
+    rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
+    rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
+    rows[:, COLUMN['ref_x']:COLUMN['ref_y'] + 1] = position if position is not None else math.nan
+    rows[:, COLUMN['err']] = out.tracking_error
+    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = out.constraint_force
+    rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
+    rows[:, COLUMN['residual']] = out.residual
+    rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
+    rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = out.use
+    rows[:, _FLAGS] = out.slipping
+
+
+def csv_lines(rows: np.ndarray) -> str:
+    """The lines ``csv_line`` writes for rows filled by ``fill_rows`` (the flags as the integers 0 and 1)."""
+    lines = []
+    for row, flags in zip(rows.tolist(), rows[:, _FLAGS].astype(int).tolist()):
+        row[_FLAGS] = flags
+        lines.append(','.join(map(repr, row)))
+    lines.append('')
+    return CSV_LINE_END.join(lines)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator, NamedTuple, Sequence
+from typing import Iterator, NamedTuple, Sequence
 
 import numpy as np
 
@@ -20,20 +20,16 @@ from wallbot_sim.control.sampling import SampledController, close_loop, controll
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_rows
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
-
-if TYPE_CHECKING:
-    from wallbot_sim.model.batch import BatchOutputs
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
            'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use_L', 'max_use_R',
            'max_use_lat', 'least_adhesion_force', 'applied_adhesion_force', 'slipped', 'detached', 't_detached',
            'max_residual', 'feasible')
 """The results columns after a robot's parameters."""
-COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}
 FEASIBLE_USE = NumberRange(high=1.0)
 """Friction use a feasible robot stays within: above 1 a channel would slip on a real wall."""
 
@@ -141,19 +137,3 @@ def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> It
     simulation.run(settings.steps, lambda out: fill_rows(out, next(instant)))
     for i in range(len(models)):
         yield steps[:, i]
-
-
-def fill_rows(out: BatchOutputs, rows: np.ndarray) -> None:
-    """The simulate CSV row (``csv_row``) of every robot of a batch at ``out``, into ``rows`` (N, len(CSV_COLUMNS))."""
-    reference = out.reference.position if out.reference is not None else (math.nan, math.nan)
-    rows[:, COLUMN['t']] = out.t
-    rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
-    rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
-    rows[:, COLUMN['ref_x']], rows[:, COLUMN['ref_y']] = reference
-    rows[:, COLUMN['err']] = out.tracking_error
-    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = out.constraint_force
-    rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
-    rows[:, COLUMN['residual']] = out.residual
-    rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
-    rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = out.use
-    rows[:, COLUMN['slip_L']:COLUMN['slip_L'] + 3] = out.slipping

@@ -447,15 +447,10 @@ def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
     return np.zeros((DOF, DOF)), matrix, gram, lower, vectors, scratch
 
 
-def robot_motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
-                 torque: np.ndarray, motion: np.ndarray) -> float:
-    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
-
-    ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
-    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R).
-    """
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
+def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
+            torque: np.ndarray, motion: np.ndarray, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray,
+            matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
+    """``robot_motion`` in the caller's workspace."""
     acceleration, force = motion[0], motion[1]
     _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, rows, rhs, factor, matrix, gram, lower,
                   vectors, scratch, acceleration)
@@ -479,6 +474,19 @@ def robot_motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count:
     return math.sqrt(squares)
 
 
+def robot_motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
+                 torque: np.ndarray, motion: np.ndarray) -> float:
+    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
+
+    ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
+    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R).
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    return _motion(y, reference, flags, count, constants, torque, motion, rows, rhs, factor, matrix, gram, lower,
+                   vectors, scratch)
+
+
 def robot_step(y: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
                dt: float, known: np.ndarray, out: np.ndarray) -> bool:
     """One robot's RK4 step from y (14,) into out (14,); whether the new state is finite.
@@ -497,6 +505,32 @@ def robot_step(y: np.ndarray, references: np.ndarray, flags: np.ndarray, constan
                 scratch, out, slopes)
 
 
+def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
+              torque: np.ndarray, dt: float, steps: int, motions: np.ndarray, residuals: np.ndarray) -> int:
+    """One robot over consecutive instants, as ``robot_motion`` then ``robot_step`` at each; the number of
+    steps taken.
+
+    ``states`` (T + 1, 14): row 0 the state at the first instant; row k + 1 gets the state one step after
+    row k, for k < ``steps`` (at most T), until a state is not finite (then that row is not valid and the
+    count is k). ``motions`` (T, 3, 7) and ``residuals`` (T,) get the motion at every state reached among
+    the first T; ``references`` (T, 3, 10): each step's three RK4 instants (``reference_samples``).
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    slopes = np.zeros((4, 2 * DOF))
+    for k in range(motions.shape[0]):
+        residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, motions[k], rows, rhs,
+                               factor, matrix, gram, lower, vectors, scratch)
+        if k == steps:
+            return k
+        for i in range(DOF):
+            slopes[0, DOF + i] = motions[k, 0, i]
+        if not _rk4(states[k], references[k], flags, constants, torque, dt, True, rows, rhs, factor, matrix, gram,
+                    lower, vectors, scratch, states[k + 1], slopes):
+            return k
+    return steps
+
+
 _cholesky = _compile(_cholesky, inline="always")
 _substitute = _compile(_substitute, inline="always")
 _solve_factored = _compile(_solve_factored)
@@ -511,8 +545,10 @@ _minimum_norms = _compile(_minimum_norms)
 _rk4 = _compile(_rk4, inline="always")
 _steps = _compile(_steps, parallel=True)
 _workspace = _compile(_workspace, inline="always")
+_motion = _compile(_motion, inline="always")
 robot_motion = _compile(robot_motion)
 robot_step = _compile(robot_step)
+robot_run = _compile(robot_run)
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
 from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError
-from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample
+from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample, Vec2
 
 
 class BatchOutputs(NamedTuple):
@@ -62,6 +62,11 @@ class BatchOutputs(NamedTuple):
         """Total torque on each wheel (N, 4): constraint torque, kinetic friction and its share of the motor."""
         motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)
         return self.constraint_force[:, 3:] + motor + self.friction_force[:, 3:]
+
+    @property
+    def reference_position(self) -> Vec2 | None:
+        """The reference point (the same for every robot), None without a reference."""
+        return self.reference.position if self.reference is not None else None
 
     @property
     def tracking_error(self) -> np.ndarray:
