@@ -9,7 +9,7 @@ publishing every step, then reports
 Simulation time is read from the 1 Hz /diagnostics, not from /clock: a 1 kHz subscriber in
 this process would take CPU from the graph it measures.
 
-    python bench/bench_node.py [--seconds 20] [--fast-seconds 10]
+    python bench/bench_node.py [--seconds 20] [--fast-seconds 10] [--engine python|numba]
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--seconds', type=float, default=20.0)
     parser.add_argument('--fast-seconds', type=float, default=10.0)
+    parser.add_argument('--engine', choices=('python', 'numba'), default='python',
+                        help="the dynamics' engine parameter (default python, the model)")
     args = parser.parse_args()
 
     claim = claim_domain_id()
@@ -81,7 +83,7 @@ def main() -> int:
         return factor, full, {name: 100 * (cpu1[name] - cpu0[name]) / seconds for name in pids}
 
     try:
-        pids = {'dynamics': start('dynamics').pid, 'trajectory': start('trajectory').pid,
+        pids = {'dynamics': start('dynamics', f'engine:={args.engine}').pid, 'trajectory': start('trajectory').pid,
                 'constraint_config': start('constraint_config', 'belt:=true', 'non_lateral:=true',
                                            'nonslip:=true').pid}
         deadline = time.monotonic() + 30
