@@ -16,7 +16,9 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
     BaumgarteGains, ConstraintSelection, DivergedError, ModelError, ParameterError, Robot, Scenario, Simulation,
     SmoothStop, StepOutputs)
+from wallbot_sim.model import compiled
 from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.compiled import AHEAD_FIRST, AHEAD_MOST
 from wallbot_sim.model.constraints import NonLateral
 from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.robot import DOF
@@ -163,24 +165,28 @@ def test_configuration_calls_mid_run_act_the_same_on_both_engines():
 
 @pytest.fixture
 def kernel_calls(monkeypatch) -> dict[str, int]:
-    """How often the engine called the kernel's motion and step (counted, then passed on)."""
-    calls = {'robot_motion': 0, 'robot_step': 0}
-    for name in calls:
-        def counted(*args, _name=name, _function=getattr(kernel, name)):
-            calls[_name] += 1
-            return _function(*args)
-        monkeypatch.setattr(kernel, name, counted)
+    """How often the engine called the kernel's run (counted, then passed on)."""
+    calls = {'robot_run': 0}
+
+    def counted(*args, _function=kernel.robot_run):
+        calls['robot_run'] += 1
+        return _function(*args)
+    monkeypatch.setattr(kernel, 'robot_run', counted)
     return calls
 
 
-def test_the_numba_engine_steps_by_the_kernel_and_the_python_one_never(kernel_calls):
+def test_the_numba_engine_steps_by_the_kernel_a_chunk_at_a_time_and_the_python_one_never(kernel_calls):
     robot = Robot(load_robot_parameters())
     circle = load_scenario('circle')
-    Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot)).run(0.01)
-    assert kernel_calls == {'robot_motion': 0, 'robot_step': 0}
+    Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot)).run(0.1)
+    assert kernel_calls == {'robot_run': 0}
     Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot), engine='numba').run(
-        0.01, lambda out: None)  # the outputs of every instant: the first stage of each step is theirs
-    assert kernel_calls == {'robot_motion': 11, 'robot_step': 10}
+        0.1, lambda out: None)  # the outputs of every instant, from the chunks
+    chunks, covered = 0, 0
+    while covered < 101:  # the 101 instants, in chunks of AHEAD_FIRST steps, doubling up to AHEAD_MOST
+        covered += min(AHEAD_FIRST * 2 ** chunks, AHEAD_MOST)
+        chunks += 1
+    assert kernel_calls == {'robot_run': chunks}
 
 
 def test_what_the_kernel_does_not_cover_runs_the_python_model_bit_for_bit(kernel_calls):
@@ -194,11 +200,12 @@ def test_what_the_kernel_does_not_cover_runs_the_python_model_bit_for_bit(kernel
     assert any(pair.python.outputs().contact.slipping)
     for python, numba in zip(pair.history['python'], pair.history['numba']):
         assert all(np.array_equal(python[key], numba[key]) for key in python)
-    assert kernel_calls['robot_step'] == 0
+    assert kernel_calls['robot_run'] == 0
     pair.both(lambda s: s.set_contact_model('ideal'))
     pair.run(120)
     pair.assert_agree()
-    assert kernel_calls['robot_step'] == 120
+    used = kernel_calls['robot_run']
+    assert used > 0
 
     circle = load_scenario('circle')
     q0, qd0 = circle.initial_state(robot)
@@ -206,7 +213,7 @@ def test_what_the_kernel_does_not_cover_runs_the_python_model_bit_for_bit(kernel
     alone = [Simulation(robot, circle.reference, ConstraintSelection(), q0, qd0, extra_modules=[lateral],
                         engine=engine).run(0.05) for engine in ('python', 'numba')]
     assert np.array_equal(alone[0].q, alone[1].q) and np.array_equal(alone[0].qd, alone[1].qd)
-    assert kernel_calls['robot_step'] == 120
+    assert kernel_calls['robot_run'] == used
 
 
 def test_a_diverging_state_stops_with_the_same_error_and_keeps_the_last_finite_state():
@@ -319,3 +326,40 @@ def test_only_the_compiled_ideal_engine_tabulates():
     assert not Simulation(robot, None, driven, still, still, engine='numba', contact='coulomb').tabulates
     with pytest.raises(ModelError, match='run_table needs the numba engine'):
         Simulation(robot, None, driven, still, still).run_table(0.01, lambda _table: None)
+
+
+def test_steps_taken_ahead_are_the_steps_one_at_a_time_through_every_change(monkeypatch):
+    """The numba engine takes steps ahead in chunks; a run with torque changes, a constraint switch, a new
+    reference, a new adhesion force and a restore between steps, its outputs asked at some instants only,
+    equals to the bit the same run taken one kernel step per call (chunks of one)."""
+    robot = Robot(load_robot_parameters())
+    figure8 = load_scenario('figure8')
+    q0, qd0 = figure8.initial_state(robot)
+
+    def history() -> list[dict[str, np.ndarray]]:
+        simulation = Simulation(robot, figure8.reference, ConstraintSelection.parse('belt'), q0, qd0, engine='numba')
+        seen = []
+        for step in range(400):
+            if step % 3 == 0:
+                seen.append(quantities(simulation.outputs()))
+            if step % 37 == 5:
+                simulation.set_motor_torque(0.1 * (step % 7), -0.05 * (step % 5))
+            if step == 100:
+                simulation.set_constraints(ConstraintSelection.parse('belt,non_lateral,nonslip'))
+            if step == 160:
+                simulation.set_reference(load_scenario('circle').reference)
+            if step == 220:
+                simulation.set_adhesion_force(150.0)
+            if step == 300:
+                simulation.restore(250, seen[-20]['q'], seen[-20]['qd'])
+            simulation.step()
+        seen.append(quantities(simulation.outputs()))
+        return seen
+
+    ahead = history()
+    monkeypatch.setattr(compiled, 'AHEAD_FIRST', 1)
+    monkeypatch.setattr(compiled, 'AHEAD_MOST', 1)
+    one_by_one = history()
+    assert len(ahead) == len(one_by_one)
+    for i, (a, b) in enumerate(zip(ahead, one_by_one)):
+        assert all(np.array_equal(a[key], b[key]) for key in a), i

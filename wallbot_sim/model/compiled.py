@@ -1,37 +1,34 @@
 """One robot's ideal-contact dynamics by the batch's compiled kernel (``Simulation(..., engine='numba')``).
 
-The kernel's ``robot_motion`` and ``robot_step`` are the batch's derivative and RK4 step for a single
-robot: the same forces, the module rows in stacking order and the same normal-equation solve as the
-numba batch engine (which agrees with the Python model to 1e-9). What stays in Python is what the
-simulation asks of the outputs besides the motion (loads, friction use, drive forces) and the
-reference, sampled a chunk of steps ahead. ``robot_run`` takes a whole chunk of steps in one call, and
-``CompiledDynamics.table`` measures their outputs with the batch's array functions (``Simulation.run_table``).
+The kernel's ``robot_run`` takes a chunk of one robot's RK4 steps in one call, with the motion at
+each state: the batch's derivative and step, the same forces, the module rows in stacking order and
+the same normal-equation solve as the numba batch engine (which agrees with the Python model to
+1e-9). The loads, friction use and drive forces of a chunk are measured at once with the batch's
+array functions; the reference at the RK4 instants is sampled in Python for the chunk.
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from typing import NamedTuple
+
+import numpy as np
 
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
+from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
-from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.friction import FrictionUse
+from wallbot_sim.model.outputs import DriveForces, StepTable
 from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
 from wallbot_sim.model.trajectories import Reference
 
-REFERENCE_CHUNK = 256
-"""Steps whose reference instants are sampled at once."""
-_NO_REFERENCE = np.zeros((3, kernel.REFERENCE_FIELDS))
-_UNKNOWN = np.empty(0)
-"""``robot_step``'s "no first stage given"."""
+AHEAD_FIRST, AHEAD_MOST = 4, 64
+"""Steps taken ahead per kernel call: the first after a change, and the most (doubling while used up)."""
 
 
 def require_numba() -> None:
@@ -41,14 +38,20 @@ def require_numba() -> None:
 
 
 def compile_kernel() -> None:
-    """Compile the kernel's motion, RK4 step and run, or load them from numba's cache (which the first
-    compilation on a machine writes, 20-60 s), so that no simulation's first numba step waits for it."""
+    """Compile the kernel's run, or load it from numba's cache (which the first compilation on a machine
+    writes, 20-60 s), so that no simulation's first numba step waits for it."""
     still = np.zeros(DOF)
-    simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still,
-                            still, engine=NUMBA)
-    simulation.step()
-    simulation.outputs()
-    simulation.run_table(2 * simulation.dt, lambda _table: None)
+    Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still, still,
+               engine=NUMBA).run_table(0.002, lambda _table: None)
+
+
+class Measured(NamedTuple):
+    """What a simulation's outputs derive at one state: the motion, normal loads, friction use, drive forces."""
+
+    motion: ConstrainedMotion
+    loads: np.ndarray
+    use: FrictionUse
+    drive: DriveForces
 
 
 class CompiledRun(NamedTuple):
@@ -72,10 +75,18 @@ class CompiledRun(NamedTuple):
 
 
 class CompiledDynamics:
-    """The motion at a state and the RK4 step of one robot, for what a ``Simulation`` has active now.
+    """The motion, outputs and RK4 steps of one robot, for what a ``Simulation`` has active now.
 
     ``configure`` is cheap when nothing changed (it compares identities), so the simulation calls it
     before each use.
+
+    The kernel takes steps ahead, a chunk per call (``robot_run``), and ``measured`` and ``step``
+    answer from the chunk while the simulation goes on from the state handed out last, under the
+    same configuration and motor torque (the same objects): the states and motions one kernel step
+    at a time gives, to the bit, with the chunk's loads, friction use and drive forces measured at
+    once. Any other state starts a new chunk there. A chunk used to its end doubles the next, up to
+    AHEAD_MOST; a change starts again at AHEAD_FIRST (a driven run's commands change the torque
+    every control period).
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
@@ -87,12 +98,16 @@ class CompiledDynamics:
         self._reference: Reference | None = None
         self._constants = np.empty(0)
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
-        self._tasks = False
-        """Whether an active module reads the reference (else its samples are not needed)."""
-        self._chunk_start, self._chunk = 0, np.empty((0, 3, kernel.REFERENCE_FIELDS))
         self._torque_pair: tuple[float, float] | None = None
-        self._batch: RobotBatch | None = None
         self._torque = np.zeros(2)
+        self._batch: RobotBatch | None = None
+        self._ahead: CompiledRun | None = None
+        self._ahead_step, self._ahead_row = 0, 0
+        """The simulation's step of the chunk's row 0, and the row whose state was handed out last."""
+        self._ahead_state: np.ndarray | None = None
+        self._ahead_torque: tuple[float, float] | None = None
+        self._ahead_size = AHEAD_FIRST
+        self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def configure(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
                   reference: Reference | None, dt: float) -> CompiledDynamics:
@@ -101,36 +116,52 @@ class CompiledDynamics:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
+            self._ahead = None
         if selection is not self._selection:
             self._selection = selection
-            active = selection.active_names()
-            self._flags, self._rows = kernel.module_flags(active)
-            self._tasks = any(MODULES[name].task for name in active)
-            self._chunk = self._chunk[:0]
+            self._flags, self._rows = kernel.module_flags(selection.active_names())
+            self._ahead = None
         if reference is not self._reference or dt != self._dt:
             self._reference, self._dt = reference, dt
-            self._chunk = self._chunk[:0]
+            self._ahead = None
         return self
 
-    def motion(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> ConstrainedMotion:
-        """qdd, Q_c and the residual at state y (14,), the simulation's ``step``-th instant."""
-        motion = np.empty((3, DOF))
-        residual = kernel.robot_motion(y, self._references(step)[0], self._flags, self._rows, self._constants,
-                                       self._torque_array(torque), motion)
-        return ConstrainedMotion(motion[0], motion[2], residual)
+    def measured(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> Measured:
+        """The motion, normal loads, friction use and drive forces at y (14,), the simulation's ``step``-th instant."""
+        row = self._row(y, step, torque)
+        run = self._ahead
+        if self._ahead_measured is None:
+            self._ahead_measured = self._measured(run)
+        loads, use, drive = self._ahead_measured
+        return Measured(ConstrainedMotion(run.motions[row, 0], run.motions[row, 2], float(run.residuals[row])),
+                        loads[row], FrictionUse(*use[row].tolist()), DriveForces(*drive[row].tolist()))
 
-    def step(self, y: np.ndarray, step: int, torque: tuple[float, float],
-             acceleration: np.ndarray | None) -> np.ndarray | None:
-        """The state one RK4 step after y, or None if it is not finite; ``acceleration``: qdd at y if known."""
-        out = np.empty(2 * DOF)
-        finite = kernel.robot_step(y, self._references(step), self._flags, self._constants, self._torque_array(torque),
-                                   self._dt, _UNKNOWN if acceleration is None else acceleration, out)
-        return out if finite else None
+    def step(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> np.ndarray | None:
+        """The state one RK4 step after y, the simulation's ``step``-th instant, or None if it is not finite."""
+        row = self._row(y, step, torque)
+        run = self._ahead
+        if row >= run.taken:  # the next state is not finite
+            self._ahead = None
+            return None
+        self._ahead_row, self._ahead_state = row + 1, run.states[row + 1]
+        return self._ahead_state
+
+    def _row(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> int:
+        """The row of y in the steps ahead: the state handed out last, under the same torque; else a new chunk."""
+        ahead = self._ahead
+        if (ahead is not None and y is self._ahead_state and torque is self._ahead_torque
+                and step == self._ahead_step + self._ahead_row and self._ahead_row < len(ahead.residuals)):
+            return self._ahead_row
+        used_up = ahead is not None and y is self._ahead_state and self._ahead_row == len(ahead.residuals)
+        self._ahead_size = min(2 * self._ahead_size, AHEAD_MOST) if used_up else AHEAD_FIRST
+        self._ahead = self.run(y, step, torque, self._ahead_size, self._ahead_size)
+        self._ahead_step, self._ahead_row, self._ahead_state, self._ahead_torque = step, 0, y, torque
+        self._ahead_measured = None
+        return 0
 
     def run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int, steps: int) -> CompiledRun:
         """From y, the simulation's ``step``-th instant: the motion at ``instants`` consecutive instants and
-        the ``steps`` (``instants`` or one fewer) RK4 steps between and after them, as ``motion`` and
-        ``step`` would give them one by one."""
+        the ``steps`` (``instants`` or one fewer) RK4 steps between and after them (``kernel.robot_run``)."""
         references = kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt)
         states = np.empty((instants + 1, 2 * DOF))
         states[0] = y
@@ -142,29 +173,24 @@ class CompiledDynamics:
     def table(self, run: CompiledRun, first_time: float, first_step: int) -> StepTable:
         """The outputs at the instants of ``run`` (its first the ``first_step``-th, at ``first_time``)."""
         shown = run.instants
+        loads, use, drive = self._measured(run)
+        return StepTable(first_time + (first_step + np.arange(shown)) * self._dt, run.states[:shown, :DOF],
+                         run.states[:shown, DOF:], run.motions[:shown, 0], run.motions[:shown, 2],
+                         run.residuals[:shown], drive, loads, use, np.zeros((shown, 3), dtype=bool),
+                         run.references[:shown, 0, :2] if self._reference is not None else None)
+
+    def _measured(self, run: CompiledRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Normal loads (T, 4), friction use (T, 3) and drive forces (T, 3) at the instants of ``run``."""
+        shown = run.instants
         robots = self._batch
         if robots is None or robots.robots[0] is not self._robot or robots.size != shown:
-            robots = self._batch = RobotBatch([self._robot] * shown)  # every row this robot: a run's chunks share it
-        q, qd = run.states[:shown, :DOF], run.states[:shown, DOF:]
-        acceleration, constraint_force = run.motions[:shown, 0], run.motions[:shown, 2]
-        loads = normal_loads(robots, q, qd, acceleration)
-        drive = drive_forces(q[:, 2], constraint_force[:, :3], robots.half_track)
-        return StepTable(first_time + (first_step + np.arange(shown)) * self._dt, q, qd, acceleration,
-                         constraint_force, run.residuals[:shown], drive, loads, friction_use(robots, drive, loads),
-                         np.zeros((shown, 3), dtype=bool),
-                         run.references[:shown, 0, :2] if self._reference is not None else None)
+            robots = self._batch = RobotBatch([self._robot] * shown)  # every row this robot: chunks share it
+        q = run.states[:shown]
+        loads = normal_loads(robots, q[:, :DOF], q[:, DOF:], run.motions[:shown, 0])
+        drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)
+        return loads, friction_use(robots, drive, loads), drive
 
     def _torque_array(self, torque: tuple[float, float]) -> np.ndarray:
         if torque is not self._torque_pair:
             self._torque_pair, self._torque = torque, np.array(torque, dtype=float)
         return self._torque
-
-    def _references(self, step: int) -> np.ndarray:
-        """(3, 10): the reference at the step's RK4 instants (zeros when no active module reads it)."""
-        if not self._tasks or self._reference is None:
-            return _NO_REFERENCE
-        index = step - self._chunk_start
-        if not 0 <= index < len(self._chunk):
-            self._chunk_start, index = step, 0
-            self._chunk = kernel.reference_samples(self._reference, self._initial_time, step, REFERENCE_CHUNK, self._dt)
-        return self._chunk[index]

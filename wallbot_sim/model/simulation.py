@@ -294,9 +294,11 @@ class Simulation:
             else:
                 qd = self._y[DOF:]
                 compiled = self._compiled_now()
-                motion = (self.solve(self._t, q, qd) if compiled is None
-                          else compiled.motion(self._y, self.steps, self.motor_torque))
-                loads, use, drive = self._measure(motion, None, qd)
+                if compiled is not None:
+                    motion, loads, use, drive = compiled.measured(self._y, self.steps, self.motor_torque)
+                else:
+                    motion = self.solve(self._t, q, qd)
+                    loads, use, drive = self._measure(motion, None, qd)
                 slipping = (False, False, False)
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
@@ -336,7 +338,7 @@ class Simulation:
         cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
         compiled = self._compiled_now()
         if compiled is not None:  # None when not finite
-            y = compiled.step(self._y, self.steps, self.motor_torque, None if cached is None else cached.acceleration)
+            y = compiled.step(self._y, self.steps, self.motor_torque)
         else:
             with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
                 k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))

@@ -14,9 +14,9 @@ agreement tests run both.
 engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
 what the fused step does not cover: coulomb contact, and the outputs step hooks see.
 
-``robot_motion`` and ``robot_step`` are one robot's motion at a state (qdd, Q, Q_c, residual) and its
-RK4 step, called once a step by ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``):
-the same derivative and RK4 step as the batch's fused loop.
+``robot_run`` takes one robot's RK4 steps a chunk at a time, with the motion (qdd, Q, Q_c, residual) at
+each state, for ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``): the same
+derivative and RK4 step as the batch's fused loop.
 
 numba is optional: ``available()`` says whether it imported.
 """
@@ -450,7 +450,11 @@ def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
 def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
             torque: np.ndarray, motion: np.ndarray, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray,
             matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
-    """``robot_motion`` in the caller's workspace."""
+    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
+
+    ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
+    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); the rest: the caller's workspace.
+    """
     acceleration, force = motion[0], motion[1]
     _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, rows, rhs, factor, matrix, gram, lower,
                   vectors, scratch, acceleration)
@@ -474,41 +478,10 @@ def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int,
     return math.sqrt(squares)
 
 
-def robot_motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
-                 torque: np.ndarray, motion: np.ndarray) -> float:
-    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
-
-    ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
-    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R).
-    """
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    return _motion(y, reference, flags, count, constants, torque, motion, rows, rhs, factor, matrix, gram, lower,
-                   vectors, scratch)
-
-
-def robot_step(y: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
-               dt: float, known: np.ndarray, out: np.ndarray) -> bool:
-    """One robot's RK4 step from y (14,) into out (14,); whether the new state is finite.
-
-    ``references`` (3, 10): the reference at t, t + dt/2, t + dt; ``known``: qdd at y (RK4's first stage,
-    e.g. from ``robot_motion``), or an empty array to compute it.
-    """
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    slopes = np.zeros((4, 2 * DOF))
-    given = known.shape[0] == DOF
-    if given:
-        for i in range(DOF):
-            slopes[0, DOF + i] = known[i]
-    return _rk4(y, references, flags, constants, torque, dt, given, rows, rhs, factor, matrix, gram, lower, vectors,
-                scratch, out, slopes)
-
-
 def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
               torque: np.ndarray, dt: float, steps: int, motions: np.ndarray, residuals: np.ndarray) -> int:
-    """One robot over consecutive instants, as ``robot_motion`` then ``robot_step`` at each; the number of
-    steps taken.
+    """One robot over consecutive instants: the motion at each state (``_motion``), then the RK4 step from
+    it with that qdd as the first stage; the number of steps taken.
 
     ``states`` (T + 1, 14): row 0 the state at the first instant; row k + 1 gets the state one step after
     row k, for k < ``steps`` (at most T), until a state is not finite (then that row is not valid and the
@@ -546,8 +519,6 @@ _rk4 = _compile(_rk4, inline="always")
 _steps = _compile(_steps, parallel=True)
 _workspace = _compile(_workspace, inline="always")
 _motion = _compile(_motion, inline="always")
-robot_motion = _compile(robot_motion)
-robot_step = _compile(robot_step)
 robot_run = _compile(robot_run)
 
 
