@@ -195,12 +195,12 @@ def test_a_message_written_around_the_signal_is_not_logged_after_it(ros_domain):
     import rclpy
 
     from wallbot_msgs_py import topics
-    from wallbot_sim.nodes.recorder import _make_node
+    from wallbot_sim.nodes.recorder import make_recorder
     rclpy.init()
     node = None
     try:
         writer, stop = _Writer(), _HandlerRunsAtTheCheck()
-        node = _make_node(writer, [topics.REFERENCE], stop)
+        node = make_recorder(writer, [topics.REFERENCE], stop)
         name = node.resolve_topic_name(topics.REFERENCE.name)
         node._on_message(topics.REFERENCE, name, b'')  # the handler runs inside its check
         node._on_message(topics.REFERENCE, name, b'')  # the stop was there before it
