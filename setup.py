@@ -83,6 +83,7 @@ setup(
             'trajectory_node = wallbot_sim.nodes.trajectory:main',
             'constraint_config_node = wallbot_sim.nodes.constraint_config:main',
             'recorder_node = wallbot_sim.nodes.recorder:main',
+            'dynamics_recorder_node = wallbot_sim.nodes.dynamics_recorder:main',
             'tracking_controller_node = wallbot_sim.nodes.controller:main',
             'cmd_vel_node = wallbot_sim.nodes.cmd_vel:main',
             'joint_bridge_node = wallbot_sim.nodes.joint_bridge:main',

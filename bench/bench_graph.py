@@ -15,7 +15,7 @@ ratios: graph CPU per simulated second / model CPU per simulated second (target 
 factor-0 speed / model speed (target >= 5).
 
     python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine python|numba]
-                                [--markers | --foxglove]
+                                [--markers | --foxglove] [--compose]
 
 ``--engine`` is the dynamics' (``run --engine``; default python, the model); with numba the
 kernel is compiled here before the runs if numba's cache lacks it, so no run waits for it.
@@ -23,6 +23,9 @@ kernel is compiled here before the runs if numba's cache lacks it, so no run wai
 ``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second, nothing
 subscribing its markers), ``--foxglove`` with ``run --foxglove`` (the viewer also serving the live
 view, which builds the markers every frame; no client connected), so its cost shows beside the others'.
+
+``--compose`` runs the graph with ``run --compose``: the dynamics and the recorder in one process
+(dynamics_recorder_node, the per-step topics recorded in process), shown as one line.
 """
 
 from __future__ import annotations
@@ -52,6 +55,9 @@ from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
          'constraint_config': 'wallbot_sim.nodes.constraint_config', 'recorder': 'wallbot_sim.nodes.recorder'}
 """The recorded graph's nodes, by the module each child of ``run`` runs."""
+COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder',
+                  **{name: module for name, module in NODES.items() if name not in ('dynamics', 'recorder')}}
+"""The nodes of ``run --compose``."""
 SAMPLE_PERIOD = 0.25
 """Wall seconds between /proc samples."""
 
@@ -89,14 +95,17 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              engine: str, viewer: list[str]) -> Run:
+              engine: str, viewer: list[str], compose: bool) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
-    ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer)."""
+    ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer);
+    ``compose``: with ``run --compose``."""
     name = f'run_factor_{factor:g}'
-    nodes = {**NODES, 'viewer': 'wallbot_sim.nodes.viewer'} if viewer else NODES
+    nodes = COMPOSED_NODES if compose else NODES
+    if viewer:
+        nodes = {**nodes, 'viewer': 'wallbot_sim.nodes.viewer'}
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
                           '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
-                          *viewer], name)
+                          *viewer, *(['--compose'] if compose else [])], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -153,6 +162,8 @@ def main() -> int:
     choice = parser.add_mutually_exclusive_group()
     choice.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
+    parser.add_argument('--compose', action='store_true',
+                        help='run with --compose (the dynamics and the recorder in one process)')
     args = parser.parse_args()
     viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
     if args.engine == NUMBA:
@@ -163,8 +174,10 @@ def main() -> int:
     launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
-        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer)
-        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer)
+        realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer,
+                             args.compose)
+        fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer,
+                         args.compose)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
@@ -178,7 +191,8 @@ def main() -> int:
     lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
-    print(f'\nwallbot-sim run circle --engine {args.engine}, factor 1, {args.duration:g} simulated s; '
+    composed = ' --compose' if args.compose else ''
+    print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
     for node, seconds in realtime.cpu.items():
         print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per simulated s')
@@ -191,7 +205,7 @@ def main() -> int:
     (w0, d0), (w1, d1) = running[0], running[-1]
     speed = (float(d1['simulation time']) - float(d0['simulation time'])) / (w1 - w0)
     fast_wall = fast.window[1] - fast.window[0]
-    print(f'\nwallbot-sim run circle --engine {args.engine}, factor 0, {args.fast_duration:g} simulated s:')
+    print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 0, {args.fast_duration:g} simulated s:')
     print(f'  simulated s per wall s: {speed:.2f}   (target >= 5)')
     print(f'  ratio to the two-pinv model\'s speed ({1 / model:.2f} simulated s per CPU s): {speed * model:.2f}'
           '   (target >= 5)')

@@ -14,6 +14,8 @@ Arguments (defaults as ``wallbot-sim run``):
   adhesion_force:=N                    adhesion force in N (default: the robot file's)
   engine:=python|numba                 how the dynamics computes the ideal-contact steps (numba: compiled kernel)
   viewer:=false                        true: viewer_node publishes markers (and /tf with tf2_msgs installed)
+  compose:=false                       true (with record): dynamics and recorder in one process,
+                                       dynamics_recorder_node; the per-step topics are recorded in process
 
 Example:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
@@ -27,7 +29,7 @@ from launch_ros.actions import Node
 
 from wallbot_msgs_py import topics
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import EXECUTABLES, describe_graph
+from wallbot_sim.graph_description import EXECUTABLES, describe_graph, launch_name
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection
 
 PACKAGE = 'wallbot_sim'
@@ -46,6 +48,8 @@ ARGUMENTS = {
     'engine': ('python', "how the dynamics computes the ideal-contact steps: python, or numba (the batch's compiled "
                          'kernel; it compiles on first use on a machine)'),
     'viewer': ('false', 'true: viewer_node publishes markers (and /tf where tf2_msgs is installed)'),
+    'compose': ('false', 'true (with record): the dynamics and the recorder in one process (dynamics_recorder_node), '
+                         'the per-step topics recorded in process'),
 }
 
 
@@ -62,8 +66,9 @@ def _graph(context, *args, **kwargs):
         realtime_priority=int(arg('realtime_priority')),
         robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
         adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None,
-        viewer=arg('viewer').strip().lower() == 'true', engine=arg('engine'))
-    return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], name=spec.name, namespace=topics.NAMESPACE,
+        viewer=arg('viewer').strip().lower() == 'true', engine=arg('engine'),
+        compose=arg('compose').strip().lower() == 'true')
+    return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], **launch_name(spec), namespace=topics.NAMESPACE,
                  output='screen', parameters=[dict(spec.parameters)])
             for spec in specs]
 

@@ -258,3 +258,73 @@ def test_another_terminal_attaches_with_the_printed_export_until_ctrl_c(tmp_path
     assert meta['custom_data']['wallbot.recorder.stop_signal'] == 'SIGINT'
     recorded = odometry(out / 'bag')
     assert len(recorded) > 0 and recorded[0, 0] == 0 and np.all(np.diff(recorded[:, 0]) == 1_000_000)
+
+
+STEP_TOPICS = ('/wallbot/odom', '/wallbot/wheel_states', '/wallbot/constraint_wrench', '/wallbot/drive_forces',
+               '/wallbot/wheel_contact', '/wallbot/clock')
+"""The dynamics' per-step topics: what a composed run (--compose) records in process."""
+
+
+def step_messages(bag: Path) -> tuple[dict[str, dict[int, bytes]], list[int]]:
+    """{topic: {stamp ns: CDR bytes}} of the per-step topics, and every log time in file order."""
+    by_topic: dict[str, dict[int, bytes]] = {name: {} for name in STEP_TOPICS}
+    log_times = []
+    with open(next(bag.glob('*.mcap')), 'rb') as stream:
+        for _schema, channel, message in mcap_reader.make_reader(stream).iter_messages(log_time_order=False):
+            log_times.append(message.log_time)
+            if channel.topic in by_topic:
+                stamp = codec.leading_stamp_ns(message.data)
+                assert stamp not in by_topic[channel.topic], f'{channel.topic} at {stamp} twice'
+                by_topic[channel.topic][stamp] = message.data
+    return by_topic, log_times
+
+
+def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path):
+    """run --compose (the per-step topics through the in-process tap) and run (all over DDS) of the
+    same scenario at factor 0: the same per-step messages byte for byte, a step every 1 ms, the
+    log times never going back in the file."""
+    bags = {}
+    for label, extra in (('composed', ['--compose']), ('separate', [])):
+        out = tmp_path / label
+        result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1.5', '--real-time-factor', '0',
+                                 '--no-plots', '--out', str(out), *extra], capture_output=True, text=True, timeout=180)
+        assert result.returncode == 0, result.stderr + result.stdout
+        bags[label] = out / 'bag'
+    meta = yaml.safe_load((bags['composed'] / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['custom_data']['wallbot.recorder'] == 'dynamics_recorder_node'
+    composed, log_times = step_messages(bags['composed'])
+    separate, _ = step_messages(bags['separate'])
+    assert log_times == sorted(log_times)
+    steps = list(range(0, 1_500_000_001, 1_000_000))
+    for name in STEP_TOPICS[:-1]:
+        assert sorted(composed[name]) == steps, name
+    assert len(composed['/wallbot/clock']) > 10
+    assert composed == separate
+
+
+def test_a_composed_run_stopped_by_ctrl_c_logs_nothing_after_the_signal(tmp_path, process_runner):
+    """Ctrl-C mid-run with --compose: the composed process ends the recording at its signal; the
+    bag is readable, nothing in it is logged after stop_time_ns, and every step in it is whole
+    (the tap writes a step's messages together) and consecutive from t = 0."""
+    out = tmp_path / 'run'
+    process = start_run(process_runner, out, '--compose')
+    nodes = child_processes(process.pid)
+    assert [cmd for cmd in nodes.values() if 'wallbot_sim.nodes.dynamics_recorder' in cmd]
+    assert not [cmd for cmd in nodes.values() if 'wallbot_sim.nodes.recorder' in cmd
+                or re.search(r'wallbot_sim\.nodes\.dynamics\b(?!_)', cmd)]
+    os.kill(process.pid, signal.SIGINT)
+    assert process.wait(timeout=60) == 130
+    log = (out / 'logs' / 'dynamics_recorder.log').read_text()
+    assert 'stopped by SIGINT' in log and 'Traceback' not in log + process_runner.output('run')
+    assert re.search(r'recording \d+ topics \(7 of them in process\)', log), log
+    for pid in nodes:
+        assert not Path(f'/proc/{pid}').exists() or 'zombie' in Path(f'/proc/{pid}/status').read_text()
+    meta = yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['custom_data']['wallbot.recorder.stop_signal'] == 'SIGINT'
+    stop_ns = int(meta['custom_data']['wallbot.recorder.stop_time_ns'])
+    by_topic, log_times = step_messages(out / 'bag')
+    assert log_times == sorted(log_times) and log_times[-1] <= stop_ns
+    odom = sorted(by_topic['/wallbot/odom'])
+    assert len(odom) > 500 and odom == list(range(0, odom[-1] + 1, 1_000_000))
+    for name in STEP_TOPICS[1:-1]:
+        assert sorted(by_topic[name]) == odom, name

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import EXECUTABLES, describe_driven_graph, describe_graph
+from wallbot_sim.graph_description import EXECUTABLES, describe_driven_graph, describe_graph, launch_name
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
@@ -68,7 +68,7 @@ def launched_nodes(launch_file, **arguments: str) -> list[dict]:
 
 
 def as_launched(specs) -> list[dict]:
-    return [{'package': 'wallbot_sim', 'executable': EXECUTABLES[s.module], 'name': s.name,
+    return [{'package': 'wallbot_sim', 'executable': EXECUTABLES[s.module], **launch_name(s),
              'namespace': '/wallbot', 'output': 'screen', 'parameters': [dict(s.parameters)]} for s in specs]
 
 
@@ -97,6 +97,22 @@ def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_pa
     dynamics = nodes[-1]['parameters'][0]
     assert dynamics['wait_for_recorder'] and dynamics['wait_for_command'] and dynamics['stop_at'] == 20.0
     assert nodes[0]['parameters'][0]['output'] == str(tmp_path / 'bag')
+
+
+def test_compose_records_in_the_dynamics_process_as_run_compose_does(launch_file, tmp_path):
+    nodes = launched_nodes(launch_file, record=str(tmp_path / 'bag'), compose='true', duration='20')
+    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
+                              duration=20.0, bag=tmp_path / 'bag', compose=True)
+    assert nodes == as_launched(expected)
+    assert [n['executable'] for n in nodes] == ['dynamics_recorder_node', 'constraint_config_node', 'trajectory_node']
+    assert 'name' not in nodes[0]  # its two nodes keep their names
+    composed = nodes[0]['parameters'][0]
+    assert composed['output'] == str(tmp_path / 'bag') and composed['stop_at'] == 20.0 and composed['wait_for_recorder']
+    # without a bag there is nothing to compose: the dynamics alone
+    assert [n['executable'] for n in launched_nodes(launch_file, compose='true')][-1] == 'dynamics_node'
+    driven = describe_driven_graph('cmd_vel', bag=tmp_path / 'bag', compose=True)
+    assert [s.name for s in driven] == ['dynamics_recorder', 'constraint_config', 'cmd_vel_controller']
+    assert driven[0].parameters['topics'] == describe_driven_graph('cmd_vel', bag=tmp_path / 'bag')[0].parameters['topics']
 
 
 def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(launch_file):

@@ -42,7 +42,7 @@ def test_every_layering_contract_is_kept(linter):
     ('wallbot_sim/model/robot.py', 'import rclpy', 'wallbot_sim.model is pure NumPy'),
     ('wallbot_sim/rundata/load.py', 'from wallbot_sim.cli.errors import CliError', 'know nothing of the command line'),
     ('wallbot_sim/nodes/dynamics_loop.py', 'import rclpy',
-     'the dynamics loop, its pacer, its resume gate and its sensor noise know no ROS'),
+     'the dynamics loop, its pacer, its resume gate, its sensor noise and its step tap know no ROS'),
     ('wallbot_sim/urdf.py', 'import std_msgs', 'the URDF generator knows no ROS'),
     ('wallbot_sim/view.py', 'import visualization_msgs', 'what the viewer draws and encodes'),
 ], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'urdf', 'view'])

@@ -18,7 +18,7 @@ from wallbot_sim import paths
 REPO_ROOT = Path(__file__).resolve().parents[1]
 COLCON = Path(sys.executable).parent / 'colcon'
 EXECUTABLES = ('dynamics_node', 'trajectory_node', 'constraint_config_node',
-               'recorder_node', 'tracking_controller_node', 'cmd_vel_node', 'joint_bridge_node', 'viewer_node',
+               'recorder_node', 'dynamics_recorder_node', 'tracking_controller_node', 'cmd_vel_node', 'joint_bridge_node', 'viewer_node',
                'wallbot-sim')
 IGNORED = shutil.ignore_patterns('.venv', '.git', 'build', 'install', 'log', 'runs',
                                  '__pycache__', '*.egg-info', '.pytest_cache')

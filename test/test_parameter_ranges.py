@@ -157,7 +157,7 @@ def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(p
         namespaces = {}
         for index, module in enumerate(EXECUTABLES):
             namespace = f'/ranges_{index}'
-            extra = ['-p', f'output:={tmp_path / "bag"}'] if module.endswith('.recorder') else []
+            extra = ['-p', f'output:={tmp_path / f"bag{index}"}'] if module.endswith('recorder') else []
             graph.procs[module] = process_runner.start(
                 [sys.executable, '-m', module, '--ros-args', '-r', f'__ns:={namespace}', *extra], module)
             namespaces[namespace] = module

@@ -195,18 +195,88 @@ def test_a_message_written_around_the_signal_is_not_logged_after_it(ros_domain):
     import rclpy
 
     from wallbot_msgs_py import topics
-    from wallbot_sim.nodes.recorder import _make_node
+    from wallbot_sim.nodes.recorder import make_recorder
     rclpy.init()
     node = None
     try:
         writer, stop = _Writer(), _HandlerRunsAtTheCheck()
-        node = _make_node(writer, [topics.REFERENCE], stop)
+        node = make_recorder(writer, [topics.REFERENCE], stop)
         name = node.resolve_topic_name(topics.REFERENCE.name)
         node._on_message(topics.REFERENCE, name, b'')  # the handler runs inside its check
         node._on_message(topics.REFERENCE, name, b'')  # the stop was there before it
         assert stop.requested
         assert writer.log_times[0] <= stop.at_ns, 'logged after the stop it was written before'
         assert writer.log_times[1] == stop.at_ns
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+class _Stop:
+    """A stop signal the test gives by hand."""
+
+    signum: int | None = None
+    at_ns: int | None = None
+    name = 'SIGINT'
+
+    @property
+    def requested(self) -> bool:
+        return self.signum is not None
+
+
+class _KeptWriter(_Writer):
+    """_Writer that also keeps each message's topic and bytes, and its custom data."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.written: list[tuple[str, int, bytes]] = []
+        self.custom: dict[str, str] = {}
+        self.closed = False
+
+    def write(self, connection: str, log_ns: int, data: bytes) -> None:
+        super().write(connection, log_ns, data)
+        self.written.append((connection, log_ns, data))
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        self.custom[key] = value
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_a_composed_recorder_writes_the_tapped_steps_before_a_dds_message_and_none_after_the_stop(ros_domain):
+    """The recorder of dynamics_recorder_node: the steps on its tap are written before a message
+    it receives over DDS (log times in order), and at the stop those logged up to it are written,
+    later ones counted as left out; the tapped topics have no DDS subscription."""
+    import rclpy
+
+    from wallbot_msgs_py import topics
+    from wallbot_sim.nodes.recorder import make_recorder
+    rclpy.init()
+    node = None
+    try:
+        writer, stop = _KeptWriter(), _Stop()
+        node = make_recorder(writer, [topics.ODOM, topics.CLOCK, topics.REFERENCE], stop,
+                             tapped=[topics.ODOM, topics.CLOCK])
+        assert node.count_subscribers('/wallbot/odom') == 0 and node.count_subscribers('/wallbot/reference') == 1
+        node.tap.put([(topics.ODOM, b'odom 0'), (topics.CLOCK, b'clock 0')], clock=True)
+        node.tap.put([(topics.ODOM, b'odom 1'), (topics.CLOCK, b'clock 1')], clock=False)
+        node._on_message(topics.REFERENCE, '/wallbot/reference', b'reference')  # a DDS callback
+        assert [(name, data) for name, _log, data in writer.written] == [
+            ('/wallbot/odom', b'odom 0'), ('/wallbot/clock', b'clock 0'), ('/wallbot/odom', b'odom 1'),
+            ('/wallbot/reference', b'reference')]
+        assert writer.log_times == sorted(writer.log_times)
+
+        node.tap.put([(topics.ODOM, b'odom 2')], clock=False)
+        stop.signum, stop.at_ns = signal.SIGINT, time.time_ns()
+        while time.time_ns() <= stop.at_ns:  # the next step is logged after the stop
+            pass
+        node.tap.put([(topics.ODOM, b'odom 3')], clock=False)
+        node.close()
+        assert [data for _name, _log, data in writer.written][4:] == [b'odom 2']
+        assert writer.log_times[-1] <= stop.at_ns and node.refused == 1
+        assert writer.custom['wallbot.recorder.stop_time_ns'] == str(stop.at_ns) and writer.closed
     finally:
         if node is not None:
             node.destroy_node()

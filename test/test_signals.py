@@ -140,6 +140,28 @@ def test_every_node_of_a_running_graph_stops_at_once(process_runner, tmp_path, s
         assert 'Traceback' not in jobs[name].output()
 
 
+@pytest.mark.parametrize('sig', SIGNALS, ids=lambda s: s.name)
+def test_the_dynamics_composed_with_its_recorder_stops_at_once(process_runner, tmp_path, sig):
+    """The closed-loop graph of ``wallbot-sim run --controller --compose``: the dynamics_recorder
+    process, signalled while the loop runs at 1 kHz, ends the recording at the signal (nothing
+    logged later, no step missing before), closes the bag and exits 0."""
+    bag = tmp_path / 'bag'
+    specs = describe_graph(load_scenario('circle'), DRIVEN, duration=600.0, real_time_factor=1.0, bag=bag,
+                           controller_mass_scale=1.0, compose=True)
+    jobs = {spec.name: BackgroundJob(process_runner, spec.command(), spec.name, tmp_path) for spec in specs}
+    assert set(jobs) == {'dynamics_recorder', 'constraint_config', 'trajectory', 'controller'}
+    wait_for(lambda: bag_bytes(bag) > 200_000, 90, 'a second of recording')
+
+    status, sent_ns = jobs['dynamics_recorder'].stop(sig)
+    assert status == 0, jobs['dynamics_recorder'].output()
+    assert f'stopped by {sig.name}' in jobs['dynamics_recorder'].output()
+    assert 'Traceback' not in jobs['dynamics_recorder'].output()
+    check_nothing_recorded_after(bag, sig, sent_ns)
+    for name in ('controller', 'trajectory', 'constraint_config'):
+        status, _ = jobs[name].stop(sig)
+        assert status == 0, jobs[name].output()
+
+
 def test_a_signal_before_any_message_gives_an_empty_readable_bag(process_runner, tmp_path):
     bag = tmp_path / 'bag'
     job = BackgroundJob(process_runner, [sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',

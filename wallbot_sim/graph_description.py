@@ -19,6 +19,9 @@ from wallbot_sim.model.scenario import InitialPose
 from wallbot_sim.model.simulation import PYTHON
 
 RECORDER = 'recorder'
+DYNAMICS_RECORDER = 'dynamics_recorder'
+"""The composed process (``compose``): the dynamics and the recorder, the per-step topics recorded in process."""
+COMPOSED_MODULE = 'wallbot_sim.nodes.dynamics_recorder'
 CONTROLLER = 'controller'
 VIEWER = 'viewer'
 EXECUTABLES = {
@@ -27,6 +30,7 @@ EXECUTABLES = {
     'wallbot_sim.nodes.trajectory': 'trajectory_node',
     'wallbot_sim.nodes.controller': 'tracking_controller_node',
     'wallbot_sim.nodes.dynamics': 'dynamics_node',
+    COMPOSED_MODULE: 'dynamics_recorder_node',
     'wallbot_sim.nodes.cmd_vel': 'cmd_vel_node',
     'wallbot_sim.nodes.joint_bridge': 'joint_bridge_node',
     'wallbot_sim.nodes.viewer': 'viewer_node',
@@ -59,7 +63,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    controller_mass_scale: float | None = None, realtime_priority: int = 0,
                    robot_file: Path | None = None, contact_model: str = 'ideal',
                    adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
-                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON) -> list[NodeSpec]:
+                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON, compose: bool = False) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -70,7 +74,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     ``adhesion_force`` None: the robot file's. ``viewer``: the viewer node (markers, tf), started
     before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
     it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``. ``engine``: the
-    dynamics' (python or numba).
+    dynamics' (python or numba). ``compose`` (with ``bag``): the dynamics and the recorder in one
+    process (``nodes.dynamics_recorder``), started first in the recorder's place.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -84,12 +89,10 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         selection = DRIVEN
     pose = scenario.initial
     switches = switches_from_selection(selection)
+    recorder: dict[str, object] = {'output': str(bag)} if bag is not None else {}
+    if bag is not None and closed_loop:
+        recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
     specs = []
-    if bag is not None:
-        recorder: dict[str, object] = {'output': str(bag)}
-        if closed_loop:
-            recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
-        specs.append(NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder))
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     specs += [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot, **SIM_TIME}),
@@ -101,33 +104,31 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
             'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME}))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot)
-    specs.append(_dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                           adhesion_force, CONTROL_STEPS if closed_loop else None, engine))
-    return specs
+    dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+                         adhesion_force, CONTROL_STEPS if closed_loop else None, engine)
+    return _with_recorder(specs, dynamics, recorder, compose)
 
 
 def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor: float = 1.0,
                           bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
                           contact_model: str = 'ideal', adhesion_force: float | None = None, viewer: bool = False,
                           foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
-                          engine: str = PYTHON) -> list[NodeSpec]:
+                          engine: str = PYTHON, compose: bool = False) -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
 
     ``cmd_vel``: cmd_vel_node, the dynamics waiting for it and in lockstep with its loop.
     ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
     wait, since the commands come from the user's controller_manager (zero torque until then).
-    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``: as for describe_graph.
+    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``: as for describe_graph.
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
     name, module = DRIVES[drive]
-    specs = []
-    if bag is not None:
-        recorder = {'output': str(bag), 'topics': [t.name for t in (*topics.RECORDED, *DRIVE_TOPICS[drive])]}
-        specs.append(NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder))
+    recorder = ({'output': str(bag), 'topics': [t.name for t in (*topics.RECORDED, *DRIVE_TOPICS[drive])]}
+                if bag is not None else {})
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
-    specs += [
+    specs = [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
                  {**switches_from_selection(DRIVEN), **robot, **SIM_TIME}),
         # the cmd_vel node is the run's commander (the dynamics waits for it): it must not answer
@@ -135,10 +136,27 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
         NodeSpec(name, module, {**robot, **SIM_TIME,
                                 **({'wait_for_recorder': True} if bag is not None and drive == 'cmd_vel' else {})}),
         *_viewer(viewer, foxglove_port, foxglove_host, robot),
-        _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                  adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine),
     ]
-    return specs
+    dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+                         adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine)
+    return _with_recorder(specs, dynamics, recorder, compose)
+
+
+def _with_recorder(specs: list[NodeSpec], dynamics: NodeSpec, recorder: dict[str, object],
+                   compose: bool) -> list[NodeSpec]:
+    """``specs`` with the dynamics last and the recorder (its parameters ``recorder``; none: no
+    recorder) first, or, with ``compose``, the two as one process first."""
+    if not recorder:
+        return [*specs, dynamics]
+    if compose:
+        return [NodeSpec(DYNAMICS_RECORDER, COMPOSED_MODULE, {**dynamics.parameters, **recorder}), *specs]
+    return [NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder), *specs, dynamics]
+
+
+def launch_name(spec: NodeSpec) -> dict[str, str]:
+    """The ``name`` a launch_ros Node action gives the process of ``spec``: none for the composed
+    process, whose two nodes keep their own names (a launch name renames every node of a process)."""
+    return {} if spec.module == COMPOSED_MODULE else {'name': spec.name}
 
 
 def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[str, str]) -> list[NodeSpec]:

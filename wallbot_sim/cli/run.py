@@ -1,6 +1,7 @@
 """``wallbot-sim run``: the main job. The real node graph in its own DDS domain, recorded, plotted.
 
-Starts recorder, constraint_config, trajectory and dynamics as separate processes with a
+Starts recorder, constraint_config, trajectory and dynamics as separate processes (``--compose``:
+the dynamics and the recorder in one, the per-step topics recorded in process) with a
 ROS_DOMAIN_ID of their own (localhost discovery only; the first line on stdout is the ``export``
 that attaches another terminal), shows simulation time and real-time factor while they run,
 stops the graph once the recorder holds the whole duration (``--duration 0``: at Ctrl-C), then
@@ -29,8 +30,8 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
                                 claim_domain_id)
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
-from wallbot_sim.graph_description import (CONTROLLER, DRIVES, RECORDER, VIEWER, GraphDescriptionError,
-                                           describe_driven_graph, describe_graph)
+from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER, RECORDER, VIEWER,
+                                           GraphDescriptionError, describe_driven_graph, describe_graph)
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
@@ -127,6 +128,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f'with scenario {REST}: drive the robot yourself, cmd_vel (cmd_vel_node, a wheel-speed '
                              'PI loop; teleop_twist_keyboard) or joint_commands (joint_bridge_node: ros2_control '
                              'topics joint_states, joint_commands); the command topics are recorded')
+    parser.add_argument('--compose', action='store_true',
+                        help='run the dynamics and the recorder in one process (dynamics_recorder_node): the per-step '
+                             'topics reach the bag in process instead of over DDS; no restart from snapshots after a '
+                             'SIGKILL')
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -233,7 +238,8 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         while not monitor.recorder_ready():
             check_nodes(graph, reported)
             if time.monotonic() > deadline:
-                raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(RECORDER)}')
+                raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: '
+                               f'{graph.log(specs[0].name)}')
             monitor.spin(0.05)
         for spec in specs[1:]:
             graph.start_node(spec)
@@ -261,7 +267,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             print(f'\nwallbot-sim run: {" and ".join(late)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
                   f'early (logs in {graph.log_dir})', file=sys.stderr)
     finally:
-        graph.signal_all(first=(RECORDER,))  # the recorder's bag ends at its signal
+        graph.signal_all(first=(RECORDER, DYNAMICS_RECORDER))  # the recorder's bag ends at its signal
         monitor.close()  # while the nodes leave DDS too
         graph.wait_all()
 
@@ -301,7 +307,7 @@ def main(args: argparse.Namespace) -> int:
             return describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
                                   controller_mass_scale=mass_scale, robot_file=robot_file,
                                   contact_model=args.contact, adhesion_force=args.adhesion_force, engine=args.engine,
-                                  **viewer_options(args))
+                                  compose=args.compose, **viewer_options(args))
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
     return run_described(args, describe, f'{scenario.name}, {selection.label()}{loop}', duration, robot_file)
@@ -320,7 +326,8 @@ def main_driven(args: argparse.Namespace) -> int:
     def describe(bag: Path) -> list[NodeSpec]:
         return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
                                      robot_file=robot_file, contact_model=args.contact,
-                                     adhesion_force=args.adhesion_force, engine=args.engine, **viewer_options(args))
+                                     adhesion_force=args.adhesion_force, engine=args.engine, compose=args.compose,
+                                     **viewer_options(args))
     return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
                          reference=False)
 

@@ -165,17 +165,26 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     while it spins wakes the executor at once. A configuration error while building the node (e.g. a
     bad robot file) is logged on one line and gives exit status 1.
     """
+    return run_nodes(lambda _stop: [factory()], args)
+
+
+def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] | None = None) -> int:
+    """:func:`run` for the nodes ``factory`` builds (given the stop, for nodes that act on it), spun
+    by one executor; on the way out each node's ``close`` (if it has one) runs in their order, then
+    they are destroyed."""
     stop = StopSignals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = executor = None
+    nodes: Sequence[Node] = ()
+    executor = None
     status = 0
     try:
-        node = factory()
+        nodes = factory(stop)
         executor = SingleThreadedExecutor()
-        executor.add_node(node)
+        for node in nodes:
+            executor.add_node(node)
         # a triggered guard condition with a callback ends spin_once (executor.wake() would only
         # make it rebuild its wait set and wait again); the callback itself has nothing to do
-        wake = node.create_guard_condition(lambda: None)
+        wake = nodes[0].create_guard_condition(lambda: None)
         stop.wakers.append(wake.trigger)
         while not stop.requested and rclpy.ok():
             executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
@@ -186,10 +195,11 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
         stop.wakers.clear()
         if executor is not None:
             executor.shutdown()
-        if node is not None:
+        for node in nodes:
             close = getattr(node, 'close', None)
             if close is not None:
                 close()
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
         stop.restore()

@@ -40,6 +40,9 @@ constraint switch, new plan, command) the loop publishes its full state on ``sta
 (``wallbot_msgs_py.snapshot``); the recorder keeps the newest and republishes it, transient-local,
 on ``resume_state``. A node started again after a SIGKILL takes that snapshot at start and
 continues the run bit for bit (``resume``), ``~/reset`` being the explicit way back to t = 0.
+
+In process. Composed with the recorder (``dynamics_recorder``) the node also hands every step's
+messages to a ``StepTap``, and the topics it taps count as heard by the recorder.
 """
 
 from __future__ import annotations
@@ -79,6 +82,7 @@ from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, Dynamic
                                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, Pacer
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
+from wallbot_sim.nodes.step_tap import StepTap
 
 NOISE_PARAMETERS = {
     'odom_noise_position': 'standard deviation of the Gaussian noise on the published odometry X and Y (m); '
@@ -113,14 +117,18 @@ MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.WHEEL_CONTACT: JointState,
                  topics.CLOCK: ClockMsg}
 """The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
+STEP_TOPICS = (*MESSAGE_TYPES, topics.GROUND_TRUTH_ODOM)
+"""Every topic ``prepare``'s send may publish (ground_truth/odom while the sensor noise is on)."""
 
 
 class DynamicsNode(Node):
     """The ROS interface of the simulation loop (``dynamics_loop``): parameters, topics, services,
-    diagnostics, and the loop thread."""
+    diagnostics, and the loop thread. ``tap``: a recorder in the same process also gets every
+    step's messages from it (the per-step topics it taps need no DDS subscriber to count as heard)."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, tap: StepTap | None = None, **kwargs) -> None:
         super().__init__(topics.NODE_DYNAMICS, namespace=topics.NAMESPACE, **kwargs)
+        self.tap = tap
         p = {
             'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset',
                                  allowed=RANGES['initial_x']),
@@ -354,6 +362,8 @@ class DynamicsNode(Node):
                     self.publishers_[topic].publish(data)
                     if self.domain_clock_pub is not None:
                         self.domain_clock_pub.publish(data)
+            if self.tap is not None:
+                self.tap.put(encoded, clock)
         return send
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
@@ -363,7 +373,9 @@ class DynamicsNode(Node):
         return self.count_publishers(self.progress_topic) > 0
 
     def recorder_listening(self) -> bool:
-        return self.recorder_present() and all(pub.get_subscription_count() > 0 for pub in self.publishers_.values())
+        tapped = self.tap.names if self.tap is not None else {}
+        return self.recorder_present() and all(topic in tapped or pub.get_subscription_count() > 0
+                                               for topic, pub in self.publishers_.items())
 
     def keeper_seen(self) -> bool:
         return self.count_publishers(self.resume_topic) > 0
@@ -414,12 +426,17 @@ class DynamicsNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.setswitchinterval(5e-4)  # executor callbacks yield the GIL to the loop within 0.5 ms
-    sys.exit(run(_started_node, args))
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    sys.exit(run(started_node, args))
 
 
-def _started_node() -> DynamicsNode:
-    node = DynamicsNode()
+SWITCH_INTERVAL = 5e-4
+"""sys.setswitchinterval of a process hosting the dynamics: executor callbacks yield the GIL to the loop within 0.5 ms."""
+
+
+def started_node(**kwargs) -> DynamicsNode:
+    """The node (``kwargs`` as DynamicsNode's), the process's start-up allocations frozen."""
+    node = DynamicsNode(**kwargs)
     # Everything allocated so far (rclpy, numpy, the model) lives for the whole run: move it
     # out of the collector's reach, so a full collection never stalls a step for milliseconds.
     gc.collect()

@@ -26,18 +26,25 @@ Design (see docs/bags.md):
   ``wallbot.recorder.stop_signal`` and ``wallbot.recorder.stop_time_ns``, MCAP summary) and the
   node exits 0, within a second whatever the rest of the graph still publishes. The writer
   flushes a closed chunk at least every 0.5 s, so after a SIGKILL ``wallbot-sim bag reindex``
-  recovers all but the last half second.
+  recovers all but the last half second;
+* composed with the dynamics in one process (``nodes.dynamics_recorder``): the dynamics' per-step
+  topics come from an in-process tap (``nodes.step_tap``) instead of DDS subscriptions, the same
+  CDR bytes logged when the dynamics sent them; the tap is drained every TAP_PERIOD, before any
+  message received over DDS is written and at the stop, where steps logged after the signal are
+  left unwritten like late DDS messages. There is no keeper: it would die with the dynamics.
 """
 
 from __future__ import annotations
 
 import importlib
 import sys
+import time
 from pathlib import Path
 from typing import Any, Sequence
 
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
+from wallbot_sim.nodes.step_tap import StepTap
 
 NODE_NAME = topics.NODE_RECORDER
 PROGRESS_STEP_NS = 20_000_000
@@ -50,6 +57,13 @@ SPIN_PERIOD = 0.05
 """Longest wait of the executor (s). The EventsExecutor cannot be woken from another thread (its
 wake() does not end spin_once, guard conditions are not supported), so a signal is handled at the
 next callback or after this. Either way before any message taken after it is written."""
+TAP_PERIOD = 0.01
+"""Wall seconds between drains of the in-process tap (``StepTap``) of a composed recorder: the
+bytes of at most this much simulation wait in memory, and record_progress follows at this pace."""
+
+
+class RecorderOptionError(ValueError):
+    """The recorder's parameters cannot be recorded with (missing output, unknown topic, unusable bag directory)."""
 
 
 def message_class(type_name: str) -> Any:
@@ -79,11 +93,46 @@ def graph_topics(names: Sequence[str]) -> list[topics.Topic]:
     return found
 
 
-def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
+def recording_options() -> tuple[Path, list[topics.Topic]]:
+    """The bag directory and the topics the process's ``output`` and ``topics`` parameters ask for
+    (after rclpy.init); RecorderOptionError in words for the command line."""
+    from rclpy.node import Node
+    params = Node('_recorder_params', namespace=topics.NAMESPACE, start_parameter_services=False,
+                  automatically_declare_parameters_from_overrides=True)
+    output = params.get_parameter('output').value if params.has_parameter('output') else None
+    names = (list(params.get_parameter('topics').value) if params.has_parameter('topics')
+             else [t.name for t in topics.RECORDED])
+    params.destroy_node()
+    if not output:
+        raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
+    try:
+        return Path(output), graph_topics(names)
+    except ValueError as error:
+        raise RecorderOptionError(str(error)) from None
+
+
+def open_bag(output: Path, program: str) -> Any:
+    """A BagWriter creating ``output``, its metadata naming ``program``; RecorderOptionError if it cannot."""
+    from wallbot_sim.bag.errors import BagError
+    from wallbot_sim.bag.writer import BagWriter
+    try:
+        writer = BagWriter(output)
+    except BagError as error:
+        raise RecorderOptionError(str(error)) from None
+    writer.set_custom_data('wallbot.recorder', program)
+    return writer
+
+
+def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: Sequence[topics.Topic] = ()) -> Any:
+    """The recorder node writing ``recorded`` into ``writer`` until ``stop`` (a StopSignals).
+
+    ``tapped``: topics among ``recorded`` that a dynamics in the same process hands over in process
+    (its ``tap`` attribute, a StepTap) instead of over DDS; with them the node keeps no snapshots.
+    """
     from rclpy.node import Node
 
     class Recorder(Node):
-        """Raw subscriptions writing into ``writer``."""
+        """Raw subscriptions (and the tap) writing into ``writer``."""
 
         def __init__(self) -> None:
             # its use_sim_time (log times) follows the robot's clock, as nodes.common.ROBOT_CLOCK_ARGS
@@ -96,7 +145,13 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             self.last_log_ns = 0
             self._subscriptions_by_name = {}
             self._topics_by_name = {}
+            self.tap: StepTap | None = None
+            if tapped:
+                self.tap = StepTap({t: self.resolve_topic_name(t.name) for t in tapped}, self._tap_time)
+                self.create_timer(TAP_PERIOD, self._drain_tap)
             for topic in recorded:
+                if topic in tapped:
+                    continue
                 name = self.resolve_topic_name(topic.name)
                 self._topics_by_name[name] = topic
                 self._subscriptions_by_name[name] = self.create_subscription(
@@ -122,8 +177,11 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                 self._progress_pub = self.create_publisher(Clock, topics.RECORD_PROGRESS.name,
                                                            qos_profile(topics.RECORD_PROGRESS))
                 self.create_timer(0.05, self._publish_progress)
-            self._keep_dynamics_state(recorded)
-            self.get_logger().info(f'recording {len(recorded)} topics to {writer.path}')
+            self._keeper_stamped: set[str] = set()
+            if not tapped:
+                self._keep_dynamics_state(recorded)
+            via_tap = f' ({len(tapped)} of them in process)' if tapped else ''
+            self.get_logger().info(f'recording {len(recorded)} topics{via_tap} to {writer.path}')
 
         def _keep_dynamics_state(self, recorded: list[topics.Topic]) -> None:
             from std_msgs.msg import Float64MultiArray
@@ -158,6 +216,9 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                 received_ns = self.get_clock().now().nanoseconds
                 if self.stop.requested:
                     received_ns = min(received_ns, self._log_time(self.stop.at_ns))
+                if self.tap is not None:  # the steps logged before it go first
+                    self._drain_tap()
+                    received_ns = max(received_ns, self.last_log_ns)
             connection = self.writer.connection(name)
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
@@ -179,8 +240,11 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
             """After the stop: write what DDS received up to the stop and nobody took yet.
 
             Taken directly from each subscription, oldest first, with its DDS receive time, until
-            one received after the stop (the rest of that queue is later still).
+            one received after the stop (the rest of that queue is later still). The tap first: the
+            dynamics' loop has stopped, so it holds every step logged up to the stop.
             """
+            if self.tap is not None:
+                self._drain_tap()
             for name, subscription in self._subscriptions_by_name.items():
                 topic = self._topics_by_name[name]
                 while True:
@@ -193,6 +257,27 @@ def _make_node(writer: Any, recorded: list[topics.Topic], stop: Any) -> Any:
                         self.refused += 1  # the queue behind it is later still: left there
                         break
                     self._on_message(topic, name, data, self._log_time(info['received_timestamp']))
+
+        def _tap_time(self) -> int:
+            """The log time of a step put on the tap now (dynamics' loop thread): what a DDS
+            callback would read, the node clock, wall time unless it follows simulation time."""
+            clock = self.get_clock()
+            return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
+
+        def _drain_tap(self) -> None:
+            self.refused += self.tap.drain(self._on_message, self.last_log_ns,
+                                           self.stop.at_ns if self.stop.requested else None)
+
+        def close(self) -> None:
+            """End the recording: after a stop signal what was received up to it (``finish``) and
+            the stop in the metadata; then close the bag."""
+            if self.stop.requested:
+                self.finish()
+                writer.set_custom_data('wallbot.recorder.stop_signal', self.stop.name)
+                writer.set_custom_data('wallbot.recorder.stop_time_ns', str(self.stop.at_ns))
+            self.get_logger().info(f'stopped by {self.stop.name or "shutdown"}: {self.received} messages recorded '
+                                   f'to {writer.path}, {self.refused} received after the signal left out')
+            writer.close()
 
         def _log_time(self, received_ns: int) -> int:
             """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
@@ -237,8 +322,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from wallbot_sim.bag.errors import BagError
-    from wallbot_sim.bag.writer import BagWriter
     from wallbot_sim.nodes.common import StopSignals
 
     argv = list(sys.argv if argv is None else argv)
@@ -246,39 +329,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     writer = node = executor = None
     try:
-        from rclpy.node import Node
-        params = Node('_recorder_params', namespace=topics.NAMESPACE, start_parameter_services=False,
-                      automatically_declare_parameters_from_overrides=True)
-        output = params.get_parameter_or('output', None).value if params.has_parameter('output') else None
-        names = (list(params.get_parameter('topics').value) if params.has_parameter('topics')
-                 else [t.name for t in topics.RECORDED])
-        params.destroy_node()
-        if not output:
-            print('recorder_node: error: parameter output (bag directory) is required: '
-                  '--ros-args -p output:=DIR', file=sys.stderr)
-            return 2
         try:
-            recorded = graph_topics(names)
-        except ValueError as error:
+            output, recorded = recording_options()
+            writer = open_bag(output, 'recorder_node')
+        except RecorderOptionError as error:
             print(f'recorder_node: error: {error}', file=sys.stderr)
             return 2
-        try:
-            writer = BagWriter(Path(output))
-        except BagError as error:
-            print(f'recorder_node: error: {error}', file=sys.stderr)
-            return 2
-        writer.set_custom_data('wallbot.recorder', 'recorder_node')
-        node = _make_node(writer, recorded, stop)
+        node = make_recorder(writer, recorded, stop)
         executor = _executor()
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
-        if stop.requested:
-            node.finish()
-            writer.set_custom_data('wallbot.recorder.stop_signal', stop.name)
-            writer.set_custom_data('wallbot.recorder.stop_time_ns', str(stop.at_ns))
-        node.get_logger().info(f'stopped by {stop.name or "shutdown"}: {node.received} messages recorded to '
-                               f'{writer.path}, {node.refused} received after the signal left out')
+        node.close()
         return 0
     finally:
         if writer is not None:

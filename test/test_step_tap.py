@@ -1,0 +1,86 @@
+"""The composed process's in-process tap (nodes.step_tap), without DDS: what a drain writes, in
+which order, at which log time, and what it refuses after a stop."""
+
+from __future__ import annotations
+
+import threading
+
+from wallbot_msgs_py import topics
+from wallbot_sim.nodes.step_tap import StepTap
+
+NAMES = {topics.ODOM: '/wallbot/odom', topics.WHEEL_STATES: '/wallbot/wheel_states', topics.CLOCK: '/wallbot/clock'}
+
+
+def step(index: int) -> list[tuple[topics.Topic, bytes]]:
+    """A step's messages as StepEncoder orders them: odom, wheel_states, drive_forces, /clock last."""
+    return [(topic, f'{topic.name}:{index}'.encode())
+            for topic in (topics.ODOM, topics.WHEEL_STATES, topics.DRIVE_FORCES, topics.CLOCK)]
+
+
+def tap_at(times: list[int]) -> StepTap:
+    """A tap whose clock reads ``times`` one after another."""
+    return StepTap(NAMES, iter(times).__next__)
+
+
+def test_a_drain_writes_the_tapped_topics_of_every_step_in_order_at_its_log_time():
+    tap = tap_at([100, 200])
+    tap.put(step(0), clock=True)
+    tap.put(step(1), clock=False)
+    written = []
+    assert tap.drain(lambda *entry: written.append(entry), floor_ns=0) == 0
+    assert written == [
+        (topics.ODOM, '/wallbot/odom', b'odom:0', 100), (topics.WHEEL_STATES, '/wallbot/wheel_states',
+                                                         b'wheel_states:0', 100),
+        (topics.CLOCK, '/wallbot/clock', b'clock:0', 100),
+        # the second step's clock message was not sent, drive_forces is not tapped
+        (topics.ODOM, '/wallbot/odom', b'odom:1', 200), (topics.WHEEL_STATES, '/wallbot/wheel_states',
+                                                         b'wheel_states:1', 200)]
+    assert tap.drain(lambda *entry: written.append(entry), floor_ns=0) == 0 and len(written) == 5
+
+
+def test_log_times_never_go_back():
+    # the floor: the last log time the recorder wrote (a DDS message's callback time); then a step
+    # logged before the previous one (a wall clock stepped back) takes the previous one's time
+    tap = tap_at([100, 300, 250, 400])
+    for index in range(4):
+        tap.put(step(index), clock=True)
+    written = []
+    tap.drain(lambda *entry: written.append(entry), floor_ns=150)
+    assert [log_ns for *_, log_ns in written[::3]] == [150, 300, 300, 400]
+
+
+def test_after_a_stop_only_steps_logged_up_to_it_are_written_and_the_rest_are_counted():
+    tap = tap_at([100, 200, 201, 300])
+    for index in range(4):
+        tap.put(step(index), clock=index != 3)
+    written = []
+    refused = tap.drain(lambda *entry: written.append(entry), floor_ns=0, stop_ns=200)
+    assert [data for *_, data, _log in written] == [b'odom:0', b'wheel_states:0', b'clock:0',
+                                                   b'odom:1', b'wheel_states:1', b'clock:1']
+    assert refused == 3 + 2  # step 2 with its clock, step 3 without
+
+
+def test_steps_put_by_another_thread_while_draining_arrive_whole_and_in_order():
+    count = 20_000
+    clock = iter(range(count))
+    tap = StepTap(NAMES, clock.__next__)
+    done = threading.Event()
+
+    def loop() -> None:
+        for index in range(count):
+            tap.put(step(index), clock=True)
+        done.set()
+
+    written = []
+    producer = threading.Thread(target=loop)
+    producer.start()
+    while True:
+        finished = done.is_set()  # then every step was put before this drain
+        tap.drain(lambda *entry: written.append(entry), floor_ns=written[-1][3] if written else 0)
+        if finished:
+            break
+    producer.join()
+    assert [data for *_, data, _log in written] == [message for index in range(count)
+                                                   for topic, message in step(index)
+                                                   if topic in NAMES]
+    assert [log_ns for *_, log_ns in written[::3]] == list(range(count))

@@ -1,0 +1,64 @@
+"""``dynamics_recorder_node``: the dynamics node and the recorder in one process, one executor.
+
+The recorder records where the per-step messages are made, as rosbag2's recorder loaded into the
+publisher's component container with intra-process communication: the dynamics still publishes
+every step's messages for live subscribers (controllers, RViz, ``ros2 topic echo``), but the
+recorder does not subscribe them over DDS; it takes the same CDR bytes from an in-process tap
+(``nodes.step_tap``), logged when the dynamics sent them. Every other recorded topic (reference,
+diagnostics, commands, ...) is a DDS subscription as in ``recorder_node``.
+
+Parameters: the dynamics node's (``nodes.dynamics``) and the recorder's ``output`` and ``topics``
+(``nodes.recorder``), all on one command line. Back-pressure works as between the two processes:
+the recorder publishes record_progress, the dynamics stays within its backpressure_window of it.
+
+SIGINT/SIGTERM: the moment the signal is handled ends the recording, as for ``recorder_node``;
+the dynamics' loop is stopped first, then every step logged up to the signal is written and later
+ones are not, then the bag is closed (its metadata names the signal and its time) and the process
+exits 0.
+
+No snapshots are kept: a keeper in this process would die with the dynamics it should restart, so
+``resume_wait`` and ``snapshot_period`` are 0 here (a start never waits for a keeper, a state
+snapshot is published only at events). After a SIGKILL, ``wallbot-sim bag reindex`` recovers
+the bag up to its last flushed chunk, and a new run starts from t = 0.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from wallbot_sim.nodes.common import StopSignals, run_nodes
+from wallbot_sim.nodes.dynamics import STEP_TOPICS, SWITCH_INTERVAL, started_node
+from wallbot_sim.nodes.recorder import make_recorder, open_bag, recording_options
+
+PROGRAM = 'dynamics_recorder_node'
+NO_KEEPER = [Parameter('resume_wait', value=0.0), Parameter('snapshot_period', value=0.0)]
+"""The dynamics' parameters fixed in this process: there is no keeper of snapshots to wait for or feed."""
+
+
+def composed_nodes(stop: StopSignals) -> list[Node]:
+    """The dynamics node and the recorder taking its steps in process: the dynamics first, so that
+    its loop has stopped when the recorder ends the recording (``common.run_nodes`` closes them in order)."""
+    output, recorded = recording_options()
+    writer = open_bag(output, PROGRAM)
+    recorder = None
+    try:
+        recorder = make_recorder(writer, recorded, stop, tapped=[t for t in recorded if t in STEP_TOPICS])
+        dynamics = started_node(tap=recorder.tap, parameter_overrides=NO_KEEPER)
+    except BaseException:
+        if recorder is not None:
+            recorder.destroy_node()
+        writer.close()
+        raise
+    return [dynamics, recorder]
+
+
+def main(args: list[str] | None = None) -> None:
+    sys.setswitchinterval(SWITCH_INTERVAL)
+    sys.exit(run_nodes(composed_nodes, args))
+
+
+if __name__ == '__main__':
+    main()
