@@ -13,7 +13,7 @@ from typing import Callable, Iterable, Sequence
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
@@ -168,10 +168,27 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     return run_nodes(lambda _stop: [factory()], args)
 
 
-def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] | None = None) -> int:
+EVENTS_SPIN_PERIOD = 0.05
+"""Longest wait of an EventsExecutor (s). It cannot be woken from another thread (its wake() does not
+end spin_once, guard conditions are not supported), so a signal is handled at the next callback or
+after this."""
+
+
+def events_executor() -> Executor:
+    """rclpy's EventsExecutor (a callback per event, no wait set rebuilt per wake-up: the executor for
+    nodes taking many messages), or the SingleThreadedExecutor where rclpy has none."""
+    try:
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    except ImportError:  # older rclpy
+        return SingleThreadedExecutor()
+
+
+def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] | None = None,
+              events: bool = False) -> int:
     """:func:`run` for the nodes ``factory`` builds (given the stop, for nodes that act on it), spun
-    by one executor; on the way out each node's ``close`` (if it has one) runs in their order, then
-    they are destroyed."""
+    by one executor (``events``: :func:`events_executor`); on the way out each node's ``close`` (if it
+    has one) runs in their order, then they are destroyed."""
     stop = StopSignals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes: Sequence[Node] = ()
@@ -179,15 +196,19 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
     status = 0
     try:
         nodes = factory(stop)
-        executor = SingleThreadedExecutor()
+        executor = events_executor() if events else SingleThreadedExecutor()
         for node in nodes:
             executor.add_node(node)
-        # a triggered guard condition with a callback ends spin_once (executor.wake() would only
-        # make it rebuild its wait set and wait again); the callback itself has nothing to do
-        wake = nodes[0].create_guard_condition(lambda: None)
-        stop.wakers.append(wake.trigger)
-        while not stop.requested and rclpy.ok():
-            executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
+        if events:
+            while not stop.requested and rclpy.ok():
+                executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
+        else:
+            # a triggered guard condition with a callback ends spin_once (executor.wake() would only
+            # make it rebuild its wait set and wait again); the callback itself has nothing to do
+            wake = nodes[0].create_guard_condition(lambda: None)
+            stop.wakers.append(wake.trigger)
+            while not stop.requested and rclpy.ok():
+                executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
         status = 1

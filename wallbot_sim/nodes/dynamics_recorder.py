@@ -57,7 +57,7 @@ def composed_nodes(stop: StopSignals) -> list[Node]:
 
 def main(args: list[str] | None = None) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL)
-    sys.exit(run_nodes(composed_nodes, args))
+    sys.exit(run_nodes(composed_nodes, args, events=True))  # the recorder takes the graph's other topics
 
 
 if __name__ == '__main__':

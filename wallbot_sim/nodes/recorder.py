@@ -53,10 +53,6 @@ well inside the dynamics' backpressure_window whatever its /clock rate), or gone
 and from a 50 ms timer."""
 KEEP_PERIOD = 0.05
 """Wall seconds between republications of the kept snapshot (when it changed)."""
-SPIN_PERIOD = 0.05
-"""Longest wait of the executor (s). The EventsExecutor cannot be woken from another thread (its
-wake() does not end spin_once, guard conditions are not supported), so a signal is handled at the
-next callback or after this. Either way before any message taken after it is written."""
 TAP_PERIOD = 0.01
 """Wall seconds between drains of the in-process tap (``StepTap``) of a composed recorder: the
 bytes of at most this much simulation wait in memory, and record_progress follows at this pace."""
@@ -309,20 +305,11 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
     return Recorder()
 
 
-def _executor() -> Any:
-    try:
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
-    except ImportError:  # older rclpy
-        from rclpy.executors import SingleThreadedExecutor
-        return SingleThreadedExecutor()
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from wallbot_sim.nodes.common import StopSignals
+    from wallbot_sim.nodes.common import EVENTS_SPIN_PERIOD, StopSignals, events_executor
 
     argv = list(sys.argv if argv is None else argv)
     stop = StopSignals()
@@ -336,10 +323,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f'recorder_node: error: {error}', file=sys.stderr)
             return 2
         node = make_recorder(writer, recorded, stop)
-        executor = _executor()
+        executor = events_executor()
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
-            executor.spin_once(timeout_sec=SPIN_PERIOD)
+            executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)  # a signal is handled before any message taken after it is written
         node.close()
         return 0
     finally:
