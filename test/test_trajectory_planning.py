@@ -199,13 +199,11 @@ def test_with_wait_for_recorder_the_first_plan_waits_until_a_recorder_hears_refe
     """The reference poses are volatile: a run that records must not start (the dynamics starts on
     the first plan) before the recorder's reference subscription is matched to this node."""
     rclpy = pytest.importorskip('rclpy')
-    import time
-
     from nav_msgs.msg import Odometry
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
-    from rosgraph_msgs.msg import Clock
 
+    from recorder_probe import recorder_probe, spin_for, spin_until
     from wallbot_msgs_py import topics
     from wallbot_msgs_py.qos import qos_profile
     from wallbot_sim.nodes.trajectory import TrajectoryNode
@@ -217,21 +215,13 @@ def test_with_wait_for_recorder_the_first_plan_waits_until_a_recorder_hears_refe
     try:
         node = TrajectoryNode(context=context,
                               parameter_overrides=[Parameter('wait_for_recorder', Parameter.Type.BOOL, True)])
-        probe = rclpy.create_node('recorder_probe', namespace=topics.NAMESPACE, context=context)
         executor.add_node(node)
-        executor.add_node(probe)
-        probe.create_publisher(Clock, topics.RECORD_PROGRESS.name, qos_profile(topics.RECORD_PROGRESS))
-        # a recorder known, but not listening on reference: still no plan
-        deadline = time.monotonic() + 1.0
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.02)
+        probe = recorder_probe(context, executor)
+        spin_for(executor, 1.0)  # a recorder known, but not listening on reference: still no plan
         assert node.count_publishers(node.resolve_topic_name(topics.RECORD_PROGRESS.name)) == 1
         assert node.plan is None and not node.planner.busy and node.recorder_wait.waiting
         probe.create_subscription(Odometry, topics.REFERENCE.name, lambda _msg: None, qos_profile(topics.REFERENCE))
-        deadline = time.monotonic() + 30.0
-        while node.plan is None:
-            assert time.monotonic() < deadline, 'no plan after the recorder subscribed reference'
-            executor.spin_once(timeout_sec=0.02)
+        spin_until(executor, lambda: node.plan is not None, 30.0, 'no plan after the recorder subscribed reference')
         assert node.reference_pub.get_subscription_count() == 1 and not node.recorder_wait.waiting
     finally:
         if node is not None:

@@ -95,7 +95,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     specs = []
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     specs += [
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config', {**switches, **robot, **SIM_TIME}),
+        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
+                 {**switches, **robot, 'wait_for_recorder': bag is not None, **SIM_TIME}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
             'wait_for_recorder': bag is not None, **SIM_TIME}),
@@ -130,7 +131,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     specs = [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
-                 {**switches_from_selection(DRIVEN), **robot, **SIM_TIME}),
+                 {**switches_from_selection(DRIVEN), **robot, 'wait_for_recorder': bag is not None, **SIM_TIME}),
         # the cmd_vel node is the run's commander (the dynamics waits for it): it must not answer
         # before the recorder hears its commands
         NodeSpec(name, module, {**robot, **SIM_TIME,

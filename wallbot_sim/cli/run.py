@@ -159,11 +159,12 @@ class Monitor:
         from rosgraph_msgs.msg import Clock
 
         from wallbot_msgs_py.qos import qos_profile
+        from wallbot_sim.nodes.common import events_executor
         self._rclpy = rclpy
         self.context = rclpy.Context()
         rclpy.init(context=self.context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
         self.node = rclpy.create_node('run_monitor', namespace=namespace, context=self.context)
-        self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
+        self.executor = events_executor(self.context)  # a callback per message, no wait set per wake-up
         self.executor.add_node(self.node)
         self.recorded = -math.inf
         self.diagnostics: dict[str, str] = {}

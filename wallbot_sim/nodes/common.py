@@ -155,7 +155,7 @@ class StopSignals:
         os.close(self._pipe_in)
 
 
-def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
+def run(factory: Callable[[], Node], args: list[str] | None = None, events: bool = False) -> int:
     """Create the node and spin it until SIGINT or SIGTERM; exit 0 without a traceback.
 
     The signals are handled by :class:`StopSignals`, not by rclpy's handlers: those shut the
@@ -165,7 +165,7 @@ def run(factory: Callable[[], Node], args: list[str] | None = None) -> int:
     while it spins wakes the executor at once. A configuration error while building the node (e.g. a
     bad robot file) is logged on one line and gives exit status 1.
     """
-    return run_nodes(lambda _stop: [factory()], args)
+    return run_nodes(lambda _stop: [factory()], args, events)
 
 
 EVENTS_SPIN_PERIOD = 0.05
@@ -174,14 +174,14 @@ end spin_once, guard conditions are not supported), so a signal is handled at th
 after this."""
 
 
-def events_executor() -> Executor:
+def events_executor(context: rclpy.Context | None = None) -> Executor:
     """rclpy's EventsExecutor (a callback per event, no wait set rebuilt per wake-up: the executor for
     nodes taking many messages), or the SingleThreadedExecutor where rclpy has none."""
     try:
         from rclpy.experimental import EventsExecutor
-        return EventsExecutor()
+        return EventsExecutor(context=context)
     except ImportError:  # older rclpy
-        return SingleThreadedExecutor()
+        return SingleThreadedExecutor(context=context)
 
 
 def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] | None = None,

@@ -5,6 +5,11 @@ the robot model on ``robot_description``.
 step boundary (the dynamics node projects the velocities onto newly added constraints). The
 robot file (``robot_file``, the same the dynamics simulates) gives the default Baumgarte gains
 and the URDF, published once (transient-local) as robot_state_publisher does.
+
+With ``wait_for_recorder`` (set by ``wallbot-sim run`` when it records) the first set goes out only
+once a recorder is matched on ``constraints``: the dynamics starts with it, and a short run can
+otherwise end before a loaded machine's discovery has matched the recorder to this node, leaving
+the bag without the set it ran under.
 """
 
 from __future__ import annotations
@@ -21,7 +26,8 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare, param_dict, parameter_result, range_reasons, run
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WhenRecorded, declare, param_dict, parameter_result,
+                                      range_reasons, run)
 from wallbot_sim.urdf import robot_urdf
 
 GAIN_RANGE = NumberRange(1e-6, 1e4)
@@ -50,7 +56,12 @@ class ConstraintConfigNode(Node):
                                                qos_profile(topics.CONSTRAINTS))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.publish()
+        self.held = declare(self, 'wait_for_recorder', False, 'publish the first constraint set only once a '
+                            'recorder (record_progress) is matched on constraints', read_only=True)
+        if self.held:
+            WhenRecorded(self, self.publisher, self._release, 'a recorder hears constraints: publishing the set')
+        else:
+            self.publish()
         self.description_publisher = self.create_publisher(String, topics.ROBOT_DESCRIPTION.name,
                                                            qos_profile(topics.ROBOT_DESCRIPTION))
         urdf = robot_urdf(params)
@@ -73,8 +84,12 @@ class ConstraintConfigNode(Node):
                 self.switches[name], changed = bool(value), True
             elif name in self.gains:
                 self.gains[name], changed = float(value), True
-        if changed:
+        if changed and not self.held:
             self.publish()
+
+    def _release(self) -> None:
+        self.held = False
+        self.publish()
 
     def publish(self) -> None:
         """Publish the current set and log it."""
@@ -86,7 +101,7 @@ class ConstraintConfigNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(ConstraintConfigNode, args))
+    sys.exit(run(ConstraintConfigNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -278,7 +278,7 @@ class TrajectoryNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(TrajectoryNode, args))
+    sys.exit(run(TrajectoryNode, args, events=True))
 
 
 if __name__ == '__main__':
