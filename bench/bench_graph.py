@@ -7,7 +7,8 @@ private ROS domain:
     until the first one exits), their total in CPU seconds per simulated second, and the steps
     later than 2 ms that the dynamics reported in its /diagnostics (read back from the bag);
   * at factor 0 for --fast-duration simulated seconds: the simulated seconds per wall second
-    (between the first and the last running /diagnostics of the bag).
+    (from the robot's clock messages in the bag, 10 per simulated second: their simulation time
+    against the time they were logged, from t = 1 s to the end).
 Beside them, the straightforward two-pinv model alone (bench_core's StraightforwardSimulation:
 wallbot_sim.model.solve at every RK4 stage) stepping the same scenario in this process, before and
 after the runs: its CPU seconds per simulated second. The machine-independent forms are the
@@ -43,7 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_core import StraightforwardSimulation
-from wallbot_msgs_py import bagio
+from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
@@ -83,6 +84,8 @@ class Run:
     cpu: dict[str, float] = field(default_factory=dict)
     window: tuple[float, float] = (0.0, 0.0)
     diagnostics: list[tuple[float, dict[str, str]]] = field(default_factory=list)
+    clocks: list[tuple[float, float]] = field(default_factory=list)
+    """The robot's clock messages in the bag: (log time s, simulation time s)."""
 
     def simulated(self) -> float:
         """Simulated seconds within the window (the diagnostics' simulation time, interpolated)."""
@@ -90,8 +93,13 @@ class Run:
         sim = [float(d['simulation time']) for _, d in self.diagnostics]
         return float(np.interp(self.window[1], wall, sim) - np.interp(self.window[0], wall, sim))
 
-    def running(self) -> list[tuple[float, dict[str, str]]]:
-        return [(w, d) for w, d in self.diagnostics if d['status'] == 'running']
+    def speed(self, after: float = 1.0) -> float:
+        """Simulated s per wall s from simulation time ``after`` to the last clock message (10 a simulated
+        second: a short fast run still has many, where the 1 Hz diagnostics may have one)."""
+        timed = [(log, sim) for log, sim in self.clocks if sim >= after]
+        if len(timed) < 2 or timed[-1][0] <= timed[0][0]:
+            raise SystemExit('too few clock messages in the bag to time the run: raise --fast-duration')
+        return (timed[-1][1] - timed[0][1]) / (timed[-1][0] - timed[0][0])
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
@@ -138,6 +146,8 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
                 result.diagnostics.append((raw.timestamp * 1e-9, {kv.key: kv.value for kv in report.values}))
     if len(result.diagnostics) < 2:
         raise SystemExit(f'{name}: fewer than two /diagnostics of the dynamics in the bag')
+    for raw in messages(out / 'bag', [topics.CLOCK.resolve()]):
+        result.clocks.append((raw.timestamp * 1e-9, codec.leading_stamp_ns(raw.data) * 1e-9))
     return result
 
 
@@ -201,9 +211,7 @@ def main() -> int:
     print(f'  ratio to the two-pinv model: {total / simulated / model:.2f}   (target <= 0.6)')
     print(f'  steps later than 2 ms over the whole run: {late}   (max lateness {lateness:.3f} ms; target 0)')
 
-    running = fast.running()
-    (w0, d0), (w1, d1) = running[0], running[-1]
-    speed = (float(d1['simulation time']) - float(d0['simulation time'])) / (w1 - w0)
+    speed = fast.speed()
     fast_wall = fast.window[1] - fast.window[0]
     print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 0, {args.fast_duration:g} simulated s:')
     print(f'  simulated s per wall s: {speed:.2f}   (target >= 5)')

@@ -357,7 +357,11 @@ class DynamicsNode(Node):
         def send() -> None:
             for topic, data in encoded:
                 if topic is not topics.CLOCK:
-                    self.publishers_[topic].publish(data)
+                    publisher = self.publishers_[topic]
+                    # a per-step message nobody is matched to would only cost its write into Fast DDS
+                    # (in a composed run, with nothing else subscribed: a tenth of the process)
+                    if publisher.get_subscription_count():
+                        publisher.publish(data)
                 elif clock:
                     self.publishers_[topic].publish(data)
                     if self.domain_clock_pub is not None:
