@@ -84,3 +84,13 @@ def test_steps_put_by_another_thread_while_draining_arrive_whole_and_in_order():
                                                    for topic, message in step(index)
                                                    if topic in NAMES]
     assert [log_ns for *_, log_ns in written[::3]] == list(range(count))
+
+
+def test_a_drain_reports_the_stamp_of_the_newest_step_it_wrote():
+    """The recorder's progress comes from it (one stamp a step, not a parse of each message)."""
+    tap = tap_at([100, 200, 300])
+    assert tap.newest_stamp_ns is None
+    for index in range(3):
+        tap.put(step(index), clock=True, stamp_ns=1_000_000 * index)
+    tap.drain(lambda *entry: None, floor_ns=0, stop_ns=200)  # the third step was logged after the stop
+    assert tap.newest_stamp_ns == 1_000_000

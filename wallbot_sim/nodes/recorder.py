@@ -142,6 +142,8 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
             self._subscriptions_by_name = {}
             self._topics_by_name = {}
             self.tap: StepTap | None = None
+            self._tapped_stamped = [self.resolve_topic_name(t.name) for t in tapped
+                                    if t in (*topics.STEP_STAMPED, topics.CLOCK)]
             if tapped:
                 self.tap = StepTap({t: self.resolve_topic_name(t.name) for t in tapped}, self._tap_time)
                 self.create_timer(TAP_PERIOD, self._drain_tap)
@@ -215,22 +217,30 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
                 if self.tap is not None:  # the steps logged before it go first
                     self._drain_tap()
                     received_ns = max(received_ns, self.last_log_ns)
+            self._write(topic, name, data, received_ns)
+            stamp = codec.leading_stamp_ns(data) if name in self._stamped else None
+            if stamp is not None:  # one parse feeds the keeper and the progress
+                self._note_stamp((name,), stamp)
+
+        def _write(self, topic: topics.Topic, name: str, data: bytes, log_ns: int) -> None:
             connection = self.writer.connection(name)
             if connection is None:
                 connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
-            self.writer.write(connection, received_ns, data)
-            self.last_log_ns = received_ns
+            self.writer.write(connection, log_ns, data)
+            self.last_log_ns = log_ns
             self.received += 1
-            stamp = codec.leading_stamp_ns(data) if name in self._stamped else None
-            if stamp is not None:  # one parse feeds the keeper and the progress
+
+        def _note_stamp(self, names: Sequence[str], stamp: int) -> None:
+            """Messages of ``names`` with header stamp ``stamp`` were written: the keeper and the progress."""
+            for name in names:
                 if name in self._keeper_stamped:
                     self.keeper.stamp(name, stamp)
-                if self._progress_pub is not None:
-                    self._newest_stamps[name] = stamp
-                    self.progress_ns = progress = min(self._newest_stamps.values())
-                    sent = self._progress_sent
-                    if sent is None or progress < sent or progress - sent >= PROGRESS_STEP_NS:
-                        self._publish_progress()
+                self._newest_stamps[name] = stamp
+            if self._progress_pub is not None:
+                self.progress_ns = progress = min(self._newest_stamps.values())
+                sent = self._progress_sent
+                if sent is None or progress < sent or progress - sent >= PROGRESS_STEP_NS:
+                    self._publish_progress()
 
         def finish(self) -> None:
             """After the stop: write what DDS received up to the stop and nobody took yet.
@@ -261,8 +271,12 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
             return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
 
         def _drain_tap(self) -> None:
-            self.refused += self.tap.drain(self._on_message, self.last_log_ns,
+            # a step's messages share the step's stamp, which the tap carries: no parse per message
+            stamped = self.tap.newest_stamp_ns
+            self.refused += self.tap.drain(self._write, self.last_log_ns,
                                            self.stop.at_ns if self.stop.requested else None)
+            if self.tap.newest_stamp_ns != stamped:
+                self._note_stamp(self._tapped_stamped, self.tap.newest_stamp_ns)
 
         def close(self) -> None:
             """End the recording: after a stop signal what was received up to it (``finish``) and

@@ -31,12 +31,15 @@ class StepTap:
     def __init__(self, names: Mapping[topics.Topic, str], now_ns: Callable[[], int]) -> None:
         self.names = dict(names)
         self.now_ns = now_ns
-        self._steps: deque[tuple[int, bool, Sequence[tuple[topics.Topic, bytes]]]] = deque()
+        self._steps: deque[tuple[int, bool, Sequence[tuple[topics.Topic, bytes]], int | None]] = deque()
+        self.newest_stamp_ns: int | None = None
+        """The stamp of the newest step a drain wrote (None: none yet, or put without stamps)."""
 
-    def put(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool) -> None:
+    def put(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int | None = None) -> None:
         """One step's messages as the dynamics sends them (``clock``: its clock message is sent too),
-        logged now. Loop thread; the messages' bytes must not change afterwards."""
-        self._steps.append((self.now_ns(), clock, encoded))
+        logged now; ``stamp_ns``: their header stamp (the step's simulation time). Loop thread; the
+        messages' bytes must not change afterwards."""
+        self._steps.append((self.now_ns(), clock, encoded, stamp_ns))
 
     def drain(self, write: Write, floor_ns: int, stop_ns: int | None = None) -> int:
         """Write every step put so far, oldest first, at its log time but never before ``floor_ns``
@@ -45,7 +48,7 @@ class StepTap:
         refused = 0
         steps, names = self._steps, self.names
         while steps:
-            logged_ns, clock, encoded = steps.popleft()
+            logged_ns, clock, encoded, stamp_ns = steps.popleft()
             sent = [(topic, names[topic], data) for topic, data in encoded
                     if topic in names and (clock or topic is not topics.CLOCK)]
             if stop_ns is not None and logged_ns > stop_ns:
@@ -54,4 +57,6 @@ class StepTap:
             floor_ns = max(logged_ns, floor_ns)
             for topic, name, data in sent:
                 write(topic, name, data, floor_ns)
+            if stamp_ns is not None:
+                self.newest_stamp_ns = stamp_ns
         return refused
