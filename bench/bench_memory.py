@@ -5,6 +5,7 @@ bag), samples VmRSS of its dynamics and recorder processes every few seconds, an
 with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end, and the growth.
 
     python bench/bench_memory.py --duration 600      # the issue's 10-minute figure
+    python bench/bench_memory.py --duration 600 --compose --engine numba   # the composed process
 """
 
 from __future__ import annotations
@@ -20,23 +21,29 @@ from pathlib import Path
 from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
+COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder'}
+"""The process of ``run --compose`` that holds both."""
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
+    parser.add_argument('--compose', action='store_true', help='run --compose: the dynamics and recorder in one process')
+    parser.add_argument('--engine', choices=('python', 'numba'), default='python', help="the dynamics' engine")
     args = parser.parse_args()
+    nodes = COMPOSED_NODES if args.compose else NODES
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_mem_'))
     launcher = ChildProcesses(work / 'logs', os.environ, stop_timeout=120.0)
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
-                          '--no-plots', '--out', str(work / 'run')], 'run')
+                          '--no-plots', '--out', str(work / 'run'), '--engine', args.engine,
+                          *(['--compose'] if args.compose else [])], 'run')
     try:
         pids: dict[str, int] = {}
-        while len(pids) < len(NODES):
+        while len(pids) < len(nodes):
             if run.poll() is not None:
                 raise SystemExit(f'the run ended early with status {run.returncode}')
             pids = {name: pid for pid, cmd in child_processes(run.pid).items()
-                    for name, module in NODES.items() if module in cmd}
+                    for name, module in nodes.items() if module in cmd.split()}
             time.sleep(0.2)
         started = time.monotonic()
         samples: list[tuple[float, dict[str, float]]] = []
@@ -48,8 +55,8 @@ def main() -> int:
         at_10 = next(values for t, values in samples if t >= 10.0)
         end = samples[-1][1]
         print(f'\nafter {samples[-1][0]:.0f} s of the 1 kHz graph (wall time, factor 1):')
-        for name in NODES:
-            print(f'  {name:9s} RSS after 10 s {at_10[name]:6.1f} MiB, at the end {end[name]:6.1f} MiB, '
+        for name in nodes:
+            print(f'  {name:17s} RSS after 10 s {at_10[name]:6.1f} MiB, at the end {end[name]:6.1f} MiB, '
                   f'growth {end[name] - at_10[name]:+.1f} MiB')
     finally:
         launcher.stop_all(first=('run',))  # SIGINT, as at a terminal
