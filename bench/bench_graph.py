@@ -103,17 +103,17 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              engine: str, viewer: list[str], compose: bool) -> Run:
+              engine: str, viewer: list[str], compose: bool, priority: int) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
     ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer);
-    ``compose``: with ``run --compose``."""
+    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``."""
     name = f'run_factor_{factor:g}'
     nodes = COMPOSED_NODES if compose else NODES
     if viewer:
         nodes = {**nodes, 'viewer': 'wallbot_sim.nodes.viewer'}
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
                           '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
-                          *viewer, *(['--compose'] if compose else [])], name)
+                          '--realtime-priority', priority, *viewer, *(['--compose'] if compose else [])], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -174,6 +174,8 @@ def main() -> int:
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
     parser.add_argument('--compose', action='store_true',
                         help='run with --compose (the dynamics and the recorder in one process)')
+    parser.add_argument('--realtime-priority', type=int, default=0,
+                        help="run with --realtime-priority N (SCHED_FIFO for the dynamics' loop thread; default 0)")
     args = parser.parse_args()
     viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
     if args.engine == NUMBA:
@@ -185,9 +187,9 @@ def main() -> int:
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
         realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer,
-                             args.compose)
+                             args.compose, args.realtime_priority)
         fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer,
-                         args.compose)
+                         args.compose, args.realtime_priority)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
@@ -201,7 +203,8 @@ def main() -> int:
     lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
-    composed = ' --compose' if args.compose else ''
+    composed = (' --compose' if args.compose else '') + (f' --realtime-priority {args.realtime_priority}'
+                                                           if args.realtime_priority else '')
     print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
     for node, seconds in realtime.cpu.items():

@@ -76,8 +76,15 @@ def test_a_graph_on_the_numba_engine_records_what_simulate_on_it_computes(tmp_pa
     compile_kernel()  # so that the node loads it from numba's cache instead of compiling it for up to a minute
     out = tmp_path / 'run'
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--engine', 'numba',
-                             '--no-plots', '--out', str(out)], capture_output=True, text=True, timeout=240)
+                             '--realtime-priority', '50', '--no-plots', '--out', str(out)], capture_output=True, text=True,
+                            timeout=240)
     assert result.returncode == 0, result.stderr + result.stdout
+    from wallbot_msgs_py import bagio
+    from wallbot_sim.bag.reader import messages
+    policies = {item.value for raw in messages(out / 'bag', ['/diagnostics'])
+                for status in bagio.deserialize(raw.data, raw.type).status if 'simulation' in status.name
+                for item in status.values if item.key == 'loop priority'}
+    assert policies == {'SCHED_FIFO 50 while paced'}  # --realtime-priority reached the node (factor 0: no sleep)
     recorded = odometry(out / 'bag')
     bags = {}
     for engine in ('numba', 'python'):
@@ -149,6 +156,7 @@ def test_stopping_the_run_stops_the_graph_and_keeps_a_readable_bag(tmp_path, pro
     (['circle', '--foxglove', '0'], "argument --foxglove: must be a TCP port, 1..65535, got '0'"),
     (['circle', '--foxglove-host', '0.0.0.0'], '--foxglove-host needs --foxglove'),
     (['circle', '--engine', 'fortran'], "argument --engine: invalid choice: 'fortran' (choose from 'python', 'numba')"),
+    (['circle', '--realtime-priority', '100'], 'argument --realtime-priority: must be an integer priority, 0..99'),
 ])
 def test_bad_arguments_give_one_line(args, message):
     result = subprocess.run([*WALLBOT, 'run', *args], capture_output=True, text=True, timeout=60)

@@ -37,7 +37,7 @@ from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection,
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.model.simulation import ENGINES, PYTHON
-from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
+from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
@@ -79,6 +79,17 @@ def port(text: str) -> int:
         value = None
     if value is None or not 1 <= value <= 65535:
         raise argparse.ArgumentTypeError(f'must be a TCP port, 1..65535, got {text!r}')
+    return value
+
+
+def priority(text: str) -> int:
+    """An argparse ``type``: a SCHED_FIFO priority, 0..99 (0 = normal scheduling)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or REALTIME_PRIORITY.problem(value) is not None:
+        raise argparse.ArgumentTypeError(f'must be an integer priority, 0..99 (0 = normal scheduling), got {text!r}')
     return value
 
 
@@ -128,6 +139,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f'with scenario {REST}: drive the robot yourself, cmd_vel (cmd_vel_node, a wheel-speed '
                              'PI loop; teleop_twist_keyboard) or joint_commands (joint_bridge_node: ros2_control '
                              'topics joint_states, joint_commands); the command topics are recorded')
+    parser.add_argument('--realtime-priority', type=priority, default=0, metavar='N',
+                        help="SCHED_FIFO priority of the dynamics' paced loop thread (its realtime_priority; needs "
+                             'an rtprio limit, else a warning and normal scheduling; default 0: normal)')
     parser.add_argument('--compose', action='store_true',
                         help='run the dynamics and the recorder in one process (dynamics_recorder_node): the per-step '
                              'topics reach the bag in process instead of over DDS; no restart from snapshots after a '
@@ -308,7 +322,8 @@ def main(args: argparse.Namespace) -> int:
             return describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
                                   controller_mass_scale=mass_scale, robot_file=robot_file,
                                   contact_model=args.contact, adhesion_force=args.adhesion_force, engine=args.engine,
-                                  compose=args.compose, **viewer_options(args))
+                                  compose=args.compose, realtime_priority=args.realtime_priority,
+                                  **viewer_options(args))
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
     return run_described(args, describe, f'{scenario.name}, {selection.label()}{loop}', duration, robot_file)
@@ -328,7 +343,7 @@ def main_driven(args: argparse.Namespace) -> int:
         return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
                                      robot_file=robot_file, contact_model=args.contact,
                                      adhesion_force=args.adhesion_force, engine=args.engine, compose=args.compose,
-                                     **viewer_options(args))
+                                     realtime_priority=args.realtime_priority, **viewer_options(args))
     return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
                          reference=False)
 

@@ -80,7 +80,7 @@ from wallbot_sim.nodes.common import (COORDINATE, WHEEL_TORQUE_LIMIT, choice_rea
                                       param_dict, parameter_result, range_reasons, run)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
-from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, Pacer
+from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY, Pacer
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
 
@@ -102,7 +102,7 @@ RANGES = {
     'clock_rate_hz': NumberRange(1e-3, 1e6), 'real_time_factor': REAL_TIME_FACTOR,
     'command_timeout': NumberRange(1e-3, 3600.0), 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
     'stop_at': NumberRange(0.0, 1e9), 'lockstep_every': NumberRange(0, 1_000_000),
-    'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': NumberRange(0, 99),
+    'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': REALTIME_PRIORITY,
     'adhesion_force': NumberRange(0.0, 1e6), 'backpressure_window': NumberRange(1, 1_000_000),
     'snapshot_period': NumberRange(0.0, 1e6), 'step_count': NumberRange(1, 1_000_000),
     'resume_wait': NumberRange(0.0, 60.0),
