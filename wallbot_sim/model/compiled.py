@@ -100,7 +100,8 @@ class CompiledDynamics:
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
         self._torque_pair: tuple[float, float] | None = None
         self._torque = np.zeros(2)
-        self._batch: RobotBatch | None = None
+        self._batches: dict[int, RobotBatch] = {}
+        """RobotBatch of that many copies of the robot, by size (the chunks' sizes are few)."""
         self._ahead: CompiledRun | None = None
         self._ahead_step, self._ahead_row = 0, 0
         """The simulation's step of the chunk's row 0, and the row whose state was handed out last."""
@@ -116,6 +117,7 @@ class CompiledDynamics:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
+            self._batches = {}
             self._ahead = None
         if selection is not self._selection:
             self._selection = selection
@@ -182,9 +184,9 @@ class CompiledDynamics:
     def _measured(self, run: CompiledRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Normal loads (T, 4), friction use (T, 3) and drive forces (T, 3) at the instants of ``run``."""
         shown = run.instants
-        robots = self._batch
-        if robots is None or robots.robots[0] is not self._robot or robots.size != shown:
-            robots = self._batch = RobotBatch([self._robot] * shown)  # every row this robot: chunks share it
+        robots = self._batches.get(shown)
+        if robots is None:  # built once per size: a driven run's chunks of 4 and 8 steps alternate
+            robots = self._batches[shown] = RobotBatch([self._robot] * shown)
         q = run.states[:shown]
         loads = normal_loads(robots, q[:, :DOF], q[:, DOF:], run.motions[:shown, 0])
         drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)
