@@ -335,11 +335,11 @@ class Simulation:
             wheel = contact.detached_wheel
             if wheel is not None:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
-        cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
         compiled = self._compiled_now()
-        if compiled is not None:  # None when not finite
-            y = compiled.step(self._y, self.steps, self.motor_torque)
+        if compiled is not None:
+            y = compiled.step(self._y, self.steps, self.motor_torque)  # None when not finite
         else:
+            cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
             with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
                 k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
                 y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
@@ -368,7 +368,6 @@ class Simulation:
             on_step(self.outputs())
         return self.outputs()
 
-
     @property
     def tabulates(self) -> bool:
         """Whether ``run_table`` can run now: the compiled engine computes the steps (ideal contact)."""
@@ -379,9 +378,8 @@ class Simulation:
         """``run`` a chunk of up to ``chunk`` instants at a time, under constant motor torques: ``on_table``
         gets their outputs as arrays, both ends of the run included, where ``tabulates``.
 
-        The states, accelerations, forces and residuals are those ``run`` gives, to the bit (the same
-        compiled motion and step); loads, friction use and drive forces come from the batch's array
-        functions, equal to the per-step ones to round-off.
+        Every output is the one ``run`` gives on the compiled engine, to the bit: the same kernel
+        steps and motions, and the same array functions for the loads, friction use and drive forces.
         """
         count = round(duration / self.dt)
         done = 0
