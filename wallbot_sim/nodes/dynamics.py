@@ -353,7 +353,6 @@ class DynamicsNode(Node):
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
         encoded = self.encoder.encode(out, sensed)
-        stamp_ns = codec.to_nanoseconds(out.t)
 
         def send() -> None:
             for topic, data in encoded:
@@ -368,7 +367,7 @@ class DynamicsNode(Node):
                     if self.domain_clock_pub is not None:
                         self.domain_clock_pub.publish(data)
             if self.tap is not None:
-                self.tap.put(encoded, clock, stamp_ns)
+                self.tap.put(encoded, clock, codec.to_nanoseconds(out.t))
         return send
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:

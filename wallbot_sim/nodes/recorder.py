@@ -340,7 +340,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         executor = events_executor()
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
-            executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)  # a signal is handled before any message taken after it is written
+            # a signal is handled before any message taken after it is written
+            executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
         node.close()
         return 0
     finally:
