@@ -80,6 +80,17 @@ Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.
 """(motion, Q_f or None, qd) -> (normal loads, friction use, drive forces of the whole contact wrench)."""
 
 
+class SlipVelocities(NamedTuple):
+    """The slipping rows at one state: what the friction, its load response and the stopping test share."""
+
+    rows: np.ndarray
+    """a_k stacked (rows x 7)."""
+    slip: np.ndarray
+    """v_k = a_k qd."""
+    direction: np.ndarray
+    """v_k / sqrt(v_k^2 + eps^2): the smoothed sign kinetic friction opposes."""
+
+
 class KineticFriction:
     """Q_f(q, qd) of the slipping rows with their bounding loads held over a step (9.3).
 
@@ -110,27 +121,34 @@ class KineticFriction:
                 for velocity_rows, selected in self.parts]
         return rows[0] if len(rows) == 1 else np.concatenate(rows)
 
+    def at(self, q: np.ndarray, qd: np.ndarray) -> SlipVelocities:
+        """The slipping rows, their slip velocities and directions at (q, qd)."""
+        rows = self.velocity_rows(q)
+        slip = rows @ qd
+        return SlipVelocities(rows, slip, slip / np.hypot(slip, self.epsilon))
+
     def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         rows = self.velocity_rows(q)
         slip = rows @ qd
         return (self.bounds * slip / np.hypot(slip, self.epsilon)) @ rows
 
-    def force_per_load(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """dQ_f/dN (7 x 4) at (q, qd): Q_f = force_per_load @ N."""
-        rows = self.velocity_rows(q)
-        slip = rows @ qd
-        return rows.T @ ((slip / np.hypot(slip, self.epsilon))[:, None] * self.per_load)
+    def force(self, slip: SlipVelocities) -> np.ndarray:
+        """Q_f at the state ``slip`` was taken at."""
+        return (self.bounds * slip.direction) @ slip.rows
 
-    def stopping(self, q: np.ndarray, qd: np.ndarray, predicted: np.ndarray, stick_velocity: float) -> set[str]:
+    def force_per_load(self, slip: SlipVelocities) -> np.ndarray:
+        """dQ_f/dN (7 x 4) at the state ``slip`` was taken at: Q_f = force_per_load @ N."""
+        return slip.rows.T @ (slip.direction[:, None] * self.per_load)
+
+    def stopping(self, slip: SlipVelocities, predicted: np.ndarray, stick_velocity: float) -> set[str]:
         """The channels whose every slip velocity a_k qd is below v_st or changes sign by ``predicted``.
 
         The second test catches a slip that the regularized kinetic friction would reverse in one
         step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
         cycle of slip speeds that straddles v_st without ever falling below it.
         """
-        rows = self.velocity_rows(q)
         stopping = set(self.channels)
-        for channel, now, then in zip(self.channels, (rows @ qd).tolist(), (rows @ predicted).tolist()):
+        for channel, now, then in zip(self.channels, slip.slip.tolist(), (slip.rows @ predicted).tolist()):
             if not (abs(now) < stick_velocity or now * then < 0.0):
                 stopping.discard(channel)
         return stopping
@@ -151,6 +169,8 @@ class ContactSolution(NamedTuple):
     """The modules the solver sees over the step."""
     function: KineticFriction | None
     """Q_f(q, qd) over the step."""
+    slip: SlipVelocities | None
+    """The slipping rows at the boundary."""
 
 
 class _Layout:
@@ -242,7 +262,7 @@ class CoulombContact:
         self.slipping: frozenset[str] = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
         """The loads bounding kinetic friction, held over a step like the motor torques."""
-        self._loads_moving = False
+        self.loads_moving = False
         """Whether the held loads changed at the last boundary (the next one solves for them at once)."""
         self._layout = _Layout([])
 
@@ -260,7 +280,7 @@ class CoulombContact:
         """Every channel sticking, loads at rest on a level share."""
         self.slipping = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
-        self._loads_moving = False
+        self.loads_moving = False
 
     # --- the problem the solver sees ---------------------------------------------------------
     def active_modules(self, modules: Sequence[ConstraintModule],
@@ -307,7 +327,7 @@ class CoulombContact:
         present = self._layout_of(modules).present
         self.slipping = self.slipping & present
         result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
-        candidates = (result.function.stopping(q, qd, qd + dt * result.motion.acceleration, self.stick_velocity)
+        candidates = (result.function.stopping(result.slip, qd + dt * result.motion.acceleration, self.stick_velocity)
                       if result.function is not None else None)
         while candidates:
             trial = self.slipping - candidates
@@ -324,7 +344,7 @@ class CoulombContact:
                 break
             self.slipping = self.slipping | exceeded
             result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
-        self._loads_moving = bool(self.slipping) and not _converged(result.held.tolist(), self.loads.tolist())
+        self.loads_moving = bool(self.slipping) and not _converged(result.held.tolist(), self.loads.tolist())
         self.loads = result.held
         return qd, result
 
@@ -343,20 +363,25 @@ class CoulombContact:
         mass, factor = robot.mass_matrix(q), robot.mass_inverse_factor(q)
         held = self.loads
         function = self.friction_function(modules, held, slipping)
-        dependent = function is not None and self._layout_of(modules).load_dependent(frozenset(slipping))
-        if not (dependent and self._loads_moving):
-            friction = None if function is None else function(q, qd)
-            motion = solve_with_factor(mass, factor, force if friction is None else force + friction, rows, rhs)
+        if function is None:
+            motion = solve_with_factor(mass, factor, force, rows, rhs)
+            loads, use, drive = measure(motion, None, qd)
+            return ContactSolution(motion, None, loads, use, drive, held, active, None, None)
+        slip = function.at(q, qd)
+        dependent = self._layout_of(modules).load_dependent(frozenset(slipping))
+        if not (dependent and self.loads_moving):
+            friction = function.force(slip)
+            motion = solve_with_factor(mass, factor, force + friction, rows, rhs)
             loads, use, drive = measure(motion, friction, qd)
             if not dependent or _converged(loads.tolist(), held.tolist()):
-                return ContactSolution(motion, friction, loads, use, drive, held, active, function)
-        per_load = function.force_per_load(q, qd)
+                return ContactSolution(motion, friction, loads, use, drive, held, active, function, slip)
+        per_load = function.force_per_load(slip)
         held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
         function = function.holding(held)
         friction = per_load @ held
         motion = motion_of(mass, force + friction, rows, rhs, acceleration)
         loads, use, drive = measure(motion, friction, qd)
-        return ContactSolution(motion, friction, loads, use, drive, held, active, function)
+        return ContactSolution(motion, friction, loads, use, drive, held, active, function, slip)
 
 
 def _consistent_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, factor: np.ndarray, force: np.ndarray,
