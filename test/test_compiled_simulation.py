@@ -2,8 +2,8 @@
 
 The compiled engine computes the motion (qdd, Q_c, residual) and the RK4 step by the batch's kernel;
 the outputs derived from the motion (drive forces, normal loads, friction use) and everything the
-configuration calls do are the model's own. Where the kernel does not apply (coulomb contact without
-the trajectory task, modules of your own) the run is the Python one, bit for bit.
+configuration calls do are the model's own. Where the kernel does not apply (modules of your own) the
+run is the Python one, bit for bit. Coulomb contact on the kernel: test_compiled_contact.py.
 """
 
 from __future__ import annotations
@@ -189,31 +189,17 @@ def test_the_numba_engine_steps_by_the_kernel_a_chunk_at_a_time_and_the_python_o
     assert kernel_calls == {'robot_run': chunks}
 
 
-def test_what_the_kernel_does_not_cover_runs_the_python_model_bit_for_bit(kernel_calls):
-    """Coulomb contact without the trajectory task, and modules of your own: the numba engine's run is the
-    Python run exactly (it falls back). Back on ideal contact the kernel takes over again."""
-    robot = Robot(load_robot_parameters().replace(adhesion_force=100.0))
-    pair = Pair(robot, None, ConstraintSelection.structural(trajectory=False), np.zeros(DOF), np.zeros(DOF),
-                contact='coulomb')
-    pair.both(lambda s: s.set_motor_torque(0.5, 0.5))
-    pair.run(60)
-    assert any(pair.python.outputs().contact.slipping)
-    for python, numba in zip(pair.history['python'], pair.history['numba']):
-        assert all(np.array_equal(python[key], numba[key]) for key in python)
-    assert kernel_calls['robot_run'] == 0
-    pair.both(lambda s: s.set_contact_model('ideal'))
-    pair.run(120)
-    pair.assert_agree()
-    used = kernel_calls['robot_run']
-    assert used > 0
-
+def test_modules_of_your_own_run_the_python_model_bit_for_bit(kernel_calls):
+    """The kernel knows the project's modules only: with one of your own the numba engine's run is the
+    Python run exactly (it falls back), and the kernel is not called."""
+    robot = Robot(load_robot_parameters())
     circle = load_scenario('circle')
     q0, qd0 = circle.initial_state(robot)
     lateral = NonLateral(BaumgarteGains())
     alone = [Simulation(robot, circle.reference, ConstraintSelection(), q0, qd0, extra_modules=[lateral],
                         engine=engine).run(0.05) for engine in ('python', 'numba')]
     assert np.array_equal(alone[0].q, alone[1].q) and np.array_equal(alone[0].qd, alone[1].qd)
-    assert kernel_calls['robot_run'] == used
+    assert kernel_calls['robot_run'] == 0
 
 
 def test_a_diverging_state_stops_with_the_same_error_and_keeps_the_last_finite_state():

@@ -10,16 +10,24 @@ import pytest
 from model_helpers import kinetic_energy, potential_energy, random_parameters, rotation, wheel_offsets
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Simulation
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.contact import DetachedError, unheld_slip
 from wallbot_sim.model.normal_loads import normal_load_gain, normal_loads
 
 DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
 
 
+@pytest.fixture(params=['python', pytest.param('numba', marks=pytest.mark.skipif(
+    not kernel.available(), reason='numba is not installed'))])
+def engine(request) -> str:
+    """Each contact case on both engines: the Python model, and the compiled kernel's stick/slip."""
+    return request.param
+
+
 def at_rest(theta: float = 0.0, torque: tuple[float, float] = (0.0, 0.0), contact: str = 'coulomb',
-            **params) -> Simulation:
+            engine: str = 'python', **params) -> Simulation:
     simulation = Simulation(Robot(RobotParameters(**params)), None, DRIVEN,
-                            np.array([0.0, 0.0, theta, 0, 0, 0, 0]), np.zeros(7), contact=contact)
+                            np.array([0.0, 0.0, theta, 0, 0, 0, 0]), np.zeros(7), contact=contact, engine=engine)
     simulation.set_motor_torque(*torque)
     return simulation
 
@@ -72,8 +80,8 @@ def test_loads_at_rest_match_model_md():
     assert facing_up == pytest.approx([front, adhesion / 2 - front] * 2)
 
 
-def test_hold_sticks_at_two_thirds_of_the_lateral_limit():
-    simulation = at_rest()
+def test_hold_sticks_at_two_thirds_of_the_lateral_limit(engine):
+    simulation = at_rest(engine=engine)
     first = simulation.outputs()
     assert first.contact.use.lateral == pytest.approx(0.667, abs=5e-4)
     assert first.contact.use.lateral == pytest.approx(9.0 * 9.81 / (0.7 * 189.19), rel=1e-4)
@@ -86,8 +94,8 @@ def assert_sticking(out) -> None:
     assert out.contact.friction_force is None
 
 
-def test_slide_with_a_weak_adhesion_force():
-    simulation = at_rest(adhesion_force=100.0)
+def test_slide_with_a_weak_adhesion_force(engine):
+    simulation = at_rest(adhesion_force=100.0, engine=engine)
     trace = []
     final = simulation.run(1.0, lambda out: trace.append(out))
     assert all(out.contact.slipping == (False, False, True) for out in trace)
@@ -99,8 +107,8 @@ def test_slide_with_a_weak_adhesion_force():
     assert final.contact.use.lateral == pytest.approx(0.6 / 0.7, rel=1e-6)  # slipping: mu_k / mu_s
 
 
-def test_spinning_climb():
-    simulation = at_rest(math.pi / 2, torque=(3.0, 3.0))
+def test_spinning_climb(engine):
+    simulation = at_rest(math.pi / 2, torque=(3.0, 3.0), engine=engine)
     first = simulation.outputs()
     assert first.contact.slipping == (True, True, False)
     final = simulation.run(1.0)
@@ -118,8 +126,8 @@ def test_traction_needed_to_climb_exceeds_the_side_limit():
     assert sticking.drive.left > 0.7 * side_load and sticking.contact.use.left > 1.0
 
 
-def test_detachment_at_the_start_names_wheel_load_and_time():
-    simulation = at_rest(com_height=0.25, adhesion_force=130.0)
+def test_detachment_at_the_start_names_wheel_load_and_time(engine):
+    simulation = at_rest(com_height=0.25, adhesion_force=130.0, engine=engine)
     first = simulation.outputs()
     assert first.contact.detached_wheel in (1, 2)  # the upper (left) wheels
     assert first.contact.loads[:2] == pytest.approx([32.5 - 45.98] * 2, abs=0.005)
@@ -156,13 +164,13 @@ def friction_power(params: RobotParameters, adhesion: float, q, qd, slipping, lo
     (math.pi / 2, (3.0, 2.5), None, False),    # the left side slips, the robot turns
     (0.0, (0.4, -0.2), 100.0, True),           # lateral slip, stick, slip again
 ])
-def test_energy_is_dissipated_never_created_while_slipping(theta, torque, adhesion, transitions):
+def test_energy_is_dissipated_never_created_while_slipping(theta, torque, adhesion, transitions, engine):
     """d/dt (T + V) = motor + rolling resistance + kinetic friction power, the last never positive.
 
     Powers computed here (docs/model.md 4, 11.3) from the states and the loads of each step's start,
     which the friction holds over the step; trapezoidal rule per step. A re-stick's projection
     only removes kinetic energy, so with transitions the balance may only fall short."""
-    simulation = at_rest(theta, torque, adhesion_force=adhesion)
+    simulation = at_rest(theta, torque, adhesion_force=adhesion, engine=engine)
     params = simulation.robot.params
     force = simulation.robot.adsorption.applied_force
     eps2 = params.velocity_epsilon ** 2
@@ -218,13 +226,13 @@ def kinetic_friction_force(params: RobotParameters, adhesion: float, q, qd, slip
 
 
 @pytest.mark.parametrize('seed', [0, 1, 2])
-def test_the_loads_kinetic_friction_holds_are_the_loads_it_produces(seed):
+def test_the_loads_kinetic_friction_holds_are_the_loads_it_produces(seed, engine):
     """At every boundary of a turning slip (loads shifting step by step, CoM off the centre), Q_f
     equals 9.3's friction of the very loads the solution reports (the loads-friction fixed point)."""
     rng = np.random.default_rng(seed)
     params = random_parameters(rng)
     simulation = Simulation(Robot(params), None, DRIVEN, np.array([0.0, 0.0, math.pi / 2, 0, 0, 0, 0]),
-                            np.zeros(7), contact='coulomb')
+                            np.zeros(7), contact='coulomb', engine=engine)
     weight = (params.body_mass + 4 * params.wheel_mass) * params.gravity
     simulation.set_motor_torque(1.2 * weight * params.wheel_radius, 0.5 * weight * params.wheel_radius)
     adhesion = simulation.robot.adsorption.applied_force
@@ -242,10 +250,10 @@ def test_the_loads_kinetic_friction_holds_are_the_loads_it_produces(seed):
     assert checked > 200
 
 
-def test_a_sticking_coulomb_run_equals_the_ideal_run_bit_for_bit():
+def test_a_sticking_coulomb_run_equals_the_ideal_run_bit_for_bit(engine):
     runs = []
     for contact in ('ideal', 'coulomb'):
-        simulation = at_rest(math.pi / 2, (2.0, 1.95), contact=contact)
+        simulation = at_rest(math.pi / 2, (2.0, 1.95), contact=contact, engine=engine)
         trace = []
         simulation.run(1.0, lambda out: trace.append(np.concatenate((out.q, out.qd, out.constraint_force,
                                                                        out.contact.loads, out.contact.use))))
@@ -269,8 +277,8 @@ def test_coulomb_with_the_trajectory_task_stays_ideal():
     assert np.array_equal(ends[0].q, ends[1].q) and np.array_equal(ends[0].qd, ends[1].qd)
 
 
-def test_a_slide_stopped_by_more_adhesion_sticks_again():
-    simulation = at_rest(adhesion_force=100.0)
+def test_a_slide_stopped_by_more_adhesion_sticks_again(engine):
+    simulation = at_rest(adhesion_force=100.0, engine=engine)
     simulation.run(0.2)
     assert simulation.outputs().contact.slipping[2]
     simulation.set_adhesion_force(200.0)  # mu_k F_ad + f_r F_ad = 126 N > m_t g: decelerates
@@ -286,8 +294,8 @@ def test_a_slide_stopped_by_more_adhesion_sticks_again():
     assert simulation.q[1] == pytest.approx(stopped_at, abs=1e-9)
 
 
-def test_switching_contact_model_and_adhesion_between_steps():
-    simulation = at_rest(adhesion_force=100.0)
+def test_switching_contact_model_and_adhesion_between_steps(engine):
+    simulation = at_rest(adhesion_force=100.0, engine=engine)
     simulation.run(0.1)
     simulation.set_contact_model('ideal')  # the slipped lateral row is imposed again
     out = simulation.outputs()

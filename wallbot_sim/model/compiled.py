@@ -1,10 +1,15 @@
-"""One robot's ideal-contact dynamics by the batch's compiled kernel (``Simulation(..., engine='numba')``).
+"""One robot's dynamics by the batch's compiled kernel (``Simulation(..., engine='numba')``).
 
-The kernel's ``robot_run`` takes a chunk of one robot's RK4 steps in one call, with the motion at
-each state: the batch's derivative and step, the same forces, the module rows in stacking order and
-the same normal-equation solve as the numba batch engine (which agrees with the Python model to
-1e-9). The loads, friction use and drive forces of a chunk are measured at once with the batch's
-array functions; the reference at the RK4 instants is sampled in Python for the chunk.
+With ideal contact the kernel's ``robot_run`` takes a chunk of one robot's RK4 steps in one call, with
+the motion at each state: the batch's derivative and step, the same forces, the module rows in
+stacking order and the same normal-equation solve as the numba batch engine (which agrees with the
+Python model to 1e-9). The loads, friction use and drive forces of a chunk are measured at once with
+the batch's array functions; the reference at the RK4 instants is sampled in Python for the chunk.
+
+With coulomb contact (no trajectory task) ``contact_kernel.robot_contact_run`` does the same with each
+boundary's stick/slip transitions settled in the kernel, as ``CoulombContact`` settles them, and
+measures each instant itself; the simulation's ``CoulombContact`` takes the state each boundary
+settled to, so a switch back to the Python path (a module of your own) goes on from it.
 """
 
 from __future__ import annotations
@@ -13,12 +18,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.batch import contact_kernel, kernel
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
+from wallbot_sim.model.batch.contact_kernel import DRIVE_ROW, LOADS_ROW, STATUS_ROW
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.constraints import BaumgarteGains
-from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
+from wallbot_sim.model.contact import CoulombContact
+from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepTable
 from wallbot_sim.model.parameters import RobotParameters
@@ -74,6 +81,44 @@ class CompiledRun(NamedTuple):
         return min(self.taken + 1, len(self.residuals))
 
 
+class ContactRun(NamedTuple):
+    """Consecutive instants of one robot with coulomb contact (``contact_kernel.robot_contact_run``)."""
+
+    states: np.ndarray
+    """(T + 1, 14), as ``CompiledRun``'s (row k's velocities projected where a channel stuck again)."""
+    solutions: np.ndarray
+    """(T, 7, 7): each instant's solution (``contact_kernel.SOLUTION_ROWS``)."""
+    slipping: np.ndarray
+    """(T + 1, 3) bool: row k + 1 the channels slipping from instant k on."""
+    held: np.ndarray
+    """(T + 1, 4): row k + 1 the loads the kinetic friction holds over step k."""
+    moving: np.ndarray
+    """(T + 1,) bool: row k + 1 whether those loads moved at instant k."""
+    taken: int
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """(T,)."""
+        return self.solutions[:, STATUS_ROW, 0]
+
+
+class ContactMeasured(NamedTuple):
+    """What a simulation's outputs derive at one state with coulomb contact, and the state after its boundary."""
+
+    state: np.ndarray
+    """(14,): the velocities projected where a channel stuck again."""
+    motion: ConstrainedMotion
+    friction: np.ndarray | None
+    loads: np.ndarray
+    use: FrictionUse
+    drive: DriveForces
+    slipping: tuple[bool, bool, bool]
+    """Whether each channel (left, right, lateral) slips from this instant on."""
+
+
+ContactRow = tuple[tuple[bool, bool, bool], frozenset[str], bool, list[float], list[float], float, float]
+
+
 class CompiledDynamics:
     """The motion, outputs and RK4 steps of one robot, for what a ``Simulation`` has active now.
 
@@ -96,7 +141,7 @@ class CompiledDynamics:
         self._gains: BaumgarteGains | None = None
         self._selection: ConstraintSelection | None = None
         self._reference: Reference | None = None
-        self._constants = np.empty(0)
+        self._constants = self._contact = np.empty(0)
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
         self._torque_pair: tuple[float, float] | None = None
         self._torque = np.zeros(2)
@@ -109,6 +154,10 @@ class CompiledDynamics:
         self._ahead_torque: tuple[float, float] | None = None
         self._ahead_size = AHEAD_FIRST
         self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._ahead_rows: list[ContactRow] | None = None
+        self._ahead_coulomb: CoulombContact | None = None
+        """The contact state a coulomb chunk's instants are settled with (None: an ideal chunk)."""
+        self._slip_names: dict[tuple[bool, bool, bool], frozenset[str]] = {}
 
     def configure(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
                   reference: Reference | None, dt: float) -> CompiledDynamics:
@@ -117,6 +166,7 @@ class CompiledDynamics:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
+            self._contact = contact_kernel.contact_constants(robot)
             self._batches = {}
             self._ahead = None
         if selection is not self._selection:
@@ -130,7 +180,7 @@ class CompiledDynamics:
 
     def measured(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> Measured:
         """The motion, normal loads, friction use and drive forces at y (14,), the simulation's ``step``-th instant."""
-        row = self._row(y, step, torque)
+        row = self._row(y, step, torque, None)
         run = self._ahead
         if self._ahead_measured is None:
             self._ahead_measured = self._measured(run)
@@ -138,9 +188,42 @@ class CompiledDynamics:
         return Measured(ConstrainedMotion(run.motions[row, 0], run.motions[row, 2], float(run.residuals[row])),
                         loads[row], FrictionUse(*use[row].tolist()), DriveForces(*drive[row].tolist()))
 
-    def step(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> np.ndarray | None:
+    def contact_measured(self, y: np.ndarray, step: int, torque: tuple[float, float],
+                         coulomb: CoulombContact) -> ContactMeasured:
+        """The stick/slip transitions at y (14,), the simulation's ``step``-th instant, and what its outputs
+        derive there; ``coulomb`` takes the state its boundary settled to (as ``CoulombContact.settle``)."""
+        row = self._row(y, step, torque, coulomb)
+        run = self._ahead
+        if self._ahead_rows is None:
+            self._ahead_rows = self._contact_rows(run)
+        flags, slipping, moving, use, drive, residual, singular = self._ahead_rows[row]
+        if singular:
+            raise ModelError('normal loads and kinetic friction have no consistent value (singular coupling)')
+        coulomb.slipping, coulomb.loads, coulomb.loads_moving = slipping, run.held[row + 1], moving
+        solution = run.solutions[row]
+        return ContactMeasured(self._ahead_state, ConstrainedMotion(solution[0], solution[2], residual),
+                               solution[3] if slipping else None, solution[LOADS_ROW, :4], FrictionUse(*use),
+                               DriveForces(*drive), flags)
+
+    def _contact_rows(self, run: ContactRun) -> list[ContactRow]:
+        """Per instant of ``run``: the slip flags and slipping channels after its boundary, whether the loads
+        moved, the friction use, the drive forces, the residual and the singular flag, as Python values."""
+        names = self._slip_names
+        rows = []
+        for flags, moving, (residual, singular), loads, drive in zip(
+                map(tuple, run.slipping[1:].tolist()), run.moving[1:].tolist(),
+                run.solutions[:, STATUS_ROW, :2].tolist(), run.solutions[:, LOADS_ROW, 4:].tolist(),
+                run.solutions[:, DRIVE_ROW, :3].tolist()):
+            slipping = names.get(flags)
+            if slipping is None:
+                slipping = names[flags] = frozenset(name for name, on in zip(CHANNELS, flags) if on)
+            rows.append((flags, slipping, moving, loads, drive, residual, singular))
+        return rows
+
+    def step(self, y: np.ndarray, step: int, torque: tuple[float, float],
+             coulomb: CoulombContact | None = None) -> np.ndarray | None:
         """The state one RK4 step after y, the simulation's ``step``-th instant, or None if it is not finite."""
-        row = self._row(y, step, torque)
+        row = self._row(y, step, torque, coulomb)
         run = self._ahead
         if row >= run.taken:  # the next state is not finite
             self._ahead = None
@@ -148,17 +231,25 @@ class CompiledDynamics:
         self._ahead_row, self._ahead_state = row + 1, run.states[row + 1]
         return self._ahead_state
 
-    def _row(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> int:
-        """The row of y in the steps ahead: the state handed out last, under the same torque; else a new chunk."""
+    def _row(self, y: np.ndarray, step: int, torque: tuple[float, float], coulomb: CoulombContact | None) -> int:
+        """The row of y in the steps ahead: the state handed out last, under the same torque and contact; else a
+        new chunk (whose first state, a coulomb chunk's settled, is handed out)."""
         ahead = self._ahead
-        if (ahead is not None and y is self._ahead_state and torque is self._ahead_torque
-                and step == self._ahead_step + self._ahead_row and self._ahead_row < len(ahead.residuals)):
+        same = ahead is not None and y is self._ahead_state and coulomb is self._ahead_coulomb
+        if (same and torque is self._ahead_torque and step == self._ahead_step + self._ahead_row
+                and self._ahead_row < len(ahead.residuals)):
             return self._ahead_row
-        used_up = ahead is not None and y is self._ahead_state and self._ahead_row == len(ahead.residuals)
+        used_up = same and self._ahead_row == len(ahead.residuals)
         self._ahead_size = min(2 * self._ahead_size, AHEAD_MOST) if used_up else AHEAD_FIRST
-        self._ahead = self.run(y, step, torque, self._ahead_size, self._ahead_size)
-        self._ahead_step, self._ahead_row, self._ahead_state, self._ahead_torque = step, 0, y, torque
-        self._ahead_measured = None
+        if coulomb is None:
+            self._ahead = self.run(y, step, torque, self._ahead_size, self._ahead_size)
+            self._ahead_state = y
+        else:
+            self._ahead = self.contact_run(y, step, torque, self._ahead_size, coulomb)
+            self._ahead_state = self._ahead.states[0]
+        self._ahead_step, self._ahead_row, self._ahead_torque = step, 0, torque
+        self._ahead_coulomb = coulomb
+        self._ahead_measured = self._ahead_rows = None
         return 0
 
     def run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int, steps: int) -> CompiledRun:
@@ -171,6 +262,25 @@ class CompiledDynamics:
         taken = kernel.robot_run(states, references, self._flags, self._rows, self._constants,
                                  self._torque_array(torque), self._dt, steps, motions, residuals)
         return CompiledRun(states, motions, residuals, references, taken)
+
+    def contact_run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int,
+                    coulomb: CoulombContact) -> ContactRun:
+        """From y, the simulation's ``step``-th instant, with ``coulomb``'s state before its boundary: each of
+        ``instants`` instants settled and stepped from (``contact_kernel.robot_contact_run``)."""
+        references = kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt)
+        states = np.empty((instants + 1, 2 * DOF))
+        states[0] = y
+        slipping = np.zeros((instants + 1, 3), dtype=np.bool_)
+        slipping[0] = [channel in coulomb.slipping for channel in CHANNELS]
+        held = np.empty((instants + 1, 4))
+        held[0] = coulomb.loads
+        moving = np.zeros(instants + 1, dtype=np.bool_)
+        moving[0] = coulomb.loads_moving
+        solutions = np.empty((instants, contact_kernel.SOLUTION_ROWS, DOF))
+        taken = contact_kernel.robot_contact_run(states, references, self._flags, self._constants, self._contact,
+                                                 self._torque_array(torque), self._dt, instants, slipping, held,
+                                                 moving, solutions)
+        return ContactRun(states, solutions, slipping, held, moving, taken)
 
     def table(self, run: CompiledRun, first_time: float, first_step: int) -> StepTable:
         """The outputs at the instants of ``run`` (its first the ``first_step``-th, at ``first_time``)."""

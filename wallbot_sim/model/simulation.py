@@ -278,7 +278,16 @@ class Simulation:
         if self._cached is None:
             q = self._y[:DOF]
             friction = None
-            if self.coulomb_applies:
+            compiled = self._compiled_now()
+            if compiled is not None and self.coulomb_applies:
+                measured = compiled.contact_measured(self._y, self.steps, self.motor_torque, self._coulomb)
+                self._y = measured.state
+                q, qd = self._y[:DOF], self._y[DOF:]
+                motion, friction, loads, use, drive = (measured.motion, measured.friction, measured.loads,
+                                                       measured.use, measured.drive)
+                self._active = self._coulomb.active_modules(self._modules)
+                slipping = measured.slipping
+            elif self.coulomb_applies:
                 velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(
                     self._modules, self.robot, q, velocities, self.dt,
@@ -293,7 +302,6 @@ class Simulation:
                 slipping = slip_flags(self._coulomb.slipping)
             else:
                 qd = self._y[DOF:]
-                compiled = self._compiled_now()
                 if compiled is not None:
                     motion, loads, use, drive = compiled.measured(self._y, self.steps, self.motor_torque)
                 else:
@@ -337,7 +345,7 @@ class Simulation:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
         compiled = self._compiled_now()
         if compiled is not None:
-            y = compiled.step(self._y, self.steps, self.motor_torque)  # None when not finite
+            y = compiled.step(self._y, self.steps, self.motor_torque, self._coulomb if self.coulomb_applies else None)
         else:
             cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
             with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
@@ -352,8 +360,8 @@ class Simulation:
         self._cached = None
 
     def _compiled_now(self) -> CompiledDynamics | None:
-        """The compiled dynamics configured for what is active, when they cover it (ideal contact, no own modules)."""
-        if self._compiled is None or self._friction is not None or self.coulomb_applies or self._extra_modules:
+        """The compiled dynamics configured for what is active, when they cover it (no modules of your own)."""
+        if self._compiled is None or self._extra_modules:
             return None
         return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
 
@@ -370,8 +378,8 @@ class Simulation:
 
     @property
     def tabulates(self) -> bool:
-        """Whether ``run_table`` can run now: the compiled engine computes the steps (ideal contact)."""
-        return self._compiled_now() is not None
+        """Whether ``run_table`` can run now: the compiled engine computes the steps, with ideal contact."""
+        return self._compiled_now() is not None and not self.coulomb_applies
 
     def run_table(self, duration: float, on_table: Callable[[StepTable], None],
                   chunk: int = TABLE_CHUNK) -> StepOutputs:
@@ -385,7 +393,7 @@ class Simulation:
         done = 0
         while True:
             compiled = self._compiled_now()
-            if compiled is None:
+            if compiled is None or self.coulomb_applies:
                 raise ModelError('run_table needs the numba engine with ideal contact (Simulation.tabulates)')
             instants = min(chunk, count - done + 1)
             steps = min(instants, count - done)

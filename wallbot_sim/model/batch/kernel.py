@@ -204,17 +204,30 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
 
 
 def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                  torque: np.ndarray, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray,
-                  gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray,
-                  out: np.ndarray) -> None:
-    """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone."""
+                  torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+                  factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+                  scratch: np.ndarray, out: np.ndarray) -> None:
+    """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone (``_problem``, then
+    ``_solve``); Q, with the kinetic friction of slipping rows, is left in ``vectors`` row 0."""
+    count = _problem(q, qd, reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, vectors[0])
+    _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
+
+
+def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+             torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+             factor: np.ndarray, force: np.ndarray) -> int:
+    """Q, the factor W of M^-1 and the rows A, b of the active modules of one robot at (q, qd); the row count.
+
+    ``slipping`` (left, right, lateral): a slipping channel's rows (docs/model.md 11.3) are left out, and
+    the kinetic friction bounds[k] v_k / sqrt(v_k^2 + eps^2) a_k of each of its rows k is added to Q
+    (k: 0 the non-lateral row, 1 + i wheel i's nonslip row; ``bounds`` -mu_k times the bounding load).
+    """
     mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
     gravity, weight, radius, resistance, eps2 = constants[5], constants[6], constants[7], constants[8], constants[9]
     alpha, beta = constants[10], constants[11]
     # constants[12:16] lateral offsets s_i, [16:24] S d_i as (x, y) pairs
     theta, thd = q[2], qd[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
-    force = vectors[0]
     thd2 = thd * thd
     force[0] = thd2 * (cos_t * sx - sin_t * sy)
     force[1] = thd2 * (sin_t * sx + cos_t * sy) - weight
@@ -274,20 +287,37 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
         count += 2
     v_long = cos_t * qd[0] + sin_t * qd[1]
     v_lat = -sin_t * qd[0] + cos_t * qd[1]
+    # a slipping row leaves the rows below it one place up: each row clears the entries it does not write
     if flags[3]:
-        rows[count, 0], rows[count, 1] = -sin_t, cos_t
-        rhs[count] = thd * v_long - gam * v_lat
-        count += 1
+        if slipping[2]:
+            push = bounds[0] * v_lat / math.sqrt(v_lat * v_lat + eps2)
+            force[0] -= push * sin_t
+            force[1] += push * cos_t
+        else:
+            rows[count, 0], rows[count, 1] = -sin_t, cos_t
+            for j in range(2, DOF):
+                rows[count, j] = 0.0
+            rhs[count] = thd * v_long - gam * v_lat
+            count += 1
     if flags[4]:
         for wheel in range(4):
-            rows[count, 0], rows[count, 1], rows[count, 2] = -cos_t, -sin_t, constants[12 + wheel]
-            rows[count, 3 + wheel] = radius
-            violation = -cos_t * qd[0] - sin_t * qd[1] + constants[12 + wheel] * thd + radius * qd[3 + wheel]
-            rhs[count] = thd * v_lat - gam * violation
-            count += 1
+            offset = constants[12 + wheel]
+            violation = -cos_t * qd[0] - sin_t * qd[1] + offset * thd + radius * qd[3 + wheel]
+            if slipping[wheel // 2]:
+                push = bounds[1 + wheel] * violation / math.sqrt(violation * violation + eps2)
+                force[0] -= push * cos_t
+                force[1] -= push * sin_t
+                force[2] += push * offset
+                force[3 + wheel] += push * radius
+            else:
+                rows[count, 0], rows[count, 1], rows[count, 2] = -cos_t, -sin_t, offset
+                for j in range(3, DOF):
+                    rows[count, j] = radius if j == 3 + wheel else 0.0
+                rhs[count] = thd * v_lat - gam * violation
+                count += 1
     for j in range(3, DOF):
         factor[j, j] = spin
-    _solve(factor, force, rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
+    return count
 
 
 def _solve(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray, count: int,
@@ -385,13 +415,14 @@ def _minimum_norms(matrix: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None
 
 
 def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
-         dt: float, known: bool, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray,
-         gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, stage: np.ndarray,
-         slopes: np.ndarray) -> bool:
+         slipping: np.ndarray, bounds: np.ndarray, dt: float, known: bool, rows: np.ndarray, rhs: np.ndarray,
+         factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+         scratch: np.ndarray, stage: np.ndarray, slopes: np.ndarray) -> bool:
     """One RK4 step of one robot from ``state`` (14,) into ``stage`` (``rk4_step``); whether it is finite.
 
     ``references`` (3, 10): the reference at t, t + dt/2 and t + dt. ``known``: slopes[0, 7:] already
-    holds qdd at ``state`` (the outputs' solve, RK4's first stage).
+    holds qdd at ``state`` (the outputs' solve, RK4's first stage). ``slipping``, ``bounds``: the
+    channels slipping over the step and their rows' friction bounds (``_problem``).
     """
     half, sixth = 0.5 * dt, dt / 6.0
     for k in range(4):
@@ -407,8 +438,8 @@ def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants
         if k == 0 and known:
             continue
         instant = 0 if k == 0 else (2 if k == 3 else 1)
-        _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, rows, rhs, factor,
-                      matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
+        _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, slipping, bounds,
+                      rows, rhs, factor, matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
     finite = True
     for i in range(2 * DOF):
         stage[i] = state[i] + sixth * (slopes[0, i] + 2.0 * (slopes[1, i] + slopes[2, i]) + slopes[3, i])
@@ -424,15 +455,16 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
     """
     count = y.shape[0]
     for block in prange((count + chunk - 1) // chunk):
-        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)  # zero once: see _acceleration
+        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)  # zero once: see _problem
         factor, matrix, gram, lower, vectors, scratch = _workspace()
+        sticking, no_bounds = np.zeros(3, dtype=np.bool_), np.zeros(5)
         state, stage, slopes = np.zeros(2 * DOF), np.zeros(2 * DOF), np.zeros((4, 2 * DOF))
         for robot in range(block * chunk, min(count, (block + 1) * chunk)):
             for i in range(2 * DOF):
                 state[i] = y[robot, i]
             for step in range(steps):
-                if not _rk4(state, references[step], flags, constants[robot], torques[robot], dt, False, rows, rhs,
-                            factor, matrix, gram, lower, vectors, scratch, stage, slopes):
+                if not _rk4(state, references[step], flags, constants[robot], torques[robot], sticking, no_bounds,
+                            dt, False, rows, rhs, factor, matrix, gram, lower, vectors, scratch, stage, slopes):
                     diverged[robot] = step
                     break
                 for i in range(2 * DOF):
@@ -448,18 +480,27 @@ def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
 
 
 def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
-            torque: np.ndarray, motion: np.ndarray, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray,
-            matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
+            torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, motion: np.ndarray, rows: np.ndarray,
+            rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
+            vectors: np.ndarray, scratch: np.ndarray) -> float:
     """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
 
     ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
-    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); the rest: the caller's workspace.
+    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); ``slipping``, ``bounds``: ``_problem``'s;
+    the rest: the caller's workspace.
     """
     acceleration, force = motion[0], motion[1]
-    _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, rows, rhs, factor, matrix, gram, lower,
-                  vectors, scratch, acceleration)
+    _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, matrix,
+                  gram, lower, vectors, scratch, acceleration)
     for i in range(DOF):
         force[i] = vectors[0, i]  # Q: _acceleration leaves it in vectors row 0
+    return _motion_of(y, constants, motion, rows, rhs, count)
+
+
+def _motion_of(y: np.ndarray, constants: np.ndarray, motion: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+               count: int) -> float:
+    """Q_c = M qdd - Q into motion[2] from motion's qdd and Q at y; returns the residual |A qdd - b| of the rows."""
+    acceleration, force = motion[0], motion[1]
     mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
     cos_t, sin_t = math.cos(y[2]), math.sin(y[2])
     ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx  # M's coupling entries (Robot.offset_moment_arm)
@@ -491,15 +532,16 @@ def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, cou
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     slopes = np.zeros((4, 2 * DOF))
+    sticking, no_bounds = np.zeros(3, dtype=np.bool_), np.zeros(5)
     for k in range(motions.shape[0]):
-        residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, motions[k], rows, rhs,
-                               factor, matrix, gram, lower, vectors, scratch)
+        residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, sticking, no_bounds,
+                               motions[k], rows, rhs, factor, matrix, gram, lower, vectors, scratch)
         if k == steps:
             return k
         for i in range(DOF):
             slopes[0, DOF + i] = motions[k, 0, i]
-        if not _rk4(states[k], references[k], flags, constants, torque, dt, True, rows, rhs, factor, matrix, gram,
-                    lower, vectors, scratch, states[k + 1], slopes):
+        if not _rk4(states[k], references[k], flags, constants, torque, sticking, no_bounds, dt, True, rows, rhs,
+                    factor, matrix, gram, lower, vectors, scratch, states[k + 1], slopes):
             return k
     return steps
 
@@ -512,12 +554,14 @@ _rank_revealing = _compile(_rank_revealing)
 _minimum_norm = _compile(_minimum_norm, inline="always")
 _solve = _compile(_solve, inline="always")
 _scratch = _compile(_scratch)
+_problem = _compile(_problem, inline="always")
 _acceleration = _compile(_acceleration, inline="always")
 _accelerations = _compile(_accelerations)
 _minimum_norms = _compile(_minimum_norms)
 _rk4 = _compile(_rk4, inline="always")
 _steps = _compile(_steps, parallel=True)
 _workspace = _compile(_workspace, inline="always")
+_motion_of = _compile(_motion_of, inline="always")
 _motion = _compile(_motion, inline="always")
 robot_run = _compile(robot_run)
 
