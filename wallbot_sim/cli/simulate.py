@@ -139,9 +139,11 @@ def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
     simulation, duration = build_simulation(args)
+    # the controller is built before the bag is created (a refused controller leaves no bag behind);
+    # its commands go to the bag once it is open
     bag = None
 
-    def on_command(t: float, command: TorqueCommand) -> None:  # the bag holds what the controller sends
+    def on_command(t: float, command: TorqueCommand) -> None:
         bag.write_command(t, command.tau_left, command.tau_right)
     controller = build_controller(args, simulation, on_command if args.bag else None)
     progress = Progress(duration, None if args.quiet else sys.stderr)
