@@ -17,6 +17,8 @@ from wallbot_sim.bag.reader import info
 from wallbot_sim.bag.reindex import reindex
 from wallbot_sim.bag.writer import BagWriter
 from wallbot_sim.cli.main import main as cli
+from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
 
@@ -162,3 +164,129 @@ def test_without_ros_the_headless_bag_holds_the_same_messages(tmp_path):
                 [diagnostics_without_wall_clock(m, same_moments=True) for m in b[topic]]
         else:
             assert [fields(m) for m in a[topic]] == [fields(m) for m in b[topic]], topic
+
+
+def test_a_closed_loop_bag_holds_every_command_the_controller_sent(tmp_path):
+    """simulate --controller --bag: one wheel_torque_cmd per controller update, the payload that
+    update produced (the loop run again here on the model, bit for bit, and the controller acting
+    on the bag's own odometry, as the graph's controller node would), logged at the stamp of the
+    state it answers, after that state's messages; the controller's QoS (reliable, volatile, depth 10)."""
+    from wallbot_sim.bag.reader import messages
+    from wallbot_sim.config import load_scenario
+    from wallbot_sim.control import TrackingController
+    from wallbot_sim.control.sampling import SampledController, controller_robot, odometry_state
+    from wallbot_sim.control.tracking import DRIVEN
+    from wallbot_sim.model import Robot, Simulation
+
+    bag = tmp_path / 'loop'
+    assert cli(['simulate', '--controller', '--duration', '0.3', '--bag', str(bag), '--quiet']) == 0
+
+    params, scenario = load_robot_parameters(), load_scenario('circle')
+    plant = Robot(params)
+    simulation = Simulation(plant, scenario.reference, DRIVEN, *scenario.initial_state(plant))
+    loop = SampledController(TrackingController(controller_robot(params, 1.0), scenario.reference))
+    sent = []
+
+    def control(out):
+        stamp_ns = codec.to_nanoseconds(out.t)
+        loop.observe(stamp_ns)
+        if loop.due(stamp_ns):
+            command = loop.command(odometry_state(out))
+            simulation.set_motor_torque(command.tau_left, command.tau_right)
+            sent.append((stamp_ns, command.tau_left, command.tau_right))
+    simulation.run(0.3, control)
+    assert [ns for ns, _, _ in sent] == list(range(0, 300_000_001, 5_000_000))  # 200 Hz of simulation time
+
+    name, odom_name = topics.WHEEL_TORQUE_CMD.resolve(), topics.ODOM.resolve()
+    recorded, previous_odom = [], None
+    for raw in messages(bag):
+        if raw.topic == odom_name:
+            previous_odom = codec.leading_stamp_ns(raw.data)
+        elif raw.topic == name:
+            assert raw.type == topics.WHEEL_TORQUE_CMD.type and previous_odom == raw.timestamp
+            recorded.append((raw.timestamp, *bagio.deserialize(raw.data, raw.type).data.tolist()))
+    assert recorded == sent
+
+    # what a controller node subscribed to the bag's odometry sends: the same commands
+    again = SampledController(TrackingController(controller_robot(params, 1.0), scenario.reference))
+    answers = []
+    for _, state in _mcap_messages(bag, odom_name):
+        planar = codec.planar_state(state)
+        again.observe(planar.stamp_ns)
+        if again.due(planar.stamp_ns):
+            command = again.command(planar)
+            answers.append((planar.stamp_ns, command.tau_left, command.tau_right))
+    assert [a[0] for a in answers] == [s[0] for s in sent]
+    assert np.max(np.abs(np.array(answers)[:, 1:] - np.array(sent)[:, 1:])) < 1e-9
+
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    described = {t['topic_metadata']['name']: t['topic_metadata'] for t in meta['topics_with_message_count']}
+    assert set(described) == {t.resolve() for t in (*topics.NOISELESS_RECORDED, topics.WHEEL_TORQUE_CMD)}
+    qos = described[name]['offered_qos_profiles'][0]
+    assert (qos['reliability'], qos['durability'], qos['history'], qos['depth']) == \
+        ('reliable', 'volatile', 'keep_last', topics.WHEEL_TORQUE_CMD.depth)
+
+
+def test_the_tools_read_a_closed_loop_bag(tmp_path, capsys):
+    """info, plot, compare and motors on a simulate --controller --bag bag (its wheel_torque_cmd
+    and robot_description beside the step topics): motors gives back the largest torque the
+    bag's commands held."""
+    import json
+
+    bag, table = tmp_path / 'loop', tmp_path / 'loop.csv'
+    assert cli(['simulate', '--controller', '--duration', '0.3', '--bag', str(bag), '--csv', str(table),
+                '--quiet']) == 0
+    capsys.readouterr()
+    assert cli(['info', str(bag)]) == 0
+    listed = capsys.readouterr().out
+    assert '/wallbot/wheel_torque_cmd' in listed and '61 msgs' in listed and '/wallbot/robot_description' in listed
+    assert cli(['plot', str(bag), '--out', str(tmp_path / 'plots')]) == 0
+    assert sorted(f.stem for f in (tmp_path / 'plots').glob('*.png')) == sorted(FIGURES)
+    assert cli(['compare', str(bag), str(table), '--out', str(tmp_path / 'compare')]) == 0
+    assert sorted(f.stem for f in (tmp_path / 'compare').glob('*.png')) == sorted(FIGURES)
+    capsys.readouterr()
+    assert cli(['motors', str(bag), '--json']) == 0
+    figures = json.loads(capsys.readouterr().out)
+    commands = np.array([list(bagio.deserialize(raw.data, raw.type).data) for raw in _raw(bag, 'wheel_torque_cmd')])
+    held = commands[:-1]  # the last answers the last state: no step of the run applied it
+    for side, column in (('left', 0), ('right', 1)):
+        assert figures[side]['peak_torque'] == pytest.approx(np.max(np.abs(held[:, column])), rel=1e-9), side
+
+
+def _raw(bag: Path, leaf: str):
+    from wallbot_sim.bag.reader import messages
+    return [raw for raw in messages(bag) if raw.topic.rsplit('/', 1)[-1] == leaf]
+
+
+def test_the_headless_bag_holds_the_robot_model_of_its_robot_file(tmp_path):
+    """simulate --robot FILE --bag writes robot_description once, at the start (transient-local, as
+    constraint_config publishes it): the URDF of that file, which an independent parser reads,
+    with the chassis and the four wheel links at that file's wheel radius."""
+    import io
+
+    from wallbot_sim import paths
+    from wallbot_sim.urdf import ROBOT_NAME, robot_urdf, wheel_link
+    yourdfpy = pytest.importorskip('yourdfpy')
+
+    robot = yaml.safe_load(paths.robot_yaml().read_text())
+    robot['wheel_radius'], robot['half_track'] = 0.05, 0.14
+    robot_file = tmp_path / 'robot.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    bag = tmp_path / 'run'
+    assert cli(['simulate', '--scenario', 'circle', '--constraints', 'belt', '--duration', '0.05', '--robot',
+                str(robot_file), '--bag', str(bag), '--quiet']) == 0
+
+    name = topics.ROBOT_DESCRIPTION.resolve()
+    described = list(_mcap_messages(bag, name))
+    assert [record.log_time for record, _ in described] == [0]
+    urdf = described[0][1].data
+    assert urdf == robot_urdf(load_robot_parameters(robot_file))
+    model = yourdfpy.URDF.load(io.StringIO(urdf), build_scene_graph=True, load_meshes=False)
+    assert model.robot.name == ROBOT_NAME
+    assert {link.name for link in model.robot.links} == {topics.WALL_FRAME, topics.BASE_FRAME,
+                                                         *(wheel_link(joint) for joint in topics.WHEEL_JOINTS)}
+    wheel = model.link_map[wheel_link(topics.WHEEL_JOINTS[0])]
+    assert wheel.visuals[0].geometry.cylinder.radius == pytest.approx(0.05)
+    assert model.get_transform(wheel.name, topics.BASE_FRAME)[1, 3] == pytest.approx(0.14)
+    qos = info(bag).topic(name).offered_qos[0]
+    assert qos.durability.name == 'TRANSIENT_LOCAL' and qos.depth == 1

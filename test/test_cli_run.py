@@ -34,6 +34,13 @@ def odometry(bag: Path) -> np.ndarray:
     return np.array(rows)
 
 
+def urdf_links(urdf: str) -> set[str]:
+    """The link names of a URDF document, read by yourdfpy (an independent parser)."""
+    import io
+    yourdfpy = pytest.importorskip('yourdfpy')
+    return {link.name for link in yourdfpy.URDF.load(io.StringIO(urdf), load_meshes=False).robot.links}
+
+
 @pytest.mark.parametrize('scenario, factor, duration', [('circle', 1.0, 2.0), ('figure8', 0.0, 1.5)])
 def test_run_records_what_simulate_computes(tmp_path, scenario, factor, duration):
     out = tmp_path / 'run'
@@ -175,10 +182,12 @@ def test_an_existing_bag_is_never_overwritten(tmp_path):
 def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
     """simulate --bag and run (factor 0) of the same scenario and duration: every topic both write
     carries the same messages, field for field; diagnostics apart from their wall-clock figures
-    and the moments they were sent at."""
+    and the moments they were sent at. The robot model is in both, once: a URDF an independent
+    parser reads, naming the robot's links."""
     from bag_helpers import by_topic, diagnostics_without_wall_clock, fields, stamp_ns
     from wallbot_msgs_py import topics
     from wallbot_sim import messages
+    from wallbot_sim.urdf import wheel_link
 
     graph_out, headless = tmp_path / 'run', tmp_path / 'headless'
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--no-plots',
@@ -216,6 +225,10 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
             if fields(m) not in distinct:
                 distinct.append(fields(m))
         assert distinct == [fields(m) for m in alone[name]], name
+    description = [m.data for m in graph[topics.ROBOT_DESCRIPTION.resolve()]]
+    assert len(description) == 1 and [m.data for m in alone[topics.ROBOT_DESCRIPTION.resolve()]] == description
+    assert urdf_links(description[0]) == {topics.WALL_FRAME, topics.BASE_FRAME,
+                                          *(wheel_link(joint) for joint in topics.WHEEL_JOINTS)}
 
     def running(messages):
         return {diagnostics_without_wall_clock(m, same_moments=False) for m in messages
@@ -290,7 +303,11 @@ def step_messages(bag: Path) -> tuple[dict[str, dict[int, bytes]], list[int]]:
 def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path):
     """run --compose (the per-step topics through the in-process tap) and run (all over DDS) of the
     same scenario at factor 0: the same per-step messages byte for byte, a step every 1 ms, the
-    log times never going back in the file."""
+    log times never going back in the file; the robot model recorded once by each."""
+    from bag_helpers import by_topic
+    from wallbot_sim.config import load_robot_parameters
+    from wallbot_sim.urdf import robot_urdf
+
     bags = {}
     for label, extra in (('composed', ['--compose']), ('separate', [])):
         out = tmp_path / label
@@ -308,6 +325,8 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path):
         assert sorted(composed[name]) == steps, name
     assert len(composed['/wallbot/clock']) > 10
     assert composed == separate
+    for bag in bags.values():  # the robot model, subscribed over DDS by both recorders
+        assert [m.data for m in by_topic(bag)['/wallbot/robot_description']] == [robot_urdf(load_robot_parameters())]
 
 
 def test_a_composed_run_stopped_by_ctrl_c_logs_nothing_after_the_signal(tmp_path, process_runner):

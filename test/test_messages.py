@@ -199,6 +199,21 @@ def test_torque_command_validation():
             codec.torque_command(command(data), 2.0)
 
 
+def test_the_torque_command_encoder_writes_what_rclpy_serializes():
+    """wheel_torque_cmd as ``simulate --bag`` writes it: rclpy's serialization of the controller's
+    Float64MultiArray but for the alignment padding before the data (rclpy leaves it unset)."""
+    pytest.importorskip('rclpy')
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    ours = codec.wheel_torque_cmd(0.1234567, -4.5)
+    theirs = serialize_message(Float64MultiArray(data=[0.1234567, -4.5]))
+    padding = slice(16, 20)  # after the encapsulation header (4) and three counts (12): float64 data is 8-aligned
+    assert len(ours) == len(theirs) == 36
+    assert ours[:padding.start] + ours[padding.stop:] == theirs[:padding.start] + theirs[padding.stop:]
+    assert codec.torque_command(decode(ours, topics.WHEEL_TORQUE_CMD), 5.0) == (0.1234567, -4.5)
+
+
 def test_initial_pose_validation():
     types = bagio.typestore().types
 
@@ -248,6 +263,8 @@ def test_rclpy_decodes_the_codec_bytes_to_the_same_fields():
         topics.CONSTRAINTS: messages.constraints_message(messages.switches_from_selection(ConstraintSelection()),
                                                          BaumgarteGains()),
         topics.DIAGNOSTICS: codec.diagnostics(2.0, [codec.Status('n', 'warn', 'm', [('k', 1.5)])]),
+        topics.WHEEL_TORQUE_CMD: codec.wheel_torque_cmd(0.1234567, -4.5),
+        topics.ROBOT_DESCRIPTION: codec.robot_description('<?xml version="1.0"?>\n<robot name="r" />\n'),
     }
     for topic, data in encoded.items():
         ours = decode(data, topic)

@@ -76,6 +76,28 @@ print('received', len(xs), 'in_order', xs == [i * 1_000_000 for i in range(len(x
 '''
 
 
+LATCHED_SUBSCRIBER = r'''
+import sys, time
+import rclpy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64MultiArray, String
+rclpy.init()
+node = rclpy.create_node('latched_counter')
+descriptions, commands = [], []
+# a transient-local reader matches only a transient-local writer: it hears play only if play latches
+node.create_subscription(String, '/wallbot/robot_description', lambda m: descriptions.append(m.data), QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+node.create_subscription(Float64MultiArray, '/wallbot/wheel_torque_cmd', lambda m: commands.append(list(m.data)),
+                         QoSProfile(depth=10, history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE))
+print('ready', flush=True)
+expected, deadline = int(sys.argv[1]), time.monotonic() + float(sys.argv[2])
+while (len(commands) < expected or not descriptions) and time.monotonic() < deadline:
+    rclpy.spin_once(node, timeout_sec=0.1)
+print('descriptions', len(descriptions), 'commands', repr(commands), flush=True)
+print('urdf', repr(descriptions[0] if descriptions else None), flush=True)
+'''
+
+
 def wait_for(predicate, timeout: float, what: str) -> None:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -281,3 +303,37 @@ def test_a_composed_recorder_writes_the_tapped_steps_before_a_dds_message_and_no
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def test_play_republishes_the_commands_and_latches_the_robot_model(process_runner, tmp_path):
+    """A simulate --controller bag played: a subscriber receives every wheel_torque_cmd in order and
+    the robot_description, transient-local as constraint_config offers it (its transient-local
+    reader would not match a volatile publisher)."""
+    import ast
+    import re
+
+    from wallbot_msgs_py import topics
+    from wallbot_sim.bag.reader import messages
+
+    bag = tmp_path / 'loop'
+    assert cli(['simulate', '--controller', '--duration', '0.2', '--bag', str(bag), '--quiet']) == 0
+    recorded = {raw.topic: [] for raw in messages(bag)}
+    for raw in messages(bag):
+        recorded[raw.topic].append(bagio.deserialize(raw.data, raw.type))
+    commands = [m.data.tolist() for m in recorded[topics.WHEEL_TORQUE_CMD.resolve()]]
+    assert len(commands) == 41
+    script = tmp_path / 'latched.py'
+    script.write_text(LATCHED_SUBSCRIBER)
+    subscriber = process_runner.start([sys.executable, str(script), str(len(commands)), '40'], 'subscriber')
+    wait_for(lambda: 'ready' in process_runner.output('subscriber'), 30, 'subscriber')
+    player = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'play', str(bag), '--topics',
+                                   'robot_description', 'wheel_torque_cmd', '--wait-subscribers', '30',
+                                   '--delay', '0.5'], 'play')
+    assert player.wait(timeout=60) == 0, process_runner.output('play')
+    assert subscriber.wait(timeout=60) == 0
+    output = process_runner.output('subscriber')
+    heard = re.search(r'^descriptions (\d+) commands (.*)$', output, re.M)
+    assert heard and heard.group(1) == '1', output
+    assert ast.literal_eval(heard.group(2)) == commands
+    urdf = ast.literal_eval(re.search(r'^urdf (.*)$', output, re.M).group(1))
+    assert urdf == recorded[topics.ROBOT_DESCRIPTION.resolve()][0].data

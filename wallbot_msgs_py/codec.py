@@ -340,6 +340,15 @@ def diagnostic_values(msg: Any) -> dict[str, str]:
 
 
 # --- commands ----------------------------------------------------------------------------------------
+def wheel_torque_cmd(tau_left: float, tau_right: float) -> bytes:
+    """``wheel_torque_cmd``: the side motor torques (N m) as a std_msgs/Float64MultiArray
+    ``[tau_L, tau_R]`` with an empty layout, the bytes rclpy serializes such a message to."""
+    types = _types()
+    msg = types['std_msgs/msg/Float64MultiArray'](layout=types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
+                                                  data=np.array([tau_left, tau_right], dtype=np.float64))
+    return _serialize(msg, topics.WHEEL_TORQUE_CMD)
+
+
 def torque_command(msg: Any, max_torque: float) -> tuple[float, float]:
     """(tau_L, tau_R) of a ``wheel_torque_cmd`` Float64MultiArray.
 

@@ -111,15 +111,13 @@ STATE_SNAPSHOT = Topic('state_snapshot', 'std_msgs/msg/Float64MultiArray', Durab
 RESUME_STATE = Topic('resume_state', 'std_msgs/msg/Float64MultiArray', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a keeper (the recorder): the newest snapshot it holds, which outlives a killed dynamics;
 a restarted dynamics continues from it."""
-STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES)
-"""The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
-
 STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT)
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM)
-"""Topics a run records, in this order."""
+            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM)
+"""Topics a run records, in this order (robot_description too: a bag replayed in RViz or Foxglove
+has the robot model)."""
 NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic is not GROUND_TRUTH_ODOM)
 """Topics a run without sensor noise records: its odom is the truth, ground_truth/odom is not published."""
 

@@ -1,14 +1,19 @@
 """``simulate --bag``: the graph's recorded topics written straight from the model, no middleware.
 
 Every message is built by the encoder the graph's nodes publish with (``wallbot_msgs_py.step_cdr``
-for the per-step messages, ``wallbot_sim.messages`` for the rest), so a headless bag holds the
-messages a recorded ``run`` of the same scenario holds, field for field. To make that hold for the
-motion too, the simulation follows what the dynamics node follows: the trajectory node's plan
-(the reference sampled every ``messages.SAMPLE_DT``, interpolated quintic Hermite, renewed at
-half-way), which agrees with the analytic reference to far below a micrometre.
+for the per-step messages, ``wallbot_sim.messages`` and ``wallbot_msgs_py.codec`` for the rest),
+so a headless bag holds the messages a recorded ``run`` of the same scenario holds, field for field.
+To make that hold for the motion too, the simulation follows what the dynamics node follows: the
+trajectory node's plan (the reference sampled every ``messages.SAMPLE_DT``, interpolated quintic
+Hermite, renewed at half-way), which agrees with the analytic reference to far below a micrometre.
 
-Differences, by design: the receive timestamps are the simulation time (ns since 0) rather than
-the recorder's clock; ``reference`` is written at every step (the node samples the same plan at
+Log times: a message is logged at the simulation time (ns since 0) of the state it belongs to,
+rather than at the recorder's receive time: a step's messages at its stamp; the constraint set and
+the robot model (``robot_description``, the URDF constraint_config publishes, once) at the start;
+a plan when it is made; a controller's ``wheel_torque_cmd`` (``write_command``) at the stamp of the
+state it answers, after that state's messages, as a recorder receives it.
+
+Differences, by design: ``reference`` is written at every step (the node samples the same plan at
 its own rate); ``/clock`` at ``messages.CLOCK_RATE_HZ`` and at the last state, as the
 dynamics node publishes it by default; ``/diagnostics`` is written every DIAGNOSTICS_PERIOD of simulation time and once
 at the end, with this process's wall-clock figures.
@@ -25,6 +30,7 @@ from wallbot_sim import messages
 from wallbot_sim.bag.writer import BagWriter
 from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
 from wallbot_sim.model.contact import unheld_slip
+from wallbot_sim.urdf import robot_urdf
 
 DIAGNOSTICS_PERIOD = 0.1
 """Simulation seconds between /diagnostics messages."""
@@ -34,7 +40,7 @@ class HeadlessBagWriter:
     """Writes every step's outputs of a Simulation into a new bag (and makes it follow the plan)."""
 
     def __init__(self, writer: BagWriter, simulation: Simulation, namespace: str = topics.NAMESPACE) -> None:
-        self.writer, self.simulation = writer, simulation
+        self.writer, self.simulation, self.namespace = writer, simulation, namespace
         self._conn = {t.name: writer.add_graph_topic(t, namespace) for t in topics.NOISELESS_RECORDED}
         self._step = StepEncoder()
         self._clock_schedule = messages.ClockSchedule(messages.CLOCK_RATE_HZ)
@@ -56,6 +62,7 @@ class HeadlessBagWriter:
         selection = simulation.selection
         self._put(topics.CONSTRAINTS, t, messages.constraints_message(
             messages.switches_from_selection(selection), simulation.gains))
+        self._put(topics.ROBOT_DESCRIPTION, t, codec.robot_description(robot_urdf(simulation.robot.params)))
         if self._path_reference is not None:
             self._replan(t)
 
@@ -100,6 +107,14 @@ class HeadlessBagWriter:
         if self._plan is not None and messages.replan_due(self._plan, t):
             self._replan(t)
         self._note(out)
+
+    def write_command(self, t: float, tau_left: float, tau_right: float) -> None:
+        """A controller's ``wheel_torque_cmd`` answering the state of time ``t`` (call it after that
+        step's ``write``); the topic is registered with its first command, as a recorder adds it."""
+        if topics.WHEEL_TORQUE_CMD.name not in self._conn:
+            self._conn[topics.WHEEL_TORQUE_CMD.name] = self.writer.add_graph_topic(topics.WHEEL_TORQUE_CMD,
+                                                                                   self.namespace)
+        self._put(topics.WHEEL_TORQUE_CMD, t, codec.wheel_torque_cmd(tau_left, tau_right))
 
     def _note(self, out: StepOutputs) -> None:
         now = time.perf_counter()

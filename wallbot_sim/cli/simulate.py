@@ -16,7 +16,7 @@ from wallbot_sim.cli.options import number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
-from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
+from wallbot_sim.control.sampling import SampledController, TorqueCommand, close_loop, controller_robot
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
@@ -106,16 +106,19 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
                       engine=args.engine), duration
 
 
-def build_controller(args: argparse.Namespace, simulation: Simulation) -> Callable[[StepOutputs], None] | None:
+def build_controller(args: argparse.Namespace, simulation: Simulation,
+                     on_command: Callable[[float, TorqueCommand], None] | None = None
+                     ) -> Callable[[StepOutputs], None] | None:
     """With --controller, the step hook that closes the loop on ``simulation``; else None.
 
     The controller's robot is the robot file's with its mass scaled, as tracking_controller_node
-    builds it (--adhesion-force is the simulated robot's, not the controller's).
+    builds it (--adhesion-force is the simulated robot's, not the controller's). ``on_command``
+    is given each command with the time of the state it answers.
     """
     if not args.controller:
         return None
     robot = controller_robot(load_robot_parameters(args.robot), args.controller_mass_scale)
-    return close_loop(simulation, SampledController(TrackingController(robot, simulation.reference)))
+    return close_loop(simulation, SampledController(TrackingController(robot, simulation.reference)), on_command)
 
 
 def parse_torque(text: str | None) -> tuple[float, float]:
@@ -136,7 +139,13 @@ def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
     simulation, duration = build_simulation(args)
-    controller = build_controller(args, simulation)
+    # the controller is built before the bag is created (a refused controller leaves no bag behind);
+    # its commands go to the bag once it is open
+    bag = None
+
+    def on_command(t: float, command: TorqueCommand) -> None:
+        bag.write_command(t, command.tau_left, command.tau_right)
+    controller = build_controller(args, simulation, on_command if args.bag else None)
     progress = Progress(duration, None if args.quiet else sys.stderr)
     sinks = []
     if args.bag:
@@ -147,7 +156,8 @@ def main(args: argparse.Namespace) -> int:
         if described.active_names() != selection.active_names():
             raise CliError('--tangent-heading without non_lateral is not a set the graph runs (constraint_config '
                            'has no switch for it), so a bag cannot hold it: add non_lateral, or drop --bag')
-        sinks.append(HeadlessBagWriter.open(Path(args.bag), simulation))
+        bag = HeadlessBagWriter.open(Path(args.bag), simulation)
+        sinks.append(bag)
     with _open_csv(args.csv) as stream:
         if stream is not None:
             csv.writer(stream).writerow(CSV_COLUMNS)
@@ -158,8 +168,8 @@ def main(args: argparse.Namespace) -> int:
                     stream.write(csv_line(out))
                 for sink in sinks:
                     sink.write(out)
-            if controller is not None:  # after the state was written, as the graph answers a published state
-                controller(out)
+                if controller is not None:  # after the state was written, as the graph answers a published state
+                    controller(out)
             progress.update(out.t)
 
         try:

@@ -155,12 +155,15 @@ def odometry_state(out: StepOutputs) -> PlanarState:
     return PlanarState(to_nanoseconds(out.t), x, y, math.atan2(math.sin(theta), math.cos(theta)), xd, yd, thd)
 
 
-def close_loop(simulation: Simulation, loop: SampledController) -> Callable[[StepOutputs], None]:
+def close_loop(simulation: Simulation, loop: SampledController,
+               on_command: Callable[[float, TorqueCommand], None] | None = None) -> Callable[[StepOutputs], None]:
     """A step hook that closes the loop as the graph's lockstep does (no DDS).
 
     Called with the outputs of each instant after they were used (published, written), it hands
     the controller the states it acts on and holds its command from the next step on, as the
-    dynamics node does with the controller's answer to the state it published.
+    dynamics node does with the controller's answer to the state it published. ``on_command`` is
+    given each command sent, with the time of the state it answers (what the graph's controller
+    publishes on wheel_torque_cmd).
     """
     def answer(out: StepOutputs) -> None:
         stamp_ns = to_nanoseconds(out.t)
@@ -168,4 +171,6 @@ def close_loop(simulation: Simulation, loop: SampledController) -> Callable[[Ste
         if loop.due(stamp_ns):
             command = loop.command(odometry_state(out))
             simulation.set_motor_torque(command.tau_left, command.tau_right)
+            if on_command is not None:
+                on_command(out.t, command)
     return answer
