@@ -226,7 +226,9 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
                 distinct.append(fields(m))
         assert distinct == [fields(m) for m in alone[name]], name
     description = [m.data for m in graph[topics.ROBOT_DESCRIPTION.resolve()]]
-    assert len(description) == 1 and [m.data for m in alone[topics.ROBOT_DESCRIPTION.resolve()]] == description
+    # latched: DDS may deliver it again to a recorder (seen with constraints); never a different document
+    assert description and set(description) == {description[0]}
+    assert [m.data for m in alone[topics.ROBOT_DESCRIPTION.resolve()]] == description[:1]
     assert urdf_links(description[0]) == {topics.WALL_FRAME, topics.BASE_FRAME,
                                           *(wheel_link(joint) for joint in topics.WHEEL_JOINTS)}
 
@@ -303,7 +305,7 @@ def step_messages(bag: Path) -> tuple[dict[str, dict[int, bytes]], list[int]]:
 def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path):
     """run --compose (the per-step topics through the in-process tap) and run (all over DDS) of the
     same scenario at factor 0: the same per-step messages byte for byte, a step every 1 ms, the
-    log times never going back in the file; the robot model recorded once by each."""
+    log times never going back in the file; the robot model recorded by each."""
     from bag_helpers import by_topic
     from wallbot_sim.config import load_robot_parameters
     from wallbot_sim.urdf import robot_urdf
@@ -326,7 +328,8 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path):
     assert len(composed['/wallbot/clock']) > 10
     assert composed == separate
     for bag in bags.values():  # the robot model, subscribed over DDS by both recorders
-        assert [m.data for m in by_topic(bag)['/wallbot/robot_description']] == [robot_urdf(load_robot_parameters())]
+        recorded = [m.data for m in by_topic(bag)['/wallbot/robot_description']]
+        assert recorded and set(recorded) == {robot_urdf(load_robot_parameters())}
 
 
 def test_a_composed_run_stopped_by_ctrl_c_logs_nothing_after_the_signal(tmp_path, process_runner):
