@@ -112,7 +112,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
     parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help="how the dynamics computes the ideal-contact steps: python (the model; the default), "
+                        help="how the dynamics computes the steps: python (the model; the default), "
                              "or numba (the batch's compiled kernel, the same states to 1e-9; it compiles on first "
                              'use on a machine, then loads from the cache)')
     parser.add_argument('--adhesion-force', type=number(POSITIVE),

@@ -62,8 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help='how the ideal-contact steps are computed: python (the model), or numba (the batch\'s '
-                             'compiled kernel; coulomb contact stays python)')
+                        help='how the steps are computed: python (the model), or numba (the batch\'s compiled '
+                             'kernel, ideal and coulomb contact)')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')

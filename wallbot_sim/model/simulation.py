@@ -29,7 +29,7 @@ TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
 """The RK4 steps the tools accept (s): simulate's --dt and a sweep's dt."""
 PYTHON, NUMBA = 'python', 'numba'
 ENGINES = (PYTHON, NUMBA)
-"""How the ideal-contact motion and steps are computed: the model's Python, or the batch's compiled kernel."""
+"""How the motion and steps are computed: the model's Python, or the batch's compiled kernel."""
 TABLE_CHUNK = 1000
 """Instants ``Simulation.run_table`` computes per call of the compiled kernel (a second at 1 kHz)."""
 
@@ -59,8 +59,8 @@ class Simulation:
     of that instant were available.
 
     ``engine`` 'numba' computes the motion and the RK4 step by the batch's compiled kernel
-    (``model.compiled``) while the contact is ideal and no ``extra_modules`` are active; coulomb
-    contact and modules of your own stay on the Python path.
+    (``model.compiled``), with coulomb contact's stick/slip settled in the kernel too, while no
+    ``extra_modules`` are active; modules of your own stay on the Python path.
     """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,

@@ -183,9 +183,9 @@ class DynamicsNode(Node):
                                      'off pauses the run; acts while the trajectory task is off)',
                                      choices=CONTACT_MODELS),
             'engine': declare(self, 'engine', PYTHON,
-                              'how the ideal-contact steps are computed: python (the model), or numba (the '
-                              "batch's compiled kernel, the same states to 1e-9; it compiles on first use on a "
-                              'machine, then loads from the cache; coulomb contact stays python)',
+                              'how the steps are computed: python (the model), or numba (the batch\'s compiled '
+                              'kernel, ideal and coulomb contact, the same states to 1e-9; it compiles on first '
+                              'use on a machine, then loads from the cache)',
                               choices=ENGINES, read_only=True),
             'adhesion_force': declare(self, 'adhesion_force', 0.0,
                                       "force pressing the robot to the wall (N); 0 = the robot file's",
