@@ -188,7 +188,11 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
               events: bool = False) -> int:
     """:func:`run` for the nodes ``factory`` builds (given the stop, for nodes that act on it), spun
     by one executor (``events``: :func:`events_executor`); on the way out each node's ``close`` (if it
-    has one) runs in their order, then they are destroyed."""
+    has one) runs in their order, then they are destroyed.
+
+    A node that cannot go on (it logged why) sets its ``exit_status``: the process then ends as on
+    a signal, with that status, once the executor next wakes (every node that sets it has a timer).
+    """
     stop = StopSignals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes: Sequence[Node] = ()
@@ -200,14 +204,14 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
         for node in nodes:
             executor.add_node(node)
         if events:
-            while not stop.requested and rclpy.ok():
+            while not stop.requested and rclpy.ok() and not (status := exit_status(nodes)):
                 executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
         else:
             # a triggered guard condition with a callback ends spin_once (executor.wake() would only
             # make it rebuild its wait set and wait again); the callback itself has nothing to do
             wake = nodes[0].create_guard_condition(lambda: None)
             stop.wakers.append(wake.trigger)
-            while not stop.requested and rclpy.ok():
+            while not stop.requested and rclpy.ok() and not (status := exit_status(nodes)):
                 executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
@@ -225,6 +229,11 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
         rclpy.try_shutdown()
         stop.restore()
     return status
+
+
+def exit_status(nodes: Sequence[Node]) -> int:
+    """The first non-zero ``exit_status`` a node of ``nodes`` asks the process to end with, or 0."""
+    return next((status for node in nodes if (status := getattr(node, 'exit_status', None))), 0)
 
 
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
