@@ -430,6 +430,8 @@ def test_a_start_without_a_controller_says_so_then_gives_up_after_command_wait_t
     assert loop.status.state is RunState.GAVE_UP and str(loop.status).startswith('gave up: no controller')
     assert loop.in_error and loop.sim is None and not graph.published
     loop.run()  # returns at once: the loop has stopped
+    loop.tick()
+    assert len(log.said('within command_wait_timeout')) == 1 and loop.status.state is RunState.GAVE_UP
 
 
 def test_the_wait_for_the_first_command_counts_from_the_t0_state_and_gives_up_too():

@@ -584,6 +584,8 @@ class DynamicsLoop:
         Giving up logs one error line naming what was missing, sets :attr:`gave_up` and stops the
         loop; the node then exits with status 1, as it does for a start it cannot make otherwise.
         """
+        if self.gave_up is not None:  # said once; the loop is stopping
+            return
         now = self._clock()
         if self.command_wait is None or self.command_wait[0] is not state:
             self.command_wait = (state, now, False)
