@@ -16,9 +16,14 @@ Arguments (defaults as ``wallbot-sim run``):
   viewer:=false                        true: viewer_node publishes markers (and /tf with tf2_msgs installed)
   compose:=false                       true (with record): dynamics and recorder in one process,
                                        dynamics_recorder_node; the per-step topics are recorded in process
+  drive:=cmd_vel|joint_commands        the robot at rest at the origin driven by you, as `wallbot-sim run rest
+                                       --drive`: cmd_vel_node or joint_bridge_node instead of the trajectory
+                                       (scenario, constraints and controller left at their defaults); default
+                                       empty: the scenario's graph
 
-Example:
+Examples:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
+  ros2 launch wallbot_sim wallbot.launch.py drive:=cmd_vel record:=/tmp/teleop
 """
 from pathlib import Path
 
@@ -29,7 +34,7 @@ from launch_ros.actions import Node
 
 from wallbot_msgs_py import topics
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import EXECUTABLES, describe_graph, launch_name
+from wallbot_sim.graph_description import DRIVES, EXECUTABLES, describe_driven_graph, describe_graph, launch_name
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection
 
 PACKAGE = 'wallbot_sim'
@@ -50,6 +55,8 @@ ARGUMENTS = {
     'viewer': ('false', 'true: viewer_node publishes markers (and /tf where tf2_msgs is installed)'),
     'compose': ('false', 'true (with record): the dynamics and the recorder in one process (dynamics_recorder_node), '
                          'the per-step topics recorded in process'),
+    'drive': ('', f'{" or ".join(DRIVES)}: the robot at rest at the origin driven by you, as wallbot-sim run rest '
+                  '--drive (scenario, constraints and controller stay at their defaults); empty: the scenario'),
 }
 
 
@@ -57,17 +64,26 @@ def _graph(context, *args, **kwargs):
     def arg(name):
         return LaunchConfiguration(name).perform(context)
 
-    closed_loop = arg('controller').strip().lower() == 'true'
-    specs = describe_graph(
-        load_scenario(arg('scenario')), ConstraintSelection.parse(arg('constraints')),
+    def true(name):
+        return arg(name).strip().lower() == 'true'
+
+    common = dict(
         duration=float(arg('duration')), real_time_factor=float(arg('real_time_factor')),
-        bag=Path(arg('record')) if arg('record') else None,
-        controller_mass_scale=float(arg('controller_mass_scale')) if closed_loop else None,
-        realtime_priority=int(arg('realtime_priority')),
+        bag=Path(arg('record')) if arg('record') else None, realtime_priority=int(arg('realtime_priority')),
         robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
         adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None,
-        viewer=arg('viewer').strip().lower() == 'true', engine=arg('engine'),
-        compose=arg('compose').strip().lower() == 'true')
+        viewer=true('viewer'), engine=arg('engine'), compose=true('compose'))
+    if arg('drive'):
+        scenario_arguments = [name for name in ('scenario', 'constraints', 'controller_mass_scale')
+                              if arg(name) != ARGUMENTS[name][0]] + (['controller'] if true('controller') else [])
+        if scenario_arguments:
+            raise ValueError(f'drive:= runs the driven robot at rest at the origin (no trajectory, no tracking '
+                             f'controller): drop {", ".join(scenario_arguments)}')
+        specs = describe_driven_graph(arg('drive'), **common)
+    else:
+        specs = describe_graph(
+            load_scenario(arg('scenario')), ConstraintSelection.parse(arg('constraints')),
+            controller_mass_scale=float(arg('controller_mass_scale')) if true('controller') else None, **common)
     return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], **launch_name(spec), namespace=topics.NAMESPACE,
                  output='screen', parameters=[dict(spec.parameters)])
             for spec in specs]

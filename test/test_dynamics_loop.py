@@ -20,9 +20,9 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.simulation import NUMBA, PYTHON
 from wallbot_sim.model.trajectories import Circle, sample_plan
-from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, ConstraintSwitch, Decision, DynamicsLoop, NewPlan,
-                                             ParameterChange, Pause, RecordProgress, Reset, ResumeSnapshot, RunState,
-                                             Step, Teleport, TorqueCommand)
+from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, COMMAND_WAIT_WARNING, ConstraintSwitch, Decision,
+                                             DynamicsLoop, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
+                                             ResumeSnapshot, RunState, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import Pacer
 
 DT = 1e-3
@@ -30,7 +30,7 @@ PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=T
               real_time_factor=0.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
               wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
               contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
-              snapshot_period=0.01, resume_wait=0.0, engine='python')
+              snapshot_period=0.01, resume_wait=0.0, engine='python', command_wait_timeout=30.0)
 GAINS = BaumgarteGains(5.0, 5.0)
 SWITCHES = dict(belt=False, non_lateral=True, nonslip=True, tangent_heading=True)
 DRIVEN = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': False}), GAINS)
@@ -397,9 +397,81 @@ def test_a_driven_start_waits_for_a_controller_and_its_first_command():
     assert loop.status.state is RunState.WAITING_CONTROLLER
     graph.controller = True
     assert ticks(loop, 2) == [Decision.NOT_READY] * 2 and graph.times == [0.0]
-    assert str(loop.status) == 'waiting for the first wheel_torque_cmd'
+    assert str(loop.status) == ('waiting for the first wheel_torque_cmd (the answer to the t = 0 state) for 0 s '
+                                '(wall), giving up after 30 s (command_wait_timeout)')
     loop.post(TorqueCommand((0.1, 0.1)))
     assert loop.tick() is Decision.STEPPED
+
+
+def test_a_start_without_a_controller_says_so_then_gives_up_after_command_wait_timeout():
+    """wait_for_command set and no controller: the status names the wait and how long it lasted,
+    the log says so once after a few seconds, and after command_wait_timeout (wall) the loop stops
+    with one error line naming what was missing (the node then exits with status 1)."""
+    loop, graph, log, clock = make_loop(wait_for_command=True, command_wait_timeout=10.0)
+    graph.controller = False
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.NOT_READY and loop.status.state is RunState.WAITING_CONTROLLER
+    clock.now += 4.0
+    loop.tick()
+    assert str(loop.status) == ('waiting for a controller (a wheel_torque_cmd publisher that hears odom) for 4 s '
+                                '(wall), giving up after 10 s (command_wait_timeout)')
+    assert not log.said('waiting for a controller') and not loop.in_error
+    clock.now += COMMAND_WAIT_WARNING - 4.0 + 0.1
+    ticks(loop, 3)
+    assert [level for level, message in log.lines if 'waiting for a controller' in message] == ['warning']
+    clock.now = 100.0 + 10.0  # the limit itself still waits
+    assert loop.tick() is Decision.NOT_READY and not loop.stopping.is_set() and loop.gave_up is None
+    clock.now += 0.01
+    assert loop.tick() is Decision.NOT_READY and loop.stopping.is_set()
+    assert loop.gave_up.startswith('no controller (a wheel_torque_cmd publisher subscribing odom, matched both ways) '
+                                   'within command_wait_timeout 10 s (wall) with wait_for_command set')
+    assert [(level, message) for level, message in log.lines if level == 'error'] == [
+        ('error', f'{loop.gave_up}; exiting')]
+    assert loop.status.state is RunState.GAVE_UP and str(loop.status).startswith('gave up: no controller')
+    assert loop.in_error and loop.sim is None and not graph.published
+    loop.run()  # returns at once: the loop has stopped
+    loop.tick()
+    assert len(log.said('within command_wait_timeout')) == 1 and loop.status.state is RunState.GAVE_UP
+
+
+def test_the_wait_for_the_first_command_counts_from_the_t0_state_and_gives_up_too():
+    """The answer to t = 0 can only come once that state is out (a numba compilation may delay it):
+    each wait has the whole timeout, counted from its own start."""
+    loop, graph, log, clock = make_loop(wait_for_command=True, command_wait_timeout=10.0)
+    graph.controller = False
+    loop.post(DRIVEN)
+    loop.tick()
+    clock.now += 9.0
+    graph.controller = True
+    assert loop.tick() is Decision.NOT_READY and graph.times == [0.0]
+    assert loop.status.state is RunState.WAITING_FIRST_COMMAND and loop.status.waited == 0.0
+    clock.now += 9.0
+    assert loop.tick() is Decision.NOT_READY and loop.gave_up is None
+    clock.now += 1.01
+    loop.tick()
+    assert loop.stopping.is_set() and loop.status.state is RunState.GAVE_UP
+    assert log.said('no wheel_torque_cmd answering the t = 0 state within command_wait_timeout 10 s (wall)')
+
+
+def test_command_wait_timeout_0_waits_for_ever_and_a_wait_after_the_start_never_gives_up():
+    loop, graph, _log, clock = make_loop(wait_for_command=True, command_wait_timeout=0.0)
+    graph.controller = False
+    loop.post(DRIVEN)
+    loop.tick()
+    clock.now += 1e6
+    assert loop.tick() is Decision.NOT_READY and not loop.stopping.is_set()
+    assert str(loop.status).endswith('hears odom) for 1000000 s (wall)')  # no limit named
+    # with a limit: once stepping, a reset's wait for the first command is not a start's
+    loop, graph, _log, clock = make_loop(wait_for_command=True, command_wait_timeout=10.0)
+    loop.post(DRIVEN)
+    loop.tick()
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 2) == [Decision.STEPPED] * 2
+    loop.post(Reset())
+    assert loop.tick() is Decision.NOT_READY and loop.status.state is RunState.WAITING_FIRST_COMMAND
+    clock.now += 100.0
+    assert loop.tick() is Decision.NOT_READY and not loop.stopping.is_set() and loop.gave_up is None
+    assert str(loop.status) == 'waiting for the first wheel_torque_cmd (the answer to the t = 0 state) for 100 s (wall)'
 
 
 def test_the_loop_thread_wakes_on_a_posted_event_and_stops():

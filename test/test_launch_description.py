@@ -132,6 +132,42 @@ def test_engine_numba_is_the_dynamics_engine_as_run_engine_gives_it(launch_file)
     assert describe_driven_graph('joint_commands', engine='numba')[-1].parameters['engine'] == 'numba'
 
 
+@pytest.mark.parametrize('drive, executable', [('cmd_vel', 'cmd_vel_node'), ('joint_commands', 'joint_bridge_node')])
+def test_drive_starts_the_graph_of_run_rest_drive(launch_file, tmp_path, drive, executable):
+    nodes = launched_nodes(launch_file, drive=drive)
+    assert nodes == as_launched(describe_driven_graph(drive))
+    assert [n['executable'] for n in nodes] == ['constraint_config_node', executable, 'dynamics_node']
+    dynamics = nodes[-1]['parameters'][0]
+    assert (dynamics['initial_x'], dynamics['initial_y'], dynamics['initial_theta']) == (0.0, 0.0, 0.0)
+    assert nodes[0]['parameters'][0]['trajectory_task'] is False
+    # recorded, with the other arguments run rest --drive takes
+    arguments = dict(record=str(tmp_path / 'bag'), duration='5', real_time_factor='0', realtime_priority='10',
+                     contact='coulomb', adhesion_force='150', engine='numba', viewer='true')
+    nodes = launched_nodes(launch_file, drive=drive, **arguments)
+    expected = describe_driven_graph(drive, bag=tmp_path / 'bag', duration=5.0, real_time_factor=0.0,
+                                     realtime_priority=10, contact_model='coulomb', adhesion_force=150.0,
+                                     engine='numba', viewer=True)
+    assert nodes == as_launched(expected)
+    assert [n['name'] for n in nodes] == ['recorder', 'constraint_config', nodes[2]['name'], 'viewer', 'dynamics']
+    assert nodes[2]['parameters'][0]['wait_for_recorder'] is True  # forwards nothing the recorder does not hear
+    assert nodes[0]['parameters'][0]['topics'] == expected[0].parameters['topics']
+    composed = launched_nodes(launch_file, drive=drive, record=str(tmp_path / 'bag'), compose='true')
+    assert composed == as_launched(describe_driven_graph(drive, bag=tmp_path / 'bag', compose=True))
+    assert composed[0]['executable'] == 'dynamics_recorder_node'
+
+
+@pytest.mark.parametrize('argument, value', [('scenario', 'figure8'), ('constraints', 'belt'), ('controller', 'true'),
+                                             ('controller_mass_scale', '1.2')])
+def test_drive_refuses_the_arguments_of_a_scenario_run(launch_file, argument, value):
+    with pytest.raises(ValueError, match=f'drive:= runs the driven robot .*: drop {argument}$'):
+        launched_nodes(launch_file, drive='cmd_vel', **{argument: value})
+
+
+def test_an_unknown_drive_is_refused_with_the_drives_named(launch_file):
+    with pytest.raises(ValueError, match="unknown drive 'teleop': use cmd_vel or joint_commands"):
+        launched_nodes(launch_file, drive='teleop')
+
+
 def test_a_driven_run_starts_the_viewer_before_the_dynamics_too():
     specs = describe_driven_graph('cmd_vel', foxglove_port=8765)
     assert [s.name for s in specs] == ['constraint_config', 'cmd_vel_controller', 'viewer', 'dynamics']

@@ -132,10 +132,9 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
     specs = [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
                  {**switches_from_selection(DRIVEN), **robot, 'wait_for_recorder': bag is not None, **SIM_TIME}),
-        # the cmd_vel node is the run's commander (the dynamics waits for it): it must not answer
-        # before the recorder hears its commands
-        NodeSpec(name, module, {**robot, **SIM_TIME,
-                                **({'wait_for_recorder': True} if bag is not None and drive == 'cmd_vel' else {})}),
+        # the drive node must not forward commands before the recorder hears them (the cmd_vel node is
+        # also the run's commander: the dynamics waits for it)
+        NodeSpec(name, module, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})}),
         *_viewer(viewer, foxglove_port, foxglove_host, robot),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,

@@ -188,7 +188,11 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
               events: bool = False) -> int:
     """:func:`run` for the nodes ``factory`` builds (given the stop, for nodes that act on it), spun
     by one executor (``events``: :func:`events_executor`); on the way out each node's ``close`` (if it
-    has one) runs in their order, then they are destroyed."""
+    has one) runs in their order, then they are destroyed.
+
+    A node that cannot go on (it logged why) sets its ``exit_status``: the process then ends as on
+    a signal, with that status, once the executor next wakes (every node that sets it has a timer).
+    """
     stop = StopSignals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes: Sequence[Node] = ()
@@ -200,14 +204,14 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
         for node in nodes:
             executor.add_node(node)
         if events:
-            while not stop.requested and rclpy.ok():
+            while not stop.requested and rclpy.ok() and not (status := exit_status(nodes)):
                 executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
         else:
             # a triggered guard condition with a callback ends spin_once (executor.wake() would only
             # make it rebuild its wait set and wait again); the callback itself has nothing to do
             wake = nodes[0].create_guard_condition(lambda: None)
             stop.wakers.append(wake.trigger)
-            while not stop.requested and rclpy.ok():
+            while not stop.requested and rclpy.ok() and not (status := exit_status(nodes)):
                 executor.spin_once()  # no timeout: rclpy builds a timer for every wait that has one
     except (ModelError, ValueError, OSError) as error:
         print(f'error: {error}', file=sys.stderr)
@@ -225,6 +229,11 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
         rclpy.try_shutdown()
         stop.restore()
     return status
+
+
+def exit_status(nodes: Sequence[Node]) -> int:
+    """The first non-zero ``exit_status`` a node of ``nodes`` asks the process to end with, or 0."""
+    return next((status for node in nodes if (status := getattr(node, 'exit_status', None))), 0)
 
 
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
@@ -253,20 +262,20 @@ def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) 
 
 
 class WhenRecorded:
-    """Runs ``action`` once, when a recorder hears ``publisher`` (a node's ``wait_for_recorder``).
+    """Runs ``action`` once, when a recorder hears every one of ``publishers`` (a node's ``wait_for_recorder``).
 
-    A recorder is a node publishing record_progress; it hears the publisher once it subscribes its
+    A recorder is a node publishing record_progress; it hears a publisher once it subscribes its
     topic and every discovered subscription of that topic is matched to it (``heard_by_every``),
     checked on a steady timer. Until then the node holds back what would start the run (the
-    controller's odom subscription, the trajectory node's first plan), so the bag misses nothing
-    of what it publishes from the start.
+    controller's odom subscription, the trajectory node's first plan, the joint bridge's inputs),
+    so the bag misses nothing of what it publishes from the start.
     """
 
     CHECK_PERIOD = 0.02
     """Wall seconds between checks."""
 
-    def __init__(self, node: Node, publisher: Publisher, action: Callable[[], None], done: str) -> None:
-        self.node, self.publisher, self.action, self.done = node, publisher, action, done
+    def __init__(self, node: Node, publishers: Sequence[Publisher], action: Callable[[], None], done: str) -> None:
+        self.node, self.publishers, self.action, self.done = node, tuple(publishers), action, done
         self.progress_topic = node.resolve_topic_name(topics.RECORD_PROGRESS.name)
         self.timer = node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -276,7 +285,7 @@ class WhenRecorded:
         return self.timer is not None
 
     def _check(self) -> None:
-        if not heard_by_every(self.node, self.publisher, self.progress_topic):
+        if not all(heard_by_every(self.node, publisher, self.progress_topic) for publisher in self.publishers):
             return
         self.node.destroy_timer(self.timer)
         self.timer = None
@@ -293,7 +302,7 @@ def subscribe_odom_when_recorded(node: Node, command_pub: Publisher, subscribe_o
     """
     if declare(node, 'wait_for_recorder', False, 'subscribe odom only once a recorder (record_progress) is '
                'matched on wheel_torque_cmd, so a recording holds every command', read_only=True):
-        WhenRecorded(node, command_pub, subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
+        WhenRecorded(node, [command_pub], subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
     else:
         subscribe_odom()
 

@@ -59,7 +59,7 @@ class ConstraintConfigNode(Node):
         self.held = declare(self, 'wait_for_recorder', False, 'publish the first constraint set only once a '
                             'recorder (record_progress) is matched on constraints', read_only=True)
         if self.held:
-            WhenRecorded(self, self.publisher, self._release, 'a recorder hears constraints: publishing the set')
+            WhenRecorded(self, [self.publisher], self._release, 'a recorder hears constraints: publishing the set')
         else:
             self.publish()
         self.description_publisher = self.create_publisher(String, topics.ROBOT_DESCRIPTION.name,

@@ -105,13 +105,18 @@ RANGES = {
     'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': REALTIME_PRIORITY,
     'adhesion_force': NumberRange(0.0, 1e6), 'backpressure_window': NumberRange(1, 1_000_000),
     'snapshot_period': NumberRange(0.0, 1e6), 'step_count': NumberRange(1, 1_000_000),
-    'resume_wait': NumberRange(0.0, 60.0),
+    'resume_wait': NumberRange(0.0, 60.0), 'command_wait_timeout': NumberRange(0.0, 3600.0),
     'odom_noise_position': NumberRange(0.0, 10.0), 'odom_noise_heading': NumberRange(0.0, 10.0),
     'odom_noise_linear': NumberRange(0.0, 100.0), 'odom_noise_angular': NumberRange(0.0, 100.0),
     'encoder_noise': NumberRange(0.0, 10.0), 'encoder_velocity_noise': NumberRange(0.0, 1000.0),
     'noise_seed': NumberRange(0, 2**31 - 1),
 }
 """What each numeric parameter accepts: its descriptor's range and the node's own check."""
+COMMAND_WAIT_TIMEOUT = 30.0
+"""Default command_wait_timeout (wall s). A controller started with the dynamics (``wallbot-sim run``,
+the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
+state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
+controller started by hand later wants more, or 0."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -166,6 +171,11 @@ class DynamicsNode(Node):
                                         'driven mode: start once a wheel_torque_cmd publisher hears odom, and take '
                                         'the first step only after its first command (a closed loop from t = 0)',
                                         read_only=True),
+            'command_wait_timeout': declare(self, 'command_wait_timeout', COMMAND_WAIT_TIMEOUT,
+                                            'wall seconds a start with wait_for_command waits for the controller, '
+                                            'and then for its first command; after that the node logs what was '
+                                            'missing and exits with status 1 (0 = wait for ever)',
+                                            allowed=RANGES['command_wait_timeout'], read_only=True),
             'lockstep_every': declare(self, 'lockstep_every', 0,
                                       'driven mode: after publishing every Nth step, wait for the command '
                                       'answering that state before stepping on (at most lockstep_timeout); 0 = off',
@@ -226,6 +236,8 @@ class DynamicsNode(Node):
             from wallbot_sim.model.compiled import require_numba
             require_numba()  # a missing package is said at start, not by a failing loop thread
         self.params = p
+        self.exit_status: int | None = None
+        """Set once the node cannot go on (its start gave up): ``common.run_nodes`` ends the process with it."""
         self.loop = DynamicsLoop(p, load_robot_parameters(p['robot_file'] or None), self, self.get_logger(),
                                  Pacer(p['realtime_priority'], self.get_logger().warning))
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
@@ -398,6 +410,10 @@ class DynamicsNode(Node):
                 return  # shutting down (Ctrl-C, SIGTERM): publishers are gone, nothing to report
             self.get_logger().fatal('simulation loop failed:\n' + traceback.format_exc())
             self.loop.fail()
+            return
+        if self.loop.gave_up is not None and self.context.ok():
+            self._publish_diagnostics()  # the ERROR status naming what was missing, before the process ends
+            self.exit_status = 1
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -413,7 +429,7 @@ class DynamicsNode(Node):
             1e3 * window.step_time_max, 1e3 * window.lateness_max, window.late,
             loop.pacer.policy)
         report = messages.simulation_status(
-            self.get_fully_qualified_name(), str(status), loop.diverged, loop.command_state(), t, figures,
+            self.get_fully_qualified_name(), str(status), loop.in_error, loop.command_state(), t, figures,
             float(out.residual) if out is not None else math.nan, window.residual_max,
             sim.selection.label() if sim is not None else 'none yet', loop.robot.adsorption,
             detached=loop.detached is not None,

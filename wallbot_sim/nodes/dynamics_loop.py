@@ -11,8 +11,9 @@ waits through an injected clock, so it is tested without DDS (test_dynamics_loop
 
 Each tick ends in a :class:`Decision`: a step was taken, or why not (the run state, see
 :class:`RunState`, says which wait it is), lockstep waits for the controller, or back-pressure
-waits for a recorder. The node's module docstring explains determinism, pacing, back-pressure
-and resume.
+waits for a recorder. A start that waits for its controller longer than ``command_wait_timeout``
+gives up: the loop stops with :attr:`DynamicsLoop.gave_up` saying why, and the node exits. The
+node's module docstring explains determinism, pacing, back-pressure and resume.
 """
 
 from __future__ import annotations
@@ -47,6 +48,9 @@ LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
 """Seconds between repeated warnings of one kind."""
+COMMAND_WAIT_WARNING = 5.0
+"""Wall seconds of a wait for the controller (wait_for_command) after which the log says so: a
+controller started with the dynamics is there well before, so a longer wait is worth a line."""
 
 
 # --- events: posted from any thread, applied by the loop thread at a step boundary ----------------
@@ -150,7 +154,8 @@ class RunState(Enum):
     WAITING_CONTROLLER = 'waiting for a controller (a wheel_torque_cmd publisher that hears odom)'
     WAITING_PLAN = 'waiting for reference_trajectory'
     WAITING_COVERING_PLAN = 'waiting for a reference_trajectory covering t = {t:.3f} s'
-    WAITING_FIRST_COMMAND = 'waiting for the first wheel_torque_cmd'
+    WAITING_FIRST_COMMAND = 'waiting for the first wheel_torque_cmd (the answer to the t = 0 state)'
+    GAVE_UP = 'gave up: {reason}'
     RUNNING = 'running'
     PAUSED = 'paused'
     STOPPED = messages.STOPPED
@@ -161,14 +166,22 @@ class RunState(Enum):
 
 @dataclass(frozen=True)
 class Status:
-    """A run state with what its text names (set once, read by the diagnostics thread)."""
+    """A run state with what its text names (set once, read by the diagnostics thread): ``waited``
+    wall seconds of a wait for the controller, which gives up after ``limit`` (0: never)."""
 
     state: RunState
     t: float = 0.0
     reason: str = ''
+    waited: float | None = None
+    limit: float = 0.0
 
     def __str__(self) -> str:
-        return self.state.value.format(t=self.t, reason=self.reason)
+        text = self.state.value.format(t=self.t, reason=self.reason)
+        if self.waited is not None:
+            text += f' for {self.waited:.0f} s (wall)'
+            if self.limit > 0:
+                text += f', giving up after {self.limit:g} s (command_wait_timeout)'
+        return text
 
 
 class Decision(Enum):
@@ -259,6 +272,12 @@ class DynamicsLoop:
         self.detached: str | None = None
         """Why the robot left the wall (coulomb contact), until a reset."""
         self.status = Status(RunState.WAITING_CONSTRAINTS)
+        self.command_wait: tuple[RunState, float, bool] | None = None
+        """The wait for the controller under way: which, since when (clock), whether the log said it."""
+        self.stepped = False
+        """Whether a step was taken: only a start's wait for the controller gives up."""
+        self.gave_up: str | None = None
+        """Why the loop stopped without starting (then the node exits), or None."""
         self.command: tuple[tuple[float, float], float] | None = None  # (torque, simulation time it came)
         self.command_expired = False
         self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
@@ -319,6 +338,11 @@ class DynamicsLoop:
     def fail(self) -> None:
         """The loop crashed (the caller logged why)."""
         self.status, self.diverged = Status(RunState.FAILED), True
+
+    @property
+    def in_error(self) -> bool:
+        """Whether the diagnostics' level is ERROR: diverged, crashed or given up."""
+        return self.diverged or self.gave_up is not None
 
     def tick(self) -> Decision:
         """Apply the queued events, then take one step if nothing holds it back."""
@@ -509,6 +533,9 @@ class DynamicsLoop:
         if pending is not None:
             if self.sim is None and not pending.selection.trajectory and self.resume.snapshot is None:
                 waiting = self._driven_start_blocked()
+                if waiting is RunState.WAITING_CONTROLLER:
+                    self._wait_for_command(waiting)
+                    return False
                 if waiting is not None:
                     self.status = Status(waiting)
                     return False
@@ -542,10 +569,42 @@ class DynamicsLoop:
             return False
         if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
                 and self.command is None):
-            self.status = Status(RunState.WAITING_FIRST_COMMAND)
+            self._wait_for_command(RunState.WAITING_FIRST_COMMAND)
             return False
+        self.command_wait = None
         self.status = Status(RunState.RUNNING)
         return True
+
+    def _wait_for_command(self, state: RunState) -> None:
+        """Wait (``state``) for the controller or its first command, saying so; a start gives up after
+        ``command_wait_timeout`` (wall, 0: never) of either wait.
+
+        Each wait counts from its own beginning: the answer to the t = 0 state can only come once
+        that state is out, which a numba engine compiling its kernel may delay by tens of seconds.
+        Giving up logs one error line naming what was missing, sets :attr:`gave_up` and stops the
+        loop; the node then exits with status 1, as it does for a start it cannot make otherwise.
+        """
+        if self.gave_up is not None:  # said once; the loop is stopping
+            return
+        now = self._clock()
+        if self.command_wait is None or self.command_wait[0] is not state:
+            self.command_wait = (state, now, False)
+        _state, since, said = self.command_wait
+        waited = now - since
+        limit = 0.0 if self.stepped else float(self.params['command_wait_timeout'])
+        self.status = Status(state, waited=waited, limit=limit)
+        if 0.0 < limit < waited:
+            missing = ('no controller (a wheel_torque_cmd publisher subscribing odom, matched both ways)'
+                       if state is RunState.WAITING_CONTROLLER else
+                       'no wheel_torque_cmd answering the t = 0 state')
+            self.gave_up = (f'{missing} within command_wait_timeout {limit:g} s (wall) with wait_for_command set: '
+                            'start the controller first, or set command_wait_timeout 0 to wait for ever')
+            self.status = Status(RunState.GAVE_UP, reason=missing)
+            self._log.error(f'{self.gave_up}; exiting')
+            self.stopping.set()
+        elif waited > COMMAND_WAIT_WARNING and not said:
+            self.command_wait = (state, since, True)
+            self._log.warning(str(self.status))
 
     def _driven_start_blocked(self) -> RunState | None:
         """Why a driven run may not create its simulation yet (None: it may).
@@ -646,6 +705,7 @@ class DynamicsLoop:
         return torque
 
     def _step(self) -> None:
+        self.stepped = True
         sim = self.sim
         torque = self._motor_torque()
         if torque != sim.motor_torque:

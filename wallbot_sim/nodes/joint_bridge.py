@@ -16,6 +16,11 @@
 
 The dynamics holds each command for its ``command_timeout`` (0.5 s of simulation time), then
 falls back to zero torque; a controller_manager writing at its update rate keeps it fresh.
+
+With ``wait_for_recorder`` (``wallbot-sim run`` sets it when it records) the node subscribes
+``joint_commands`` and ``wheel_states``, and so forwards anything, only once a recorder hears
+``wheel_torque_cmd`` and ``joint_states``: the bag holds every command that reached the simulation
+and every joint state, also when a loaded machine's discovery matches the recorder late.
 """
 
 from __future__ import annotations
@@ -31,7 +36,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, WhenRecorded, declare, param_dict,
+                                     parameter_result, run)
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
@@ -53,15 +59,24 @@ class JointBridgeNode(Node):
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES))
         self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
+        if declare(self, 'wait_for_recorder', False, 'subscribe joint_commands and wheel_states only once a recorder '
+                   '(record_progress) is matched on wheel_torque_cmd and joint_states, so a recording holds every '
+                   'command and joint state', read_only=True):
+            WhenRecorded(self, [self.command_pub, self.state_pub], self._subscribe, 'a recorder hears '
+                         'wheel_torque_cmd and joint_states: subscribing joint_commands and wheel_states')
+        else:
+            self._subscribe()
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        self.get_logger().info(f'joint_states at {rate_hz} Hz of simulation time; joint_commands efforts -> '
+                               f'wheel_torque_cmd (side totals within +-{self.max_torque:g} N m)')
+
+    def _subscribe(self) -> None:
         # raw: of the 1 kHz wheel states only those republished are decoded
         self.create_subscription(JointState, topics.WHEEL_STATES.name, self._on_wheel_states,
                                  qos_profile(topics.WHEEL_STATES), raw=True)
         self.create_subscription(JointState, topics.JOINT_COMMANDS.name, self._on_joint_commands,
                                  qos_profile(topics.JOINT_COMMANDS))
-        self.add_on_set_parameters_callback(self._on_set)
-        self.add_post_set_parameters_callback(self._after_set)
-        self.get_logger().info(f'joint_states at {rate_hz} Hz of simulation time; joint_commands efforts -> '
-                               f'wheel_torque_cmd (side totals within +-{self.max_torque:g} N m)')
 
     def _on_wheel_states(self, data: bytes) -> None:
         stamp_ns = codec.leading_stamp_ns(data)

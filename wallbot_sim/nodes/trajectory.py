@@ -182,7 +182,7 @@ class TrajectoryNode(Node):
         self.pose_lock = threading.Lock()  # poses go out from the executor and, for a new plan, the planner
         self.recorder_wait = None
         if wait_for_recorder:
-            self.recorder_wait = WhenRecorded(self, self.reference_pub, lambda: self.replan(self._now()),
+            self.recorder_wait = WhenRecorded(self, [self.reference_pub], lambda: self.replan(self._now()),
                                               'a recorder hears reference: planning')
         else:
             self.replan(self._now())
