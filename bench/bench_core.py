@@ -17,8 +17,9 @@ numba's loading of its compiled kernel from its cache included; wall time and CP
 
 Then the wheel-wall contact: the driven robot from rest (docs/model.md 11.4's cases: belt, non-lateral,
 nonslip, no trajectory task) stepped with its outputs at every step, as ``simulate`` and the
-dynamics node do, with ideal and with coulomb contact. "cost" is the coulomb step's extra time
-relative to the ideal step; in the sticking cases it is the stick/slip bookkeeping alone.
+dynamics node do, with ideal and with coulomb contact, on each engine. "cost" is the coulomb step's
+extra time relative to the ideal step of the same engine; in the sticking cases it is the stick/slip
+bookkeeping alone.
 
     python bench/bench_core.py [--seconds 2.0] [--process-seconds 20] [--repeats 3]
 """
@@ -100,18 +101,24 @@ def steps_with_outputs_per_second(simulation: Simulation, steps: int) -> float:
 
 
 def contact_table(steps: int) -> None:
-    print(f'\n{"contact case":13s} {"":17s} {"ideal steps/s":>13s} {"coulomb steps/s":>15s} {"cost":>7s}')
+    """Steps per second with the outputs of every step, ideal and coulomb contact, on each engine (alternating,
+    best of five); "cost" is the coulomb step's extra time over the ideal step of the same engine."""
+    print(f'\n{"contact case":13s} {"":17s} {"python: ideal":>13s} {"coulomb":>8s} {"cost":>7s} '
+          f'{"numba: ideal":>13s} {"coulomb":>8s} {"cost":>7s}')
     driven = ConstraintSelection.parse('belt,non_lateral,nonslip', trajectory=False)
     for name, heading, torque, adhesion, what in CONTACT_CASES:
         robot = Robot(load_robot_parameters().replace(adhesion_force=adhesion))
-        rates = [0.0, 0.0]
-        for _ in range(5):  # alternating, best of five: load from other processes hits both alike
-            for k, contact in enumerate(('ideal', 'coulomb')):
-                simulation = Simulation(robot, None, driven, np.array([0.0, 0.0, heading, 0, 0, 0, 0]),
-                                        np.zeros(DOF), contact=contact)
-                simulation.set_motor_torque(*torque)
-                rates[k] = max(rates[k], steps_with_outputs_per_second(simulation, steps))
-        print(f'{name:13s} {what:17s} {rates[0]:13.0f} {rates[1]:15.0f} {rates[0] / rates[1] - 1:7.1%}')
+        columns = []
+        for engine in ('python', 'numba'):
+            rates = [0.0, 0.0]
+            for _ in range(5):  # alternating, best of five: load from other processes hits both alike
+                for k, contact in enumerate(('ideal', 'coulomb')):
+                    simulation = Simulation(robot, None, driven, np.array([0.0, 0.0, heading, 0, 0, 0, 0]),
+                                            np.zeros(DOF), contact=contact, engine=engine)
+                    simulation.set_motor_torque(*torque)
+                    rates[k] = max(rates[k], steps_with_outputs_per_second(simulation, steps))
+            columns.append(f'{rates[0]:13.0f} {rates[1]:8.0f} {rates[0] / rates[1] - 1:7.1%}')
+        print(f'{name:13s} {what:17s} {" ".join(columns)}')
 
 
 def outputs_table(robot: Robot, steps: int) -> None:
