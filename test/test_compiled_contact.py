@@ -16,7 +16,7 @@ import pytest
 from batch_helpers import TOLERANCE, random_robots
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
-from wallbot_sim.model.batch import contact_kernel, kernel
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.contact import CoulombContact, DetachedError
 from wallbot_sim.model.robot import DOF
 
@@ -180,9 +180,9 @@ def test_the_one_factorization_solve_keeps_independent_rows_and_refuses_disagree
     padded_rows, padded_rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
     padded_rows[:4], padded_rhs[:4] = rows, rhs
     free, responses = np.zeros(DOF), np.zeros((4, DOF))
-    done = contact_kernel._responses(factor, force, padded_rhs, per_load, padded_rows, 4,
+    done = kernel._responses(factor, force, padded_rhs, per_load, padded_rows, 4,
                                      np.zeros((kernel.MAX_ROWS, DOF)), np.zeros((DOF, DOF)), np.zeros((DOF, DOF)),
-                                     np.zeros(kernel.MAX_ROWS), np.zeros((contact_kernel.WORK_ROWS, DOF)), free,
+                                     np.zeros(kernel.MAX_ROWS), np.zeros((kernel.WORK_ROWS, DOF)), free,
                                      responses)
     assert done == consistent
     if consistent:
@@ -212,7 +212,7 @@ def test_detachment_mid_run_stops_both_engines_at_the_same_instant():
 
 def test_contact_constants_are_in_the_order_the_kernel_reads_them():
     robot = Robot(load_robot_parameters().replace(com_height=0.07, kinetic_friction=0.5, adhesion_force=150.0))
-    constants = contact_kernel.contact_constants(robot)
+    constants = kernel.contact_constants(robot)
     params = robot.params
     assert constants[:7].tolist() == [150.0, params.wall_friction, 0.5, params.stick_velocity, 0.07,
                                       params.half_wheelbase, params.half_track]

@@ -6,7 +6,7 @@ stacking order and the same normal-equation solve as the numba batch engine (whi
 Python model to 1e-9). The loads, friction use and drive forces of a chunk are measured at once with
 the batch's array functions; the reference at the RK4 instants is sampled in Python for the chunk.
 
-With coulomb contact (no trajectory task) ``contact_kernel.robot_contact_run`` does the same with each
+With coulomb contact (no trajectory task) ``kernel.robot_contact_run`` does the same with each
 boundary's stick/slip transitions settled in the kernel, as ``CoulombContact`` settles them, and
 measures each instant itself; the simulation's ``CoulombContact`` takes the state each boundary
 settled to, so a switch back to the Python path (a module of your own) goes on from it.
@@ -18,9 +18,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wallbot_sim.model.batch import contact_kernel, kernel
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
-from wallbot_sim.model.batch.contact_kernel import DRIVE_ROW, LOADS_ROW, STATUS_ROW
+from wallbot_sim.model.batch.kernel import DRIVE_ROW, LOADS_ROW, STATUS_ROW
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
@@ -82,12 +82,12 @@ class CompiledRun(NamedTuple):
 
 
 class ContactRun(NamedTuple):
-    """Consecutive instants of one robot with coulomb contact (``contact_kernel.robot_contact_run``)."""
+    """Consecutive instants of one robot with coulomb contact (``kernel.robot_contact_run``)."""
 
     states: np.ndarray
     """(T + 1, 14), as ``CompiledRun``'s (row k's velocities projected where a channel stuck again)."""
     solutions: np.ndarray
-    """(T, 7, 7): each instant's solution (``contact_kernel.SOLUTION_ROWS``)."""
+    """(T, 7, 7): each instant's solution (``kernel.SOLUTION_ROWS``)."""
     slipping: np.ndarray
     """(T + 1, 3) bool: row k + 1 the channels slipping from instant k on."""
     held: np.ndarray
@@ -166,7 +166,7 @@ class CompiledDynamics:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
-            self._contact = contact_kernel.contact_constants(robot)
+            self._contact = kernel.contact_constants(robot)
             self._batches = {}
             self._ahead = None
         if selection is not self._selection:
@@ -266,7 +266,7 @@ class CompiledDynamics:
     def contact_run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int,
                     coulomb: CoulombContact) -> ContactRun:
         """From y, the simulation's ``step``-th instant, with ``coulomb``'s state before its boundary: each of
-        ``instants`` instants settled and stepped from (``contact_kernel.robot_contact_run``)."""
+        ``instants`` instants settled and stepped from (``kernel.robot_contact_run``)."""
         references = kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt)
         states = np.empty((instants + 1, 2 * DOF))
         states[0] = y
@@ -276,8 +276,8 @@ class CompiledDynamics:
         held[0] = coulomb.loads
         moving = np.zeros(instants + 1, dtype=np.bool_)
         moving[0] = coulomb.loads_moving
-        solutions = np.empty((instants, contact_kernel.SOLUTION_ROWS, DOF))
-        taken = contact_kernel.robot_contact_run(states, references, self._flags, self._constants, self._contact,
+        solutions = np.empty((instants, kernel.SOLUTION_ROWS, DOF))
+        taken = kernel.robot_contact_run(states, references, self._flags, self._constants, self._contact,
                                                  self._torque_array(torque), self._dt, instants, slipping, held,
                                                  moving, solutions)
         return ContactRun(states, solutions, slipping, held, moving, taken)
