@@ -9,7 +9,8 @@ from model_helpers import random_parameters
 from batch_helpers import ENGINES, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.model.batch import BatchSimulation
+from wallbot_sim.model.batch import BatchSimulation, kernel
+from wallbot_sim.model.batch.contact import BatchCoulomb
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.robot import DOF
 
@@ -137,3 +138,28 @@ def test_an_unknown_contact_model_is_refused():
     robots = random_robots(np.random.default_rng(1), 1)
     with pytest.raises(Exception, match="unknown contact model 'sticky'"):
         BatchSimulation(robots, None, DRIVEN, np.zeros((1, DOF)), np.zeros((1, DOF)), contact='sticky')
+
+
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_the_numba_engine_settles_coulomb_contact_in_the_kernel(monkeypatch):
+    """Engine 'numba' with coulomb contact: every boundary goes through the kernel's settle and step, never
+    the NumPy stick/slip (which the numpy engine uses)."""
+    calls = {'settle': 0, 'step': 0, 'numpy': 0}
+    for name in ('settle', 'step'):
+        def counted(*args, _name=name, _function=getattr(kernel, f'batch_contact_{name}'), **options):
+            calls[_name] += 1
+            return _function(*args, **options)
+        monkeypatch.setattr(kernel, f'batch_contact_{name}', counted)
+
+    def numpy_settle(self, *args, _settle=BatchCoulomb.settle):
+        calls['numpy'] += 1
+        return _settle(self, *args)
+    monkeypatch.setattr(BatchCoulomb, 'settle', numpy_settle)
+    rng = np.random.default_rng(4)
+    robots = mixed_robots(rng, 4)
+    q0 = np.zeros((4, DOF))
+    for engine in ('numba', 'numpy'):
+        batch = BatchSimulation(robots, None, DRIVEN, q0, np.zeros((4, DOF)), contact='coulomb', engine=engine)
+        batch.set_motor_torque(rng.uniform(-1.5, 1.5, (4, 2)))
+        batch.run(25, lambda out: None)
+    assert calls == {'settle': 26, 'step': 25, 'numpy': 26}

@@ -136,6 +136,9 @@ class BatchCoulomb:
         self.slipping = np.zeros((robots.size, len(CHANNELS)), dtype=bool)
         self.loads = np.repeat(0.25 * robots.adhesion_force[:, None], 4, axis=1)
         """The loads bounding kinetic friction, held over a step (N, 4)."""
+        self.loads_moving = np.zeros(robots.size, dtype=bool)
+        """Whether each robot's held loads changed at the last boundary: the compiled engine's
+        ``CoulombContact.loads_moving`` (the NumPy engine iterates the loads from the held ones instead)."""
 
     def bounds(self, slipping: np.ndarray, held: np.ndarray) -> np.ndarray:
         """mu_k N_k of every row (N, k), zero for the rows that do not slip."""

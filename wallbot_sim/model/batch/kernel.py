@@ -1047,6 +1047,55 @@ def robot_contact_run(states: np.ndarray, references: np.ndarray, flags: np.ndar
     return steps
 
 
+def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                  contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
+                  moving: np.ndarray, live: np.ndarray, solutions: np.ndarray, chunk: int) -> None:
+    """Every robot's boundary (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact`` (N, 15), ...):
+    the live ones settled (``_settle``), the others' motion under their slipping set, their state kept.
+    ``slipping`` (N, 3), ``held`` (N, 4), ``moving`` (N,) are updated in place, ``solutions`` (N, 7, 7) filled."""
+    count = states.shape[0]
+    for block in prange((count + chunk - 1) // chunk):
+        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+        factor, matrix, gram, lower, vectors, scratch = _workspace()
+        work, zero_rhs = np.zeros((WORK_ROWS, DOF)), np.zeros(MAX_ROWS)
+        bounds, present = np.zeros(5), np.zeros(5, dtype=np.bool_)
+        trial_solution = np.zeros((SOLUTION_ROWS, DOF))
+        for robot in range(block * chunk, min(count, (block + 1) * chunk)):
+            if live[robot]:
+                _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot], dt,
+                        slipping[robot], held[robot], moving[robot:robot + 1], rows, rhs, factor, matrix, gram, lower,
+                        vectors, scratch, work, zero_rhs, bounds, present, solutions[robot], trial_solution)
+            else:
+                _contact_solve(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
+                               slipping[robot], held[robot], moving[robot], rows, rhs, factor, matrix, gram, lower,
+                               vectors, scratch, work, zero_rhs, bounds, present, solutions[robot])
+
+
+def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
+                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
+    """The RK4 step of every live robot from its settled boundary (``solutions``' qdd its first stage, the
+    kinetic friction of its slipping rows with ``held`` loads in every stage) into ``out``; the others keep
+    their state. ``finite`` (N,) says whether each new state is finite."""
+    count = states.shape[0]
+    for block in prange((count + chunk - 1) // chunk):
+        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+        factor, matrix, gram, lower, vectors, scratch = _workspace()
+        slopes, step_bounds = np.zeros((4, 2 * DOF)), np.zeros(5)
+        for robot in range(block * chunk, min(count, (block + 1) * chunk)):
+            if not live[robot]:
+                for i in range(2 * DOF):
+                    out[robot, i] = states[robot, i]
+                finite[robot] = True
+                continue
+            for i in range(DOF):
+                slopes[0, DOF + i] = solutions[robot, 0, i]
+            _bounds(held[robot], contact[robot, KINETIC], step_bounds)
+            finite[robot] = _rk4(states[robot], references, flags, constants[robot], torques[robot], slipping[robot],
+                                 step_bounds, dt, True, rows, rhs, factor, matrix, gram, lower, vectors, scratch,
+                                 out[robot], slopes)
+
+
 _cholesky = _compile(_cholesky, inline="always")
 _substitute = _compile(_substitute, inline="always")
 _solve_factored = _compile(_solve_factored)
@@ -1078,6 +1127,8 @@ _project = _compile(_project)
 _stopping = _compile(_stopping)
 _settle = _compile(_settle)
 robot_contact_run = _compile(robot_contact_run)
+_batch_settle = _compile(_batch_settle, parallel=True)
+_batch_step = _compile(_batch_step, parallel=True)
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -1117,3 +1168,26 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
     diverged = np.full(len(y), -1, dtype=np.int64)
     _steps(advanced, steps, dt, references, flags, constants, np.ascontiguousarray(torques), chunk, diverged)
     return advanced, diverged
+
+
+def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
+                         contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
+                         moving: np.ndarray, live: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """Every robot's coulomb boundary, robot by robot over the cores: ``_batch_settle``; returns the solutions
+    (N, 7, 7). ``states`` (velocities projected), ``slipping``, ``held`` and ``moving`` change in place."""
+    flags, _ = module_flags(active)
+    solutions = np.empty((states.shape[0], SOLUTION_ROWS, DOF))
+    _batch_settle(states, reference, flags, constants, contact, torques, dt, slipping, held, moving, live, solutions,
+                  chunk)
+    return solutions
+
+
+def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
+                       contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
+                       live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite."""
+    flags, _ = module_flags(active)
+    out, finite = np.empty_like(states), np.ones(states.shape[0], dtype=np.bool_)
+    _batch_step(states, references, flags, constants, contact, torques, dt, slipping, held, live, solutions, out,
+                finite, chunk)
+    return out, finite

@@ -14,7 +14,7 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, minimum_norm_least_squares, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model
-from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
@@ -99,8 +99,9 @@ class BatchSimulation:
                  gains: BatchGains | None = None, contact: str = IDEAL, engine: str = NUMPY) -> None:
         """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own.
 
-        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``) wherever the contact is ideal
-        and the compiled solve everywhere else.
+        ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``): fused over the steps with ideal
+        contact, a step per call with coulomb contact (each robot's stick/slip settled in the kernel), and
+        the compiled solve for the outputs step hooks see with ideal contact.
         """
         POSITIVE.check('time step', dt)
         check_contact_model(contact)
@@ -111,7 +112,7 @@ class BatchSimulation:
         self.engine = engine
         compiled = engine == NUMBA
         self._accelerations = kernel.constrained_accelerations if compiled else batch_constrained_acceleration
-        """The batch's solve: the compiled one robot by robot for engine 'numba' (coulomb contact, outputs too)."""
+        """The batch's solve: the compiled one robot by robot for engine 'numba' (the outputs of ideal contact)."""
         self._least_squares = kernel.minimum_norm_solutions if compiled else minimum_norm_least_squares
         self.robots = RobotBatch(robots)
         self.dt = dt
@@ -139,6 +140,10 @@ class BatchSimulation:
         self._cached: BatchOutputs | None = None
         self._constants: np.ndarray | None = None
         """The compiled engine's per-robot constants, made on its first step."""
+        self._contact_constants: np.ndarray | None = None
+        """The compiled engine's per-robot contact constants (coulomb contact), made on first use."""
+        self._solutions: np.ndarray | None = None
+        """The compiled coulomb boundary's solutions (N, 7, 7) the cached outputs came from."""
 
     @classmethod
     def from_scenario(cls, robots: Sequence[Robot], scenario: Scenario, selection: ConstraintSelection,
@@ -240,6 +245,8 @@ class BatchSimulation:
         if self._cached is not None:
             return self._cached
         t, q, qd = self.t, self._y[:, :DOF], self._y[:, DOF:]
+        if self.coulomb_applies and self.engine == NUMBA:
+            return self._compiled_contact_outputs()
         if self.coulomb_applies:
             assert self._coulomb is not None
             qd, solution = self._coulomb.settle(
@@ -269,6 +276,36 @@ class BatchSimulation:
                                     self.detached.copy(), reference)
         return self._cached
 
+    def _compiled_contact_outputs(self) -> BatchOutputs:
+        """Every robot's coulomb boundary settled by the kernel, robot by robot (``kernel.batch_contact_settle``)."""
+        coulomb = self._coulomb
+        assert coulomb is not None
+        if self._contact_constants is None:
+            self._contact_constants = np.array([kernel.contact_constants(robot) for robot in self.robots.robots])
+        coulomb.slipping, coulomb.loads = np.ascontiguousarray(coulomb.slipping), np.ascontiguousarray(coulomb.loads)
+        reference = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0, 0]
+        solutions = kernel.batch_contact_settle(self._y, reference, tuple(self.selection.active_names()),
+                                                self._kernel_constants(), self._contact_constants, self.motor_torque,
+                                                self.dt, coulomb.slipping, coulomb.loads, coulomb.loads_moving,
+                                                ~self.detached)
+        singular = np.flatnonzero(solutions[:, kernel.STATUS_ROW, 1])
+        if len(singular):
+            raise ModelError(f'normal loads and kinetic friction have no consistent value for robot(s) '
+                             f'{singular[:5].tolist()} (singular coupling)')
+        self._solutions = solutions
+        loads = solutions[:, kernel.LOADS_ROW]
+        self._cached = BatchOutputs(
+            self.t, self._y[:, :DOF].copy(), self._y[:, DOF:].copy(), solutions[:, 0], solutions[:, 2],
+            solutions[:, kernel.STATUS_ROW, 0], self.motor_torque.copy(), solutions[:, kernel.DRIVE_ROW, :3],
+            loads[:, :4], loads[:, 4:], coulomb.slipping.copy(), solutions[:, 3], self.detached.copy(),
+            self.reference.sample(self.t) if self.reference is not None else None)
+        return self._cached
+
+    def _kernel_constants(self) -> np.ndarray:
+        if self._constants is None:
+            self._constants = kernel.robot_constants(self.robots, self.gains.alpha, self.gains.beta)
+        return self._constants
+
     @property
     def compiled(self) -> bool:
         """Whether the steps go through the compiled kernel (engine 'numba' and the contact ideal)."""
@@ -276,11 +313,10 @@ class BatchSimulation:
 
     def _compiled_steps(self, steps: int) -> None:
         """``steps`` steps by the kernel; on divergence, the batch at the step before it and DivergedError."""
-        if self._constants is None:
-            self._constants = kernel.robot_constants(self.robots, self.gains.alpha, self.gains.beta)
         references = kernel.reference_samples(self.reference, self.initial_time, self.steps, steps, self.dt)
         active = tuple(self.selection.active_names())
-        y, diverged = kernel.advance(self._y, steps, self.dt, references, active, self._constants, self.motor_torque)
+        y, diverged = kernel.advance(self._y, steps, self.dt, references, active, self._kernel_constants(),
+                                     self.motor_torque)
         if np.any(diverged >= 0):
             first = int(np.min(diverged[diverged >= 0]))
             if first > 0:
@@ -309,6 +345,9 @@ class BatchSimulation:
             self.detached_wheel[newly] = wheel[newly]
             self.t_detached[newly] = self.t
             self.detached |= newly
+            if self.engine == NUMBA:
+                self._compiled_contact_step()
+                return
             k1 = np.concatenate((out.qd, out.acceleration), axis=1)
         elif self._cached is not None:
             k1 = np.concatenate((self._cached.qd, self._cached.acceleration), axis=1)
@@ -317,6 +356,23 @@ class BatchSimulation:
         if self.detached.any():
             y[self.detached] = self._y[self.detached]
         finite = np.all(np.isfinite(y), axis=1)
+        if not finite.all():
+            robots = np.flatnonzero(~finite)
+            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
+                                f'at t = {self.t + self.dt:.3f} s')
+        self.steps += 1
+        self._y = y
+        self._cached = None
+
+    def _compiled_contact_step(self) -> None:
+        """Every live robot's RK4 step from its settled boundary by the kernel (``kernel.batch_contact_step``)."""
+        coulomb = self._coulomb
+        assert coulomb is not None and self._solutions is not None and self._contact_constants is not None
+        references = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0]
+        y, finite = kernel.batch_contact_step(self._y, references, tuple(self.selection.active_names()),
+                                              self._kernel_constants(), self._contact_constants, self.motor_torque,
+                                              self.dt, coulomb.slipping, coulomb.loads, ~self.detached,
+                                              self._solutions)
         if not finite.all():
             robots = np.flatnonzero(~finite)
             raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
