@@ -1,4 +1,4 @@
-"""The batch compiled with numba: the ideal-contact RK4 steps fused robot by robot, and the solve alone.
+"""The batch compiled with numba: the RK4 steps robot by robot, ideal contact fused, coulomb contact settled.
 
 The NumPy path (``BatchSimulation`` with ``engine='numpy'``) spends its time in whole-batch
 array passes: every operation of a derivative reads and writes (N, k, 7) arrays, so a step is
@@ -12,7 +12,10 @@ agreement tests run both.
 
 ``constrained_accelerations`` and ``minimum_norm_solutions`` are the solve alone (the NumPy
 engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
-what the fused step does not cover: coulomb contact, and the outputs step hooks see.
+what the fused step does not cover: the outputs step hooks see with ideal contact.
+
+``batch_contact_settle`` and ``batch_contact_step`` are a batch's coulomb boundary and step, robot by
+robot over the cores with ``robot_contact_run``'s functions (below).
 
 ``robot_run`` takes one robot's RK4 steps a chunk at a time, with the motion (qdd, Q, Q_c, residual) at
 each state, for ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``): the same
