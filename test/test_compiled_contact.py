@@ -180,7 +180,7 @@ def test_the_one_factorization_solve_keeps_independent_rows_and_refuses_disagree
     padded_rows, padded_rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
     padded_rows[:4], padded_rhs[:4] = rows, rhs
     free, responses = np.zeros(DOF), np.zeros((4, DOF))
-    done = kernel._responses(factor, force, padded_rhs, per_load, padded_rows, 4,
+    done = kernel._responses(factor, force, padded_rhs, np.zeros(kernel.MAX_ROWS), per_load, padded_rows, 4,
                                      np.zeros((kernel.MAX_ROWS, DOF)), np.zeros((DOF, DOF)), np.zeros((DOF, DOF)),
                                      np.zeros(kernel.MAX_ROWS), np.zeros((kernel.WORK_ROWS, DOF)), free,
                                      responses)

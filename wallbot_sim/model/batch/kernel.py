@@ -343,38 +343,58 @@ def _solve(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndar
     block. ``vectors`` rows 1-4 are scratch (row 0 may hold Q).
     """
     scaled = vectors[1]
-    for i in range(3):
-        value = 0.0
-        for k in range(i, 3):
-            value += factor[k, i] * force[k]
-        scaled[i] = value
-    for i in range(3, DOF):
-        scaled[i] = factor[i, i] * force[i]
+    _transposed_factor_times(factor, force, scaled)
     if count > 0:
         misfit = vectors[2]
-        for r in range(count):
-            value_r = rhs[r]
-            for j in range(3):
-                value = 0.0
-                for k in range(j, 3):
-                    value += rows[r, k] * factor[k, j]
-                matrix[r, j] = value
-                value_r -= value * scaled[j]
-            for j in range(3, DOF):
-                value = rows[r, j] * factor[j, j]
-                matrix[r, j] = value
-                value_r -= value * scaled[j]
-            misfit[r] = value_r
+        _scaled_rows(rows, factor, count, matrix)
+        _misfits(matrix, rhs, scaled, count, misfit)
         _minimum_norm(matrix, misfit, count, gram, lower, vectors, scratch, vectors[4])
         for i in range(DOF):
             scaled[i] += vectors[4, i]
+    _factor_times(factor, scaled, out)
+
+
+def _transposed_factor_times(factor: np.ndarray, vector: np.ndarray, out: np.ndarray) -> None:
+    """out = W^T vector, W lower triangular with its off-diagonal entries in the 3 x 3 chassis block."""
+    for i in range(3):
+        value = 0.0
+        for k in range(i, 3):
+            value += factor[k, i] * vector[k]
+        out[i] = value
+    for i in range(3, DOF):
+        out[i] = factor[i, i] * vector[i]
+
+
+def _factor_times(factor: np.ndarray, vector: np.ndarray, out: np.ndarray) -> None:
+    """out = W vector (W as ``_transposed_factor_times``)."""
     for i in range(3):
         value = 0.0
         for k in range(i + 1):
-            value += factor[i, k] * scaled[k]
+            value += factor[i, k] * vector[k]
         out[i] = value
     for i in range(3, DOF):
-        out[i] = factor[i, i] * scaled[i]
+        out[i] = factor[i, i] * vector[i]
+
+
+def _scaled_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray) -> None:
+    """B = A W into matrix's first ``count`` rows."""
+    for r in range(count):
+        for j in range(3):
+            value = 0.0
+            for k in range(j, 3):
+                value += rows[r, k] * factor[k, j]
+            matrix[r, j] = value
+        for j in range(3, DOF):
+            matrix[r, j] = rows[r, j] * factor[j, j]
+
+
+def _misfits(matrix: np.ndarray, rhs: np.ndarray, scaled: np.ndarray, count: int, misfit: np.ndarray) -> None:
+    """misfit = b - B s over the first ``count`` rows."""
+    for r in range(count):
+        value = rhs[r]
+        for j in range(DOF):
+            value -= matrix[r, j] * scaled[j]
+        misfit[r] = value
 
 
 def _minimum_norm(matrix: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray,
@@ -744,8 +764,8 @@ def _consistent_loads(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, cont
             if present[k] and (k == 0 or k == 1 + wheel):  # the lateral row is bounded by every wheel's load
                 for j in range(DOF):
                     column[j] -= kinetic * direction[k] * slip_rows[k, j]
-    if not _responses(factor, force, rhs, per_load, rows, count, matrix, gram, lower, vectors[2], work, free,
-                      responses):
+    if not _responses(factor, force, rhs, zero_rhs, per_load, rows, count, matrix, gram, lower, vectors[2], work,
+                      free, responses):
         _solve(factor, force, rows, rhs, count, matrix, gram, lower, vectors, scratch, free)
         for wheel in range(4):
             _solve(factor, per_load[wheel], rows, zero_rhs, count, matrix, gram, lower, vectors, scratch,
@@ -791,9 +811,9 @@ def _consistent_loads(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, cont
         friction[j] = push
         force[j] += push
 
-def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, per_load: np.ndarray, rows: np.ndarray,
-               count: int, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, misfit: np.ndarray,
-               work: np.ndarray, free: np.ndarray, responses: np.ndarray) -> bool:
+def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, zero_rhs: np.ndarray, per_load: np.ndarray,
+               rows: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
+               misfit: np.ndarray, work: np.ndarray, free: np.ndarray, responses: np.ndarray) -> bool:
     """qdd under Q and b (``free``), and the response to each wheel's per-load friction with b = 0
     (``responses``), from one factorization: qdd = W (s + B_K^T (B_K B_K^T)^-1 (b - B s)_K), s = W^T Q,
     B = A W, K the independent rows a pivoted Cholesky of B B^T keeps (the nonslip rows of a side imply
@@ -803,14 +823,7 @@ def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, per_load:
     responses (b = 0) always do. Returns False, leaving the work to ``_solve``'s least squares, where the
     free motion's dropped rows disagree (an inconsistent set).
     """
-    for r in range(count):
-        for j in range(3):
-            value = 0.0
-            for k in range(j, 3):
-                value += rows[r, k] * factor[k, j]
-            matrix[r, j] = value
-        for j in range(3, DOF):
-            matrix[r, j] = rows[r, j] * factor[j, j]
+    _scaled_rows(rows, factor, count, matrix)
     if count > DOF:
         return False
     largest = 0.0
@@ -845,20 +858,8 @@ def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, per_load:
                 gram[i, j] -= lower[rank_now, i] * lower[rank_now, j]
     scaled, solution = work[19], work[7]
     for column in range(5):
-        source = force if column == 0 else per_load[column - 1]
-        out = free if column == 0 else responses[column - 1]
-        for i in range(3):
-            value = 0.0
-            for k in range(i, 3):
-                value += factor[k, i] * source[k]
-            scaled[i] = value
-        for i in range(3, DOF):
-            scaled[i] = factor[i, i] * source[i]
-        for r in range(count):
-            value = rhs[r] if column == 0 else 0.0
-            for k in range(DOF):
-                value -= matrix[r, k] * scaled[k]
-            misfit[r] = value
+        _transposed_factor_times(factor, force if column == 0 else per_load[column - 1], scaled)
+        _misfits(matrix, rhs if column == 0 else zero_rhs, scaled, count, misfit)
         for a in range(rank):  # L z = misfit_K, then L^T y = z, in pivot order
             value = misfit[order[a]]
             for r in range(a):
@@ -886,13 +887,7 @@ def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, per_load:
             for a in range(rank):
                 value += matrix[order[a], k] * solution[a]
             scaled[k] = value
-        for i in range(3):
-            value = 0.0
-            for k in range(i + 1):
-                value += factor[i, k] * scaled[k]
-            out[i] = value
-        for i in range(3, DOF):
-            out[i] = factor[i, i] * scaled[i]
+        _factor_times(factor, scaled, free if column == 0 else responses[column - 1])
     return True
 
 
@@ -1105,6 +1100,10 @@ _solve_factored = _compile(_solve_factored)
 _solve_positive = _compile(_solve_positive)
 _rank_revealing = _compile(_rank_revealing)
 _minimum_norm = _compile(_minimum_norm, inline="always")
+_transposed_factor_times = _compile(_transposed_factor_times, inline="always")
+_factor_times = _compile(_factor_times, inline="always")
+_scaled_rows = _compile(_scaled_rows, inline="always")
+_misfits = _compile(_misfits, inline="always")
 _solve = _compile(_solve, inline="always")
 _scratch = _compile(_scratch)
 _problem = _compile(_problem, inline="always")

@@ -355,7 +355,10 @@ class BatchSimulation:
             y = rk4_step(self._derivative, self.t, self._y, self.dt, k1)
         if self.detached.any():
             y[self.detached] = self._y[self.detached]
-        finite = np.all(np.isfinite(y), axis=1)
+        self._advance(y, np.all(np.isfinite(y), axis=1))
+
+    def _advance(self, y: np.ndarray, finite: np.ndarray) -> None:
+        """One step taken: the new states y, or DivergedError (states unchanged) if a robot's is not ``finite``."""
         if not finite.all():
             robots = np.flatnonzero(~finite)
             raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
@@ -373,13 +376,7 @@ class BatchSimulation:
                                               self._kernel_constants(), self._contact_constants, self.motor_torque,
                                               self.dt, coulomb.slipping, coulomb.loads, ~self.detached,
                                               self._solutions)
-        if not finite.all():
-            robots = np.flatnonzero(~finite)
-            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
-                                f'at t = {self.t + self.dt:.3f} s')
-        self.steps += 1
-        self._y = y
-        self._cached = None
+        self._advance(y, finite)
 
     def run(self, steps: int, on_step: StepHook | None = None) -> BatchOutputs | None:
         """Advance ``steps`` steps; ``on_step`` sees the outputs at every instant, both ends included.
