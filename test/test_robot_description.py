@@ -217,7 +217,8 @@ def test_two_robots_in_one_domain_each_describe_the_frames_of_their_own_odometry
                 name = f'{namespace[1:]}_{spec.name}'
                 graph.procs[name] = process_runner.start(spec.command(), name)
         for namespace in robots:
-            graph.wait_for(lambda: graph.messages(f'{namespace}/description'), 60, f'the robot_description of {namespace}')
+            graph.wait_for(lambda: graph.messages(f'{namespace}/description'), 60,
+                           f'the robot_description of {namespace}')
             graph.wait_for(lambda: graph.newest(f'{namespace}/odom'), 60, f'the odometry of {namespace}')
         received = {namespace: (graph.messages(f'{namespace}/description')[0].data, graph.newest(f'{namespace}/odom'))
                     for namespace in robots}
