@@ -25,6 +25,7 @@ from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
+from wallbot_sim.nodes.viewer import tf_message_type
 from wallbot_sim.urdf import RobotFrames, robot_urdf
 
 sync_client = pytest.importorskip('websockets.sync.client')
@@ -138,15 +139,7 @@ def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, pro
     assert run.wait(timeout=60) == 130
     viewer = (tmp_path / 'run' / 'logs' / 'viewer.log').read_text()
     assert 'Traceback' not in viewer and f'serving Foxglove on ws://127.0.0.1:{port}' in viewer
-    assert viewer.count('tf2_msgs') == (0 if _tf2_msgs_installed() else 1)
-
-
-def _tf2_msgs_installed() -> bool:
-    try:
-        import tf2_msgs.msg  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    assert viewer.count('tf2_msgs') == (0 if tf_message_type() is not None else 1)
 
 
 @pytest.fixture
