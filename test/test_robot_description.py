@@ -181,12 +181,17 @@ def test_a_bad_robot_file_ends_constraint_config_with_one_line(tmp_path, process
     assert output.count('\n') == 1 and f'cannot read {missing}: No such file' in output
 
 
-def test_a_refused_frame_ends_constraint_config_with_one_line(process_runner):
-    node = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.constraint_config', '--ros-args',
-                                 '-p', 'frame_prefix:=/robot2/'], 'constraint_config')
-    assert node.wait(timeout=60) == 1
-    output = process_runner.output('constraint_config')
-    assert output.count('\n') == 1 and "frame_prefix '/robot2/': a tf frame starts with no \"/\"" in output
+@pytest.mark.parametrize('node, parameter, reason', [
+    ('constraint_config', 'frame_prefix:=/robot2/', 'frame_prefix \'/robot2/\': a tf frame starts with no "/"'),
+    ('dynamics', 'base_frame_id:=wall', "the odometry's frame and child frame are both 'wall'"),
+    ('viewer', 'frame_prefix:=robot 2/', "frame_prefix 'robot 2/': a tf frame starts with no \"/\" and holds no white"),
+])
+def test_unusable_frames_end_each_node_naming_them_with_one_line(process_runner, node, parameter, reason):
+    started = process_runner.start([sys.executable, '-m', f'wallbot_sim.nodes.{node}', '--ros-args',
+                                    '-p', parameter], node)
+    assert started.wait(timeout=60) == 1
+    output = process_runner.output(node)
+    assert output.count('\n') == 1 and reason in output, output
 
 
 def test_two_robots_in_one_domain_each_describe_the_frames_of_their_own_odometry(process_runner):
