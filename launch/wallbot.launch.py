@@ -20,10 +20,15 @@ Arguments (defaults as ``wallbot-sim run``):
                                        --drive`: cmd_vel_node or joint_bridge_node instead of the trajectory
                                        (scenario, constraints and controller left at their defaults); default
                                        empty: the scenario's graph
+  namespace:=/wallbot                  the namespace of every node: a second robot in the domain runs in its own
+  frame_prefix:=                       before the robot's own frames (base_link, the wheel links) in its
+                                       odometry, robot_description and tf, as robot_state_publisher's frame_prefix
+                                       (e.g. robot2/); the wall is not prefixed
 
 Examples:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
   ros2 launch wallbot_sim wallbot.launch.py drive:=cmd_vel record:=/tmp/teleop
+  ros2 launch wallbot_sim wallbot.launch.py namespace:=/robot2 frame_prefix:=robot2/ scenario:=figure8
 """
 from pathlib import Path
 
@@ -57,6 +62,11 @@ ARGUMENTS = {
                          'the per-step topics recorded in process'),
     'drive': ('', f'{" or ".join(DRIVES)}: the robot at rest at the origin driven by you, as wallbot-sim run rest '
                   '--drive (scenario, constraints and controller stay at their defaults); empty: the scenario'),
+    'namespace': (topics.NAMESPACE, 'the namespace of every node (a second robot in the domain: its own, '
+                                    'e.g. /robot2)'),
+    'frame_prefix': ('', "before the robot's own frames (base_link, the wheel links) in its odometry, "
+                         "robot_description and tf, as robot_state_publisher's frame_prefix (e.g. robot2/); the wall "
+                         'is not prefixed'),
 }
 
 
@@ -72,7 +82,7 @@ def _graph(context, *args, **kwargs):
         bag=Path(arg('record')) if arg('record') else None, realtime_priority=int(arg('realtime_priority')),
         robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
         adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None,
-        viewer=true('viewer'), engine=arg('engine'), compose=true('compose'))
+        viewer=true('viewer'), engine=arg('engine'), compose=true('compose'), frame_prefix=arg('frame_prefix'))
     if arg('drive'):
         scenario_arguments = [name for name in ('scenario', 'constraints', 'controller_mass_scale')
                               if arg(name) != ARGUMENTS[name][0]] + (['controller'] if true('controller') else [])
@@ -84,7 +94,7 @@ def _graph(context, *args, **kwargs):
         specs = describe_graph(
             load_scenario(arg('scenario')), ConstraintSelection.parse(arg('constraints')),
             controller_mass_scale=float(arg('controller_mass_scale')) if true('controller') else None, **common)
-    return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], **launch_name(spec), namespace=topics.NAMESPACE,
+    return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], **launch_name(spec), namespace=arg('namespace'),
                  output='screen', parameters=[dict(spec.parameters)])
             for spec in specs]
 

@@ -67,9 +67,9 @@ def launched_nodes(launch_file, **arguments: str) -> list[dict]:
     return [node.kwargs for node in opaque[0].kwargs['function'](context)]
 
 
-def as_launched(specs) -> list[dict]:
+def as_launched(specs, namespace: str = '/wallbot') -> list[dict]:
     return [{'package': 'wallbot_sim', 'executable': EXECUTABLES[s.module], **launch_name(s),
-             'namespace': '/wallbot', 'output': 'screen', 'parameters': [dict(s.parameters)]} for s in specs]
+             'namespace': namespace, 'output': 'screen', 'parameters': [dict(s.parameters)]} for s in specs]
 
 
 def test_defaults_are_the_circle_with_every_constraint_as_run_starts_it(launch_file):
@@ -121,6 +121,23 @@ def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(lau
     assert nodes == as_launched(expected)
     assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'viewer_node',
                                                 'dynamics_node']
+
+
+@pytest.mark.parametrize('drive', ['', 'joint_commands'])
+def test_a_second_robot_has_its_namespace_and_its_frame_prefix_on_every_node_naming_its_frames(launch_file, drive):
+    """namespace:= and frame_prefix:= (a second robot): every node in that namespace, and the
+    prefix on the nodes that name the robot's frames (the dynamics' odometry, constraint_config's
+    robot_description, the viewer's tf), nowhere else; by default no node has a frame parameter."""
+    nodes = launched_nodes(launch_file, namespace='/robot2', frame_prefix='robot2/', viewer='true', drive=drive)
+    if drive:
+        expected = describe_driven_graph(drive, viewer=True, frame_prefix='robot2/')
+    else:
+        expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
+                                  viewer=True, frame_prefix='robot2/')
+    assert nodes == as_launched(expected, '/robot2')
+    prefixed = {n['executable'] for n in nodes if n['parameters'][0].get('frame_prefix') == 'robot2/'}
+    assert prefixed == {'constraint_config_node', 'viewer_node', 'dynamics_node'}
+    assert not any('frame_prefix' in n['parameters'][0] for n in launched_nodes(launch_file, viewer='true', drive=drive))
 
 
 def test_engine_numba_is_the_dynamics_engine_as_run_engine_gives_it(launch_file):

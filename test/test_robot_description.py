@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
+import re
 import sys
+import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 import pytest
@@ -14,9 +17,10 @@ import yaml
 from wallbot_msgs_py import topics
 from wallbot_sim import paths
 from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.graph_description import describe_driven_graph
 from wallbot_sim.model import Robot
 from wallbot_sim.model.parameters import RobotParameters
-from wallbot_sim.urdf import robot_urdf
+from wallbot_sim.urdf import RobotFrames, robot_urdf
 
 yourdfpy = pytest.importorskip('yourdfpy')
 
@@ -100,6 +104,44 @@ def test_the_urdf_assembles_to_the_models_mass_matrix(params, theta):
     assert np.allclose(planar_mass_matrix(parse(robot_urdf(params)), theta), expected, rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.parametrize('frames', [RobotFrames(prefix='robot2/'), RobotFrames('map', 'chassis', 'r2_')],
+                         ids=['prefix', 'every_parameter'])
+def test_the_urdf_names_its_links_by_the_frame_parameters(frames):
+    """The root is odom_frame_id, the chassis frame_prefix + base_frame_id, each wheel link
+    frame_prefix + <joint>_link; the joints keep their names (wheel_states names them); nothing
+    else differs from the single robot's document."""
+    params = load_robot_parameters()
+    text = robot_urdf(params, frames)
+    model = parse(text)
+    assert model.validate()
+    assert model.base_link == frames.odom
+    joints = {j.name: j for j in model.robot.joints}
+    assert (joints['wall_to_base_link'].parent, joints['wall_to_base_link'].child) == (frames.odom, frames.base_link)
+    for joint in topics.WHEEL_JOINTS:
+        assert (joints[joint].parent, joints[joint].child) == (frames.base_link, frames.prefix + f'{joint}_link')
+    renamed = {topics.WALL_FRAME: frames.odom, topics.BASE_FRAME: frames.base_link,
+               **{f'{joint}_link': frames.prefix + f'{joint}_link' for joint in topics.WHEEL_JOINTS}}
+    single = ElementTree.fromstring(robot_urdf(params))
+    for element in single.iter():
+        for attribute in ('name', 'link') if element.tag in ('link', 'parent', 'child') else ():
+            if attribute in element.attrib:
+                element.set(attribute, renamed[element.get(attribute)])
+    assert ElementTree.tostring(single) == ElementTree.tostring(ElementTree.fromstring(text))
+
+
+@pytest.mark.parametrize('frames, reason', [
+    (RobotFrames(odom=''), 'odom_frame_id is empty'),
+    (RobotFrames(base=''), 'base_frame_id is empty'),
+    (RobotFrames(prefix='/robot2/'), "frame_prefix '/robot2/': a tf frame starts with no"),
+    (RobotFrames(base='base link'), "base_frame_id 'base link': a tf frame starts with no"),
+    (RobotFrames(odom='wall', base='wall'), "the odometry's frame and child frame are both 'wall'"),
+])
+def test_unusable_frames_are_refused_naming_what_is_wrong(frames, reason):
+    assert reason in frames.reasons()[0] and len(frames.reasons()) == 1
+    with pytest.raises(ValueError, match=re.escape(reason)):
+        robot_urdf(load_robot_parameters(), frames)
+
+
 def test_a_late_subscriber_receives_the_robot_description(tmp_path, process_runner):
     """constraint_config publishes the URDF of its robot_file once; a subscription made after that
     (transient-local, as RViz's) still receives it, and it is that file's robot."""
@@ -137,3 +179,65 @@ def test_a_bad_robot_file_ends_constraint_config_with_one_line(tmp_path, process
     assert node.wait(timeout=60) == 1
     output = process_runner.output('constraint_config')
     assert output.count('\n') == 1 and f'cannot read {missing}: No such file' in output
+
+
+@pytest.mark.parametrize('node, parameter, reason', [
+    ('constraint_config', 'frame_prefix:=/robot2/', 'frame_prefix \'/robot2/\': a tf frame starts with no "/"'),
+    ('dynamics', 'base_frame_id:=wall', "the odometry's frame and child frame are both 'wall'"),
+    ('viewer', 'frame_prefix:=robot 2/', "frame_prefix 'robot 2/': a tf frame starts with no \"/\" and holds no white"),
+])
+def test_unusable_frames_end_each_node_naming_them_with_one_line(process_runner, node, parameter, reason):
+    started = process_runner.start([sys.executable, '-m', f'wallbot_sim.nodes.{node}', '--ros-args',
+                                    '-p', parameter], node)
+    assert started.wait(timeout=60) == 1
+    output = process_runner.output(node)
+    assert output.count('\n') == 1 and reason in output, output
+
+
+def test_two_robots_in_one_domain_each_describe_the_frames_of_their_own_odometry(process_runner):
+    """Two robots, each in its namespace with its frames (the launch file's namespace:= and
+    frame_prefix:=, and a base_frame_id of its own on the second): each robot_description's root
+    and chassis are the frame and child frame of that robot's odometry, its wheel links carry its
+    prefix, and the two documents name no link of the robot's own body alike."""
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+
+    from graph_helpers import Graph
+
+    robots = {'/robot1': RobotFrames(prefix='robot1/'), '/robot2': RobotFrames(base='chassis', prefix='robot2/')}
+    graph = Graph(process_runner)
+    try:
+        for namespace, frames in robots.items():
+            graph.subscribe(f'{namespace}/description', String, topics.ROBOT_DESCRIPTION.resolve(namespace),
+                            topics.ROBOT_DESCRIPTION)
+            graph.subscribe(f'{namespace}/odom', Odometry, topics.ODOM.resolve(namespace), topics.ODOM)
+            # at a tenth of real time, so the odometry goes on (slowly, cheaply) until the test hears it
+            specs = describe_driven_graph('joint_commands', real_time_factor=0.1, frame_prefix=frames.prefix)
+            for spec in specs:
+                if spec.name not in ('constraint_config', 'dynamics'):
+                    continue
+                extra = {'resume_wait': 0.0, 'domain_clock': namespace == '/robot1'} if spec.name == 'dynamics' else {}
+                spec = dataclasses.replace(spec, parameters={**spec.parameters, 'base_frame_id': frames.base, **extra},
+                                           remaps=(f'__ns:={namespace}',))
+                name = f'{namespace[1:]}_{spec.name}'
+                graph.procs[name] = process_runner.start(spec.command(), name)
+        for namespace in robots:
+            graph.wait_for(lambda: graph.messages(f'{namespace}/description'), 60,
+                           f'the robot_description of {namespace}')
+            graph.wait_for(lambda: graph.newest(f'{namespace}/odom'), 60, f'the odometry of {namespace}')
+        received = {namespace: (graph.messages(f'{namespace}/description')[0].data, graph.newest(f'{namespace}/odom'))
+                    for namespace in robots}
+    finally:
+        graph.close()
+    params = load_robot_parameters()
+    body_links = []
+    for namespace, frames in robots.items():
+        urdf, odom = received[namespace]
+        assert urdf == robot_urdf(params, frames)
+        model = parse(urdf)
+        floating = next(j for j in model.robot.joints if j.type == 'floating')
+        assert (model.base_link, floating.child) == (odom.header.frame_id, odom.child_frame_id)
+        assert odom.child_frame_id == f'{namespace[1:]}/{frames.base}'
+        body_links.append({link.name for link in model.robot.links} - {model.base_link})
+        assert all(link.startswith(f'{namespace[1:]}/') for link in body_links[-1])
+    assert len(body_links[0]) == len(body_links[1]) == 5 and not body_links[0] & body_links[1]

@@ -20,13 +20,15 @@ from cli_helpers import simulate
 from wallbot_msgs_py import bagio, codec, topics, view_cdr
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.urdf import robot_urdf, wheel_link
+from wallbot_sim.urdf import RobotFrames, robot_urdf, wheel_link
 from wallbot_sim.view import FORCE_SCALE, TRAIL_SPACING, Pose, Scene, margin_color
 
 yourdfpy = pytest.importorskip('yourdfpy')
 MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 TF_MESSAGE = 'tf2_msgs/msg/TFMessage'
 WALL, BASE = topics.WALL_FRAME, topics.BASE_FRAME
+SECOND_ROBOT = RobotFrames('map', 'chassis', 'robot2/')
+"""Every frame parameter set otherwise than by default (a second robot's)."""
 
 
 @pytest.fixture(scope='module')
@@ -38,9 +40,10 @@ def pose(t: float, x: float, y: float, theta: float) -> Pose:
     return Pose(round(t * 1e9), WALL, BASE, x, y, theta)
 
 
-def driven_scene(params, theta: float = 0.7) -> Scene:
-    scene = Scene(params)
-    scene.update_pose(pose(1.25, 0.3, -0.4, theta))
+def driven_scene(params, theta: float = 0.7, frames: RobotFrames = RobotFrames()) -> Scene:
+    """A scene of a robot whose odometry and viewer have ``frames``'s frame parameters."""
+    scene = Scene(params, frame_prefix=frames.prefix)
+    scene.update_pose(Pose(1_250_000_000, frames.odom, frames.base_link, 0.3, -0.4, theta))
     scene.update_wheels([0.1, -2.0, 3.5, 7.0])
     scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.3, 0.5, 0.2], [False, False, False])
     scene.update_drive([12.0, -8.0, 30.0])
@@ -79,6 +82,25 @@ def test_a_tf_message_is_what_rosbags_serializes(params):
         [(WALL, BASE)] + [(BASE, wheel_link(joint)) for joint in topics.WHEEL_JOINTS])
 
 
+@pytest.mark.parametrize('frames', [RobotFrames(), SECOND_ROBOT], ids=['default', 'second_robot'])
+def test_the_tf_of_a_robot_names_the_links_of_its_robot_description(params, frames):
+    """What the viewer publishes on /tf (and serves to Foxglove), from an odometry in the frames
+    the dynamics' parameters give it and the viewer's frame_prefix, names exactly the frames of
+    the robot_description built with the same parameters: the URDF's root, its chassis and its
+    wheel links, each transform between the two links its joint joins."""
+    odom = codec.odometry(0.25, 0.3, -0.4, 0.7, 0.0, 0.0, 0.0, child=frames.base_link, frame=frames.odom)
+    scene = Scene(params, frame_prefix=frames.prefix)
+    scene.update_pose(Pose(*view_cdr.odometry_pose(odom)))  # as viewer_node reads odom
+    scene.update_wheels([0.1, -2.0, 3.5, 7.0])
+    msg = bagio.deserialize(view_cdr.tf_message(250_000_000, scene.transforms()), TF_MESSAGE)
+
+    model = yourdfpy.URDF.load(io.StringIO(robot_urdf(params, frames)), build_scene_graph=False, load_meshes=False)
+    joined = [(joint.parent, joint.child) for joint in model.robot.joints]
+    assert [(t.header.frame_id, t.child_frame_id) for t in msg.transforms] == joined
+    assert joined[0] == (frames.odom, frames.base_link)
+    assert {link for pair in joined for link in pair} == {link.name for link in model.robot.links}
+
+
 @pytest.mark.parametrize('little_endian', [True, False])
 def test_the_per_step_messages_are_read_as_rosbags_wrote_them(little_endian):
     types = bagio.typestore().types
@@ -108,18 +130,20 @@ def test_short_or_garbled_bytes_are_a_value_error():
 
 
 # --- geometry ---------------------------------------------------------------------------------------
-def test_the_transforms_are_the_urdfs_kinematics(params):
+@pytest.mark.parametrize('frames', [RobotFrames(), SECOND_ROBOT], ids=['default', 'second_robot'])
+def test_the_transforms_are_the_urdfs_kinematics(params, frames):
     """base_link in the wall from the odometry pose; each wheel link from the URDF's joint origin
     and axis at the wheel's spin angle, as robot_state_publisher would compute it."""
-    scene = driven_scene(params)
-    model = yourdfpy.URDF.load(io.StringIO(robot_urdf(params)), build_scene_graph=True, load_meshes=False)
+    scene = driven_scene(params, frames=frames)
+    model = yourdfpy.URDF.load(io.StringIO(robot_urdf(params, frames)), build_scene_graph=True, load_meshes=False)
     model.update_cfg(dict(zip(topics.WHEEL_JOINTS, scene.wheel_angles)))
     transforms = scene.transforms()
     base = transforms[0]
     assert base.translation == (0.3, -0.4, 0.0)
     assert rotation(base.rotation).as_euler('xyz') == pytest.approx([0.0, 0.0, 0.7], abs=1e-12)
     for transform in transforms[1:]:
-        expected = model.get_transform(transform.child, BASE)
+        assert transform.parent == frames.base_link
+        expected = model.get_transform(transform.child, frames.base_link)
         matrix = np.eye(4)
         matrix[:3, :3] = rotation(transform.rotation).as_matrix()
         matrix[:3, 3] = transform.translation

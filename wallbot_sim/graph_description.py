@@ -63,7 +63,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    controller_mass_scale: float | None = None, realtime_priority: int = 0,
                    robot_file: Path | None = None, contact_model: str = 'ideal',
                    adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
-                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON, compose: bool = False) -> list[NodeSpec]:
+                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON, compose: bool = False,
+                   frame_prefix: str = '') -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -75,7 +76,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
     it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``. ``engine``: the
     dynamics' (python or numba). ``compose`` (with ``bag``): the dynamics and the recorder in one
-    process (``nodes.dynamics_recorder``), started first in the recorder's place.
+    process (``nodes.dynamics_recorder``), started first in the recorder's place. ``frame_prefix``
+    (e.g. ``robot2/``): the robot's frames' prefix, given to every node that names them (the
+    dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -94,9 +97,10 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         recorder['topics'] = [t.name for t in (*topics.RECORDED, topics.WHEEL_TORQUE_CMD)]
     specs = []
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
+    frames = _frames(frame_prefix)
     specs += [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
-                 {**switches, **robot, 'wait_for_recorder': bag is not None, **SIM_TIME}),
+                 {**switches, **robot, **frames, 'wait_for_recorder': bag is not None, **SIM_TIME}),
         NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
             'wait_for_recorder': bag is not None, **SIM_TIME}),
@@ -104,9 +108,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
             'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME}))
-    specs += _viewer(viewer, foxglove_port, foxglove_host, robot)
+    specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                         adhesion_force, CONTROL_STEPS if closed_loop else None, engine)
+                         adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames)
     return _with_recorder(specs, dynamics, recorder, compose)
 
 
@@ -114,14 +118,15 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                           bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
                           contact_model: str = 'ideal', adhesion_force: float | None = None, viewer: bool = False,
                           foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
-                          engine: str = PYTHON, compose: bool = False) -> list[NodeSpec]:
+                          engine: str = PYTHON, compose: bool = False, frame_prefix: str = '') -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
 
     ``cmd_vel``: cmd_vel_node, the dynamics waiting for it and in lockstep with its loop.
     ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
     wait, since the commands come from the user's controller_manager (zero torque until then).
-    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``: as for describe_graph.
+    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``, ``frame_prefix``: as
+    for describe_graph.
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
@@ -129,16 +134,18 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
     recorder = ({'output': str(bag), 'topics': [t.name for t in (*topics.RECORDED, *DRIVE_TOPICS[drive])]}
                 if bag is not None else {})
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
+    frames = _frames(frame_prefix)
     specs = [
         NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
-                 {**switches_from_selection(DRIVEN), **robot, 'wait_for_recorder': bag is not None, **SIM_TIME}),
+                 {**switches_from_selection(DRIVEN), **robot, **frames, 'wait_for_recorder': bag is not None,
+                  **SIM_TIME}),
         # the drive node must not forward commands before the recorder hears them (the cmd_vel node is
         # also the run's commander: the dynamics waits for it)
         NodeSpec(name, module, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})}),
-        *_viewer(viewer, foxglove_port, foxglove_host, robot),
+        *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                         adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine)
+                         adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine, frames)
     return _with_recorder(specs, dynamics, recorder, compose)
 
 
@@ -159,23 +166,29 @@ def launch_name(spec: NodeSpec) -> dict[str, str]:
     return {} if spec.module == COMPOSED_MODULE else {'name': spec.name}
 
 
-def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[str, str]) -> list[NodeSpec]:
+def _frames(frame_prefix: str) -> dict[str, str]:
+    """The frame parameters of the nodes that name the robot's frames (none for the default frames)."""
+    return {'frame_prefix': frame_prefix} if frame_prefix else {}
+
+
+def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[str, str],
+            frames: dict[str, str]) -> list[NodeSpec]:
     """The viewer node if asked for (``viewer``, or a Foxglove port), else nothing."""
     if not (viewer or foxglove_port):
         return []
     foxglove = {'foxglove_port': int(foxglove_port), 'foxglove_host': foxglove_host} if foxglove_port else {}
-    return [NodeSpec(VIEWER, 'wallbot_sim.nodes.viewer', {**robot, **foxglove, **SIM_TIME})]
+    return [NodeSpec(VIEWER, 'wallbot_sim.nodes.viewer', {**robot, **frames, **foxglove, **SIM_TIME})]
 
 
 def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,
               robot: dict[str, str], contact_model: str, adhesion_force: float | None,
-              lockstep_every: int | None, engine: str) -> NodeSpec:
+              lockstep_every: int | None, engine: str, frames: dict[str, str]) -> NodeSpec:
     """The dynamics node; ``lockstep_every`` set: it waits for its controller and runs in lockstep."""
     return NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': recorded, 'realtime_priority': int(realtime_priority),
-        **robot,
+        **robot, **frames,
         'contact_model': contact_model, 'engine': engine,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': lockstep_every} if lockstep_every else {})})

@@ -8,25 +8,72 @@ to ``base_link`` by a floating joint whose pose the simulation publishes (robot_
 publishes no transform for a floating joint). The four wheels are continuous joints named as in
 ``wheel_states``, axles along y at (+-a, +-b, r). Masses and the inertias about each body's own
 centre of mass are the robot file's; what the planar model does not define is derived and said
-so below. Geometry is for display only. ROS-free.
+so below. Geometry is for display only. The links are named by ``RobotFrames``, the nodes' frame
+parameters, so that a second robot's model names its own frames:
+
+    robot_urdf(params, RobotFrames(prefix='robot2/'))  # wall -> robot2/base_link -> robot2/wheel_..._link
+
+ROS-free.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ElementTree
+from dataclasses import dataclass
 
 from wallbot_msgs_py import topics
 from wallbot_sim.model.parameters import RobotParameters
 
 ROBOT_NAME = 'wallbot'
 FLOATING_JOINT = f'{topics.WALL_FRAME}_to_{topics.BASE_FRAME}'
+"""The floating joint's name, whatever the frames (a joint name is no frame: tf never sees it)."""
 WHEEL_WIDTH_PER_RADIUS = 0.5
 """Drawn wheel width / wheel radius (display only: the model's wheels have no width)."""
 
 
-def wheel_link(joint: str) -> str:
-    """The link a wheel joint turns (a JointState names joints, tf names links)."""
-    return f'{joint}_link'
+def wheel_link(joint: str, prefix: str = '') -> str:
+    """The link a wheel joint turns (a JointState names joints, tf names links), after ``prefix``."""
+    return f'{prefix}{joint}_link'
+
+
+@dataclass(frozen=True)
+class RobotFrames:
+    """The frame names of one robot: the nodes' ``odom_frame_id``, ``base_frame_id`` and ``frame_prefix``.
+
+    ``odom`` is the wall, the URDF's root and the odometry's frame; it is not prefixed, so robots
+    sharing a domain can share it as the fixed frame they are all drawn in. ``prefix`` comes
+    before every link of the robot's own body (``base_link`` and the wheel links), as
+    robot_state_publisher's ``frame_prefix`` comes before the frames it publishes; joint names are
+    never prefixed (a JointState in the robot's namespace names them). The defaults are the
+    single robot's frames.
+    """
+
+    odom: str = topics.WALL_FRAME
+    base: str = topics.BASE_FRAME
+    prefix: str = ''
+
+    @property
+    def base_link(self) -> str:
+        """The chassis' frame: the odometry's child frame, the URDF's floating joint's child."""
+        return self.prefix + self.base
+
+    def wheel_link(self, joint: str) -> str:
+        """The link the wheel joint ``joint`` turns."""
+        return wheel_link(joint, self.prefix)
+
+    def reasons(self) -> list[str]:
+        """What makes these frames unusable, one reason each (none: usable). tf2 refuses a frame
+        that starts with '/' and RViz one with white space; the odometry's frame and child differ."""
+        reasons = []
+        for name, value in (('odom_frame_id', self.odom), ('base_frame_id', self.base), ('frame_prefix', self.prefix)):
+            if not value and name != 'frame_prefix':
+                reasons.append(f'{name} is empty')
+            elif value.startswith('/') or any(c.isspace() for c in value):
+                reasons.append(f'{name} {value!r}: a tf frame starts with no "/" and holds no white space')
+        if not reasons and self.base_link == self.odom:
+            reasons.append(f'the odometry\'s frame and child frame are both {self.odom!r} (odom_frame_id, '
+                           f'frame_prefix + base_frame_id)')
+        return reasons
 
 
 def chassis_roll_pitch_inertia(params: RobotParameters) -> tuple[float, float]:
@@ -40,17 +87,22 @@ def chassis_roll_pitch_inertia(params: RobotParameters) -> tuple[float, float]:
     return params.body_yaw_inertia * b2 / (a2 + b2), params.body_yaw_inertia * a2 / (a2 + b2)
 
 
-def robot_urdf(params: RobotParameters) -> str:
-    """The URDF document (a string) of the robot ``params`` describes."""
+def robot_urdf(params: RobotParameters, frames: RobotFrames = RobotFrames()) -> str:
+    """The URDF document (a string) of the robot ``params`` describes, its links named by ``frames``.
+
+    ValueError if ``frames`` are unusable (``RobotFrames.reasons``)."""
+    reasons = frames.reasons()
+    if reasons:
+        raise ValueError('; '.join(reasons))
     a, b, r = params.half_wheelbase, params.half_track, params.wheel_radius
     width = WHEEL_WIDTH_PER_RADIUS * r
     robot = ElementTree.Element('robot', name=ROBOT_NAME)
-    ElementTree.SubElement(robot, 'link', name=topics.WALL_FRAME)
+    ElementTree.SubElement(robot, 'link', name=frames.odom)
     floating = ElementTree.SubElement(robot, 'joint', name=FLOATING_JOINT, type='floating')
-    ElementTree.SubElement(floating, 'parent', link=topics.WALL_FRAME)
-    ElementTree.SubElement(floating, 'child', link=topics.BASE_FRAME)
+    ElementTree.SubElement(floating, 'parent', link=frames.odom)
+    ElementTree.SubElement(floating, 'child', link=frames.base_link)
 
-    chassis = ElementTree.SubElement(robot, 'link', name=topics.BASE_FRAME)
+    chassis = ElementTree.SubElement(robot, 'link', name=frames.base_link)
     roll, pitch = chassis_roll_pitch_inertia(params)
     _inertial(chassis, params.body_mass, (*params.com_offset, params.com_height),
               (roll, pitch, params.body_yaw_inertia))
@@ -58,11 +110,11 @@ def robot_urdf(params: RobotParameters) -> str:
 
     for joint_name, (x, y) in zip(topics.WHEEL_JOINTS, ((a, b), (-a, b), (a, -b), (-a, -b))):
         joint = ElementTree.SubElement(robot, 'joint', name=joint_name, type='continuous')
-        ElementTree.SubElement(joint, 'parent', link=topics.BASE_FRAME)
-        ElementTree.SubElement(joint, 'child', link=wheel_link(joint_name))
+        ElementTree.SubElement(joint, 'parent', link=frames.base_link)
+        ElementTree.SubElement(joint, 'child', link=frames.wheel_link(joint_name))
         ElementTree.SubElement(joint, 'origin', xyz=_numbers(x, y, r), rpy=_numbers(0.0, 0.0, 0.0))
         ElementTree.SubElement(joint, 'axis', xyz=_numbers(0.0, 1.0, 0.0))
-        wheel = ElementTree.SubElement(robot, 'link', name=wheel_link(joint_name))
+        wheel = ElementTree.SubElement(robot, 'link', name=frames.wheel_link(joint_name))
         # axisymmetric about its axle (y): the inertia about x equals the yaw one about z
         _inertial(wheel, params.wheel_mass, (0.0, 0.0, 0.0),
                   (params.wheel_yaw_inertia, params.wheel_spin_inertia, params.wheel_yaw_inertia))

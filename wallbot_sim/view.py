@@ -140,8 +140,10 @@ class Trail:
 class Scene:
     """The newest state of the graph as the viewer knows it; markers and transforms of it."""
 
-    def __init__(self, params: RobotParameters, trail_points: int = 3000) -> None:
+    def __init__(self, params: RobotParameters, trail_points: int = 3000, frame_prefix: str = '') -> None:
         a, b, r = params.half_wheelbase, params.half_track, params.wheel_radius
+        self.wheel_links = tuple(wheel_link(joint, frame_prefix) for joint in topics.WHEEL_JOINTS)
+        """The wheels' tf frames, the URDF's wheel links after the robot's ``frame_prefix``."""
         self.radius = r
         self.width = WHEEL_WIDTH_PER_RADIUS * r
         self.wheel_origins = ((a, b, r), (-a, b, r), (a, -b, r), (-a, -b, r))
@@ -263,16 +265,17 @@ class Scene:
         return MarkerSpec(ns, 0, LINE_STRIP, scale=(LINE_WIDTH, 0.0, 0.0), color=color, points=points)
 
     def transforms(self) -> list[TransformSpec]:
-        """The odometry frame -> base_link, and base_link -> each wheel link (as robot_state_publisher
-        would give them from the URDF and wheel_states; only once the angles are known); none before
-        the first pose."""
+        """The odometry's frame -> its child frame (base_link), and base_link -> each wheel link (as
+        robot_state_publisher would give them from the URDF and wheel_states; only once the angles
+        are known); none before the first pose. The frames are the odometry's and ``wheel_links``,
+        so a robot whose frame parameters are set publishes its own."""
         if self.pose is None:
             return []
         pose = self.pose
         transforms = [TransformSpec(pose.frame, pose.child, (pose.x, pose.y, 0.0), axis_rotation(2, pose.theta))]
         if self.wheel_angles is None:
             return transforms
-        for joint, origin, angle in zip(topics.WHEEL_JOINTS, self.wheel_origins, self.wheel_angles):
-            transforms.append(TransformSpec(pose.child, wheel_link(joint), origin, axis_rotation(1, angle)))
+        for link, origin, angle in zip(self.wheel_links, self.wheel_origins, self.wheel_angles):
+            transforms.append(TransformSpec(pose.child, link, origin, axis_rotation(1, angle)))
         return transforms
 

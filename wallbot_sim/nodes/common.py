@@ -30,6 +30,11 @@ ROBOT_CLOCK_ARGS = ['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP]
 ``use_sim_time`` time source, which rclpy subscribes on the absolute ``/clock``, follows the
 robot's own ``clock`` in the node's namespace instead (whatever ``-r __ns:=`` made it), so several
 robots in one domain each keep their own time. Node-local rules come before the command line's."""
+FRAME_PREFIX_DESCRIPTION = ("comes before the robot's own frames, base_frame_id and the wheel links (e.g. "
+                            'robot2/ for a second robot; the wall, odom_frame_id, is not prefixed), as '
+                            "robot_state_publisher's frame_prefix; set it alike on the dynamics, constraint_config "
+                            'and the viewer')
+"""The ``frame_prefix`` parameter of every node that names the robot's frames."""
 WHEEL_TORQUE_LIMIT = NumberRange(1e-3, 1e4)
 """The largest |torque| per side a wheel_torque_cmd may carry (N m): the dynamics refuses larger
 commands, the controller clamps to it."""

@@ -4,7 +4,9 @@ the robot model on ``robot_description``.
 ``ros2 param set /wallbot/constraint_config nonslip true`` switches the dynamics at its next
 step boundary (the dynamics node projects the velocities onto newly added constraints). The
 robot file (``robot_file``, the same the dynamics simulates) gives the default Baumgarte gains
-and the URDF, published once (transient-local) as robot_state_publisher does.
+and the URDF, published once (transient-local) as robot_state_publisher does. The URDF's links
+are named by the frame parameters ``odom_frame_id``, ``base_frame_id`` and ``frame_prefix``, set as
+on the dynamics, so the model's links are the odometry's and tf's frames.
 
 With ``wait_for_recorder`` (set by ``wallbot-sim run`` when it records) the first set goes out only
 once a recorder is matched on ``constraints``: the dynamics starts with it, and a short run can
@@ -26,9 +28,9 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WhenRecorded, declare, param_dict, parameter_result,
-                                      range_reasons, run)
-from wallbot_sim.urdf import robot_urdf
+from wallbot_sim.nodes.common import (FRAME_PREFIX_DESCRIPTION, ROBOT_CLOCK_ARGS, WhenRecorded, declare, param_dict,
+                                      parameter_result, range_reasons, run)
+from wallbot_sim.urdf import RobotFrames, robot_urdf
 
 GAIN_RANGE = NumberRange(1e-6, 1e4)
 """What each Baumgarte gain accepts (1/s): the model's "> 0" written as a range a descriptor can
@@ -45,6 +47,14 @@ class ConstraintConfigNode(Node):
                          for switch in topics.CONSTRAINT_MODULES.values()}
         robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
                              'the default gains and the robot_description', read_only=True)
+        frames = RobotFrames(
+            declare(self, 'odom_frame_id', topics.WALL_FRAME, "the URDF's root link: the odometry's frame (the wall)",
+                    read_only=True),
+            declare(self, 'base_frame_id', topics.BASE_FRAME, "the URDF's chassis link, after frame_prefix: the "
+                    "odometry's child frame", read_only=True),
+            declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True))
+        if frames.reasons():
+            raise ValueError('; '.join(frames.reasons()))
         params = load_robot_parameters(robot_file or None)
         gains = BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
         self.gains = {
@@ -64,10 +74,11 @@ class ConstraintConfigNode(Node):
             self.publish()
         self.description_publisher = self.create_publisher(String, topics.ROBOT_DESCRIPTION.name,
                                                            qos_profile(topics.ROBOT_DESCRIPTION))
-        urdf = robot_urdf(params)
+        urdf = robot_urdf(params, frames)
         self.description_publisher.publish(codec.robot_description(urdf))
         self.get_logger().info(f'robot_description: {len(urdf)} characters of URDF from '
-                               f'{robot_file or "the installed robot file"}')
+                               f'{robot_file or "the installed robot file"}, links {frames.odom} -> '
+                               f'{frames.base_link} -> {frames.wheel_link(topics.WHEEL_JOINTS[0])}, ...')
 
     @staticmethod
     def _check(values: dict) -> str | None:

@@ -76,13 +76,14 @@ from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
-from wallbot_sim.nodes.common import (COORDINATE, WHEEL_TORQUE_LIMIT, choice_reason, declare, heard_by_every,
-                                      param_dict, parameter_result, range_reasons, run)
+from wallbot_sim.nodes.common import (COORDINATE, FRAME_PREFIX_DESCRIPTION, WHEEL_TORQUE_LIMIT, choice_reason, declare,
+                                      heard_by_every, param_dict, parameter_result, range_reasons, run)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY, Pacer
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
+from wallbot_sim.urdf import RobotFrames
 
 NOISE_PARAMETERS = {
     'odom_noise_position': 'standard deviation of the Gaussian noise on the published odometry X and Y (m); '
@@ -221,14 +222,16 @@ class DynamicsNode(Node):
                                      'frame of the odometry pose, the constraint wrench and initialpose (the wall)',
                                      read_only=True),
             'base_frame_id': declare(self, 'base_frame_id', topics.BASE_FRAME,
-                                     "the odometry's child frame (the robot's centre), in which its twist is given",
-                                     read_only=True),
+                                     "the odometry's child frame (the robot's centre), in which its twist is given, "
+                                     'after frame_prefix', read_only=True),
+            'frame_prefix': declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True),
             **{name: declare(self, name, 0.0, description, allowed=RANGES[name], read_only=True)
                for name, description in NOISE_PARAMETERS.items()},
             'noise_seed': declare(self, 'noise_seed', 0, 'seed of the sensor noise (the same seed, the same noise)',
                                   allowed=RANGES['noise_seed'], read_only=True),
         }
-        reasons = self._check(p)
+        frames = RobotFrames(p['odom_frame_id'], p['base_frame_id'], p['frame_prefix'])
+        reasons = self._check(p) + frames.reasons()
         if reasons:
             raise ValueError('; '.join(reasons))
         if p['engine'] == NUMBA:
@@ -254,7 +257,7 @@ class DynamicsNode(Node):
                                  if p['domain_clock'] else None)
         levels = NoiseLevels(*(float(p[name]) for name in NOISE_PARAMETERS))
         self.noise = SensorNoise(levels, p['noise_seed']) if levels.on else None
-        self.encoder = StepEncoder(p['odom_frame_id'], p['base_frame_id'], levels.pose_variances(),
+        self.encoder = StepEncoder(frames.odom, frames.base_link, levels.pose_variances(),
                                    levels.twist_variances(), ground_truth=levels.on)
         if levels.on:
             self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(

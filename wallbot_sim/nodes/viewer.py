@@ -2,9 +2,10 @@
 
 Publishes ``markers`` (visualization_msgs/MarkerArray, frame ``wall``: RViz2 or Foxglove with that
 fixed frame draws the robot with no tf tree; what each marker shows: ``wallbot_sim.view``) at
-``rate_hz`` frames per wall second, and ``/tf`` (the odometry frame -> ``base_link`` -> the wheel
-links) when tf2_msgs is importable. With ``foxglove_port`` > 0 it also serves the graph's topics
-over the Foxglove WebSocket protocol (``wallbot_sim.live_view``).
+``rate_hz`` frames per wall second, and ``/tf`` (the odometry's frame -> its child frame,
+``base_link`` -> the wheel links, ``frame_prefix`` before their names) when tf2_msgs is importable.
+With ``foxglove_port`` > 0 it also serves the graph's topics over the Foxglove WebSocket protocol
+(``wallbot_sim.live_view``), ``/tf`` among them.
 
 It never runs at the dynamics' 1 kHz: the per-step topics are read through a second node that no
 executor spins (``_viewer_inputs``), with subscriptions that keep only the newest message
@@ -30,8 +31,10 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare, param_dict, parameter_result, run
+from wallbot_sim.nodes.common import (FRAME_PREFIX_DESCRIPTION, ROBOT_CLOCK_ARGS, declare, param_dict,
+                                      parameter_result, run)
 from wallbot_sim.nodes.recorder import message_class
+from wallbot_sim.urdf import RobotFrames
 from wallbot_sim.view import Pose, Scene
 
 THROTTLE = 5.0
@@ -75,13 +78,15 @@ class ViewerNode(Node):
                                '2 mm or more)', allowed=TRAIL_POINTS)
         robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
                              'the sizes drawn', read_only=True)
+        frame_prefix = declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True)
         port = declare(self, 'foxglove_port', 0, 'serve the topics over the Foxglove WebSocket protocol on this '
                        'port (0 = off)', low=0, high=65535, read_only=True)
         host = declare(self, 'foxglove_host', DEFAULT_HOST, 'address the Foxglove server binds to', read_only=True)
-        reasons = [RATE_HZ.reason('rate_hz', self.rate_hz), TRAIL_POINTS.reason('trail_points', trail_points)]
+        reasons = [RATE_HZ.reason('rate_hz', self.rate_hz), TRAIL_POINTS.reason('trail_points', trail_points),
+                   *RobotFrames(prefix=frame_prefix).reasons()]
         if any(reasons):
             raise ValueError('; '.join(r for r in reasons if r))
-        self.scene = Scene(load_robot_parameters(robot_file or None), trail_points)
+        self.scene = Scene(load_robot_parameters(robot_file or None), trail_points, frame_prefix)
         self.relay = None
         if port:
             self.relay = FoxgloveRelay(host, port, self.get_namespace(),
