@@ -117,6 +117,8 @@ class ContactMeasured(NamedTuple):
 
 
 ContactRow = tuple[tuple[bool, bool, bool], frozenset[str], bool, list[float], list[float], float, float]
+"""One instant of a ContactRun as Python values: slip flags, slipping channels, whether the loads moved,
+friction use, drive forces, residual, singular flag (``CompiledDynamics._contact_rows``)."""
 
 
 class CompiledDynamics:
@@ -131,7 +133,9 @@ class CompiledDynamics:
     at a time gives, to the bit, with the chunk's loads, friction use and drive forces measured at
     once. Any other state starts a new chunk there. A chunk used to its end doubles the next, up to
     AHEAD_MOST; a change starts again at AHEAD_FIRST (a driven run's commands change the torque
-    every control period).
+    every control period). With coulomb contact (``contact_measured``, ``robot_contact_run``) a chunk
+    also belongs to the simulation's ``CoulombContact``: its instants are settled from that object's
+    state, which takes the state of each instant handed out.
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
@@ -147,7 +151,7 @@ class CompiledDynamics:
         self._torque = np.zeros(2)
         self._batches: dict[int, RobotBatch] = {}
         """RobotBatch of that many copies of the robot, by size (the chunks' sizes are few)."""
-        self._ahead: CompiledRun | None = None
+        self._ahead: CompiledRun | ContactRun | None = None
         self._ahead_step, self._ahead_row = 0, 0
         """The simulation's step of the chunk's row 0, and the row whose state was handed out last."""
         self._ahead_state: np.ndarray | None = None
