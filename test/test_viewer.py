@@ -3,7 +3,6 @@ protocol to a plain WebSocket client, its parameters and its one-line errors."""
 
 from __future__ import annotations
 
-import io
 import json
 import math
 import re
@@ -16,21 +15,18 @@ import time
 import pytest
 import rclpy
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import JointState
 from visualization_msgs.msg import MarkerArray
 
 from cli_helpers import WALLBOT, wait_for_output
 from graph_helpers import Graph
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.qos import qos_profile
-from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.config import load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.nodes.viewer import tf_message_type
-from wallbot_sim.urdf import RobotFrames, robot_urdf
 
 sync_client = pytest.importorskip('websockets.sync.client')
 pytest.importorskip('foxglove')
-yourdfpy = pytest.importorskip('yourdfpy')
 SUBPROTOCOL = 'foxglove.sdk.v1'
 """What foxglove-sdk's server speaks (the Foxglove WebSocket protocol, renamed from foxglove.websocket.v1)."""
 MESSAGE_DATA = 0x01
@@ -44,17 +40,15 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
-def connect(port: int, process_runner, timeout: float = 60.0, processes_name: str = 'run'):
-    """A Foxglove WebSocket connection to the viewer of process ``processes_name`` (a run, or the
-    viewer alone), once it listens (the process must keep running)."""
+def connect(port: int, process_runner, timeout: float = 60.0):
+    """A Foxglove WebSocket connection to the run's viewer, once it listens (the run must keep running)."""
     deadline = time.monotonic() + timeout
     while True:
         try:
             return sync_client.connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], open_timeout=5)
         except OSError:
-            output = process_runner.output(processes_name)
-            assert process_runner.processes[processes_name].poll() is None, output
-            assert time.monotonic() < deadline, f'nothing listens on {port}: {output}'
+            assert process_runner.processes['run'].poll() is None, process_runner.output('run')
+            assert time.monotonic() < deadline, f'nothing listens on {port}: ' + process_runner.output('run')
             time.sleep(0.2)
 
 
@@ -237,48 +231,3 @@ def test_a_run_goes_on_without_its_viewer(tmp_path, process_runner):
     run.send_signal(signal.SIGINT)
     assert run.wait(timeout=60) == 130
     assert 'tracking error:' in process_runner.output('run') and 'Traceback' not in process_runner.output('run')
-
-
-def test_a_second_robots_viewer_serves_tf_in_that_robots_frames(process_runner):
-    """A viewer in /robot2 with frame_prefix robot2/ serves, over Foxglove (and would publish on
-    /tf), the frames of its robot's odometry and its own wheel links: exactly the links of the
-    robot_description built with the same frame parameters, so they clash with no other robot's."""
-    frames = RobotFrames(prefix='robot2/')
-    port = free_port()
-    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer', '--ros-args', '-r', '__ns:=/robot2',
-                          '-p', 'frame_prefix:=robot2/', '-p', f'foxglove_port:={port}'], 'viewer')
-    graph = Graph(process_runner, '/robot2')
-    graph.procs['viewer'] = process_runner.processes['viewer']
-    try:
-        odom = graph.node.create_publisher(Odometry, topics.ODOM.resolve('/robot2'), qos_profile(topics.ODOM))
-        wheels = graph.node.create_publisher(JointState, topics.WHEEL_STATES.resolve('/robot2'),
-                                             qos_profile(topics.WHEEL_STATES))
-        graph.wait_for(lambda: odom.get_subscription_count() > 0 and wheels.get_subscription_count() > 0,
-                       30, 'the viewer reading odom and wheel_states')
-        with connect(port, process_runner, processes_name='viewer') as connection:
-            # /robot2/odom among them: this viewer's server, not another test's on a reused port
-            tf = channels_of(connection, {topics.TF.name, topics.ODOM.resolve('/robot2')})[topics.TF.name]
-            connection.send(json.dumps({'op': 'subscribe', 'subscriptions': [{'id': 3, 'channelId': tf['id']}]}))
-            transforms, step, deadline = [], 0, time.monotonic() + 60
-            while len(transforms) < 5:  # the wheel links too: once the viewer has read wheel_states
-                assert time.monotonic() < deadline, (f'no tf with the wheel links served ({step} odometry messages '
-                                                     f'sent; the last tf: {transforms}):\n'
-                                                     + process_runner.output('viewer'))
-                step += 1  # each frame takes the newest odometry: a new stamp makes a new frame
-                wheels.publish(JointState(name=list(topics.WHEEL_JOINTS), position=[0.1, 0.2, 0.3, 0.4],
-                                          velocity=[0.0] * 4, effort=[0.0] * 4))
-                odom.publish(codec.odometry(0.001 * step, 0.5, 0.25, 0.3, 0.0, 0.0, 0.0, child=frames.base_link,
-                                            frame=frames.odom))
-                try:
-                    message = connection.recv(timeout=0.1)
-                except TimeoutError:
-                    continue
-                if isinstance(message, bytes) and message[0] == MESSAGE_DATA:
-                    transforms = bagio.deserialize(message[13:], topics.TF.type).transforms
-    finally:
-        graph.close()
-    model = yourdfpy.URDF.load(io.StringIO(robot_urdf(load_robot_parameters(), frames)), build_scene_graph=False,
-                               load_meshes=False)
-    assert [(t.header.frame_id, t.child_frame_id) for t in transforms] == [(j.parent, j.child)
-                                                                          for j in model.robot.joints]
-    assert transforms[1].child_frame_id == 'robot2/wheel_left_front_link'
