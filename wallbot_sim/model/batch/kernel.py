@@ -645,27 +645,36 @@ def _measure(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, contact: np.n
     loads[6] = _ratio(abs(drive[2]), static * contact[ADHESION])
 
 
-def _slip_rows(q: np.ndarray, qd: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: np.ndarray,
-               rows: np.ndarray, slip: np.ndarray, present: np.ndarray) -> None:
-    """The velocity rows a_k (5, 7) of the slipping rows, their slip a_k qd, and which are present.
-
-    k: 0 the non-lateral row (lateral), 1 + i wheel i's nonslip row (left for wheels 1-2, right for 3-4).
-    """
-    cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
-    radius = constants[7]
+def _contact_rows(theta: float, constants: np.ndarray, rows: np.ndarray) -> None:
+    """The velocity rows (5, 7) of the contact channels at heading theta: 0 the non-lateral row (lateral),
+    1 + i wheel i's nonslip row (left traction for wheels 1-2, right for 3-4)."""
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
     for k in range(5):
-        present[k] = flags[3] and slipping[2] if k == 0 else flags[4] and slipping[(k - 1) // 2]
         for j in range(DOF):
             rows[k, j] = 0.0
     rows[0, 0], rows[0, 1] = -sin_t, cos_t
     for wheel in range(4):
         row = rows[1 + wheel]
-        row[0], row[1], row[2], row[3 + wheel] = -cos_t, -sin_t, constants[12 + wheel], radius
+        row[0], row[1], row[2], row[3 + wheel] = -cos_t, -sin_t, constants[12 + wheel], constants[7]
+
+
+def _slip_rows(q: np.ndarray, qd: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: np.ndarray,
+               rows: np.ndarray, slip: np.ndarray, present: np.ndarray) -> bool:
+    """Which contact rows (``_contact_rows``' order) are present and slipping; where any is, their velocity
+    rows a_k and slip velocities a_k qd too. Returns whether any is."""
+    any_present = False
+    for k in range(5):
+        present[k] = flags[3] and slipping[2] if k == 0 else flags[4] and slipping[(k - 1) // 2]
+        any_present = any_present or present[k]
+    if not any_present:
+        return False
+    _contact_rows(q[2], constants, rows)
     for k in range(5):
         value = 0.0
         for j in range(DOF):
             value += rows[k, j] * qd[j]
         slip[k] = value
+    return True
 
 
 def _bounds(held: np.ndarray, kinetic: float, bounds: np.ndarray) -> None:
@@ -697,9 +706,8 @@ def _contact_solve(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, cons
     q, qd = y[:DOF], y[DOF:]
     eps2 = constants[9]
     force, friction, acceleration = solution[1], solution[3], solution[0]
-    for wheel in range(4):
-        bounds[wheel] = 0.0
-    bounds[4] = 0.0
+    for k in range(5):
+        bounds[k] = 0.0
     count = _problem(q, qd, reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, force)
     held_out = solution[DRIVE_ROW, 3:]
     for wheel in range(4):
@@ -708,12 +716,10 @@ def _contact_solve(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, cons
         friction[j] = 0.0
     solution[STATUS_ROW, 1] = 0.0
     slip_rows, slip, direction, total = work[0:5], work[5], work[6], work[7]
-    _slip_rows(q, qd, flags, constants, slipping, slip_rows, slip, present)
-    slipping_rows = False
+    slipping_rows = _slip_rows(q, qd, flags, constants, slipping, slip_rows, slip, present)
     dependent = False
     for k in range(5):
         if present[k]:
-            slipping_rows = True
             dependent = dependent or k > 0
             direction[k] = slip[k] / math.sqrt(slip[k] * slip[k] + eps2)
     solved = False
@@ -811,6 +817,7 @@ def _consistent_loads(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, cont
         friction[j] = push
         force[j] += push
 
+
 def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, zero_rhs: np.ndarray, per_load: np.ndarray,
                rows: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
                misfit: np.ndarray, work: np.ndarray, free: np.ndarray, responses: np.ndarray) -> bool:
@@ -897,21 +904,16 @@ def _project(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: 
 
     ``factor``: W at y's q (W W^T = M^-1), as ``_problem`` left it.
     """
-    cos_t, sin_t = math.cos(y[2]), math.sin(y[2])
-    rows = np.zeros((7, DOF))
+    rows, contact_rows = np.zeros((7, DOF)), np.empty((5, DOF))
+    _contact_rows(y[2], constants, contact_rows)
     count = 0
     if flags[2]:
         rows[0, 3], rows[0, 4], rows[1, 5], rows[1, 6] = 1.0, -1.0, 1.0, -1.0
         count = 2
-    if flags[3] and not slipping[2]:
-        rows[count, 0], rows[count, 1] = -sin_t, cos_t
-        count += 1
-    if flags[4]:
-        for wheel in range(4):
-            if not slipping[wheel // 2]:
-                rows[count, 0], rows[count, 1], rows[count, 2] = -cos_t, -sin_t, constants[12 + wheel]
-                rows[count, 3 + wheel] = constants[7]
-                count += 1
+    for k in range(5):
+        if flags[3] and not slipping[2] if k == 0 else flags[4] and not slipping[(k - 1) // 2]:
+            rows[count] = contact_rows[k]
+            count += 1
     if count == 0:
         return
     active = rows[:count]
@@ -1004,6 +1006,12 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
         held[wheel] = new_held[wheel]
 
 
+def _contact_workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``_settle``'s scratch beside ``_workspace``'s: work, zero_rhs, bounds, present and a trial solution."""
+    return (np.zeros((WORK_ROWS, DOF)), np.zeros(MAX_ROWS), np.zeros(5), np.zeros(5, dtype=np.bool_),
+            np.zeros((SOLUTION_ROWS, DOF)))
+
+
 def robot_contact_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                       contact: np.ndarray, torque: np.ndarray, dt: float, steps: int, slipping: np.ndarray,
                       held: np.ndarray, moving: np.ndarray, solutions: np.ndarray) -> int:
@@ -1019,9 +1027,7 @@ def robot_contact_run(states: np.ndarray, references: np.ndarray, flags: np.ndar
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     slopes = np.zeros((4, 2 * DOF))
-    work, zero_rhs = np.zeros((WORK_ROWS, DOF)), np.zeros(MAX_ROWS)
-    bounds, present = np.zeros(5), np.zeros(5, dtype=np.bool_)
-    trial_solution = np.zeros((SOLUTION_ROWS, DOF))
+    work, zero_rhs, bounds, present, trial_solution = _contact_workspace()
     step_bounds = np.zeros(5)
     for k in range(solutions.shape[0]):
         for channel in range(3):
@@ -1055,9 +1061,7 @@ def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, 
     for block in prange((count + chunk - 1) // chunk):
         rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
         factor, matrix, gram, lower, vectors, scratch = _workspace()
-        work, zero_rhs = np.zeros((WORK_ROWS, DOF)), np.zeros(MAX_ROWS)
-        bounds, present = np.zeros(5), np.zeros(5, dtype=np.bool_)
-        trial_solution = np.zeros((SOLUTION_ROWS, DOF))
+        work, zero_rhs, bounds, present, trial_solution = _contact_workspace()
         for robot in range(block * chunk, min(count, (block + 1) * chunk)):
             if live[robot]:
                 _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot], dt,
@@ -1119,6 +1123,7 @@ robot_run = _compile(robot_run)
 _normal_loads = _compile(_normal_loads, inline="always")
 _ratio = _compile(_ratio, inline="always")
 _measure = _compile(_measure, inline="always")
+_contact_rows = _compile(_contact_rows, inline="always")
 _slip_rows = _compile(_slip_rows, inline="always")
 _bounds = _compile(_bounds, inline="always")
 _converged = _compile(_converged, inline="always")
@@ -1128,6 +1133,7 @@ _contact_solve = _compile(_contact_solve)
 _project = _compile(_project)
 _stopping = _compile(_stopping)
 _settle = _compile(_settle)
+_contact_workspace = _compile(_contact_workspace, inline="always")
 robot_contact_run = _compile(robot_contact_run)
 _batch_settle = _compile(_batch_settle, parallel=True)
 _batch_step = _compile(_batch_step, parallel=True)
