@@ -53,9 +53,8 @@ class ConstraintConfigNode(Node):
             declare(self, 'base_frame_id', topics.BASE_FRAME, "the URDF's chassis link, after frame_prefix: the "
                     "odometry's child frame", read_only=True),
             declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True))
-        if frames.reasons():
-            raise ValueError('; '.join(frames.reasons()))
         params = load_robot_parameters(robot_file or None)
+        urdf = robot_urdf(params, frames)  # before anything is published: unusable frames stop the node here
         gains = BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
         self.gains = {
             name: declare(self, name, float(value), description, allowed=GAIN_RANGE)
@@ -74,7 +73,6 @@ class ConstraintConfigNode(Node):
             self.publish()
         self.description_publisher = self.create_publisher(String, topics.ROBOT_DESCRIPTION.name,
                                                            qos_profile(topics.ROBOT_DESCRIPTION))
-        urdf = robot_urdf(params, frames)
         self.description_publisher.publish(codec.robot_description(urdf))
         self.get_logger().info(f'robot_description: {len(urdf)} characters of URDF from '
                                f'{robot_file or "the installed robot file"}, links {frames.odom} -> '
