@@ -144,6 +144,8 @@ class BatchSimulation:
         """The compiled engine's per-robot contact constants (coulomb contact), made on first use."""
         self._solutions: np.ndarray | None = None
         """The compiled coulomb boundary's solutions (N, 7, 7) the cached outputs came from."""
+        self._step_references = np.zeros((3, kernel.REFERENCE_FIELDS))
+        """The reference at the RK4 instants of the step from those outputs (``kernel.reference_samples``)."""
 
     @classmethod
     def from_scenario(cls, robots: Sequence[Robot], scenario: Scenario, selection: ConstraintSelection,
@@ -283,8 +285,8 @@ class BatchSimulation:
         if self._contact_constants is None:
             self._contact_constants = np.array([kernel.contact_constants(robot) for robot in self.robots.robots])
         coulomb.slipping, coulomb.loads = np.ascontiguousarray(coulomb.slipping), np.ascontiguousarray(coulomb.loads)
-        reference = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0, 0]
-        solutions = kernel.batch_contact_settle(self._y, reference, tuple(self.selection.active_names()),
+        self._step_references = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0]
+        solutions = kernel.batch_contact_settle(self._y, self._step_references[0], tuple(self.selection.active_names()),
                                                 self._kernel_constants(), self._contact_constants, self.motor_torque,
                                                 self.dt, coulomb.slipping, coulomb.loads, coulomb.loads_moving,
                                                 ~self.detached)
@@ -371,8 +373,7 @@ class BatchSimulation:
         """Every live robot's RK4 step from its settled boundary by the kernel (``kernel.batch_contact_step``)."""
         coulomb = self._coulomb
         assert coulomb is not None and self._solutions is not None and self._contact_constants is not None
-        references = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0]
-        y, finite = kernel.batch_contact_step(self._y, references, tuple(self.selection.active_names()),
+        y, finite = kernel.batch_contact_step(self._y, self._step_references, tuple(self.selection.active_names()),
                                               self._kernel_constants(), self._contact_constants, self.motor_torque,
                                               self.dt, coulomb.slipping, coulomb.loads, ~self.detached,
                                               self._solutions)
