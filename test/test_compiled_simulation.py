@@ -20,7 +20,7 @@ from wallbot_sim.model import compiled
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.compiled import AHEAD_FIRST, AHEAD_MOST
 from wallbot_sim.model.constraints import NonLateral
-from wallbot_sim.model.outputs import StepTable
+from wallbot_sim.model.outputs import StepBlock, StepTable
 from wallbot_sim.model.robot import DOF
 
 pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
@@ -288,12 +288,18 @@ def test_a_tabulated_driven_run_under_torques_is_the_step_by_step_run():
     assert all(table.reference_position is None for table in tables)
 
 
-def test_a_tabulated_run_stops_at_a_diverging_state_as_the_steps_do():
+def diverging_pair() -> tuple[list[Simulation], np.ndarray]:
+    """Two numba simulations of a spin that is finite for a step, then overflows (as the diverging test
+    above), and their initial velocities."""
     robot = Robot(load_robot_parameters().replace(com_offset=(0.03, 0.0)))
     qd0 = np.zeros(DOF)
-    qd0[2] = 1e153  # as the diverging test above: finite for a step, then overflows
-    runs = [Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), qd0, engine='numba')
-            for _ in range(2)]
+    qd0[2] = 1e153
+    return [Simulation(robot, None, ConstraintSelection(trajectory=False), np.zeros(DOF), qd0, engine='numba')
+            for _ in range(2)], qd0
+
+
+def test_a_tabulated_run_stops_at_a_diverging_state_as_the_steps_do():
+    runs, _qd0 = diverging_pair()
     outputs, tables = [], []
     with pytest.raises(DivergedError) as by_steps:
         runs[0].run(0.05, outputs.append)
@@ -312,6 +318,8 @@ def test_only_the_compiled_ideal_engine_tabulates():
     assert not Simulation(robot, None, driven, still, still, engine='numba', contact='coulomb').tabulates
     with pytest.raises(ModelError, match='run_table needs the numba engine'):
         Simulation(robot, None, driven, still, still).run_table(0.01, lambda _table: None)
+    with pytest.raises(ModelError, match='advance needs the numba engine'):
+        Simulation(robot, None, driven, still, still).advance(10)
 
 
 def test_steps_taken_ahead_are_the_steps_one_at_a_time_through_every_change(monkeypatch):
@@ -349,3 +357,65 @@ def test_steps_taken_ahead_are_the_steps_one_at_a_time_through_every_change(monk
     assert len(ahead) == len(one_by_one)
     for i, (a, b) in enumerate(zip(ahead, one_by_one)):
         assert all(np.array_equal(a[key], b[key]) for key in a), i
+
+
+def advanced(simulation: Simulation, sizes: list[int]) -> tuple[list[StepBlock], list[StepOutputs]]:
+    """Blocks of ``sizes`` steps, a single step and its outputs between each two; the outputs after each block."""
+    blocks, after = [], []
+    for size in sizes:
+        blocks.append(simulation.advance(size))
+        after.append(simulation.outputs())
+        simulation.step()
+    return blocks, after
+
+
+def assert_outputs_equal(got: StepOutputs, expected: StepOutputs) -> None:
+    assert got.t == expected.t and got.residual == expected.residual and got.motor_torque == expected.motor_torque
+    for field in ('q', 'qd', 'acceleration', 'constraint_force', 'wheel_torques'):
+        assert np.array_equal(getattr(got, field), getattr(expected, field)), field
+    assert got.drive == expected.drive and got.reference == expected.reference
+    assert np.array_equal(got.contact.loads, expected.contact.loads)
+    assert (got.contact.use, got.contact.limits, got.contact.slipping, got.contact.friction_force) == (
+        expected.contact.use, expected.contact.limits, expected.contact.slipping, expected.contact.friction_force)
+
+
+@pytest.mark.parametrize('scenario_name, torque', [('circle', None), ('figure8', None), (None, (1.5, -0.7))])
+def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenario_name, torque):
+    """advance (a block of steps by one kernel call, its outputs as arrays) against step and outputs one at a
+    time: every row, what its messages carry (wheel torques, friction limits), and the outputs after it."""
+    rng = np.random.default_rng(33)
+    (robot,) = random_robots(rng, 1)
+    if scenario_name is None:
+        reference, selection = None, ConstraintSelection.structural(trajectory=False)
+        q0, qd0 = np.zeros(DOF), np.zeros(DOF)
+    else:
+        scenario = load_scenario(scenario_name)
+        reference, selection = scenario.reference, ConstraintSelection.parse('belt,non_lateral,nonslip')
+        (q0,), (qd0,) = perturbed_starts(rng, [robot], scenario)
+    runs = [Simulation(robot, reference, selection, q0, qd0, engine='numba') for _ in range(2)]
+    for run in runs:
+        run.set_motor_torque(*(torque or (0.0, 0.0)))
+    sizes = [1, 7, 50, 2, 31]
+    outputs = step_by_step(runs[0], sum(sizes) + len(sizes))
+    blocks, after = advanced(runs[1], sizes)
+    first = 1
+    for block, size, last in zip(blocks, sizes, after):
+        rows = outputs[first:first + size]
+        assert_table_is_the_steps([block.table], rows)
+        assert np.array_equal(block.wheel_torques, [o.wheel_torques for o in rows])
+        assert np.array_equal(block.limits, [o.contact.limits for o in rows])
+        assert np.array_equal(block.chassis_wrench, [o.chassis_wrench for o in rows])
+        assert_outputs_equal(last, rows[-1])
+        first += size + 1
+    assert runs[1].steps == runs[0].steps and np.array_equal(runs[1].q, runs[0].q)
+
+
+def test_a_block_reaching_a_diverging_state_leaves_the_simulation_where_it_was():
+    runs, qd0 = diverging_pair()
+    with pytest.raises(DivergedError) as by_steps:
+        runs[0].run(0.05)
+    assert runs[1].advance(20) is None
+    assert runs[1].steps == 0 and np.array_equal(runs[1].qd, qd0)
+    with pytest.raises(DivergedError) as after_the_block:
+        runs[1].run(0.05)
+    assert str(after_the_block.value) == str(by_steps.value) and np.array_equal(runs[1].q, runs[0].q)

@@ -143,3 +143,48 @@ class StepTable(NamedTuple):
             return np.full(len(self.t), np.nan)
         offset = self.q[:, :2] - self.reference_position
         return np.array([math.hypot(x, y) for x, y in offset.tolist()])  # StepOutputs' own, to the bit
+
+
+@dataclass(frozen=True)
+class StepBlock:
+    """Consecutive instants of one robot with ideal contact (``Simulation.advance``), with what their
+    messages carry beside the table: each row what ``StepOutputs`` gives at its instant, to the bit."""
+
+    table: StepTable
+    wheel_torques: np.ndarray
+    """(T, 4), as ``StepOutputs.wheel_torques``."""
+    limits: np.ndarray
+    """(T, 3), as ``ContactOutputs.limits``."""
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.table.t
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.table.q
+
+    @property
+    def qd(self) -> np.ndarray:
+        return self.table.qd
+
+    @property
+    def chassis_wrench(self) -> np.ndarray:
+        """(T, 3), as ``StepOutputs.chassis_wrench``."""
+        return self.table.constraint_force[:, :3]
+
+    @property
+    def drive(self) -> np.ndarray:
+        return self.table.drive
+
+    @property
+    def loads(self) -> np.ndarray:
+        return self.table.loads
+
+    @property
+    def use(self) -> np.ndarray:
+        return self.table.use
+
+    @property
+    def slipping(self) -> np.ndarray:
+        return self.table.slipping

@@ -15,7 +15,7 @@ from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, StepTable, drive_forces
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.trajectories import LastSample, Reference
@@ -408,6 +408,47 @@ class Simulation:
                 raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
             if steps < instants:  # this chunk ended at the run's last instant
                 return self.outputs()
+
+    def advance(self, count: int) -> StepBlock | None:
+        """``count`` steps at once, under the current motor torques, where ``tabulates``: the outputs of the
+        ``count`` instants after the current one, each what ``step`` then ``outputs`` give there, to the bit.
+
+        None, the simulation unchanged, if a state or output among them is not finite: ``step`` one at a
+        time to meet the divergence where it happens.
+        """
+        compiled = self._compiled_now()
+        if compiled is None or self.coulomb_applies:
+            raise ModelError('advance needs the numba engine with ideal contact (Simulation.tabulates)')
+        run = compiled.run(self._y, self.steps, self.motor_torque, count + 1, count)
+        if run.taken < count:
+            return None
+        table = StepTable(*(None if column is None else column[1:]
+                            for column in compiled.table(run, self._initial[0], self.steps)))
+        if not (np.all(np.isfinite(table.constraint_force)) and np.all(np.isfinite(table.residual))):
+            return None
+        tau_left, tau_right = self.motor_torque
+        static = self.robot.params.wall_friction
+        block = StepBlock(table, table.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right,
+                                                                                  tau_right]),
+                          np.stack((static * (table.loads[:, 0] + table.loads[:, 1]),
+                                    static * (table.loads[:, 2] + table.loads[:, 3]),
+                                    np.full(count, static * self.robot.adsorption.applied_force)), axis=1))
+        self.steps += count
+        self._t = self._initial[0] + self.steps * self.dt
+        self._y = run.states[count].copy()
+        self._cached = self._last_outputs(block)
+        return block
+
+    def _last_outputs(self, block: StepBlock) -> StepOutputs:
+        """The outputs at the last instant of ``block`` (the current one), as ``outputs`` builds them."""
+        table = block.table
+        loads = table.loads[-1]
+        reference = self._reference.sample(self._t) if self._reference is not None else None
+        return StepOutputs(self._t, table.q[-1].copy(), table.qd[-1].copy(), table.acceleration[-1],
+                           table.constraint_force[-1], float(table.residual[-1]), self.motor_torque,
+                           DriveForces(*table.drive[-1].tolist()), reference,
+                           ContactOutputs(loads, FrictionUse(*table.use[-1].tolist()), self._limits(loads),
+                                          (False, False, False), None))
 
 
 def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,
