@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -108,3 +109,28 @@ def test_publishing_order_ends_with_the_clock_and_bytes_are_not_reused():
                                              topics.DRIVE_FORCES, topics.WHEEL_CONTACT, topics.CLOCK]
     assert [data for _, data in first] == kept  # a later step does not change bytes already handed out
     assert all(a != b for (_, a), (_, b) in zip(first, second))
+
+
+@pytest.mark.parametrize('ground_truth', [False, True])
+def test_steps_encoded_as_rows_are_the_steps_encoded_one_by_one(ground_truth):
+    """encode_rows (array assignments into copies of each template) against encode per step: the same
+    bytes in the same order, with turns either way, slipping flags set, other frame names."""
+    rng = np.random.default_rng(5)
+    count = 9
+    t = 12.345 + 1e-3 * np.arange(count)
+    q, qd = rng.normal(size=(count, 7)), rng.normal(size=(count, 7))
+    q[:, 2] = np.linspace(-7.0, 7.0, count)
+    rows = SimpleNamespace(t=t, q=q, qd=qd, wheel_torques=rng.normal(size=(count, 4)),
+                           chassis_wrench=rng.normal(size=(count, 3)), drive=rng.normal(size=(count, 3)),
+                           use=rng.uniform(size=(count, 3)), slipping=rng.uniform(size=(count, 3)) < 0.5,
+                           loads=rng.normal(size=(count, 4)), limits=rng.uniform(size=(count, 3)))
+    steps = [SimpleNamespace(t=float(t[k]), q=q[k], qd=qd[k], wheel_torques=rows.wheel_torques[k],
+                             chassis_wrench=rows.chassis_wrench[k],
+                             drive=SimpleNamespace(left=rows.drive[k, 0], right=rows.drive[k, 1],
+                                                   lateral=rows.drive[k, 2]),
+                             contact=SimpleNamespace(use=tuple(rows.use[k]), slipping=tuple(rows.slipping[k]),
+                                                     loads=rows.loads[k], limits=tuple(rows.limits[k])))
+             for k in range(count)]
+    one_by_one = StepEncoder(odom_frame='map', base_frame='robot2/base_link', ground_truth=ground_truth)
+    as_rows = StepEncoder(odom_frame='map', base_frame='robot2/base_link', ground_truth=ground_truth)
+    assert as_rows.encode_rows(rows) == [one_by_one.encode(step) for step in steps]

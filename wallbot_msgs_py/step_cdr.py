@@ -25,6 +25,8 @@ import math
 import struct
 from typing import Any, Protocol, Sequence
 
+import numpy as np
+
 from wallbot_msgs_py import topics
 
 
@@ -38,6 +40,24 @@ class StepState(Protocol):
     wheel_torques: Any
     chassis_wrench: Any
     drive: Any
+
+
+class StepRows(Protocol):
+    """What the messages of consecutive steps carry, as arrays, row k the k-th step
+    (``wallbot_sim.model.outputs.StepBlock`` is one): t (T,), q and qd (T, 7), wheel_torques (T, 4),
+    chassis_wrench (T, 3), drive (T, 3: left, right, lateral), use (T, 3), slipping (T, 3), loads (T, 4),
+    limits (T, 3)."""
+
+    t: Any
+    q: Any
+    qd: Any
+    wheel_torques: Any
+    chassis_wrench: Any
+    drive: Any
+    use: Any
+    slipping: Any
+    loads: Any
+    limits: Any
 
 
 class SensedState(Protocol):
@@ -122,6 +142,7 @@ class _OdometryTemplate:
         self.twist = odom.doubles(6)
         _diagonal(odom, odom.doubles(36), twist_variances)
         self.data = odom.data
+        self._rows: _Rows | None = None
 
     def encode(self, sec: int, nanosec: int, q: list[float], qd: list[float]) -> bytes:
         data = self.data
@@ -134,6 +155,48 @@ class _OdometryTemplate:
         _TWO.pack_into(data, self.twist, c * xd + s * yd, -s * xd + c * yd)
         _ONE.pack_into(data, self.twist + 40, thd)
         return bytes(data)
+
+    def encode_rows(self, sec: np.ndarray, nanosec: np.ndarray, q: np.ndarray, qd: np.ndarray) -> list[bytes]:
+        """``encode`` of each row of q, qd (T, 7), the same bytes."""
+        if self._rows is None:
+            self._rows = _Rows(self.data, _stamped(
+                self.stamp, position=(self.position, _doubles(2)), orientation=(self.orientation + 16, _doubles(2)),
+                twist=(self.twist, _doubles(2)), turn=(self.twist + 40, '<f8')))
+        theta = q[:, 2].tolist()
+        # math's sin and cos, as encode calls them: NumPy's may differ in the last bit
+        c = np.array([math.cos(angle) for angle in theta])
+        s = np.array([math.sin(angle) for angle in theta])
+        half = np.array([(math.sin(0.5 * angle), math.cos(0.5 * angle)) for angle in theta])
+        xd, yd = qd[:, 0], qd[:, 1]
+        return self._rows.fill(len(theta), sec=sec, nanosec=nanosec, position=q[:, :2], orientation=half,
+                               twist=np.stack((c * xd + s * yd, -s * xd + c * yd), axis=1), turn=qd[:, 2])
+
+
+class _Rows:
+    """The messages of many steps from one template at once: a structured view of copies of its bytes,
+    one field per number that changes (``fields``: name -> (offset, numpy format))."""
+
+    def __init__(self, template: bytearray, fields: dict[str, tuple[int, Any]]) -> None:
+        self._template = np.frombuffer(bytes(template), dtype=np.uint8)
+        self._dtype = np.dtype({'names': list(fields), 'formats': [form for _offset, form in fields.values()],
+                                'offsets': [offset for offset, _form in fields.values()], 'itemsize': len(template)})
+
+    def fill(self, count: int, **values: Any) -> list[bytes]:
+        """``count`` messages, field ``name`` of message k ``values[name][k]``."""
+        raw = np.tile(self._template, count)
+        rows = raw.view(self._dtype)
+        for name, value in values.items():
+            rows[name] = value
+        data, size = raw.tobytes(), len(self._template)
+        return [data[start:start + size] for start in range(0, count * size, size)]
+
+
+def _stamped(stamp: int, **fields: tuple[int, Any]) -> dict[str, tuple[int, Any]]:
+    return {'sec': (stamp, '<i4'), 'nanosec': (stamp + 4, '<u4'), **fields}
+
+
+def _doubles(count: int) -> tuple[str, tuple[int]]:
+    return ('<f8', (count,))
 
 
 def _diagonal(template: _Template, offset: int, variances: Sequence[float]) -> None:
@@ -199,6 +262,19 @@ class StepEncoder:
         self._wheels, self._wrench = wheels.data, wrench.data
         self._drive, self._clock = drive.data, clock.data
         self._wheel_values = struct.Struct(f'<{count}d')
+        self._rows = {
+            topics.WHEEL_STATES: _Rows(wheels.data, _stamped(
+                self._wheels_stamp, position=(self._wheels_position, _doubles(count)),
+                velocity=(self._wheels_velocity, _doubles(count)), effort=(self._wheels_effort, _doubles(count)))),
+            topics.CONSTRAINT_WRENCH: _Rows(wrench.data, _stamped(
+                self._wrench_stamp, force=(self._wrench_force, _doubles(2)), torque=(self._wrench_torque + 16, '<f8'))),
+            topics.DRIVE_FORCES: _Rows(drive.data, _stamped(
+                self._drive_stamp, effort=(self._drive_effort, _doubles(3)))),
+            topics.WHEEL_CONTACT: _Rows(contact.data, _stamped(
+                self._contact_stamp, use=(self._contact_position + 32, _doubles(3)),
+                slipping=(self._contact_velocity + 32, _doubles(3)), loads=(self._contact_effort, _doubles(count)),
+                limits=(self._contact_effort + 32, _doubles(3)))),
+            topics.CLOCK: _Rows(clock.data, _stamped(self._clock_stamp))}
 
     def encode(self, out: StepState, sensed: SensedState | None = None) -> list[tuple[topics.Topic, bytes]]:
         """The messages of ``out`` as CDR bytes (new bytes objects, safe to keep); odom and
@@ -238,3 +314,27 @@ class StepEncoder:
             encoded.append((topics.GROUND_TRUTH_ODOM, self._truth.encode(sec, nanosec, true_q, true_qd)))
         encoded.append((topics.CLOCK, bytes(self._clock)))
         return encoded
+
+    def encode_rows(self, rows: StepRows) -> list[list[tuple[topics.Topic, bytes]]]:
+        """``encode`` of consecutive steps without sensed states at once: for each row, the same bytes
+        in the same order (a few array assignments per topic instead of a dozen pack_into per step)."""
+        stamps = np.array([round(t * 1e9) for t in rows.t.tolist()], dtype=np.int64)
+        sec, nanosec = stamps // NS_PER_S, stamps % NS_PER_S
+        count, q, qd = len(stamps), rows.q, rows.qd
+        wrench, by_topic = rows.chassis_wrench, self._rows
+        columns = [
+            (topics.ODOM, self._odom.encode_rows(sec, nanosec, q, qd)),
+            (topics.WHEEL_STATES, by_topic[topics.WHEEL_STATES].fill(
+                count, sec=sec, nanosec=nanosec, position=q[:, 3:], velocity=qd[:, 3:], effort=rows.wheel_torques)),
+            (topics.CONSTRAINT_WRENCH, by_topic[topics.CONSTRAINT_WRENCH].fill(
+                count, sec=sec, nanosec=nanosec, force=wrench[:, :2], torque=wrench[:, 2])),
+            (topics.DRIVE_FORCES, by_topic[topics.DRIVE_FORCES].fill(count, sec=sec, nanosec=nanosec,
+                                                                     effort=rows.drive)),
+            (topics.WHEEL_CONTACT, by_topic[topics.WHEEL_CONTACT].fill(
+                count, sec=sec, nanosec=nanosec, use=rows.use, slipping=rows.slipping.astype(float),
+                loads=rows.loads, limits=rows.limits))]
+        if self._truth is not None:
+            columns.append((topics.GROUND_TRUTH_ODOM, self._truth.encode_rows(sec, nanosec, q, qd)))
+        columns.append((topics.CLOCK, by_topic[topics.CLOCK].fill(count, sec=sec, nanosec=nanosec)))
+        names = [topic for topic, _messages in columns]
+        return [list(zip(names, step)) for step in zip(*(messages for _topic, messages in columns))]
