@@ -39,6 +39,10 @@ class Topic:
     depth: int = 1000
     """History depth (KEEP_LAST, RELIABLE)."""
 
+    def __hash__(self) -> int:
+        # the name's hash, which Python keeps: a topic keys the per-step maps of every step's messages
+        return hash(self.name)
+
     def resolve(self, namespace: str = NAMESPACE) -> str:
         """The absolute topic name in ``namespace``."""
         if self.name.startswith('/'):
