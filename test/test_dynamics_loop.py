@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from wallbot_msgs_py import codec
+from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains, SampledReference
@@ -49,6 +50,9 @@ class FakeGraph:
         if clock:
             self.clocks.append(out.t)
         return lambda: self.published.append((out.t, out.q.copy()))
+
+    def encodes_blocks(self) -> bool:
+        return False
 
     def publish_snapshot(self, snapshot) -> None:
         self.snapshots.append(snapshot)
@@ -486,3 +490,81 @@ def test_the_loop_thread_wakes_on_a_posted_event_and_stops():
     loop.stop()
     thread.join(timeout=5.0)
     assert not thread.is_alive()
+
+
+class EncodingGraph(FakeGraph):
+    """Publishes what the node publishes, the CDR bytes of every message with its /clock flag; with
+    ``blocks`` it takes blocks of states (prepare_block) too."""
+
+    def __init__(self, blocks: bool) -> None:
+        super().__init__()
+        self.blocks = blocks
+        self.encoder = StepEncoder()
+        self.messages: list[tuple[list, bool]] = []
+        self.block_sizes: list[int] = []
+
+    def prepare(self, out, clock):
+        encoded = self.encoder.encode(out)
+        send = super().prepare(out, clock)
+        return lambda: (send(), self.messages.append((encoded, clock)))
+
+    def encodes_blocks(self) -> bool:
+        return self.blocks
+
+    def prepare_block(self, block, clocks):
+        self.block_sizes.append(len(block.t))
+        steps = self.encoder.encode_rows(block)
+
+        def send():
+            for encoded, clock, t, q in zip(steps, clocks, block.t.tolist(), block.q):
+                self.published.append((t, q.copy()))
+                self.messages.append((encoded, clock))
+                if clock:
+                    self.clocks.append(t)
+        return send
+
+
+def run_as_fast_as_possible(blocks: bool) -> tuple[EncodingGraph, DynamicsLoop, FakeClock]:
+    """A tracking run at factor 0 on the numba engine through what ends a block: snapshots every 7 ms,
+    a recorder 30 steps of window behind, plans that end moving, a reset, stop_at. Events come while the
+    loop waits: at factor 0 a running loop applies them at the next boundary, which a block moves."""
+    graph, log, clock = EncodingGraph(blocks), FakeLog(), FakeClock()
+    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'snapshot_period': 0.007, 'backpressure_window': 30,
+                         'stop_at': 0.2405, 'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log,
+                        Pacer(0, log.warning), clock=clock)
+    graph.recorder = True
+    loop.post(TRACKING)
+    loop.post(plan(0.0, 0.0915))
+    loop.post(RecordProgress(0))
+
+    def until_waiting(limit: int = 400) -> None:
+        for _ in range(limit):
+            decision = loop.tick()
+            if decision is Decision.HELD_BACK and graph.published:  # the recorder takes what went out
+                loop.post(RecordProgress(codec.to_nanoseconds(graph.published[-1][0])))
+            elif decision is not Decision.STEPPED:
+                return
+    until_waiting()
+    loop.post(plan(0.05, 0.15))
+    until_waiting()
+    loop.post(Reset())  # back to t = 0, where the newest plan does not reach
+    until_waiting()
+    loop.post(plan(0.0, 0.3))
+    until_waiting()
+    return graph, loop, clock
+
+
+@NEEDS_NUMBA
+def test_blocks_of_steps_at_factor_0_publish_what_single_steps_publish_to_the_bit():
+    """At factor 0 the loop takes blocks of steps (one kernel call, the messages encoded as arrays);
+    the messages, their /clock flags, the snapshots and where it stops are those of one step per tick."""
+    single, single_loop, _ = run_as_fast_as_possible(blocks=False)
+    blocks, block_loop, _ = run_as_fast_as_possible(blocks=True)
+    assert blocks.messages == single.messages
+    assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
+    assert blocks.clocks == single.clocks and len(blocks.clocks) > 10
+    assert block_loop.sim.t == single_loop.sim.t and str(block_loop.status) == str(single_loop.status)
+    assert max(blocks.block_sizes) > 5 and sum(blocks.block_sizes) > 0.8 * len(blocks.messages)
+    # the run: to the first plan's end, the second's, a reset at 0.149 s, then up to stop_at
+    times = [t for t, _q in single.published]
+    assert times.count(0.0) == 2 and abs(times[-1] - 0.24) < 1e-12

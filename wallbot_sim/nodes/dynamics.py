@@ -53,7 +53,7 @@ import sys
 import threading
 import time
 import traceback
-from typing import Callable
+from typing import Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
@@ -75,6 +75,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
 from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 from wallbot_sim.nodes.common import (COORDINATE, FRAME_PREFIX_DESCRIPTION, WHEEL_TORQUE_LIMIT, choice_reason, declare,
                                       heard_by_every, param_dict, parameter_result, range_reasons, run)
@@ -368,22 +369,40 @@ class DynamicsNode(Node):
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
         encoded = self.encoder.encode(out, sensed)
+        return lambda: self._send(encoded, clock, codec.to_nanoseconds(out.t), self._heard())
+
+    def encodes_blocks(self) -> bool:
+        return self.noise is None
+
+    def prepare_block(self, block: StepBlock, clocks: Sequence[bool]) -> Callable[[], None]:
+        steps = self.encoder.encode_rows(block)
+        stamps = [codec.to_nanoseconds(t) for t in block.t.tolist()]
 
         def send() -> None:
-            for topic, data in encoded:
-                if topic is not topics.CLOCK:
-                    publisher = self.publishers_[topic]
-                    # a per-step message nobody is matched to would only cost its write into Fast DDS
-                    # (in a composed run, with nothing else subscribed: a tenth of the process)
-                    if publisher.get_subscription_count():
-                        publisher.publish(data)
-                elif clock:
-                    self.publishers_[topic].publish(data)
-                    if self.domain_clock_pub is not None:
-                        self.domain_clock_pub.publish(data)
-            if self.tap is not None:
-                self.tap.put(encoded, clock, codec.to_nanoseconds(out.t))
+            heard = self._heard()
+            for encoded, clock, stamp_ns in zip(steps, clocks, stamps):
+                self._send(encoded, clock, stamp_ns, heard)
         return send
+
+    def _heard(self) -> set[topics.Topic]:
+        # a per-step message nobody is matched to would only cost its write into Fast DDS
+        # (in a composed run, with nothing else subscribed: a tenth of the process)
+        return {topic for topic, publisher in self.publishers_.items()
+                if topic is not topics.CLOCK and publisher.get_subscription_count()}
+
+    def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
+              heard: set[topics.Topic]) -> None:
+        """Publish one state's messages (/clock if ``clock``, the others where ``heard``); hand them to the tap."""
+        for topic, data in encoded:
+            if topic is not topics.CLOCK:
+                if topic in heard:
+                    self.publishers_[topic].publish(data)
+            elif clock:
+                self.publishers_[topic].publish(data)
+                if self.domain_clock_pub is not None:
+                    self.domain_clock_pub.publish(data)
+        if self.tap is not None:
+            self.tap.put(encoded, clock, stamp_ns)
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
         self.snapshot_pub.publish(snapshot_message(snapshot.to_values()))

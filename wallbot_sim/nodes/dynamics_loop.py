@@ -24,7 +24,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from enum import Enum, auto
-from typing import Callable, Mapping, Protocol, Union
+from typing import Callable, Mapping, Protocol, Sequence, Union
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from wallbot_sim import messages
 from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
                                SampledReference, Simulation, StepOutputs)
 from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.pacing import Pacer
 from wallbot_sim.nodes.resume import ResumeGate
@@ -48,6 +49,9 @@ LATE_LIMIT = 2e-3
 """A step published more than this after its due time counts as late (s)."""
 THROTTLE = 1.0
 """Seconds between repeated warnings of one kind."""
+BLOCK_MOST = 50
+"""Most steps one tick takes as a block at real-time factor 0 (:meth:`DynamicsLoop._block_size`): an
+event waits at most this many steps (about 2 ms of wall time) for its step boundary."""
 COMMAND_WAIT_WARNING = 5.0
 """Wall seconds of a wait for the controller (wait_for_command) after which the log says so: a
 controller started with the dynamics is there well before, so a longer wait is worth a line."""
@@ -220,6 +224,13 @@ class Graph(Protocol):
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         """Encode a state's per-step messages, with /clock if ``clock``; calling the result publishes them."""
 
+    def encodes_blocks(self) -> bool:
+        """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise)."""
+
+    def prepare_block(self, block: StepBlock, clocks: Sequence[bool]) -> Callable[[], None]:
+        """``prepare`` of each state of ``block`` (``clocks``: which carry /clock) at once; calling the result
+        publishes them in order."""
+
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
     def recorder_present(self) -> bool:
@@ -358,6 +369,9 @@ class DynamicsLoop:
             return Decision.LOCKSTEP
         if self._held_back():
             return Decision.HELD_BACK
+        size = self._block_size()
+        if size > 1 and self._step_block(size):
+            return Decision.STEPPED
         self._step()
         if self.paused:  # a step that a Step event allowed
             self.steps_to_take -= 1
@@ -750,6 +764,66 @@ class DynamicsLoop:
                 self._snapshot()
         self._note_residual(out.residual)
         self.last_outputs = out
+
+    def _block_size(self) -> int:
+        """How many steps this tick may take as one block (1: a single step).
+
+        Blocks are for running as fast as possible: at factor 0, on the compiled engine with ideal
+        contact (``Simulation.tabulates``), under the trajectory task (no torque command to apply),
+        publishing every state, and not resuming. A block ends where a single step would do something
+        between its steps: at the last step the plan covers, before stop_at, at the recorder's window
+        and at the next snapshot. So the states and messages are the single steps', to the bit.
+        """
+        sim, params = self.sim, self.params
+        if (self._factor > 0.0 or not sim.tabulates or not sim.selection.trajectory or self.paused
+                or self.resume.catching_up or params['publish_every'] != 1 or not self._graph.encodes_blocks()):
+            return 1
+        size = BLOCK_MOST
+        every = round(params['snapshot_period'] / sim.dt)
+        if every > 0:
+            size = min(size, every - sim.steps % every)
+        window = params['backpressure_window'] * sim.dt
+        stop_at = params['stop_at']
+        while size > 1:
+            t = sim.initial_time + (sim.steps + size - 1) * sim.dt  # the block's last step starts here
+            if ((sim.selection.trajectory and not self.plan.covers(t, t + sim.dt))
+                    or (stop_at > 0.0 and t >= stop_at - 0.5 * sim.dt)
+                    or (self.recorder_present and (self.progress_ns is None
+                                                   or t - self.progress_ns * 1e-9 > window))):
+                size -= 1
+                continue
+            break
+        return size
+
+    def _step_block(self, size: int) -> bool:
+        """Take ``size`` steps at once (``_block_size``) and publish their states; False, nothing taken, if a
+        state among them is not finite (``_step`` then meets it)."""
+        sim = self.sim
+        if sim.motor_torque != (0.0, 0.0):
+            sim.set_motor_torque(0.0, 0.0)
+        began = time.perf_counter()
+        block = sim.advance(size)
+        if block is None:
+            return False
+        self.stepped = True
+        elapsed = time.perf_counter() - began
+        window = self._window
+        window.steps += size
+        window.step_time_sum += elapsed
+        window.step_time_max = max(window.step_time_max, elapsed / size)
+        stamps = [codec.to_nanoseconds(t) for t in block.t.tolist()]
+        clocks = [self.clock_schedule.due(stamp) for stamp in stamps[:-1]]
+        clocks.append(self.clock_schedule.due(stamps[-1], final=self._waits_next()))
+        send = self._graph.prepare_block(block, clocks)
+        self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)  # factor 0: no wait, normal scheduling
+        send()
+        self._mark_sync()
+        every = round(self.params['snapshot_period'] / sim.dt)
+        if every > 0 and sim.steps % every == 0:
+            self._snapshot()
+        self._note_residual(float(np.max(block.table.residual)))
+        self.last_outputs = sim.outputs()
+        return True
 
     def _waits_next(self) -> bool:
         """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
