@@ -511,17 +511,18 @@ class EncodingGraph(FakeGraph):
     def encodes_blocks(self) -> bool:
         return self.blocks
 
-    def prepare_block(self, block, clocks):
+    def prepare_block(self, block):
         self.block_sizes.append(len(block.t))
-        steps = self.encoder.encode_rows(block)
 
-        def send():
-            for encoded, clock, t, q in zip(steps, clocks, block.t.tolist(), block.q):
+        def sender(encoded, t, q):
+            def send(clock):
                 self.published.append((t, q.copy()))
                 self.messages.append((encoded, clock))
                 if clock:
                     self.clocks.append(t)
-        return send
+            return send
+        return [sender(encoded, t, q) for encoded, t, q in zip(self.encoder.encode_rows(block), block.t.tolist(),
+                                                                 block.q)]
 
 
 def run_as_fast_as_possible(blocks: bool) -> tuple[EncodingGraph, DynamicsLoop, FakeClock]:
@@ -568,3 +569,32 @@ def test_blocks_of_steps_at_factor_0_publish_what_single_steps_publish_to_the_bi
     # the run: to the first plan's end, the second's, a reset at 0.149 s, then up to stop_at
     times = [t for t, _q in single.published]
     assert times.count(0.0) == 2 and abs(times[-1] - 0.24) < 1e-12
+
+
+def run_paced(blocks: bool) -> EncodingGraph:
+    """A paced tracking run on the numba engine (factor 20: a short sleep a step) with events between its
+    states: a recorder's progress every 7 ticks, new gains, a plan replaced, a reset and its new plan."""
+    graph, log = EncodingGraph(blocks), FakeLog()
+    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 20.0, 'snapshot_period': 0.05,
+                         'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
+    events = {0: [TRACKING, plan(0.0, 0.3)], 33: [ConstraintSwitch(TRACKING.selection, BaumgarteGains(8.0, 8.0))],
+              61: [plan(0.05, 0.35)], 90: [Reset()], 95: [plan(0.0, 0.3)]}
+    for tick in range(220):
+        for event in events.get(tick, []):
+            loop.post(event)
+        if tick % 7 == 3:
+            loop.post(RecordProgress(codec.to_nanoseconds(graph.published[-1][0])))
+        loop.tick()
+    return graph
+
+
+@NEEDS_NUMBA
+def test_paced_blocks_publish_one_state_a_tick_and_an_event_drops_the_rest_of_the_block():
+    """Paced, the loop computes a block ahead and publishes one state a tick when due; an event (not a
+    recorder's progress) drops the states not yet published and applies after the last one that was,
+    as between single steps: the same messages, /clock flags and snapshots, to the bit."""
+    single, blocks = run_paced(blocks=False), run_paced(blocks=True)
+    assert blocks.messages == single.messages and len(single.messages) > 200
+    assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
+    assert sum(blocks.block_sizes) > len(blocks.messages) + 10  # some states were computed and dropped
+    assert max(blocks.block_sizes) == 20

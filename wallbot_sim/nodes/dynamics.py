@@ -20,6 +20,9 @@ lateness = publish time - due time is measured and reported in /diagnostics. Wit
 ``realtime_priority`` > 0 the loop thread runs under SCHED_FIFO for steps it sleeps before, so
 a busy machine does not delay its wake-ups (``pacing``); off by default, since the latency it
 saves is shifted onto the rest of the graph (controllers, recorders) on a small machine.
+On the compiled engine with ideal contact under the trajectory task, the loop computes blocks of
+steps ahead and publishes each state when due (``dynamics_loop``: an event drops the states not yet
+published, so it applies as between single steps).
 
 Back-pressure (lossless recording at any factor). DDS acknowledgements are not enough: a
 reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
@@ -374,15 +377,11 @@ class DynamicsNode(Node):
     def encodes_blocks(self) -> bool:
         return self.noise is None
 
-    def prepare_block(self, block: StepBlock, clocks: Sequence[bool]) -> Callable[[], None]:
-        steps = self.encoder.encode_rows(block)
-        stamps = [codec.to_nanoseconds(t) for t in block.t.tolist()]
-
-        def send() -> None:
-            heard = self._heard()
-            for encoded, clock, stamp_ns in zip(steps, clocks, stamps):
-                self._send(encoded, clock, stamp_ns, heard)
-        return send
+    def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
+        heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states
+        return [lambda clock, encoded=encoded, stamp_ns=codec.to_nanoseconds(t): self._send(encoded, clock, stamp_ns,
+                                                                                          heard)
+                for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist())]
 
     def _heard(self) -> set[topics.Topic]:
         # a per-step message nobody is matched to would only cost its write into Fast DDS

@@ -50,8 +50,13 @@ LATE_LIMIT = 2e-3
 THROTTLE = 1.0
 """Seconds between repeated warnings of one kind."""
 BLOCK_MOST = 50
-"""Most steps one tick takes as a block at real-time factor 0 (:meth:`DynamicsLoop._block_size`): an
-event waits at most this many steps (about 2 ms of wall time) for its step boundary."""
+"""Most steps computed as one block at real-time factor 0 (:meth:`DynamicsLoop._block_size`), all
+published in one tick: an event waits at most this many steps (about 2 ms of wall time) for its step
+boundary."""
+BLOCK_PACED = 20
+"""Most steps computed as one block while paced: each is published when due, one a tick, and an event
+arriving between them drops the rest (:meth:`DynamicsLoop._rewind`). Small enough that computing a
+block stays well inside the 1 ms before the next state is due."""
 COMMAND_WAIT_WARNING = 5.0
 """Wall seconds of a wait for the controller (wait_for_command) after which the log says so: a
 controller started with the dynamics is there well before, so a longer wait is worth a line."""
@@ -227,9 +232,9 @@ class Graph(Protocol):
     def encodes_blocks(self) -> bool:
         """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise)."""
 
-    def prepare_block(self, block: StepBlock, clocks: Sequence[bool]) -> Callable[[], None]:
-        """``prepare`` of each state of ``block`` (``clocks``: which carry /clock) at once; calling the result
-        publishes them in order."""
+    def prepare_block(self, block: StepBlock) -> Sequence[Callable[[bool], None]]:
+        """``prepare`` of each state of ``block`` at once: one call per state, in order, publishes it (with
+        /clock if its argument is true)."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
@@ -252,6 +257,22 @@ class Log(Protocol):
     def warning(self, message: str, **kwargs: object) -> object: ...
 
     def error(self, message: str, **kwargs: object) -> object: ...
+
+
+@dataclass
+class Ahead:
+    """A block of steps computed ahead of publishing (``DynamicsLoop._start_block``)."""
+
+    block: StepBlock
+    senders: Sequence[Callable[[bool], None]]
+    """Publish one state each (the argument: with /clock), from the graph's ``prepare_block``."""
+    stamps: list[int]
+    """Each state's simulation time (ns)."""
+    before: tuple[int, np.ndarray, np.ndarray]
+    """The simulation's step count, q and qd before the block: where a rewind with nothing published goes."""
+    step_time: float
+    """The block's compute time per step (s)."""
+    published: int = 0
 
 
 class DynamicsLoop:
@@ -304,6 +325,8 @@ class DynamicsLoop:
         self.clock_schedule = messages.ClockSchedule(float(self.params['clock_rate_hz']))
         self._window = Window()
         self._window_lock = threading.Lock()
+        self._ahead: Ahead | None = None
+        """A block of steps computed, not all published yet (the simulation is at its end)."""
 
     # --- any thread ---------------------------------------------------------------------------------
     def post(self, event: Event) -> None:
@@ -356,8 +379,24 @@ class DynamicsLoop:
         return self.diverged or self.gave_up is not None
 
     def tick(self) -> Decision:
-        """Apply the queued events, then take one step if nothing holds it back."""
-        self._apply_events()
+        """Apply the queued events, then take one step if nothing holds it back.
+
+        A state of a block computed ahead is published instead while no event but a recorder's progress
+        came; any other event drops the rest of the block first (:meth:`_rewind`), so it applies at the
+        boundary after the last state published, as it does between single steps.
+        """
+        if self._ahead is not None:
+            events = self._take_events()
+            if not any(not isinstance(event, RecordProgress) for event in events):
+                for event in events:
+                    self._apply(event)
+                self._publish_ahead()
+                return Decision.STEPPED
+            self._rewind()
+            for event in events:
+                self._apply(event)
+        else:
+            self._apply_events()
         if self.reset_requested is not None and (
                 not self._answer_pending() or self._clock() - self.reset_requested > self.params['lockstep_timeout']):
             self.reset_requested = None
@@ -370,7 +409,7 @@ class DynamicsLoop:
         if self._held_back():
             return Decision.HELD_BACK
         size = self._block_size()
-        if size > 1 and self._step_block(size):
+        if size > 1 and self._start_block(size):
             return Decision.STEPPED
         self._step()
         if self.paused:  # a step that a Step event allowed
@@ -384,6 +423,14 @@ class DynamicsLoop:
             except queue.Empty:
                 return
             self._apply(event)
+
+    def _take_events(self) -> list[Event]:
+        events = []
+        while True:
+            try:
+                events.append(self._events.get_nowait())
+            except queue.Empty:
+                return events
 
     def _apply(self, event: Event) -> None:
         match event:
@@ -768,17 +815,17 @@ class DynamicsLoop:
     def _block_size(self) -> int:
         """How many steps this tick may take as one block (1: a single step).
 
-        Blocks are for running as fast as possible: at factor 0, on the compiled engine with ideal
-        contact (``Simulation.tabulates``), under the trajectory task (no torque command to apply),
-        publishing every state, and not resuming. A block ends where a single step would do something
-        between its steps: at the last step the plan covers, before stop_at, at the recorder's window
-        and at the next snapshot. So the states and messages are the single steps', to the bit.
+        Blocks are taken on the compiled engine with ideal contact (``Simulation.tabulates``), under
+        the trajectory task (no torque command to apply), publishing every state, not resuming. A block
+        ends where a single step would do something between its steps: at the last step the plan
+        covers, before stop_at, at the recorder's window and at the next snapshot. So the states and
+        messages are the single steps', to the bit.
         """
         sim, params = self.sim, self.params
-        if (self._factor > 0.0 or not sim.tabulates or not sim.selection.trajectory or self.paused
-                or self.resume.catching_up or params['publish_every'] != 1 or not self._graph.encodes_blocks()):
+        if (not sim.tabulates or not sim.selection.trajectory or self.paused or self.resume.catching_up
+                or params['publish_every'] != 1 or not self._graph.encodes_blocks()):
             return 1
-        size = BLOCK_MOST
+        size = BLOCK_PACED if self._factor > 0.0 else BLOCK_MOST
         every = round(params['snapshot_period'] / sim.dt)
         if every > 0:
             size = min(size, every - sim.steps % every)
@@ -795,35 +842,62 @@ class DynamicsLoop:
             break
         return size
 
-    def _step_block(self, size: int) -> bool:
-        """Take ``size`` steps at once (``_block_size``) and publish their states; False, nothing taken, if a
-        state among them is not finite (``_step`` then meets it)."""
+    def _start_block(self, size: int) -> bool:
+        """Compute ``size`` steps at once (``_block_size``) and publish the first of them, or all at factor 0;
+        False, nothing taken, if a state among them is not finite (``_step`` then meets it)."""
         sim = self.sim
         if sim.motor_torque != (0.0, 0.0):
             sim.set_motor_torque(0.0, 0.0)
+        before = (sim.steps, sim.q, sim.qd)
         began = time.perf_counter()
         block = sim.advance(size)
         if block is None:
             return False
         self.stepped = True
-        elapsed = time.perf_counter() - began
-        window = self._window
-        window.steps += size
-        window.step_time_sum += elapsed
-        window.step_time_max = max(window.step_time_max, elapsed / size)
         stamps = [codec.to_nanoseconds(t) for t in block.t.tolist()]
-        clocks = [self.clock_schedule.due(stamp) for stamp in stamps[:-1]]
-        clocks.append(self.clock_schedule.due(stamps[-1], final=self._waits_next()))
-        send = self._graph.prepare_block(block, clocks)
-        self.pacer.wait(sim.steps, sim.dt, lambda: self._factor, self.stopping)  # factor 0: no wait, normal scheduling
-        send()
-        self._mark_sync()
-        every = round(self.params['snapshot_period'] / sim.dt)
-        if every > 0 and sim.steps % every == 0:
-            self._snapshot()
-        self._note_residual(float(np.max(block.table.residual)))
-        self.last_outputs = sim.outputs()
+        step_time = (time.perf_counter() - began) / size
+        self._ahead = Ahead(block, self._graph.prepare_block(block), stamps, before, step_time)
+        self._publish_ahead()
         return True
+
+    def _publish_ahead(self) -> None:
+        """Publish the next state of the block computed ahead when it is due (at factor 0, all of them)."""
+        ahead, sim, window = self._ahead, self.sim, self._window
+        while True:
+            row = ahead.published
+            steps, last = ahead.before[0] + row + 1, row == len(ahead.stamps) - 1
+            clock = self.clock_schedule.due(ahead.stamps[row], final=last and self._waits_next())
+            lateness = self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping)
+            window.steps += 1
+            window.step_time_sum += ahead.step_time
+            window.step_time_max = max(window.step_time_max, ahead.step_time)
+            window.lateness_max = max(window.lateness_max, lateness)
+            if lateness > LATE_LIMIT:
+                window.late += 1
+            ahead.senders[row](clock)
+            self._mark_sync()
+            self._note_residual(float(ahead.block.table.residual[row]))
+            ahead.published += 1
+            if last:
+                self._ahead = None
+                every = round(self.params['snapshot_period'] / sim.dt)
+                if every > 0 and sim.steps % every == 0:
+                    self._snapshot()
+                self.last_outputs = sim.outputs()
+                return
+            if self._factor > 0.0:
+                return
+
+    def _rewind(self) -> None:
+        """Drop the states of the block computed ahead that are not published: the simulation goes back to
+        the last state published (``Simulation.restore``, which continues bit for bit)."""
+        ahead, self._ahead = self._ahead, None
+        row = ahead.published
+        if row == 0:
+            self.sim.restore(*ahead.before)
+        else:
+            self.sim.restore(ahead.before[0] + row, ahead.block.q[row - 1], ahead.block.qd[row - 1])
+        self.last_outputs = self.sim.outputs()
 
     def _waits_next(self) -> bool:
         """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
