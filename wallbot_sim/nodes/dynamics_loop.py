@@ -385,18 +385,16 @@ class DynamicsLoop:
         came; any other event drops the rest of the block first (:meth:`_rewind`), so it applies at the
         boundary after the last state published, as it does between single steps.
         """
+        events = self._take_events()
         if self._ahead is not None:
-            events = self._take_events()
-            if not any(not isinstance(event, RecordProgress) for event in events):
+            if all(isinstance(event, RecordProgress) for event in events):
                 for event in events:
                     self._apply(event)
                 self._publish_ahead()
                 return Decision.STEPPED
             self._rewind()
-            for event in events:
-                self._apply(event)
-        else:
-            self._apply_events()
+        for event in events:
+            self._apply(event)
         if self.reset_requested is not None and (
                 not self._answer_pending() or self._clock() - self.reset_requested > self.params['lockstep_timeout']):
             self.reset_requested = None
@@ -415,14 +413,6 @@ class DynamicsLoop:
         if self.paused:  # a step that a Step event allowed
             self.steps_to_take -= 1
         return Decision.STEPPED
-
-    def _apply_events(self) -> None:
-        while True:
-            try:
-                event = self._events.get_nowait()
-            except queue.Empty:
-                return
-            self._apply(event)
 
     def _take_events(self) -> list[Event]:
         events = []
@@ -833,7 +823,7 @@ class DynamicsLoop:
         stop_at = params['stop_at']
         while size > 1:
             t = sim.initial_time + (sim.steps + size - 1) * sim.dt  # the block's last step starts here
-            if ((sim.selection.trajectory and not self.plan.covers(t, t + sim.dt))
+            if (not self.plan.covers(t, t + sim.dt)
                     or (stop_at > 0.0 and t >= stop_at - 0.5 * sim.dt)
                     or (self.recorder_present and (self.progress_ns is None
                                                    or t - self.progress_ns * 1e-9 > window))):
