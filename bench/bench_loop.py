@@ -1,0 +1,132 @@
+"""CPU time of the dynamics loop per step, state by state against blocks of steps (a measurement).
+
+Runs the dynamics node's loop (``DynamicsLoop``, ROS-free) on the numba engine through the circle
+scenario with all constraints, encoding every state's messages to CDR as the node does and sending
+them nowhere, in this process: once with single steps (a graph that does not take blocks, as with
+sensor noise or the Python engine) and once with blocks of steps (``Simulation.advance`` and
+``StepEncoder.encode_rows``). At factor 1 each for --seconds of wall time, at factor 0 for
+--fast-steps steps; beside them a bare 1 kHz sleep loop, the cost of the wake-ups alone. Prints the
+loop thread's CPU time per step and the ratios, blocks to single steps.
+
+    python bench/bench_loop.py [--seconds 4] [--fast-steps 20000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Callable
+
+from wallbot_msgs_py.step_cdr import StepEncoder
+from wallbot_sim import messages
+from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.model import BaumgarteGains, SampledReference
+from wallbot_sim.model.compiled import compile_kernel
+from wallbot_sim.model.outputs import StepBlock
+from wallbot_sim.model.trajectories import sample_plan
+from wallbot_sim.nodes.dynamics_loop import ConstraintSwitch, DynamicsLoop, NewPlan
+from wallbot_sim.nodes.pacing import Pacer
+
+PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
+              real_time_factor=1.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
+              wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
+              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
+              snapshot_period=1.0, resume_wait=0.0, engine='numba', command_wait_timeout=30.0)
+"""The dynamics node's defaults, on the numba engine."""
+
+
+class EncodingGraph:
+    """Encodes every state's messages as the node does; publishes nothing; no recorder, keeper or controller."""
+
+    def __init__(self, blocks: bool) -> None:
+        self.blocks = blocks
+        self.encoder = StepEncoder()
+
+    def prepare(self, out, clock: bool) -> Callable[[], None]:
+        self.encoder.encode(out)
+        return lambda: None
+
+    def encodes_blocks(self) -> bool:
+        return self.blocks
+
+    def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
+        return [lambda clock: None for _encoded in self.encoder.encode_rows(block)]
+
+    def publish_snapshot(self, snapshot) -> None:
+        pass
+
+    def recorder_present(self) -> bool:
+        return False
+
+    def recorder_listening(self) -> bool:
+        return False
+
+    def keeper_seen(self) -> bool:
+        return False
+
+    def controller_listening(self) -> bool:
+        return False
+
+
+class QuietLog:
+    def info(self, message: str, **kwargs: object) -> None:
+        pass
+
+    warning = error = info
+
+
+def running_loop(blocks: bool, factor: float) -> DynamicsLoop:
+    """A loop through its first 300 ticks of the circle (the kernel warm), at ``factor``."""
+    scenario = load_scenario('circle')
+    plan = sample_plan(scenario.reference, 0.0, 1e4, 0.01)
+    selection = messages.selection_from_switches(dict(belt=True, non_lateral=True, nonslip=True,
+                                                      tangent_heading=True, trajectory_task=True))
+    loop = DynamicsLoop({**PARAMS, 'real_time_factor': factor, 'initial_x': float(plan.positions[0][0])},
+                        load_robot_parameters(None), EncodingGraph(blocks), QuietLog(), Pacer(0, print))
+    loop.post(ConstraintSwitch(selection, BaumgarteGains(5.0, 5.0)))
+    loop.post(NewPlan(SampledReference(*plan), plan.times[0], plan.times[-1], messages.plan_is_final(plan)))
+    for _ in range(300):
+        loop.tick()
+    return loop
+
+
+def cpu_per_step(blocks: bool, factor: float, seconds: float, steps: int) -> float:
+    """The loop thread's CPU seconds per step: for ``seconds`` of wall time, or ``steps`` steps at factor 0."""
+    loop = running_loop(blocks, factor)
+    first, started, cpu = loop.sim.steps, time.perf_counter(), time.thread_time()
+    while (time.perf_counter() - started < seconds) if factor > 0 else (loop.sim.steps - first < steps):
+        loop.tick()
+    return (time.thread_time() - cpu) / (loop.sim.steps - first)
+
+
+def wake_up_cost(seconds: float) -> float:
+    """CPU seconds per wake-up of a bare loop sleeping to each 1 ms deadline."""
+    due, cpu, wakes = time.perf_counter(), time.thread_time(), 0
+    end = due + seconds
+    while due < end:
+        due += 1e-3
+        while (remaining := due - time.perf_counter()) > 0.0:
+            time.sleep(remaining)
+        wakes += 1
+    return (time.thread_time() - cpu) / wakes
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--seconds', type=float, default=4.0, help='wall seconds of each run at factor 1 (default 4)')
+    parser.add_argument('--fast-steps', type=int, default=20000, help='steps of each run at factor 0 (default 20000)')
+    args = parser.parse_args()
+    compile_kernel()
+    wake = wake_up_cost(args.seconds)
+    print(f'bare 1 kHz sleep loop: {1e6 * wake:.1f} us CPU per wake-up')
+    for factor in (1.0, 0.0):
+        single = cpu_per_step(False, factor, args.seconds, args.fast_steps)
+        block = cpu_per_step(True, factor, args.seconds, args.fast_steps)
+        print(f'factor {factor:g}: single steps {1e6 * single:6.1f} us CPU per step, blocks {1e6 * block:6.1f} us '
+              f'(ratio {block / single:.2f})')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
