@@ -142,7 +142,9 @@ class _OdometryTemplate:
         self.twist = odom.doubles(6)
         _diagonal(odom, odom.doubles(36), twist_variances)
         self.data = odom.data
-        self._rows: _Rows | None = None
+        self._rows = _Rows(self.data, _stamped(
+            self.stamp, position=(self.position, _doubles(2)), orientation=(self.orientation + 16, _doubles(2)),
+            twist=(self.twist, _doubles(2)), turn=(self.twist + 40, '<f8')))
 
     def encode(self, sec: int, nanosec: int, q: list[float], qd: list[float]) -> bytes:
         data = self.data
@@ -158,10 +160,6 @@ class _OdometryTemplate:
 
     def encode_rows(self, sec: np.ndarray, nanosec: np.ndarray, q: np.ndarray, qd: np.ndarray) -> list[bytes]:
         """``encode`` of each row of q, qd (T, 7), the same bytes."""
-        if self._rows is None:
-            self._rows = _Rows(self.data, _stamped(
-                self.stamp, position=(self.position, _doubles(2)), orientation=(self.orientation + 16, _doubles(2)),
-                twist=(self.twist, _doubles(2)), turn=(self.twist + 40, '<f8')))
         theta = q[:, 2].tolist()
         # math's sin and cos, as encode calls them: NumPy's may differ in the last bit
         c = np.array([math.cos(angle) for angle in theta])
