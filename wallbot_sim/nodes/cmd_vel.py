@@ -187,7 +187,7 @@ class CmdVelNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(CmdVelNode, args))
+    sys.exit(run(CmdVelNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -239,7 +239,7 @@ class ControllerNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(ControllerNode, args))
+    sys.exit(run(ControllerNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -108,7 +108,7 @@ class JointBridgeNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(JointBridgeNode, args))
+    sys.exit(run(JointBridgeNode, args, events=True))
 
 
 if __name__ == '__main__':
