@@ -16,7 +16,7 @@ ratios: graph CPU per simulated second / model CPU per simulated second (target 
 factor-0 speed / model speed (target >= 5).
 
     python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine python|numba]
-                                [--markers | --foxglove] [--compose]
+                                [--markers | --foxglove] [--compose] [--controller]
 
 ``--engine`` is the dynamics' (``run --engine``; default python, the model); with numba the
 kernel is compiled here before the runs if numba's cache lacks it, so no run waits for it.
@@ -27,6 +27,9 @@ view, which builds the markers every frame; no client connected), so its cost sh
 
 ``--compose`` runs the graph with ``run --compose``: the dynamics and the recorder in one process
 (dynamics_recorder_node, the per-step topics recorded in process), shown as one line.
+
+``--controller`` runs the closed loop, ``run --controller``: the tracking controller answering every
+5th state in lockstep, its CPU share beside the others'.
 """
 
 from __future__ import annotations
@@ -103,17 +106,21 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              engine: str, viewer: list[str], compose: bool, priority: int) -> Run:
+              engine: str, viewer: list[str], compose: bool, priority: int, controller: bool) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
     ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer);
-    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``."""
+    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``; ``controller``: with
+    ``run --controller``."""
     name = f'run_factor_{factor:g}'
     nodes = COMPOSED_NODES if compose else NODES
     if viewer:
         nodes = {**nodes, 'viewer': 'wallbot_sim.nodes.viewer'}
+    if controller:
+        nodes = {**nodes, 'controller': 'wallbot_sim.nodes.controller'}
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
                           '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
-                          '--realtime-priority', priority, *viewer, *(['--compose'] if compose else [])], name)
+                          '--realtime-priority', priority, *viewer, *(['--compose'] if compose else []),
+                          *(['--controller'] if controller else [])], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -174,6 +181,8 @@ def main() -> int:
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
     parser.add_argument('--compose', action='store_true',
                         help='run with --compose (the dynamics and the recorder in one process)')
+    parser.add_argument('--controller', action='store_true',
+                        help='run with --controller (the tracking controller in lockstep, driven mode)')
     parser.add_argument('--realtime-priority', type=int, default=0,
                         help="run with --realtime-priority N (SCHED_FIFO for the dynamics' loop thread; default 0)")
     args = parser.parse_args()
@@ -187,9 +196,9 @@ def main() -> int:
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
         realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer,
-                             args.compose, args.realtime_priority)
+                             args.compose, args.realtime_priority, args.controller)
         fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer,
-                         args.compose, args.realtime_priority)
+                         args.compose, args.realtime_priority, args.controller)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
@@ -203,12 +212,13 @@ def main() -> int:
     lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
-    composed = (' --compose' if args.compose else '') + (f' --realtime-priority {args.realtime_priority}'
-                                                           if args.realtime_priority else '')
+    composed = ((' --compose' if args.compose else '') + (' --controller' if args.controller else '')
+                + (f' --realtime-priority {args.realtime_priority}' if args.realtime_priority else ''))
     print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
     for node, seconds in realtime.cpu.items():
-        print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per simulated s')
+        print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per '
+              'simulated s')
     print(f'  {"total":18s} {100 * total / wall:6.1f} % of a core   {total / simulated:6.3f} CPU s per simulated s'
           '   (target <= 50 %)')
     print(f'  ratio to the two-pinv model: {total / simulated / model:.2f}   (target <= 0.6)')
