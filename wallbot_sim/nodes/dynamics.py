@@ -169,13 +169,14 @@ class DynamicsNode(Node):
                                          'do not start until a recorder (record_progress) hears every topic',
                                          read_only=True),
             'wait_for_command': declare(self, 'wait_for_command', False,
-                                        'driven mode: start once a wheel_torque_cmd publisher hears odom, and take '
-                                        'the first step only after its first command (a closed loop from t = 0)',
+                                        'driven mode: start (or resume) once a wheel_torque_cmd publisher hears odom, '
+                                        'and take the first step only after its answer to the first state published '
+                                        '(a closed loop from t = 0, or from the resumed state)',
                                         read_only=True),
             'command_wait_timeout': declare(self, 'command_wait_timeout', COMMAND_WAIT_TIMEOUT,
-                                            'wall seconds a start with wait_for_command waits for the controller, '
-                                            'and then for its first command; after that the node logs what was '
-                                            'missing and exits with status 1 (0 = wait for ever)',
+                                            'wall seconds a start (or resume) with wait_for_command waits for the '
+                                            'controller, and then for its first command; after that the node logs '
+                                            'what was missing and exits with status 1 (0 = wait for ever)',
                                             allowed=RANGES['command_wait_timeout'], read_only=True),
             'lockstep_every': declare(self, 'lockstep_every', 0,
                                       'driven mode: after publishing every Nth step, wait for the command '
