@@ -118,6 +118,9 @@ COMMAND_WAIT_TIMEOUT = 30.0
 the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
 state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
 controller started by hand later wants more, or 0."""
+BACKPRESSURE_WINDOW = 200
+"""Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
+how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -202,7 +205,7 @@ class DynamicsNode(Node):
             'adhesion_force': declare(self, 'adhesion_force', 0.0,
                                       "force pressing the robot to the wall (N); 0 = the robot file's",
                                       allowed=RANGES['adhesion_force']),
-            'backpressure_window': declare(self, 'backpressure_window', 200,
+            'backpressure_window': declare(self, 'backpressure_window', BACKPRESSURE_WINDOW,
                                            'max steps ahead of a recorder\'s record_progress (any factor)',
                                            allowed=RANGES['backpressure_window']),
             'snapshot_period': declare(self, 'snapshot_period', 0.01,
