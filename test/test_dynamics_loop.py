@@ -342,7 +342,7 @@ def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph
     second.post(ResumeSnapshot(seen))
     ticks(second, 7)
     assert log.said('resuming from the kept snapshot at t = 0.005 s (step 5')
-    assert graph.times == pytest.approx([0.009, 0.010, 0.011, 0.012, 0.013])
+    assert graph.times == pytest.approx([0.009, 0.010, 0.011, 0.012])
     for (t, q), (t_first, q_first) in zip(graph.published, first_graph.published[9:13]):
         assert t == t_first
         np.testing.assert_array_equal(q, q_first)
