@@ -170,7 +170,7 @@ def test_a_closed_loop_bag_holds_every_command_the_controller_sent(tmp_path):
     """simulate --controller --bag: one wheel_torque_cmd per controller update, the payload that
     update produced (the loop run again here on the model, bit for bit, and the controller acting
     on the bag's own odometry, as the graph's controller node would), logged at the stamp of the
-    state it answers, after that state's messages; the controller's QoS (reliable, volatile, depth 10)."""
+    state it answers, after that state's messages; the controller's QoS (reliable, volatile, topics.py's depth)."""
     from wallbot_sim.bag.reader import messages
     from wallbot_sim.config import load_scenario
     from wallbot_sim.control import TrackingController

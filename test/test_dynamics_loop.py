@@ -353,6 +353,59 @@ def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph
     assert second.sim.engine == engine
 
 
+def resumed_driven_loop(**params):
+    """A driven loop with wait_for_command resuming the snapshot of step 5 of a run the graph saw
+    up to step 8, its controller not yet there."""
+    first, first_graph, _log, _clock = make_loop(snapshot_period=0.005)
+    first.post(DRIVEN)
+    first.post(TorqueCommand((0.4, -0.2)))
+    ticks(first, 12)
+    kept = next(s for s in first_graph.snapshots if s.steps == 5)
+    loop, graph, log, clock = make_loop(snapshot_period=0.005, resume_wait=2.0, wait_for_command=True, **params)
+    graph.controller = False
+    loop.post(DRIVEN)
+    loop.post(ResumeSnapshot(replace(kept, seen_until_ns=codec.to_nanoseconds(8 * DT))))
+    return loop, graph, log, clock
+
+
+def test_a_resumed_driven_start_waits_for_its_controller_and_its_answer_as_a_start_does():
+    """A resumed node is a new participant: the controller hears it only after discovery (its
+    answer was seen 2.4 s late under load), so the resumed loop waits for the controller before
+    publishing, and for the answer to its first sync state (the controller acts again from the
+    next control instant) with command_wait_timeout, not lockstep_timeout (which would step on
+    without the answers the controller then holds back)."""
+    loop, graph, log, clock = resumed_driven_loop(lockstep_every=5)
+    assert ticks(loop, 3) == [Decision.NOT_READY] * 3 and loop.status.state is RunState.WAITING_CONTROLLER
+    assert loop.sim is None and not graph.published
+    graph.controller = True
+    ticks(loop, 6)  # the catch-up (steps 6-8, unpublished), steps 9 and 10 go out
+    assert graph.times == pytest.approx([0.009, 0.010]) and loop.status.state is RunState.WAITING_RESUMED_COMMAND
+    clock.now += 3 * PARAMS['lockstep_timeout']
+    assert ticks(loop, 3) == [Decision.NOT_READY] * 3 and graph.times == pytest.approx([0.009, 0.010])
+    assert str(loop.status) == ('waiting for the first wheel_torque_cmd since the resume (the answer to the '
+                                't = 0.010 s state) for 6 s (wall), giving up after 30 s (command_wait_timeout)')
+    assert not log.said('without lockstep')
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 6) == [Decision.STEPPED] * 5 + [Decision.LOCKSTEP]  # lockstep as before
+    assert loop.sim.motor_torque == (0.1, 0.1) and graph.times[-1] == pytest.approx(0.015)
+    # without lockstep the loop cannot tell which state the controller answers: it steps on
+    loop, graph, _log, _clock = resumed_driven_loop()
+    graph.controller = True
+    ticks(loop, 8)
+    assert graph.times == pytest.approx([0.009, 0.010, 0.011, 0.012, 0.013])
+
+
+def test_a_resumed_start_gives_up_on_an_answer_after_command_wait_timeout():
+    loop, graph, log, clock = resumed_driven_loop(lockstep_every=5, command_wait_timeout=10.0)
+    graph.controller = True
+    ticks(loop, 6)
+    assert graph.times == pytest.approx([0.009, 0.010]) and loop.status.state is RunState.WAITING_RESUMED_COMMAND
+    clock.now += 10.01
+    loop.tick()
+    assert loop.stopping.is_set() and loop.status.state is RunState.GAVE_UP
+    assert log.said('no wheel_torque_cmd answering the resumed state at t = 0.010 s within command_wait_timeout 10 s')
+
+
 def run_through_every_rebuild(engine: str) -> tuple[FakeGraph, list[str]]:
     """A tracking run through each path that builds a simulation (start, rate change, reset,
     teleport) and a plan replaced mid-run; the published states and the engine of each simulation built."""

@@ -337,3 +337,54 @@ def test_play_republishes_the_commands_and_latches_the_robot_model(process_runne
     assert ast.literal_eval(heard.group(2)) == commands
     urdf = ast.literal_eval(re.search(r'^urdf (.*)$', output, re.M).group(1))
     assert urdf == recorded[topics.ROBOT_DESCRIPTION.resolve()][0].data
+
+
+def test_a_starved_recorder_gets_every_command_of_a_back_pressure_window(process_runner, tmp_path):
+    """A recorder process stopped (SIGSTOP: a CPU-starved one) while the graph runs the default
+    backpressure_window of steps ahead of it, each step with its per-step messages and a command
+    (lockstep_every 1): its transport queue overflows, and what it missed is resent from the
+    writers' histories once it runs again, so every command must still be in the command
+    publisher's history (topics.WHEEL_TORQUE_CMD's depth; with depth 10, 83 of 200 arrived)."""
+    import rclpy
+    from rclpy.duration import Duration
+
+    from wallbot_msgs_py import topics
+    from wallbot_msgs_py.qos import qos_profile
+    from wallbot_sim.nodes.dynamics import BACKPRESSURE_WINDOW
+    from wallbot_sim.nodes.recorder import message_class
+
+    stepped = (*topics.STEP_STAMPED, topics.CLOCK)
+    bag = tmp_path / 'bag'
+    names = ','.join(t.name for t in (*stepped, topics.WHEEL_TORQUE_CMD))
+    recorder = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
+                                     '-p', f'output:={bag}', '-p', f'topics:=[{names}]'], 'recorder')
+    rclpy.init()
+    try:
+        node = rclpy.create_node('steps', namespace=topics.NAMESPACE)
+        publishers = {t: node.create_publisher(message_class(t.type), t.name, qos_profile(t))
+                      for t in (*stepped, topics.WHEEL_TORQUE_CMD)}
+        wait_for(lambda: all(p.get_subscription_count() for p in publishers.values()), 30, 'the recorder to match')
+        recorder.send_signal(signal.SIGSTOP)
+        try:
+            for step in range(BACKPRESSURE_WINDOW):
+                for topic in stepped:
+                    message = message_class(topic.type)()
+                    stamp = message.clock if topic is topics.CLOCK else message.header.stamp
+                    stamp.sec, stamp.nanosec = 0, step * 1_000_000
+                    publishers[topic].publish(message)
+                publishers[topics.WHEEL_TORQUE_CMD].publish(message_class(topics.WHEEL_TORQUE_CMD.type)(
+                    data=[float(step), 0.0]))
+                time.sleep(0.001)
+        finally:
+            recorder.send_signal(signal.SIGCONT)
+        for publisher in publishers.values():  # the recorder acknowledges what its reader holds
+            assert publisher.wait_for_all_acked(Duration(seconds=20))
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    recorder.send_signal(signal.SIGINT)
+    assert recorder.wait(timeout=20) == 0, process_runner.output('recorder')
+    meta = info(bag)
+    for topic in stepped:
+        assert meta.topic(topic.resolve()).count == BACKPRESSURE_WINDOW, topic.name
+    assert meta.topic(topics.WHEEL_TORQUE_CMD.resolve()).count == BACKPRESSURE_WINDOW

@@ -75,7 +75,14 @@ GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
 """The simulated state itself, as ``odom`` carries it without sensor noise: published beside a
 noisy ``odom`` (the dynamics' ``odom_noise_*`` parameters), so a bag keeps the truth; a run without
 noise has no messages on it."""
-WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray', depth=10)
+WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray')
+"""The wheel torques ``[tau_L, tau_R]`` (N m), one per control instant (200 Hz of simulation time
+from the tracking controller, up to one per step). Depth 1000 like the per-step topics: a
+recorder starved of CPU misses what its transport queue cannot hold and has it resent from the
+writer's history, and a KEEP_LAST writer has overwritten what is older than its depth. The
+dynamics runs at most its backpressure_window (200 steps) ahead of the recorder, so the history
+must hold that many commands (with depth 10, 83 of 200 commands reached a recorder stopped for
+200 steps: test_recorder.py, 2026-12-02)."""
 REFERENCE = Topic('reference', 'nav_msgs/msg/Odometry', depth=100)
 REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiDOFJointTrajectory',
                              Durability.TRANSIENT_LOCAL, depth=1)

@@ -122,6 +122,9 @@ COMMAND_WAIT_TIMEOUT = 30.0
 the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
 state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
 controller started by hand later wants more, or 0."""
+BACKPRESSURE_WINDOW = 200
+"""Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
+how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -173,13 +176,14 @@ class DynamicsNode(Node):
                                          'do not start until a recorder (record_progress) hears every topic',
                                          read_only=True),
             'wait_for_command': declare(self, 'wait_for_command', False,
-                                        'driven mode: start once a wheel_torque_cmd publisher hears odom, and take '
-                                        'the first step only after its first command (a closed loop from t = 0)',
+                                        'driven mode: start (or resume) once a wheel_torque_cmd publisher hears odom, '
+                                        'and take the first step only after its answer to the first state published '
+                                        '(a closed loop from t = 0, or from the resumed state)',
                                         read_only=True),
             'command_wait_timeout': declare(self, 'command_wait_timeout', COMMAND_WAIT_TIMEOUT,
-                                            'wall seconds a start with wait_for_command waits for the controller, '
-                                            'and then for its first command; after that the node logs what was '
-                                            'missing and exits with status 1 (0 = wait for ever)',
+                                            'wall seconds a start (or resume) with wait_for_command waits for the '
+                                            'controller, and then for its first command; after that the node logs '
+                                            'what was missing and exits with status 1 (0 = wait for ever)',
                                             allowed=RANGES['command_wait_timeout'], read_only=True),
             'lockstep_every': declare(self, 'lockstep_every', 0,
                                       'driven mode: after publishing every Nth step, wait for the command '
@@ -205,7 +209,7 @@ class DynamicsNode(Node):
             'adhesion_force': declare(self, 'adhesion_force', 0.0,
                                       "force pressing the robot to the wall (N); 0 = the robot file's",
                                       allowed=RANGES['adhesion_force']),
-            'backpressure_window': declare(self, 'backpressure_window', 200,
+            'backpressure_window': declare(self, 'backpressure_window', BACKPRESSURE_WINDOW,
                                            'max steps ahead of a recorder\'s record_progress (any factor)',
                                            allowed=RANGES['backpressure_window']),
             'snapshot_period': declare(self, 'snapshot_period', 0.01,

@@ -164,6 +164,8 @@ class RunState(Enum):
     WAITING_PLAN = 'waiting for reference_trajectory'
     WAITING_COVERING_PLAN = 'waiting for a reference_trajectory covering t = {t:.3f} s'
     WAITING_FIRST_COMMAND = 'waiting for the first wheel_torque_cmd (the answer to the t = 0 state)'
+    WAITING_RESUMED_COMMAND = ('waiting for the first wheel_torque_cmd since the resume '
+                               '(the answer to the t = {t:.3f} s state)')
     GAVE_UP = 'gave up: {reason}'
     RUNNING = 'running'
     PAUSED = 'paused'
@@ -307,12 +309,15 @@ class DynamicsLoop:
         self.command_wait: tuple[RunState, float, bool] | None = None
         """The wait for the controller under way: which, since when (clock), whether the log said it."""
         self.stepped = False
-        """Whether a step was taken: only a start's wait for the controller gives up."""
+        """Whether a step was taken: only a start's wait for the controller gives up (a resumed
+        start's wait for its first answer comes after the steps of its catch-up)."""
         self.gave_up: str | None = None
         """Why the loop stopped without starting (then the node exits), or None."""
         self.command: tuple[tuple[float, float], float] | None = None  # (torque, simulation time it came)
         self.command_expired = False
         self.command_serial = self.sync_serial = 0  # commands received; that count when a sync state went out
+        self.first_sync: int | None = None
+        """command_serial when this process published its first state (None: none yet)."""
         self.lockstep_since: float | None = None
         self.lockstep_lost = False
         self.reset_requested: float | None = None  # clock time of a reset not yet applied
@@ -582,7 +587,7 @@ class DynamicsLoop:
             return False
         pending = self.pending_constraints
         if pending is not None:
-            if self.sim is None and not pending.selection.trajectory and self.resume.snapshot is None:
+            if self.sim is None and not pending.selection.trajectory:
                 waiting = self._driven_start_blocked()
                 if waiting is RunState.WAITING_CONTROLLER:
                     self._wait_for_command(waiting)
@@ -618,10 +623,13 @@ class DynamicsLoop:
                 self._publish(sim.outputs())
             self.status = Status(RunState.WAITING_COVERING_PLAN, t=sim.t)
             return False
-        if (self.params['wait_for_command'] and not sim.selection.trajectory and sim.steps == 0
-                and self.command is None):
-            self._wait_for_command(RunState.WAITING_FIRST_COMMAND)
-            return False
+        if self.params['wait_for_command'] and not sim.selection.trajectory:
+            if sim.steps == 0 and self.command is None:
+                self._wait_for_command(RunState.WAITING_FIRST_COMMAND)
+                return False
+            if self._resumed_unanswered():
+                self._wait_for_command(RunState.WAITING_RESUMED_COMMAND)
+                return False
         self.command_wait = None
         self.status = Status(RunState.RUNNING)
         return True
@@ -642,12 +650,16 @@ class DynamicsLoop:
             self.command_wait = (state, now, False)
         _state, since, said = self.command_wait
         waited = now - since
-        limit = 0.0 if self.stepped else float(self.params['command_wait_timeout'])
-        self.status = Status(state, waited=waited, limit=limit)
+        start = not self.stepped or state is RunState.WAITING_RESUMED_COMMAND
+        limit = float(self.params['command_wait_timeout']) if start else 0.0
+        t = self.sim.t if self.sim is not None else 0.0
+        self.status = Status(state, t=t, waited=waited, limit=limit)
         if 0.0 < limit < waited:
-            missing = ('no controller (a wheel_torque_cmd publisher subscribing odom, matched both ways)'
-                       if state is RunState.WAITING_CONTROLLER else
-                       'no wheel_torque_cmd answering the t = 0 state')
+            missing = {RunState.WAITING_CONTROLLER: 'no controller (a wheel_torque_cmd publisher subscribing odom, '
+                                                    'matched both ways)',
+                       RunState.WAITING_FIRST_COMMAND: 'no wheel_torque_cmd answering the t = 0 state',
+                       RunState.WAITING_RESUMED_COMMAND: f'no wheel_torque_cmd answering the resumed state at '
+                                                         f't = {t:.3f} s'}[state]
             self.gave_up = (f'{missing} within command_wait_timeout {limit:g} s (wall) with wait_for_command set: '
                             'start the controller first, or set command_wait_timeout 0 to wait for ever')
             self.status = Status(RunState.GAVE_UP, reason=missing)
@@ -658,19 +670,37 @@ class DynamicsLoop:
             self._log.warning(str(self.status))
 
     def _driven_start_blocked(self) -> RunState | None:
-        """Why a driven run may not create its simulation yet (None: it may).
+        """Why a driven run may not create (or resume) its simulation yet (None: it may).
 
         A moving start (initial_at_rest false) takes the reference velocity at t = 0, so it
-        needs the plan. With wait_for_command, a controller must be there to hear the initial
-        state: a wheel_torque_cmd publisher exists, its node subscribes odom, and every
-        discovered odom subscription is matched (odom is volatile: a subscriber matched later
-        would miss the t = 0 state, and the first step would wait for ever).
+        needs the plan (a resume takes the kept velocity). With wait_for_command, a controller
+        must be there to hear the first state, the initial or the resumed one: a wheel_torque_cmd
+        publisher exists, its node subscribes odom, and every discovered odom subscription is
+        matched (odom is volatile: a subscriber matched later would miss that state, and the
+        first step would wait for ever).
         """
-        if not self.params['initial_at_rest'] and self.plan is None:
+        if self.resume.snapshot is None and not self.params['initial_at_rest'] and self.plan is None:
             return RunState.WAITING_START_PLAN
         if self.params['wait_for_command'] and not self._graph.controller_listening():
             return RunState.WAITING_CONTROLLER
         return None
+
+    def _resumed_unanswered(self) -> bool:
+        """Lockstep in a process that resumed a kept snapshot: whether the sync state awaiting its
+        answer would be the first answer since the process published its first state.
+
+        That answer waits as a start's does (command_wait_timeout), not lockstep_timeout: the
+        resumed node is a new participant, and the controller sends its answer only once it
+        hears the node (``HeldCommands``), which needs the node's name from discovery. Measured
+        on the project's 2-core VM under load (2026-12-02): 1.9-2.4 s after the first resumed
+        state, longer than the 2 s of lockstep_timeout; a lockstep given up then let the loop
+        run on the kept command while the controller's answers, held and replaced by newer
+        ones, never went out (86 commands missing from the bag). The first resumed state is
+        seldom a control instant (the controller acts again from the next one), so the wait is
+        at the first sync state, which is.
+        """
+        return (self.resume.snapshot is not None and self.first_sync is not None
+                and self.command_serial == self.first_sync and self._answer_awaited())
 
     def _answer_awaited(self) -> bool:
         """Lockstep (driven mode, lockstep_every N > 0): whether the last published state was a
@@ -716,6 +746,8 @@ class DynamicsLoop:
     def _mark_sync(self) -> None:
         """The current state was just published: lockstep waits for a command newer than this."""
         self.sync_serial = self.command_serial
+        if self.first_sync is None:
+            self.first_sync = self.command_serial
 
     def _held_back(self) -> bool:
         """Whether a recorder's progress is more than the window behind (at any factor: a recorder
