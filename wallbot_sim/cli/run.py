@@ -282,8 +282,12 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
             print(f'\nwallbot-sim run: {" and ".join(late)} not seen within {FINAL_WAIT:.0f} s; the bag may end '
                   f'early (logs in {graph.log_dir})', file=sys.stderr)
     finally:
+        # The monitor leaves DDS before the nodes do: Fast DDS 2.14 deleting a participant while remote
+        # endpoints go away can deadlock in DomainParticipant::set_listener, spinning a core for ever
+        # (seen once: run hung there after the graph's signal, a discovery callback waiting for the lock
+        # the deletion held); with the graph still up no endpoint is being removed meanwhile
+        monitor.close()
         graph.signal_all(first=(RECORDER, DYNAMICS_RECORDER))  # the recorder's bag ends at its signal
-        monitor.close()  # while the nodes leave DDS too
         graph.wait_all()
 
 
