@@ -47,7 +47,7 @@ class EncodingGraph:
         self.encoder.encode(out)
         return lambda: None
 
-    def encodes_blocks(self) -> bool:
+    def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
 
     def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:

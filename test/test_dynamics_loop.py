@@ -51,7 +51,7 @@ class FakeGraph:
             self.clocks.append(out.t)
         return lambda: self.published.append((out.t, out.q.copy()))
 
-    def encodes_blocks(self) -> bool:
+    def encodes_blocks(self, burst: bool) -> bool:
         return False
 
     def publish_snapshot(self, snapshot) -> None:
@@ -561,7 +561,7 @@ class EncodingGraph(FakeGraph):
         send = super().prepare(out, clock)
         return lambda: (send(), self.messages.append((encoded, clock)))
 
-    def encodes_blocks(self) -> bool:
+    def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
 
     def prepare_block(self, block):

@@ -378,8 +378,13 @@ class DynamicsNode(Node):
         encoded = self.encoder.encode(out, sensed)
         return lambda: self._send(encoded, clock, codec.to_nanoseconds(out.t), self._heard())
 
-    def encodes_blocks(self) -> bool:
-        return self.noise is None
+    def encodes_blocks(self, burst: bool) -> bool:
+        # A burst of a block's messages (hundreds within a millisecond) can overflow a DDS subscriber's
+        # shared-memory queue on a loaded machine; reliability repairs the loss only at Fast DDS's next
+        # heartbeat, seconds later (seen: a separate recorder missing one message of a 1.5 s run). So
+        # bursts only where no DDS subscriber takes the per-step topics (a composed recorder takes them
+        # from the tap); paced, a block's states go out one at a time
+        return self.noise is None and not (burst and self._heard())
 
     def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
         heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states

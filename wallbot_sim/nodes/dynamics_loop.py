@@ -231,8 +231,9 @@ class Graph(Protocol):
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         """Encode a state's per-step messages, with /clock if ``clock``; calling the result publishes them."""
 
-    def encodes_blocks(self) -> bool:
-        """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise)."""
+    def encodes_blocks(self, burst: bool) -> bool:
+        """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise);
+        ``burst``: its states will be published back to back (factor 0), not each when it is due."""
 
     def prepare_block(self, block: StepBlock) -> Sequence[Callable[[bool], None]]:
         """``prepare`` of each state of ``block`` at once: one call per state, in order, publishes it (with
@@ -845,7 +846,7 @@ class DynamicsLoop:
         """
         sim, params = self.sim, self.params
         if (not sim.tabulates or not sim.selection.trajectory or self.paused or self.resume.catching_up
-                or params['publish_every'] != 1 or not self._graph.encodes_blocks()):
+                or params['publish_every'] != 1 or not self._graph.encodes_blocks(self._factor <= 0.0)):
             return 1
         size = BLOCK_PACED if self._factor > 0.0 else BLOCK_MOST
         every = round(params['snapshot_period'] / sim.dt)
