@@ -56,7 +56,10 @@ def test_a_start_waiting_for_a_missing_controller_warns_then_exits_with_status_1
         assert len(errors) == 1, output
         assert ('no controller (a wheel_torque_cmd publisher subscribing odom, matched both ways) within '
                 'command_wait_timeout 3 s (wall) with wait_for_command set' in errors[0])
-        executor.spin_once(timeout_sec=0.5)  # the last diagnostics, if still on their way
+        # the node waited for its last diagnostics to be acknowledged: they are here, maybe not taken yet
+        deadline = time.monotonic() + 10.0
+        while not (statuses and statuses[-1].level == level('error')) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
         waiting = [s for s in statuses if s.message.startswith('waiting for a controller')]
         assert waiting and all(s.level == level('warn') for s in waiting)
         assert 'giving up after 3 s (command_wait_timeout)' in waiting[-1].message

@@ -62,6 +62,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
@@ -443,6 +444,9 @@ class DynamicsNode(Node):
             return
         if self.loop.gave_up is not None and self.context.ok():
             self._publish_diagnostics()  # the ERROR status naming what was missing, before the process ends
+            # taken by every subscriber before the node leaves DDS: a starved one still behind on the
+            # WARN ones would otherwise never get it (Fast DDS repairs at its heartbeat, after the exit)
+            self.diagnostics_pub.wait_for_all_acked(Duration(seconds=FINAL_DIAGNOSTICS_WAIT))
             self.exit_status = 1
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
@@ -480,6 +484,9 @@ def main(args: list[str] | None = None) -> None:
     sys.exit(run(started_node, args))
 
 
+FINAL_DIAGNOSTICS_WAIT = 5.0
+"""Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (Fast DDS
+acknowledges at its heartbeat, every 3 s by default)."""
 SWITCH_INTERVAL = 5e-4
 """sys.setswitchinterval of a process hosting the dynamics: executor callbacks yield the GIL to the loop within 0.5 ms."""
 
