@@ -191,7 +191,8 @@ def reindex(path: Path | str) -> ReindexReport:
                     cursor = _Cursor(body)
                     if opcode == OP_SCHEMA:
                         sid = cursor.u16()
-                        name, _encoding = cursor.string(), cursor.string()
+                        name = cursor.string()
+                        cursor.string()  # the schema's encoding: ros2msg, which the writer always uses
                         schemas[sid] = (name, bytes(cursor.bytes(cursor.u32())).decode('utf-8'))
                     elif opcode == OP_CHANNEL:
                         cid, sid = cursor.u16(), cursor.u16()
