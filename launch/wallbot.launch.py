@@ -95,7 +95,8 @@ def _graph(context, *args, **kwargs):
             load_scenario(arg('scenario')), ConstraintSelection.parse(arg('constraints')),
             controller_mass_scale=float(arg('controller_mass_scale')) if true('controller') else None, **common)
     return [Node(package=PACKAGE, executable=EXECUTABLES[spec.module], **launch_name(spec), namespace=arg('namespace'),
-                 output='screen', parameters=[dict(spec.parameters)])
+                 output='screen', parameters=[dict(spec.parameters)],
+                 remappings=[tuple(remap.split(':=')) for remap in spec.remaps])
             for spec in specs]
 
 

@@ -258,6 +258,7 @@ def test_cdr_stamp_and_odometry_decoding():
     assert leading_stamp_ns(data) == round(plant.t * 1e9)
     assert leading_stamp_ns(b'\0\1') is None
     state = codec.planar_state(msg)
+    assert codec.planar_state_from_cdr(data) == state  # what the controller node reads
     assert state.stamp_ns == round(plant.t * 1e9)
     assert np.allclose([state.x, state.y, state.theta, state.xd, state.yd, state.thd], plant.q[:3].tolist()
                        + plant.qd[:3].tolist(), atol=1e-12)

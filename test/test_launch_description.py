@@ -69,7 +69,8 @@ def launched_nodes(launch_file, **arguments: str) -> list[dict]:
 
 def as_launched(specs, namespace: str = '/wallbot') -> list[dict]:
     return [{'package': 'wallbot_sim', 'executable': EXECUTABLES[s.module], **launch_name(s),
-             'namespace': namespace, 'output': 'screen', 'parameters': [dict(s.parameters)]} for s in specs]
+             'namespace': namespace, 'output': 'screen', 'parameters': [dict(s.parameters)],
+             'remappings': [tuple(remap.split(':=')) for remap in s.remaps]} for s in specs]
 
 
 def test_defaults_are_the_circle_with_every_constraint_as_run_starts_it(launch_file):
@@ -97,6 +98,10 @@ def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_pa
     dynamics = nodes[-1]['parameters'][0]
     assert dynamics['wait_for_recorder'] and dynamics['wait_for_command'] and dynamics['stop_at'] == 20.0
     assert nodes[0]['parameters'][0]['output'] == str(tmp_path / 'bag')
+    # the controller reads the odometry of its control instants only: those the dynamics waits on
+    assert nodes[3]['remappings'] == [('odom', 'control_odom')]
+    assert dynamics['control_odom_every'] == dynamics['lockstep_every'] == 5
+    assert all(not n['remappings'] for n in nodes if n['name'] != 'controller')
 
 
 def test_compose_records_in_the_dynamics_process_as_run_compose_does(launch_file, tmp_path):
@@ -167,6 +172,9 @@ def test_drive_starts_the_graph_of_run_rest_drive(launch_file, tmp_path, drive, 
     assert nodes == as_launched(expected)
     assert [n['name'] for n in nodes] == ['recorder', 'constraint_config', nodes[2]['name'], 'viewer', 'dynamics']
     assert nodes[2]['parameters'][0]['wait_for_recorder'] is True  # forwards nothing the recorder does not hear
+    # cmd_vel_node reads the odometry of its lockstep instants only; joint_bridge_node reads wheel_states
+    assert nodes[2]['remappings'] == ([('odom', 'control_odom')] if drive == 'cmd_vel' else [])
+    assert nodes[-1]['parameters'][0].get('control_odom_every') == (10 if drive == 'cmd_vel' else None)
     assert nodes[0]['parameters'][0]['topics'] == expected[0].parameters['topics']
     composed = launched_nodes(launch_file, drive=drive, record=str(tmp_path / 'bag'), compose='true')
     assert composed == as_launched(describe_driven_graph(drive, bag=tmp_path / 'bag', compose=True))

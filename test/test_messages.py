@@ -138,6 +138,25 @@ def test_path_and_reference_odometry():
     assert msg.twist.twist.angular.z == pytest.approx(2 * math.pi / 20.0, abs=1e-12)
 
 
+@pytest.mark.parametrize('frame, child', [('', ''), ('wall', 'base_link'), ('w', 'robot2/base_link'),
+                                          ('abc', 'abcdefg')])
+@pytest.mark.parametrize('little_endian', [True, False])
+def test_odometry_read_from_its_bytes_is_the_decoded_one(frame, child, little_endian):
+    """planar_state_from_cdr against the typestore's decoding, across string lengths (the alignment
+    of the pose after them) and both byte orders; a truncated message is refused, not misread."""
+    msg = decode(codec.odometry(12.345, 0.3, -0.2, 2.5, 0.11, -0.07, 0.9, child=child, frame=frame), topics.ODOM)
+    msg.pose.covariance = np.arange(36.0)  # values that must be skipped, not read
+    msg.twist.covariance = -np.arange(36.0)
+    data = bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type, little_endian=little_endian))
+    assert codec.planar_state_from_cdr(data) == codec.planar_state(msg)
+    for cut in (1, 13, len(data) - 1):
+        with pytest.raises(ValueError, match=f'malformed odometry \\({cut} bytes\\)'):
+            codec.planar_state_from_cdr(data[:cut])
+    msg.twist.twist.angular.z = math.inf
+    with pytest.raises(ValueError, match='not finite'):
+        codec.planar_state_from_cdr(bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type)))
+
+
 def test_constraints_message_round_trip():
     switches = {'trajectory_task': True, 'belt': True, 'non_lateral': True, 'nonslip': False,
                 'tangent_heading': True}

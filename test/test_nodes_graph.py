@@ -18,6 +18,7 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
@@ -63,6 +64,7 @@ def final_state(graph: Graph, t: float):
 
 # --- tests --------------------------------------------------------------------------------------
 def test_topics_types_and_1khz_odometry(graph):
+    graph.subscribe(topics.CONTROL_ODOM.name, Odometry, topics.CONTROL_ODOM.resolve(), topics.CONTROL_ODOM)
     dynamics = start_tracking_graph(graph, constraints=('belt:=true', 'non_lateral:=true', 'nonslip:=true'))
     graph.wait_sim_time(0.0)
     wall_start = time.monotonic()
@@ -77,9 +79,17 @@ def test_topics_types_and_1khz_odometry(graph):
     assert stamps[0] == 0 and len(stamps) >= 2001
     assert np.all(np.diff(stamps) == MS), 'odometry stamps must be consecutive, 1 ms apart'
     assert odom[0].header.frame_id == 'wall' and odom[0].child_frame_id == 'base_link'
+    # control_odom: every 5th state (control_odom_every's default), the same message as on odom
+    graph.wait_for(lambda: len(graph.messages(topics.CONTROL_ODOM.name)) > 400, 10, '2 s of control_odom')
+    control = graph.messages(topics.CONTROL_ODOM.name)
+    assert [ns(m) for m in control] == list(range(0, 5 * MS * len(control), 5 * MS))
+    by_stamp = {ns(m): m for m in odom}
+    assert all(m == by_stamp[ns(m)] for m in control if ns(m) in by_stamp)
+    assert sum(ns(m) in by_stamp for m in control) >= 400
 
     names = dict(graph.node.get_topic_names_and_types())
-    expected = {'/wallbot/odom': 'nav_msgs/msg/Odometry', '/wallbot/wheel_states': 'sensor_msgs/msg/JointState',
+    expected = {'/wallbot/odom': 'nav_msgs/msg/Odometry', '/wallbot/control_odom': 'nav_msgs/msg/Odometry',
+                '/wallbot/wheel_states': 'sensor_msgs/msg/JointState',
                 '/wallbot/constraint_wrench': 'geometry_msgs/msg/WrenchStamped',
                 '/wallbot/drive_forces': 'sensor_msgs/msg/JointState', '/clock': 'rosgraph_msgs/msg/Clock',
                 '/wallbot/clock': 'rosgraph_msgs/msg/Clock',

@@ -51,6 +51,14 @@ class Topic:
 
 
 ODOM = Topic('odom', 'nav_msgs/msg/Odometry')
+CONTROL_ODOM = Topic('control_odom', 'nav_msgs/msg/Odometry')
+"""The odometry of the states at control instants: every ``control_odom_every``-th step of the
+dynamics (a parameter; 5 by default, 200 Hz at 1 kHz), the same messages as on ``odom``. A
+controller acting at a fraction of the step rate subscribes it in place of ``odom`` (``-r
+odom:=control_odom``; ``wallbot-sim run`` and the launch file do so for the tracking controller and
+cmd_vel_node), so it wakes once per control period instead of once per step: the control instants it
+sees are the same as long as its period is a multiple of ``control_odom_every`` steps. Not recorded
+(its messages are on ``odom``)."""
 WHEEL_STATES = Topic('wheel_states', 'sensor_msgs/msg/JointState')
 CONSTRAINT_WRENCH = Topic('constraint_wrench', 'geometry_msgs/msg/WrenchStamped')
 DRIVE_FORCES = Topic('drive_forces', 'sensor_msgs/msg/JointState')
@@ -70,6 +78,8 @@ DOMAIN_CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
 --use-sim-time``): the same messages as CLOCK, published by the dynamics whose ``domain_clock``
 parameter is true (the default; set it false on every robot but one when several share a domain)."""
 ROBOT_CLOCK_REMAP = '/clock:=clock'
+CONTROL_ODOM_REMAP = 'odom:=control_odom'
+"""The remapping that makes a controller read CONTROL_ODOM where it reads ``odom``."""
 """The node-local remapping that makes a node's ``use_sim_time`` follow its robot's CLOCK."""
 GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
 """The simulated state itself, as ``odom`` carries it without sensor noise: published beside a
@@ -179,7 +189,7 @@ CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.va
 
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
-    known = RECORDED + (WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS)
+    known = RECORDED + (CONTROL_ODOM, WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS)
     for topic in known:
         if name in (topic.name, topic.resolve()):
             return topic

@@ -41,6 +41,9 @@ CONTROL_STEPS = 5
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 CMD_VEL_STEPS = 10
 """Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""
+CONTROLLER_REMAPS = (topics.CONTROL_ODOM_REMAP,)
+"""A commander (the tracking controller, cmd_vel_node) reads control_odom, published at its lockstep
+instants (the dynamics' ``control_odom_every``), instead of every step's odom: one wake per control period."""
 DRIVES = {'cmd_vel': (topics.NODE_CMD_VEL, 'wallbot_sim.nodes.cmd_vel'),
           'joint_commands': (topics.NODE_JOINT_BRIDGE, 'wallbot_sim.nodes.joint_bridge')}
 """``run rest --drive NAME``: the node that turns the user's commands into wheel_torque_cmd."""
@@ -107,7 +110,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     ]
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
-            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME}))
+            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME},
+            CONTROLLER_REMAPS))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
                          adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames)
@@ -141,7 +145,8 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                   **SIM_TIME}),
         # the drive node must not forward commands before the recorder hears them (the cmd_vel node is
         # also the run's commander: the dynamics waits for it)
-        NodeSpec(name, module, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})}),
+        NodeSpec(name, module, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})},
+                 CONTROLLER_REMAPS if drive == 'cmd_vel' else ()),
         *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
@@ -191,4 +196,5 @@ def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recor
         **robot, **frames,
         'contact_model': contact_model, 'engine': engine,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
-        **({'wait_for_command': True, 'lockstep_every': lockstep_every} if lockstep_every else {})})
+        **({'wait_for_command': True, 'lockstep_every': lockstep_every, 'control_odom_every': lockstep_every}
+           if lockstep_every else {})})

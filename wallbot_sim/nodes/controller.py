@@ -39,7 +39,6 @@ import sys
 import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
@@ -197,7 +196,7 @@ class ControllerNode(Node):
 
     def _control(self, data: bytes) -> None:
         try:
-            command = self.loop.command(codec.planar_state(deserialize_message(data, Odometry)))
+            command = self.loop.command(codec.planar_state_from_cdr(data))
         except (ValueError, ModelError, np.linalg.LinAlgError) as error:
             self.get_logger().error(f'no command at t = {codec.leading_stamp_ns(data) * 1e-9:.3f} s: {error}',
                                     throttle_duration_sec=THROTTLE)

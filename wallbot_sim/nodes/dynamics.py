@@ -105,7 +105,8 @@ publishes the exact state on ground_truth/odom."""
 RANGES = {
     'initial_x': COORDINATE, 'initial_y': COORDINATE, 'initial_theta': NumberRange(-1e4, 1e4),
     'rate_hz': NumberRange(1, 100_000), 'publish_every': NumberRange(1, 1_000_000),
-    'clock_rate_hz': NumberRange(1e-3, 1e6), 'real_time_factor': REAL_TIME_FACTOR,
+    'clock_rate_hz': NumberRange(1e-3, 1e6), 'control_odom_every': NumberRange(0, 1_000_000),
+    'real_time_factor': REAL_TIME_FACTOR,
     'command_timeout': NumberRange(1e-3, 3600.0), 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
     'stop_at': NumberRange(0.0, 1e9), 'lockstep_every': NumberRange(0, 1_000_000),
     'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': REALTIME_PRIORITY,
@@ -123,6 +124,9 @@ COMMAND_WAIT_TIMEOUT = 30.0
 the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
 state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
 controller started by hand later wants more, or 0."""
+CONTROL_ODOM_EVERY = 5
+"""Default control_odom_every (steps): 200 Hz at 1 kHz, the tracking controller's rate; the cmd_vel
+node's 100 Hz is a multiple of it."""
 BACKPRESSURE_WINDOW = 200
 """Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
 how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
@@ -162,6 +166,10 @@ class DynamicsNode(Node):
                                      'clock messages per second of simulation time (at most one per published '
                                      'step, and always the state before a stop); the per-step topics carry '
                                      'every published step', allowed=RANGES['clock_rate_hz'], read_only=True),
+            'control_odom_every': declare(self, 'control_odom_every', CONTROL_ODOM_EVERY,
+                                          'publish every Nth step\'s odometry on control_odom too, for controllers '
+                                          'acting every N steps or a multiple of N; 0 = never',
+                                          allowed=RANGES['control_odom_every']),
             'real_time_factor': declare(self, 'real_time_factor', 1.0,
                                         'simulation seconds per wall second; 0 = as fast as possible',
                                         allowed=RANGES['real_time_factor']),
@@ -248,12 +256,15 @@ class DynamicsNode(Node):
             from wallbot_sim.model.compiled import require_numba
             require_numba()  # a missing package is said at start, not by a failing loop thread
         self.params = p
+        self._warn_lockstep_unseen()
         self.exit_status: int | None = None
         """Set once the node cannot go on (its start gave up): ``common.run_nodes`` ends the process with it."""
         self.loop = DynamicsLoop(p, load_robot_parameters(p['robot_file'] or None), self, self.get_logger(),
                                  Pacer(p['realtime_priority'], self.get_logger().warning))
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
                             for topic, kind in MESSAGE_TYPES.items()}
+        self.control_odom_pub = self.create_publisher(Odometry, topics.CONTROL_ODOM.name,
+                                                      qos_profile(topics.CONTROL_ODOM))
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
                                                      qos_profile(topics.DIAGNOSTICS))
         self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
@@ -372,6 +383,14 @@ class DynamicsNode(Node):
         if changes:
             self.params = {**self.params, **changes}
             self.loop.post(ParameterChange(changes))
+            if {'lockstep_every', 'control_odom_every'} & set(changes):
+                self._warn_lockstep_unseen()
+
+    def _warn_lockstep_unseen(self) -> None:
+        lockstep, every = self.params['lockstep_every'], self.params['control_odom_every']
+        if lockstep and every and lockstep % every:
+            self.get_logger().warning(f'lockstep_every {lockstep} is not a multiple of control_odom_every {every}: '
+                                      'a controller on control_odom misses states the loop waits on')
 
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
@@ -396,8 +415,15 @@ class DynamicsNode(Node):
     def _heard(self) -> set[topics.Topic]:
         # a per-step message nobody is matched to would only cost its write into Fast DDS
         # (in a composed run, with nothing else subscribed: a tenth of the process)
-        return {topic for topic, publisher in self.publishers_.items()
-                if topic is not topics.CLOCK and publisher.get_subscription_count()}
+        heard = {topic for topic, publisher in self.publishers_.items()
+                 if topic is not topics.CLOCK and publisher.get_subscription_count()}
+        if self.control_odom_pub.get_subscription_count():
+            heard.add(topics.CONTROL_ODOM)
+        return heard
+
+    def _control_instant(self, stamp_ns: int) -> bool:
+        every = self.params['control_odom_every']
+        return every > 0 and round(stamp_ns * 1e-9 * self.params['rate_hz']) % every == 0
 
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
               heard: set[topics.Topic]) -> None:
@@ -406,6 +432,8 @@ class DynamicsNode(Node):
             if topic is not topics.CLOCK:
                 if topic in heard:
                     self.publishers_[topic].publish(data)
+                if topic is topics.ODOM and topics.CONTROL_ODOM in heard and self._control_instant(stamp_ns):
+                    self.control_odom_pub.publish(data)
             elif clock:
                 self.publishers_[topic].publish(data)
                 if self.domain_clock_pub is not None:
@@ -430,7 +458,8 @@ class DynamicsNode(Node):
     def controller_listening(self) -> bool:
         # and every discovered command publisher is matched here: its answer to the first state
         # must not be sent before (the other direction is the controller's to check)
-        return (heard_by_every(self, self.publishers_[topics.ODOM], self.command_topic)
+        return (any(heard_by_every(self, publisher, self.command_topic)
+                    for publisher in (self.publishers_[topics.ODOM], self.control_odom_pub))
                 and self.command_sub.get_publisher_count() >= self.count_publishers(self.command_topic))
 
     def _run_loop(self) -> None:
