@@ -14,9 +14,13 @@ wallbot_sim.model.solve at every RK4 stage) stepping the same scenario in this p
 after the runs: its CPU seconds per simulated second. The machine-independent forms are the
 ratios: graph CPU per simulated second / model CPU per simulated second (target <= 0.6) and
 factor-0 speed / model speed (target >= 5).
+Late steps have a baseline of their own: a bare 1 kHz sleep loop (bench_wakeup's, the pacer's wait
+and nothing else) in this process, under the dynamics' scheduling, for --sleep-seconds before and
+after the runs: its wake-ups later than 2 ms per minute are what the machine gives any sleeping
+1 kHz loop, beside the graph's late steps per minute.
 
     python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine python|numba]
-                                [--markers | --foxglove] [--compose] [--controller]
+                                [--markers | --foxglove] [--compose] [--controller | --cmd-vel]
 
 ``--engine`` is the dynamics' (``run --engine``; default python, the model); with numba the
 kernel is compiled here before the runs if numba's cache lacks it, so no run waits for it.
@@ -29,7 +33,9 @@ view, which builds the markers every frame; no client connected), so its cost sh
 (dynamics_recorder_node, the per-step topics recorded in process), shown as one line.
 
 ``--controller`` runs the closed loop, ``run --controller``: the tracking controller answering every
-5th state in lockstep, its CPU share beside the others'.
+5th state in lockstep, its CPU share beside the others'. ``--cmd-vel`` runs ``run rest --drive
+cmd_vel`` instead of the circle: cmd_vel_node answering every 10th state in lockstep (zero commands:
+nothing publishes cmd_vel), no trajectory node.
 """
 
 from __future__ import annotations
@@ -47,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_core import StraightforwardSimulation
+from bench_wakeup import sleep_loop
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -55,6 +62,7 @@ from wallbot_sim.graph import ChildProcesses, child_processes, cpu_seconds
 from wallbot_sim.model import ConstraintSelection, Robot
 from wallbot_sim.model.compiled import compile_kernel
 from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
+from wallbot_sim.nodes.dynamics_loop import LATE_LIMIT
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
          'constraint_config': 'wallbot_sim.nodes.constraint_config', 'recorder': 'wallbot_sim.nodes.recorder'}
@@ -62,8 +70,26 @@ NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.no
 COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder',
                   **{name: module for name, module in NODES.items() if name not in ('dynamics', 'recorder')}}
 """The nodes of ``run --compose``."""
+LOOPS = {'open': ('circle', [], None, None),
+         'controller': ('circle', ['--controller'], None, 'wallbot_sim.nodes.controller'),
+         'cmd_vel': ('rest', ['--drive', 'cmd_vel'], 'trajectory', 'wallbot_sim.nodes.cmd_vel')}
+"""The graphs measured: scenario, ``run``'s options, the node it lacks, the commanding node's module."""
 SAMPLE_PERIOD = 0.25
 """Wall seconds between /proc samples."""
+
+
+def late_wakeups(seconds: float, priority: int) -> list[float]:
+    """Lateness (s) of every wake-up later than 2 ms of a bare 1 kHz sleep loop run for ``seconds``,
+    under SCHED_FIFO ``priority`` where given and permitted (as the dynamics' loop thread)."""
+    if priority:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        except OSError:
+            pass  # the dynamics falls back to normal scheduling too
+    try:
+        return [late for late in sleep_loop(seconds) if late > LATE_LIMIT]
+    finally:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
 
 
 def model_cpu_per_simulated_second(simulated: float) -> float:
@@ -106,21 +132,22 @@ class Run:
 
 
 def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: float, warmup: float,
-              engine: str, viewer: list[str], compose: bool, priority: int, controller: bool) -> Run:
+              engine: str, viewer: list[str], compose: bool, priority: int, loop: str) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
     ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer);
-    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``; ``controller``: with
-    ``run --controller``."""
+    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``; ``loop``: the
+    ``LOOPS`` entry (open loop, ``run --controller``, ``run rest --drive cmd_vel``)."""
     name = f'run_factor_{factor:g}'
-    nodes = COMPOSED_NODES if compose else NODES
+    scenario, options, without, controller = LOOPS[loop]
+    nodes = {node: module for node, module in (COMPOSED_NODES if compose else NODES).items() if node != without}
     if viewer:
         nodes = {**nodes, 'viewer': 'wallbot_sim.nodes.viewer'}
     if controller:
-        nodes = {**nodes, 'controller': 'wallbot_sim.nodes.controller'}
-    run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', duration,
+        nodes = {**nodes, loop: controller}
+    run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', scenario, '--duration', duration,
                           '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
                           '--realtime-priority', priority, *viewer, *(['--compose'] if compose else []),
-                          *(['--controller'] if controller else [])], name)
+                          *options], name)
     pids: dict[str, int] = {}
     first: tuple[float, dict[str, float]] | None = None
     last: tuple[float, dict[str, float]] | None = None
@@ -174,6 +201,8 @@ def main() -> int:
                         help='wall seconds after every node is up before CPU is counted (default 3)')
     parser.add_argument('--model-seconds', type=float, default=2.0,
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
+    parser.add_argument('--sleep-seconds', type=float, default=20.0,
+                        help='seconds the bare 1 kHz sleep loop runs, before and after the runs (default 20)')
     parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
                         help="the dynamics' engine (run --engine; default python)")
     choice = parser.add_mutually_exclusive_group()
@@ -181,8 +210,11 @@ def main() -> int:
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
     parser.add_argument('--compose', action='store_true',
                         help='run with --compose (the dynamics and the recorder in one process)')
-    parser.add_argument('--controller', action='store_true',
+    closed = parser.add_mutually_exclusive_group()
+    closed.add_argument('--controller', action='store_const', dest='loop', const='controller', default='open',
                         help='run with --controller (the tracking controller in lockstep, driven mode)')
+    closed.add_argument('--cmd-vel', action='store_const', dest='loop', const='cmd_vel',
+                        help='run rest --drive cmd_vel (cmd_vel_node in lockstep) instead of the circle')
     parser.add_argument('--realtime-priority', type=int, default=0,
                         help="run with --realtime-priority N (SCHED_FIFO for the dynamics' loop thread; default 0)")
     args = parser.parse_args()
@@ -195,11 +227,13 @@ def main() -> int:
     launcher = ChildProcesses(work / 'logs', claim.env(os.environ), stop_timeout=120.0)
     try:
         model_before = model_cpu_per_simulated_second(args.model_seconds)
+        bare_late = late_wakeups(args.sleep_seconds, args.realtime_priority)
         realtime = graph_run(launcher, work / 'factor1', 1.0, args.duration, args.warmup, args.engine, viewer,
-                             args.compose, args.realtime_priority, args.controller)
+                             args.compose, args.realtime_priority, args.loop)
         fast = graph_run(launcher, work / 'factor0', 0.0, args.fast_duration, args.warmup, args.engine, viewer,
-                         args.compose, args.realtime_priority, args.controller)
+                         args.compose, args.realtime_priority, args.loop)
         model_after = model_cpu_per_simulated_second(args.model_seconds)
+        bare_late += late_wakeups(args.sleep_seconds, args.realtime_priority)
     finally:
         launcher.stop_all(first=tuple(name for name in launcher.processes if name.startswith('run')))
         claim.release()
@@ -212,9 +246,10 @@ def main() -> int:
     lateness = max(float(d['lateness max (ms)']) for _, d in realtime.diagnostics)
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
-    composed = ((' --compose' if args.compose else '') + (' --controller' if args.controller else '')
+    scenario, options, _without, _controller = LOOPS[args.loop]
+    composed = ((' --compose' if args.compose else '') + ''.join(f' {option}' for option in options)
                 + (f' --realtime-priority {args.realtime_priority}' if args.realtime_priority else ''))
-    print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
+    print(f'\nwallbot-sim run {scenario} --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
     for node, seconds in realtime.cpu.items():
         print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per '
@@ -223,10 +258,14 @@ def main() -> int:
           '   (target <= 50 %)')
     print(f'  ratio to the two-pinv model: {total / simulated / model:.2f}   (target <= 0.6)')
     print(f'  steps later than 2 ms over the whole run: {late}   (max lateness {lateness:.3f} ms; target 0)')
+    graph_rate, bare_rate = late / (args.duration / 60), len(bare_late) / (2 * args.sleep_seconds / 60)
+    print(f'  per minute: {graph_rate:.0f}; a bare 1 kHz sleep loop here, same scheduling, '
+          f'{2 * args.sleep_seconds:g} s: {bare_rate:.0f} wake-ups later than 2 ms per minute '
+          f'(max {1e3 * max(bare_late, default=0.0):.2f} ms)')
 
     speed = fast.speed()
     fast_wall = fast.window[1] - fast.window[0]
-    print(f'\nwallbot-sim run circle --engine {args.engine}{composed}, factor 0, {args.fast_duration:g} simulated s:')
+    print(f'\nwallbot-sim run {scenario} --engine {args.engine}{composed}, factor 0, {args.fast_duration:g} simulated s:')
     print(f'  simulated s per wall s: {speed:.2f}   (target >= 5)')
     print(f'  ratio to the two-pinv model\'s speed ({1 / model:.2f} simulated s per CPU s): {speed * model:.2f}'
           '   (target >= 5)')
