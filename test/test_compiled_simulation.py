@@ -359,11 +359,19 @@ def test_steps_taken_ahead_are_the_steps_one_at_a_time_through_every_change(monk
         assert all(np.array_equal(a[key], b[key]) for key in a), i
 
 
-def advanced(simulation: Simulation, sizes: list[int]) -> tuple[list[StepBlock], list[StepOutputs]]:
-    """Blocks of ``sizes`` steps, a single step and its outputs between each two; the outputs after each block."""
+def advanced(simulation: Simulation, sizes: list[int], taken: bool) -> tuple[list[StepBlock], list[StepOutputs]]:
+    """Blocks of ``sizes`` steps, a single step and its outputs between each two; the outputs after each block.
+    ``taken``: each block computed (``compute_block``, which must leave the simulation as it was), then taken."""
     blocks, after = [], []
     for size in sizes:
-        blocks.append(simulation.advance(size))
+        if taken:
+            steps, outputs = simulation.steps, simulation.outputs()
+            blocks.append(simulation.compute_block(size))
+            assert simulation.steps == steps
+            assert_outputs_equal(simulation.outputs(), outputs)
+            simulation.take(blocks[-1])
+        else:
+            blocks.append(simulation.advance(size))
         after.append(simulation.outputs())
         simulation.step()
     return blocks, after
@@ -379,10 +387,12 @@ def assert_outputs_equal(got: StepOutputs, expected: StepOutputs) -> None:
         expected.contact.use, expected.contact.limits, expected.contact.slipping, expected.contact.friction_force)
 
 
+@pytest.mark.parametrize('taken', [False, True], ids=['advance', 'compute_block-take'])
 @pytest.mark.parametrize('scenario_name, torque', [('circle', None), ('figure8', None), (None, (1.5, -0.7))])
-def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenario_name, torque):
+def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenario_name, torque, taken):
     """advance (a block of steps by one kernel call, its outputs as arrays) against step and outputs one at a
-    time: every row, what its messages carry (wheel torques, friction limits), and the outputs after it."""
+    time: every row, what its messages carry (wheel torques, friction limits), and the outputs after it.
+    The same for a block computed without moving the simulation, then taken (what a paced loop does)."""
     rng = np.random.default_rng(33)
     (robot,) = random_robots(rng, 1)
     if scenario_name is None:
@@ -397,7 +407,7 @@ def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenari
         run.set_motor_torque(*(torque or (0.0, 0.0)))
     sizes = [1, 7, 50, 2, 31]
     outputs = step_by_step(runs[0], sum(sizes) + len(sizes))
-    blocks, after = advanced(runs[1], sizes)
+    blocks, after = advanced(runs[1], sizes, taken)
     first = 1
     for block, size, last in zip(blocks, sizes, after):
         rows = outputs[first:first + size]

@@ -416,6 +416,14 @@ class Simulation:
         None, the simulation unchanged, if a state or output among them is not finite: ``step`` one at a
         time to meet the divergence where it happens.
         """
+        block = self.compute_block(count)
+        if block is not None:
+            self.take(block)
+        return block
+
+    def compute_block(self, count: int) -> StepBlock | None:
+        """``advance``'s block, the simulation left where it is: ``take`` moves it to the block's end, unless
+        something changed it in between (then the block is of no use)."""
         compiled = self._compiled_now()
         if compiled is None or self.coulomb_applies:
             raise ModelError('advance needs the numba engine with ideal contact (Simulation.tabulates)')
@@ -428,16 +436,18 @@ class Simulation:
             return None
         tau_left, tau_right = self.motor_torque
         static = self.robot.params.wall_friction
-        block = StepBlock(table, table.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right,
-                                                                                  tau_right]),
-                          np.stack((static * (table.loads[:, 0] + table.loads[:, 1]),
-                                    static * (table.loads[:, 2] + table.loads[:, 3]),
-                                    np.full(count, static * self.robot.adsorption.applied_force)), axis=1))
-        self.steps += count
+        return StepBlock(table, table.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right,
+                                                                                 tau_right]),
+                         np.stack((static * (table.loads[:, 0] + table.loads[:, 1]),
+                                   static * (table.loads[:, 2] + table.loads[:, 3]),
+                                   np.full(count, static * self.robot.adsorption.applied_force)), axis=1))
+
+    def take(self, block: StepBlock) -> None:
+        """Continue from the last instant of ``block``, which ``compute_block`` gave from the current state."""
+        self.steps += len(block.t)
         self._t = self._initial[0] + self.steps * self.dt
-        self._y = run.states[count].copy()
+        self._y = np.concatenate((block.q[-1], block.qd[-1]))
         self._cached = self._last_outputs(block)
-        return block
 
     def _last_outputs(self, block: StepBlock) -> StepOutputs:
         """The outputs at the last instant of ``block`` (the current one), as ``outputs`` builds them."""

@@ -333,6 +333,8 @@ class DynamicsLoop:
         self._window_lock = threading.Lock()
         self._ahead: Ahead | None = None
         """A block of steps computed, not all published yet (the simulation is at its end)."""
+        self._next: Ahead | None = None
+        """Paced: the block after ``_ahead``, computed (and encoded) between its last states, not taken yet."""
 
     # --- any thread ---------------------------------------------------------------------------------
     def post(self, event: Event) -> None:
@@ -392,12 +394,15 @@ class DynamicsLoop:
         boundary after the last state published, as it does between single steps.
         """
         events = self._take_events()
+        progress_only = all(isinstance(event, RecordProgress) for event in events)
+        if self._ahead is not None and progress_only:
+            for event in events:
+                self._apply(event)
+            self._publish_ahead()
+            return Decision.STEPPED
+        if not progress_only:
+            self._next = None  # computed before the event
         if self._ahead is not None:
-            if all(isinstance(event, RecordProgress) for event in events):
-                for event in events:
-                    self._apply(event)
-                self._publish_ahead()
-                return Decision.STEPPED
             self._rewind()
         for event in events:
             self._apply(event)
@@ -866,22 +871,49 @@ class DynamicsLoop:
         return size
 
     def _start_block(self, size: int) -> bool:
-        """Compute ``size`` steps at once (``_block_size``) and publish the first of them, or all at factor 0;
+        """Take a block of at most ``size`` steps (``_block_size``): the one computed ahead (``_prepare_next``)
+        if it starts here, else ``size`` steps computed now; publish its first state, or all at factor 0.
         False, nothing taken, if a state among them is not finite (``_step`` then meets it)."""
         sim = self.sim
         if sim.motor_torque != (0.0, 0.0):
             sim.set_motor_torque(0.0, 0.0)
-        before = (sim.steps, sim.q, sim.qd)
-        began = time.perf_counter()
-        block = sim.advance(size)
-        if block is None:
-            return False
+        ahead, self._next = self._next, None
+        if ahead is None or ahead.before[0] != sim.steps or len(ahead.stamps) > size:
+            ahead = self._compute_block(size)
+            if ahead is None:
+                return False
+        if not ahead.senders:
+            ahead.senders = self._graph.prepare_block(ahead.block)
+        sim.take(ahead.block)
         self.stepped = True
-        stamps = [codec.to_nanoseconds(t) for t in block.t.tolist()]
-        step_time = (time.perf_counter() - began) / size
-        self._ahead = Ahead(block, self._graph.prepare_block(block), stamps, before, step_time)
+        self._ahead = ahead
         self._publish_ahead()
         return True
+
+    def _compute_block(self, size: int) -> Ahead | None:
+        """``size`` steps from the simulation's state, not taken yet and not encoded; None if one is not finite."""
+        sim = self.sim
+        before = (sim.steps, sim.q, sim.qd)
+        began = time.perf_counter()
+        block = sim.compute_block(size)
+        if block is None:
+            return None
+        step_time = (time.perf_counter() - began) / size
+        return Ahead(block, (), [codec.to_nanoseconds(t) for t in block.t.tolist()], before, step_time)
+
+    def _prepare_next(self) -> None:
+        """Paced, after publishing a state of a block: with two states of it left, compute the next block; with
+        one left, encode its messages. So each part takes the time up to the next state's due time, and the
+        block boundary publishes a state without computing any: on a slow machine computing and encoding a
+        block of 20 takes 2-4 ms, which made the first state of every block late. Any event but a recorder's
+        progress drops the block (``tick``); so does a boundary that is not where it starts."""
+        left = len(self._ahead.stamps) - self._ahead.published
+        if self._next is None and left <= 2:
+            size = self._block_size()  # from the simulation's state: the end of the block being published
+            if size > 1:
+                self._next = self._compute_block(size)
+        elif self._next is not None and left == 1 and not self._next.senders:
+            self._next.senders = self._graph.prepare_block(self._next.block)
 
     def _publish_ahead(self) -> None:
         """Publish the next state of the block computed ahead when it is due (at factor 0, all of them)."""
@@ -909,12 +941,13 @@ class DynamicsLoop:
                 self.last_outputs = sim.outputs()
                 return
             if self._factor > 0.0:
+                self._prepare_next()
                 return
 
     def _rewind(self) -> None:
         """Drop the states of the block computed ahead that are not published: the simulation goes back to
         the last state published (``Simulation.restore``, which continues bit for bit)."""
-        ahead, self._ahead = self._ahead, None
+        ahead, self._ahead, self._next = self._ahead, None, None
         row = ahead.published
         if row == 0:
             self.sim.restore(*ahead.before)
