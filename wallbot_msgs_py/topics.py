@@ -78,9 +78,9 @@ DOMAIN_CLOCK = Topic('/clock', 'rosgraph_msgs/msg/Clock')
 --use-sim-time``): the same messages as CLOCK, published by the dynamics whose ``domain_clock``
 parameter is true (the default; set it false on every robot but one when several share a domain)."""
 ROBOT_CLOCK_REMAP = '/clock:=clock'
+"""The node-local remapping that makes a node's ``use_sim_time`` follow its robot's CLOCK."""
 CONTROL_ODOM_REMAP = 'odom:=control_odom'
 """The remapping that makes a controller read CONTROL_ODOM where it reads ``odom``."""
-"""The node-local remapping that makes a node's ``use_sim_time`` follow its robot's CLOCK."""
 GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
 """The simulated state itself, as ``odom`` carries it without sensor noise: published beside a
 noisy ``odom`` (the dynamics' ``odom_noise_*`` parameters), so a bag keeps the truth; a run without
