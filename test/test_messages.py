@@ -142,16 +142,20 @@ def test_path_and_reference_odometry():
                                           ('abc', 'abcdefg')])
 @pytest.mark.parametrize('little_endian', [True, False])
 def test_odometry_read_from_its_bytes_is_the_decoded_one(frame, child, little_endian):
-    """planar_state_from_cdr against the typestore's decoding, across string lengths (the alignment
-    of the pose after them) and both byte orders; a truncated message is refused, not misread."""
+    """planar_state_from_cdr and body_twist_from_cdr against the typestore's decoding, across string
+    lengths (the alignment of the pose after them) and both byte orders; a truncated message is
+    refused, not misread."""
     msg = decode(codec.odometry(12.345, 0.3, -0.2, 2.5, 0.11, -0.07, 0.9, child=child, frame=frame), topics.ODOM)
     msg.pose.covariance = np.arange(36.0)  # values that must be skipped, not read
     msg.twist.covariance = -np.arange(36.0)
     data = bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type, little_endian=little_endian))
     assert codec.planar_state_from_cdr(data) == codec.planar_state(msg)
+    twist = msg.twist.twist
+    assert codec.body_twist_from_cdr(data) == (twist.linear.x, twist.linear.y, twist.angular.z)
     for cut in (1, 13, len(data) - 1):
-        with pytest.raises(ValueError, match=f'malformed odometry \\({cut} bytes\\)'):
-            codec.planar_state_from_cdr(data[:cut])
+        for read in (codec.planar_state_from_cdr, codec.body_twist_from_cdr):
+            with pytest.raises(ValueError, match=f'malformed odometry \\({cut} bytes\\)'):
+                read(data[:cut])
     msg.twist.twist.angular.z = math.inf
     with pytest.raises(ValueError, match='not finite'):
         codec.planar_state_from_cdr(bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type)))
@@ -231,6 +235,15 @@ def test_the_torque_command_encoder_writes_what_rclpy_serializes():
     assert len(ours) == len(theirs) == 36
     assert ours[:padding.start] + ours[padding.stop:] == theirs[:padding.start] + theirs[padding.stop:]
     assert codec.torque_command(decode(ours, topics.WHEEL_TORQUE_CMD), 5.0) == (0.1234567, -4.5)
+
+
+@pytest.mark.parametrize('torques', [(0.1234567, -4.5), (-0.0, 5.0), (1e-300, -math.pi)])
+def test_the_torque_command_encoder_writes_what_the_typestore_serializes(torques):
+    """The hand-packed bytes are the typestore's serialization, padding included."""
+    store = bagio.typestore().types
+    msg = store['std_msgs/msg/Float64MultiArray'](layout=store['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
+                                                  data=np.array(torques, dtype=np.float64))
+    assert codec.wheel_torque_cmd(*torques) == bagio.serialize(msg, topics.WHEEL_TORQUE_CMD.type)
 
 
 def test_initial_pose_validation():

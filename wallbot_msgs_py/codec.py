@@ -171,17 +171,28 @@ def planar_state_from_cdr(data: bytes) -> PlanarState:
     """``planar_state`` of a serialized Odometry (what a raw subscription takes), read from the
     bytes: the same numbers, without converting the whole message (covariances included) first,
     which costs a controller more than the rest of its callback."""
+    x, y, _z, qx, qy, qz, qw, u, v, _w, _p, _q, r = _pose_and_twist(data)
+    return _planar(leading_stamp_ns(data), x, y, qx, qy, qz, qw, u, v, r)
+
+
+def body_twist_from_cdr(data: bytes) -> tuple[float, float, float]:
+    """(linear.x, linear.y, angular.z) of a serialized Odometry's twist (in its child frame), read
+    from the bytes as ``planar_state_from_cdr`` reads them. ValueError if malformed."""
+    u, v, _w, _p, _q, r = _pose_and_twist(data)[7:]
+    return u, v, r
+
+
+def _pose_and_twist(data: bytes) -> tuple[float, ...]:
+    """The 13 doubles of a serialized Odometry's pose (position, orientation) and twist (linear, angular)."""
     try:
         order = '<' if data[1] & 1 else '>'
         offset = 12  # the encapsulation, then header.stamp
         for _string in ('header.frame_id', 'child_frame_id'):
             offset = _aligned(offset, 4)
             offset += 4 + struct.unpack_from(order + 'I', data, offset)[0]
-        x, y, _z, qx, qy, qz, qw, u, v, _w, _p, _q, r = struct.unpack_from(order + _POSE_AND_TWIST, data,
-                                                                            _aligned(offset, 8))
+        return struct.unpack_from(order + _POSE_AND_TWIST, data, _aligned(offset, 8))
     except (struct.error, IndexError):
         raise ValueError(f'malformed odometry ({len(data)} bytes)') from None
-    return _planar(leading_stamp_ns(data), x, y, qx, qy, qz, qw, u, v, r)
 
 
 def _aligned(offset: int, size: int) -> int:
@@ -371,13 +382,17 @@ def diagnostic_values(msg: Any) -> dict[str, str]:
 
 
 # --- commands ----------------------------------------------------------------------------------------
+_TORQUE_COMMAND = struct.Struct('<4s3I4x2d')
+"""A Float64MultiArray of two values with an empty layout, little-endian CDR: the encapsulation, the
+layout's dim count and data_offset, the data's count, padding to 8, the two doubles."""
+_LITTLE_ENDIAN_CDR = b'\x00\x01\x00\x00'
+
+
 def wheel_torque_cmd(tau_left: float, tau_right: float) -> bytes:
     """``wheel_torque_cmd``: the side motor torques (N m) as a std_msgs/Float64MultiArray
-    ``[tau_L, tau_R]`` with an empty layout, the bytes rclpy serializes such a message to."""
-    types = _types()
-    msg = types['std_msgs/msg/Float64MultiArray'](layout=types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
-                                                  data=np.array([tau_left, tau_right], dtype=np.float64))
-    return _serialize(msg, topics.WHEEL_TORQUE_CMD)
+    ``[tau_L, tau_R]`` with an empty layout, the bytes rclpy serializes such a message to (what a
+    controller publishes, without building and converting an rclpy message each control instant)."""
+    return _TORQUE_COMMAND.pack(_LITTLE_ENDIAN_CDR, 0, 0, 2, tau_left, tau_right)
 
 
 def torque_command(msg: Any, max_torque: float) -> tuple[float, float]:

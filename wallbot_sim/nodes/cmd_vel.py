@@ -32,7 +32,6 @@ import sys
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64MultiArray
 
 from wallbot_msgs_py import codec, topics
@@ -159,11 +158,14 @@ class CmdVelNode(Node):
         if not self.instants.due(stamp_ns):
             return
         self.instants.acted(stamp_ns)
-        twist = deserialize_message(data, Odometry).twist.twist
+        try:
+            forward, _sideways, yaw_rate = codec.body_twist_from_cdr(data)
+        except ValueError as error:
+            self.get_logger().error(f'ignoring odom: {error}', throttle_duration_sec=THROTTLE)
+            return
         s = self.controller.settings
         half = 0.5 * s.wheel_separation
-        measured = ((twist.linear.x - half * twist.angular.z) / s.wheel_radius,
-                    (twist.linear.x + half * twist.angular.z) / s.wheel_radius)
+        measured = ((forward - half * yaw_rate) / s.wheel_radius, (forward + half * yaw_rate) / s.wheel_radius)
         was_timed_out = self.controller.timed_out
         out = self.controller.update(stamp_ns * 1e-9, *measured)
         if self.controller.timed_out and not was_timed_out:
@@ -171,7 +173,7 @@ class CmdVelNode(Node):
         if out.saturated:
             self.get_logger().warning(f'side torques clamped to +-{s.max_wheel_torque:g} N m',
                                       throttle_duration_sec=THROTTLE)
-        if not self.commands.send(Float64MultiArray(data=[out.tau_left, out.tau_right])):
+        if not self.commands.send(codec.wheel_torque_cmd(out.tau_left, out.tau_right)):
             self.get_logger().info('holding the command until the dynamics hears wheel_torque_cmd',
                                    throttle_duration_sec=THROTTLE)
 
