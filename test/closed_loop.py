@@ -16,6 +16,7 @@ from wallbot_msgs_py import bagio
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DriveForces, Robot, Simulation
 from wallbot_sim.model.outputs import side_motor_torques
@@ -25,6 +26,8 @@ COMMAND_TIMEOUT = 0.5
 MAX_TORQUE = 5.0
 """The dynamics' and the controller's default max_wheel_torque (N m)."""
 ROBOT = Robot(load_robot_parameters())
+CONTROL_STEPS = 1000 // CONTROL_RATE_HZ
+"""Plant steps (1 kHz) per control period of the controller at its default rate."""
 
 
 def applied_torques(run) -> np.ndarray:
@@ -41,15 +44,15 @@ def recorded(bag: Path, leaf: str) -> list:
 
 
 def model_closed_loop(scenario_name: str, mass_scale: float, steps: int) -> np.ndarray:
-    """Centre positions of the same loop on the model alone: torques from the state every 5th step
-    (200 Hz), clamped to the limit, held for 5 steps of the 1 kHz plant."""
+    """Centre positions of the same loop on the model alone: torques from the state at each control
+    instant (the controller's default rate), clamped to the limit, held until the next."""
     params, scenario = ROBOT.params, load_scenario(scenario_name)
     plant = Simulation(ROBOT, None, DRIVEN, *scenario.initial_state(ROBOT))
     controller = TrackingController(Robot(params.replace(body_mass=params.body_mass * mass_scale)), scenario.reference)
     positions = [plant.q[:2].copy()]
     for k in range(steps):
-        if k % 5 == 0:
-            command = controller.update(plant.t, plant.q, plant.qd, 5 * plant.dt)
+        if k % CONTROL_STEPS == 0:
+            command = controller.update(plant.t, plant.q, plant.qd, CONTROL_STEPS * plant.dt)
             plant.set_motor_torque(*(min(MAX_TORQUE, max(-MAX_TORQUE, tau)) for tau in (command.tau_left, command.tau_right)))
         plant.step()
         positions.append(plant.q[:2].copy())
@@ -64,11 +67,11 @@ def check_complete(run, duration: float) -> None:
 
 
 def check_commands(bag: Path, duration: float, output: str = '') -> None:
-    """wheel_torque_cmd is recorded: about 200 Hz of simulation time, finite, within the limit."""
+    """wheel_torque_cmd is recorded: about the controller's rate, finite, within the limit."""
     commands = np.array([list(m.data) for m in recorded(bag, 'wheel_torque_cmd')])
     assert commands.shape[1] == 2 and np.all(np.isfinite(commands))
     assert np.max(np.abs(commands)) <= MAX_TORQUE
-    if not 0.9 * 200 * duration <= len(commands) <= 200 * duration + 2:
+    if not 0.9 * CONTROL_RATE_HZ * duration <= len(commands) <= CONTROL_RATE_HZ * duration + 2:
         received = {leaf: [raw.timestamp for raw in messages(bag) if raw.topic.rsplit('/', 1)[-1] == leaf]
                     for leaf in ('odom', 'wheel_torque_cmd')}
         first_odom, command_times = received['odom'][0], np.array(received['wheel_torque_cmd'])

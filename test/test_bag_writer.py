@@ -18,6 +18,7 @@ from wallbot_sim.bag.reindex import reindex
 from wallbot_sim.bag.writer import BagWriter
 from wallbot_sim.cli.main import main as cli
 from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ
 from wallbot_sim.plots.figures import FIGURES
 
 mcap_reader = pytest.importorskip('mcap.reader')
@@ -195,7 +196,7 @@ def test_a_closed_loop_bag_holds_every_command_the_controller_sent(tmp_path):
             simulation.set_motor_torque(command.tau_left, command.tau_right)
             sent.append((stamp_ns, command.tau_left, command.tau_right))
     simulation.run(0.3, control)
-    assert [ns for ns, _, _ in sent] == list(range(0, 300_000_001, 5_000_000))  # 200 Hz of simulation time
+    assert [ns for ns, _, _ in sent] == list(range(0, 300_000_001, 10**9 // CONTROL_RATE_HZ))  # in simulation time
 
     name, odom_name = topics.WHEEL_TORQUE_CMD.resolve(), topics.ODOM.resolve()
     recorded, previous_odom = [], None
@@ -239,7 +240,9 @@ def test_the_tools_read_a_closed_loop_bag(tmp_path, capsys):
     capsys.readouterr()
     assert cli(['info', str(bag)]) == 0
     listed = capsys.readouterr().out
-    assert '/wallbot/wheel_torque_cmd' in listed and '61 msgs' in listed and '/wallbot/robot_description' in listed
+    commands = round(0.3 * CONTROL_RATE_HZ) + 1  # every control instant from t = 0 to 0.3 s
+    assert '/wallbot/wheel_torque_cmd' in listed and f'{commands} msgs' in listed
+    assert '/wallbot/robot_description' in listed
     assert cli(['plot', str(bag), '--out', str(tmp_path / 'plots')]) == 0
     assert sorted(f.stem for f in (tmp_path / 'plots').glob('*.png')) == sorted(FIGURES)
     assert cli(['compare', str(bag), str(table), '--out', str(tmp_path / 'compare')]) == 0

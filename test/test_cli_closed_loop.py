@@ -181,7 +181,7 @@ def state(t_ns: int, x: float = 0.8) -> PlanarState:
 def sampled(max_wheel_torque: float = 5.0) -> SampledController:
     from wallbot_sim.config import load_scenario
     reference = load_scenario('circle').reference
-    return SampledController(TrackingController(controller_robot(PARAMS, 1.0), reference),
+    return SampledController(TrackingController(controller_robot(PARAMS, 1.0), reference), 200,  # a 5 ms period
                              max_wheel_torque=max_wheel_torque)
 
 

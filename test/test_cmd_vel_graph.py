@@ -22,10 +22,12 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
+from wallbot_sim.graph_description import CMD_VEL_STEPS, CONTROL_STEPS  # noqa: E402
 
 DRIVEN = ('trajectory_task:=false', 'belt:=true', 'non_lateral:=true', 'nonslip:=true')
 AT_ORIGIN = ('initial_x:=0.0', 'initial_y:=0.0', 'initial_theta:=0.0')
-LOCKSTEP = ('wait_for_command:=true', 'lockstep_every:=10')  # cmd_vel_node's 100 Hz at 1 kHz
+LOCKSTEP = ('wait_for_command:=true', f'lockstep_every:={CMD_VEL_STEPS}')  # cmd_vel_node's period at 1 kHz
+PERIOD_NS = CMD_VEL_STEPS * 1_000_000
 SIDE, SPEED, TURN_RATE = 0.5, 0.2, 1.0
 LEG_TOLERANCE = 0.003
 """m: each leg's length within this of 0.5 m (0.5 mm measured)."""
@@ -123,7 +125,7 @@ def test_scripted_cmd_vel_drives_a_square_on_the_wall(graph):
         graph.wait_for(lambda: graph.last_stamp() >= t_ns, 60, f'the pause at {t_ns * 1e-9:.3f} s')
         poses.append(driver.pose())
         driver.send(linear, angular)
-        t_ns += round(length * 1e9 / 10_000_000) * 10_000_000  # a whole number of control periods
+        t_ns += round(length * 1e9 / PERIOD_NS) * PERIOD_NS  # a whole number of control periods
         graph.set_parameters('dynamics', stop_at=t_ns * 1e-9)
     graph.wait_for(lambda: graph.last_stamp() >= t_ns, 60, 'the end of the square')
     poses.append(driver.pose())
@@ -202,8 +204,8 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
 @pytest.mark.parametrize('factor', ['0.5', '0.0'])
 @pytest.mark.parametrize('drive', ['cmd_vel', 'controller'])
 def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(graph, drive, factor):
-    """The dynamics in lockstep with a drive (cmd_vel_node at 100 Hz, or the tracking controller at
-    200 Hz), beside the trajectory node, all with use_sim_time, at factor 0.5 and 0 (as fast as
+    """The dynamics in lockstep with a drive (cmd_vel_node or the tracking controller at their
+    default rates), beside the trajectory node, all with use_sim_time, at factor 0.5 and 0 (as fast as
     possible): simulated time advances only as the drive answers, the drive acts in simulation time
     (the robot at the commanded speed, or closing on the circle), the trajectory node's reference
     poses keep up with the clock, and after ``~/reset`` (time back to 0) all of them carry on
@@ -213,7 +215,7 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
         dynamics = (*AT_ORIGIN, *LOCKSTEP)
     else:
         graph.start('controller', 'use_sim_time:=true')
-        dynamics = ('wait_for_command:=true', 'lockstep_every:=5')  # starts 0.2 m inside the unit circle
+        dynamics = ('wait_for_command:=true', f'lockstep_every:={CONTROL_STEPS}')  # starts 0.2 m inside the unit circle
     start_graph(graph, *dynamics, f'real_time_factor:={factor}', constraints=DRIVEN,
                 trajectory=('use_sim_time:=true',))
     driver = Driver(graph)

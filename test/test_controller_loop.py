@@ -25,6 +25,7 @@ from closed_loop import (COMMAND_TIMEOUT, ROBOT, applied_torques, check_commands
                          model_closed_loop, recorded)
 from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_sim.control.tracking import DRIVEN  # noqa: E402
+from wallbot_sim.graph_description import CONTROL_STEPS  # noqa: E402
 from wallbot_sim.graph import child_processes  # noqa: E402
 from wallbot_sim.model import Simulation  # noqa: E402
 from wallbot_sim.rundata import load_run  # noqa: E402
@@ -67,7 +68,7 @@ def test_closed_loop_tracks_through_the_graph(tmp_path, process_runner, scenario
     # the loop was closed from t = 0: the first step already had the controller's torque
     tau = applied_torques(run)
     assert np.all(np.abs(tau[1]) > 0.1)
-    # lockstep: the graph's loop is the model's loop (a 200 Hz controller without delay), whatever the load
+    # lockstep: the graph's loop is the model's loop (the controller without delay), whatever the load
     model = model_closed_loop(scenario, mass_scale, len(run.t) - 1)
     difference = np.max(np.hypot(model[:, 0] - run.x, model[:, 1] - run.y))
     assert difference < 1e-9
@@ -203,7 +204,7 @@ def test_two_robots_side_by_side(tmp_path, process_runner, driven):
                      f'{ns} recorder and controller')
         for ns, config in ROBOTS.items():
             start(ns, 'dynamics', 'dynamics', *config['dynamics'], 'wait_for_recorder:=true', f'stop_at:={duration}',
-                  *(('wait_for_command:=true', 'lockstep_every:=5') if driven else ()))
+                  *(('wait_for_command:=true', f'lockstep_every:={CONTROL_STEPS}') if driven else ()))
         for ns in ROBOTS:
             wait_for(lambda ns=ns: progress[ns] >= duration - 1e-9, 60, f'{ns} recorded up to {duration} s')
             # one publisher per robot topic: nobody answers on the other robot's topics

@@ -39,6 +39,7 @@ from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
+from wallbot_sim.graph_description import CONTROL_STEPS  # noqa: E402
 
 DOWN = 1.0
 """Seconds a killed node stays dead before its restart."""
@@ -223,7 +224,8 @@ sent in its last moments, lost in transit to a starved recorder, are resent only
 heartbeat (Fast DDS: every 3 s), which a stopping controller does not live to send (seen under load:
 the answers of the last 0.11 s and 0.2 s; the dynamics runs at most its backpressure_window, 0.2 s,
 ahead of the recorder). Short of the 0.35 s of answers a lost lockstep once kept from the bag."""
-DRIVEN_DYNAMICS = ('real_time_factor:=1.0', 'wait_for_recorder:=true', 'wait_for_command:=true', 'lockstep_every:=5')
+DRIVEN_DYNAMICS = ('real_time_factor:=1.0', 'wait_for_recorder:=true', 'wait_for_command:=true',
+                   f'lockstep_every:={CONTROL_STEPS}')
 
 
 def test_reset_and_a_kill_in_a_closed_loop_every_node_carries_on(process_runner, tmp_path):

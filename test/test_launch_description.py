@@ -15,7 +15,8 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import EXECUTABLES, describe_driven_graph, describe_graph, launch_name
+from wallbot_sim.graph_description import (CONTROL_STEPS, EXECUTABLES, describe_driven_graph, describe_graph,
+                                           launch_name)
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
@@ -100,7 +101,7 @@ def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_pa
     assert nodes[0]['parameters'][0]['output'] == str(tmp_path / 'bag')
     # the controller reads the odometry of its control instants only: those the dynamics waits on
     assert nodes[3]['remappings'] == [('odom', 'control_odom')]
-    assert dynamics['control_odom_every'] == dynamics['lockstep_every'] == 5
+    assert dynamics['control_odom_every'] == dynamics['lockstep_every'] == CONTROL_STEPS
     assert all(not n['remappings'] for n in nodes if n['name'] != 'controller')
 
 

@@ -31,6 +31,7 @@ from wallbot_sim import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
 from wallbot_sim.model import ConstraintSelection, FigureEight, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
+from wallbot_sim.nodes.dynamics import CONTROL_ODOM_EVERY  # noqa: E402
 
 
 @pytest.fixture
@@ -79,13 +80,15 @@ def test_topics_types_and_1khz_odometry(graph):
     assert stamps[0] == 0 and len(stamps) >= 2001
     assert np.all(np.diff(stamps) == MS), 'odometry stamps must be consecutive, 1 ms apart'
     assert odom[0].header.frame_id == 'wall' and odom[0].child_frame_id == 'base_link'
-    # control_odom: every 5th state (control_odom_every's default), the same message as on odom
-    graph.wait_for(lambda: len(graph.messages(topics.CONTROL_ODOM.name)) > 400, 10, '2 s of control_odom')
+    # control_odom: every CONTROL_ODOM_EVERY-th state (the parameter's default), the same message as on odom
+    every = CONTROL_ODOM_EVERY * MS
+    graph.wait_for(lambda: len(graph.messages(topics.CONTROL_ODOM.name)) > 2000 // CONTROL_ODOM_EVERY, 10,
+                   '2 s of control_odom')
     control = graph.messages(topics.CONTROL_ODOM.name)
-    assert [ns(m) for m in control] == list(range(0, 5 * MS * len(control), 5 * MS))
+    assert [ns(m) for m in control] == list(range(0, every * len(control), every))
     by_stamp = {ns(m): m for m in odom}
     assert all(m == by_stamp[ns(m)] for m in control if ns(m) in by_stamp)
-    assert sum(ns(m) in by_stamp for m in control) >= 400
+    assert sum(ns(m) in by_stamp for m in control) >= 2000 // CONTROL_ODOM_EVERY
 
     names = dict(graph.node.get_topic_names_and_types())
     expected = {'/wallbot/odom': 'nav_msgs/msg/Odometry', '/wallbot/control_odom': 'nav_msgs/msg/Odometry',

@@ -22,6 +22,7 @@ from wallbot_msgs_py import bagio  # noqa: E402
 from wallbot_sim.bag.reader import info  # noqa: E402
 from wallbot_sim.bag.reindex import reindex  # noqa: E402
 from wallbot_sim.cli.main import main as cli  # noqa: E402
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
 
 PUBLISHER = r'''
 import sys, time
@@ -321,7 +322,7 @@ def test_play_republishes_the_commands_and_latches_the_robot_model(process_runne
     for raw in messages(bag):
         recorded[raw.topic].append(bagio.deserialize(raw.data, raw.type))
     commands = [m.data.tolist() for m in recorded[topics.WHEEL_TORQUE_CMD.resolve()]]
-    assert len(commands) == 41
+    assert len(commands) == round(0.2 * CONTROL_RATE_HZ) + 1  # every control instant from t = 0
     script = tmp_path / 'latched.py'
     script.write_text(LATCHED_SUBSCRIBER)
     subscriber = process_runner.start([sys.executable, str(script), str(len(commands)), '40'], 'subscriber')

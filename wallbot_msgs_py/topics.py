@@ -53,7 +53,7 @@ class Topic:
 ODOM = Topic('odom', 'nav_msgs/msg/Odometry')
 CONTROL_ODOM = Topic('control_odom', 'nav_msgs/msg/Odometry')
 """The odometry of the states at control instants: every ``control_odom_every``-th step of the
-dynamics (a parameter; 5 by default, 200 Hz at 1 kHz), the same messages as on ``odom``. A
+dynamics (a parameter; 10 by default, 100 Hz at 1 kHz), the same messages as on ``odom``. A
 controller acting at a fraction of the step rate subscribes it in place of ``odom`` (``-r
 odom:=control_odom``; ``wallbot-sim run`` and the launch file do so for the tracking controller and
 cmd_vel_node), so it wakes once per control period instead of once per step: the control instants it
@@ -86,7 +86,7 @@ GROUND_TRUTH_ODOM = Topic('ground_truth/odom', 'nav_msgs/msg/Odometry')
 noisy ``odom`` (the dynamics' ``odom_noise_*`` parameters), so a bag keeps the truth; a run without
 noise has no messages on it."""
 WHEEL_TORQUE_CMD = Topic('wheel_torque_cmd', 'std_msgs/msg/Float64MultiArray')
-"""The wheel torques ``[tau_L, tau_R]`` (N m), one per control instant (200 Hz of simulation time
+"""The wheel torques ``[tau_L, tau_R]`` (N m), one per control instant (50 Hz of simulation time
 from the tracking controller, up to one per step). Depth 1000 like the per-step topics: a
 recorder starved of CPU misses what its transport queue cannot hold and has it resent from the
 writer's history, and a KEEP_LAST writer has overwritten what is older than its depth. The

@@ -36,8 +36,8 @@ EXECUTABLES = {
     'wallbot_sim.nodes.viewer': 'viewer_node',
 }
 """Each node module's console script (setup.py entry points): what ``ros2 run`` and launch start."""
-CONTROL_STEPS = 5
-"""Dynamics steps per control period: the controller's default 200 Hz at the dynamics' 1 kHz. The
+CONTROL_STEPS = 20
+"""Dynamics steps per control period: the controller's default 50 Hz at the dynamics' 1 kHz. The
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 CMD_VEL_STEPS = 10
 """Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""

@@ -13,7 +13,7 @@ speaking the same three topics:
 
 Timing is simulation time taken from the odometry stamps, not from a ROS timer: the
 controller acts on the first ``odom`` stamped at or after each multiple of 1 / ``rate_hz``
-(every 5th message of the 1 kHz dynamics at 200 Hz). So its control instants are the same
+(every 20th message of the 1 kHz dynamics at 50 Hz). So its control instants are the same
 at any real-time factor or CPU load, and no ``/clock`` subscription is needed. A stamp that
 goes back into the first control period (the dynamics' ``~/reset``, or a dynamics started afresh)
 restarts the controller (integral cleared); one that goes back less is a dynamics resumed after a
@@ -206,7 +206,7 @@ class ControllerNode(Node):
             self.get_logger().warning(f'torques {command.requested[0]:.3f}, {command.requested[1]:.3f} N m clamped to '
                                       f'+-{self.loop.max_wheel_torque:g} N m', throttle_duration_sec=THROTTLE)
         self.commands += 1
-        if not self.delivery.send(Float64MultiArray(data=[command.tau_left, command.tau_right])):
+        if not self.delivery.send(codec.wheel_torque_cmd(command.tau_left, command.tau_right)):
             self.get_logger().info('holding the command until the dynamics hears wheel_torque_cmd',
                                    throttle_duration_sec=THROTTLE)
 

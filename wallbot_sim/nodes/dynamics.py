@@ -124,9 +124,9 @@ COMMAND_WAIT_TIMEOUT = 30.0
 the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
 state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
 controller started by hand later wants more, or 0."""
-CONTROL_ODOM_EVERY = 5
-"""Default control_odom_every (steps): 200 Hz at 1 kHz, the tracking controller's rate; the cmd_vel
-node's 100 Hz is a multiple of it."""
+CONTROL_ODOM_EVERY = 10
+"""Default control_odom_every (steps): 100 Hz at 1 kHz, the cmd_vel node's default rate; the tracking
+controller's 50 Hz is a multiple of it."""
 BACKPRESSURE_WINDOW = 200
 """Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
 how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
