@@ -319,12 +319,15 @@ class HeldCommands:
     answering it is lost if the command publisher has not matched the dynamics' subscription yet
     (discovery is per direction), and the dynamics would wait for it. So until the publisher is
     heard by every node publishing ``state_topic`` (``heard_by_every``; asked again whenever the
-    number of ``state_topic`` publishers changes, e.g. a restarted dynamics) the newest command
-    is held, and a steady timer sends it once it will be heard.
+    number of ``state_topic`` publishers changes, e.g. a restarted dynamics, which each send
+    checks) the newest command is held, and a steady timer, running only while one is held, sends
+    it once it will be heard. A commander that is heard thus has no timer waking it between its
+    control instants (a 50 Hz timer took 1.9 % of a core on the project's VM, more than the idle
+    node itself).
     """
 
     CHECK_PERIOD = 0.02
-    """Wall seconds between checks."""
+    """Wall seconds between checks while a command is held."""
 
     def __init__(self, node: Node, publisher: Publisher, state_topic: str) -> None:
         self.node, self.publisher = node, publisher
@@ -332,9 +335,13 @@ class HeldCommands:
         self.heard = False
         self.state_publishers = 0
         self.unsent = None
-        node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.retry = node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.retry.cancel()
 
     def _heard(self) -> bool:
+        count = self.node.count_publishers(self.state_topic)
+        if count != self.state_publishers:
+            self.state_publishers, self.heard = count, False
         if not self.heard:
             self.heard = heard_by_every(self.node, self.publisher, self.state_topic)
         return self.heard
@@ -342,15 +349,17 @@ class HeldCommands:
     def send(self, message: object) -> bool:
         """Publish ``message`` now if it will be heard (True), else hold it as the newest (False)."""
         if self._heard():
+            self.unsent = None
             self.publisher.publish(message)
             return True
         self.unsent = message
+        if self.retry.is_canceled():
+            self.retry.reset()
         return False
 
     def _check(self) -> None:
-        count = self.node.count_publishers(self.state_topic)
-        if count != self.state_publishers:
-            self.state_publishers, self.heard = count, False
         if self.unsent is not None and self._heard():
             message, self.unsent = self.unsent, None
             self.publisher.publish(message)
+        if self.unsent is None:
+            self.retry.cancel()
