@@ -17,6 +17,7 @@ from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ
+from wallbot_sim.graph_description import CONTROL_STEPS
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DriveForces, Robot, Simulation
 from wallbot_sim.model.outputs import side_motor_torques
@@ -26,8 +27,6 @@ COMMAND_TIMEOUT = 0.5
 MAX_TORQUE = 5.0
 """The dynamics' and the controller's default max_wheel_torque (N m)."""
 ROBOT = Robot(load_robot_parameters())
-CONTROL_STEPS = 1000 // CONTROL_RATE_HZ
-"""Plant steps (1 kHz) per control period of the controller at its default rate."""
 
 
 def applied_torques(run) -> np.ndarray:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from wallbot_msgs_py import topics
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.graph import NodeSpec
 from wallbot_sim.live_view import DEFAULT_HOST
@@ -36,8 +37,8 @@ EXECUTABLES = {
     'wallbot_sim.nodes.viewer': 'viewer_node',
 }
 """Each node module's console script (setup.py entry points): what ``ros2 run`` and launch start."""
-CONTROL_STEPS = 20
-"""Dynamics steps per control period: the controller's default 50 Hz at the dynamics' 1 kHz. The
+CONTROL_STEPS = 1000 // CONTROL_RATE_HZ
+"""Dynamics steps per control period: the controller's default rate at the dynamics' 1 kHz. The
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 CMD_VEL_STEPS = 10
 """Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""

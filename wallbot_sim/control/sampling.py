@@ -23,7 +23,7 @@ from wallbot_sim.model import DOF, ModelError, Robot, RobotParameters, Simulatio
 
 CONTROL_RATE_HZ = 50
 """The controller's default rate (Hz of simulation time). Its feedback is slow against it (2 alpha =
-20/s, beta = 10/s): at 200 Hz it tracks within 0.05 mm of the same (docs/controller.md) and costs four
+20/s, beta^2 = 100/s^2): at 200 Hz it tracks within 0.08 mm of the same (docs/controller.md) and costs four
 times the CPU."""
 MAX_WHEEL_TORQUE = 5.0
 """Commands are clamped to +- this (N m): the dynamics' default limit."""
