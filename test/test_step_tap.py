@@ -3,6 +3,7 @@ which order, at which log time, and what it refuses after a stop."""
 
 from __future__ import annotations
 
+import itertools
 import threading
 
 from wallbot_msgs_py import topics
@@ -23,7 +24,7 @@ def tap_at(times: list[int]) -> StepTap:
 
 
 def test_a_drain_writes_the_tapped_topics_of_every_step_in_order_at_its_log_time():
-    tap = tap_at([100, 200])
+    tap = tap_at([100, 200, 250, 300])  # the last two: the drains' own times
     tap.put(step(0), clock=True)
     tap.put(step(1), clock=False)
     written = []
@@ -41,7 +42,7 @@ def test_a_drain_writes_the_tapped_topics_of_every_step_in_order_at_its_log_time
 def test_log_times_never_go_back():
     # the floor: the last log time the recorder wrote (a DDS message's callback time); then a step
     # logged before the previous one (a wall clock stepped back) takes the previous one's time
-    tap = tap_at([100, 300, 250, 400])
+    tap = tap_at([100, 300, 250, 400, 500])
     for index in range(4):
         tap.put(step(index), clock=True)
     written = []
@@ -50,11 +51,11 @@ def test_log_times_never_go_back():
 
 
 def test_after_a_stop_only_steps_logged_up_to_it_are_written_and_the_rest_are_counted():
-    tap = tap_at([100, 200, 201, 300])
+    tap = tap_at([100, 200, 201, 300, 400])
     for index in range(4):
         tap.put(step(index), clock=index != 3)
     written = []
-    refused = tap.drain(lambda *entry: written.append(entry), floor_ns=0, stop_ns=200)
+    refused = tap.drain(lambda *entry: written.append(entry), floor_ns=0, stopped_at=lambda: 200)
     assert [data for *_, data, _log in written] == [b'odom:0', b'wheel_states:0', b'clock:0',
                                                    b'odom:1', b'wheel_states:1', b'clock:1']
     assert refused == 3 + 2  # step 2 with its clock, step 3 without
@@ -62,7 +63,7 @@ def test_after_a_stop_only_steps_logged_up_to_it_are_written_and_the_rest_are_co
 
 def test_steps_put_by_another_thread_while_draining_arrive_whole_and_in_order():
     count = 20_000
-    clock = iter(range(count))
+    clock = itertools.count()
     tap = StepTap(NAMES, clock.__next__)
     done = threading.Event()
 
@@ -83,14 +84,41 @@ def test_steps_put_by_another_thread_while_draining_arrive_whole_and_in_order():
     assert [data for *_, data, _log in written] == [message for index in range(count)
                                                    for topic, message in step(index)
                                                    if topic in NAMES]
-    assert [log_ns for *_, log_ns in written[::3]] == list(range(count))
+    step_times = [log_ns for *_, log_ns in written[::3]]  # each its own put time, the drains' between them
+    assert all(earlier < later for earlier, later in itertools.pairwise(step_times))
 
 
 def test_a_drain_reports_the_stamp_of_the_newest_step_it_wrote():
     """The recorder's progress comes from it (one stamp a step, not a parse of each message)."""
-    tap = tap_at([100, 200, 300])
+    tap = tap_at([100, 200, 300, 400])
     assert tap.newest_stamp_ns is None
     for index in range(3):
         tap.put(step(index), clock=True, stamp_ns=1_000_000 * index)
-    tap.drain(lambda *entry: None, floor_ns=0, stop_ns=200)  # the third step was logged after the stop
+    tap.drain(lambda *entry: None, floor_ns=0, stopped_at=lambda: 200)  # the third step was logged after the stop
     assert tap.newest_stamp_ns == 1_000_000
+
+
+def test_a_stop_requested_while_a_drain_runs_cuts_off_the_steps_the_loop_puts_after_it():
+    """The signal handler runs between two bytecodes of a drain (both on the main thread) while the
+    dynamics' loop thread goes on putting steps: none logged after the stop is written, by this
+    drain or the next."""
+    now = [100]
+    tap = StepTap(NAMES, lambda: now[0])
+    tap.put(step(0), clock=True)
+    stop: list[int] = []
+
+    def write_then_signal(*entry: object) -> None:
+        written.append(entry)
+        if not stop:  # the handler notes the stop at 160, the loop then puts a step at 170
+            now[0] = 160
+            stop.append(160)
+            now[0] = 170
+            tap.put(step(1), clock=True)
+
+    written: list[tuple] = []
+    now[0] = 150  # the drain's own time
+    assert tap.drain(write_then_signal, floor_ns=0, stopped_at=lambda: stop[0] if stop else None) == 0
+    assert [data for *_, data, _log in written] == [b'odom:0', b'wheel_states:0', b'clock:0']
+    now[0] = 180  # the drain at the stop
+    assert tap.drain(write_then_signal, floor_ns=0, stopped_at=lambda: stop[0]) == 3
+    assert len(written) == 3

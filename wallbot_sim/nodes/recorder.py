@@ -22,9 +22,9 @@ Design (see docs/bags.md):
   moment the signal is handled is the end of the recording. The message whose callback the
   handler ran in front of was received before it and is written; what DDS had received before it
   and the executor had not taken yet is taken directly from the subscriptions with its DDS receive
-  time and written with that time, and everything received later is left unwritten. Then the bag is closed (metadata.yaml with
-  ``wallbot.recorder.stop_signal`` and ``wallbot.recorder.stop_time_ns``, MCAP summary) and the
-  node exits 0, within a second whatever the rest of the graph still publishes. The writer
+  time and written with that time, and everything received later is left unwritten. Then the bag
+  is closed (metadata.yaml with ``wallbot.recorder.stop_signal`` and ``wallbot.recorder.stop_time_ns``,
+  MCAP summary) and the node exits 0, within a second whatever the rest of the graph still publishes. The writer
   flushes a closed chunk at least every 0.5 s, so after a SIGKILL ``wallbot-sim bag reindex``
   recovers all but the last half second;
 * composed with the dynamics in one process (``nodes.dynamics_recorder``): the dynamics' per-step
@@ -273,8 +273,7 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
         def _drain_tap(self) -> None:
             # a step's messages share the step's stamp, which the tap carries: no parse per message
             stamped = self.tap.newest_stamp_ns
-            self.refused += self.tap.drain(self._write, self.last_log_ns,
-                                           self.stop.at_ns if self.stop.requested else None)
+            self.refused += self.tap.drain(self._write, self.last_log_ns, lambda: self.stop.at_ns)
             if self.tap.newest_stamp_ns != stamped:
                 self._note_stamp(self._tapped_stamped, self.tap.newest_stamp_ns)
 

@@ -4,7 +4,8 @@ In the composed process (``dynamics_recorder``) the dynamics still publishes eac
 messages for live subscribers, and also puts the same CDR bytes here, from its loop thread, with
 one log time per step. The recorder takes them out on the executor thread (the bag writer is
 written from one thread only): from a short timer, before it writes any message it received over
-DDS, and at the stop, so log times never go backwards in the bag.
+DDS, and at the stop, so log times never go backwards in the bag and nothing logged after the
+stop is written.
 
 ROS-free, so its order and log-time rules are tested without DDS (test_step_tap.py).
 """
@@ -41,13 +42,21 @@ class StepTap:
         messages' bytes must not change afterwards."""
         self._steps.append((self.now_ns(), clock, encoded, stamp_ns))
 
-    def drain(self, write: Write, floor_ns: int, stop_ns: int | None = None) -> int:
-        """Write every step put so far, oldest first, at its log time but never before ``floor_ns``
-        or the previous message's; with ``stop_ns``, a step logged after it is not written. Returns
-        how many messages were not written for that. Executor thread only."""
+    def drain(self, write: Write, floor_ns: int, stopped_at: Callable[[], int | None] = lambda: None) -> int:
+        """Write the steps logged before this drain began, oldest first, at their log times but never
+        before ``floor_ns`` or the previous message's. ``stopped_at``: when a stop was requested
+        (None: not yet); a step logged after it is not written. Returns how many messages were not
+        written for that. Executor thread only.
+
+        The drain's own time is read before the stop: a stop requested after that read comes later
+        than every step the drain writes, even when it is requested while the drain runs and the
+        loop thread goes on putting steps (those stay queued for the next drain).
+        """
+        until_ns = self.now_ns()
+        stop_ns = stopped_at()
         refused = 0
         steps, names = self._steps, self.names
-        while steps:
+        while steps and steps[0][0] <= until_ns:
             logged_ns, clock, encoded, stamp_ns = steps.popleft()
             sent = [(topic, names[topic], data) for topic, data in encoded
                     if topic in names and (clock or topic is not topics.CLOCK)]
