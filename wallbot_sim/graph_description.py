@@ -10,8 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from wallbot_msgs_py import topics
-from wallbot_sim.control.sampling import CONTROL_RATE_HZ
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ, steps_per_period
 from wallbot_sim.control.tracking import DRIVEN
+from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.graph import NodeSpec
 from wallbot_sim.live_view import DEFAULT_HOST
 from wallbot_sim.messages import switches_from_selection
@@ -37,10 +38,10 @@ EXECUTABLES = {
     'wallbot_sim.nodes.viewer': 'viewer_node',
 }
 """Each node module's console script (setup.py entry points): what ``ros2 run`` and launch start."""
-CONTROL_STEPS = 1000 // CONTROL_RATE_HZ
+CONTROL_STEPS = steps_per_period(CONTROL_RATE_HZ)
 """Dynamics steps per control period: the controller's default rate at the dynamics' 1 kHz. The
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
-CMD_VEL_STEPS = 10
+CMD_VEL_STEPS = steps_per_period(SPEED_LOOP_RATE_HZ)
 """Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""
 CONTROLLER_REMAPS = (topics.CONTROL_ODOM_REMAP,)
 """A commander (the tracking controller, cmd_vel_node) reads control_odom, published at its lockstep

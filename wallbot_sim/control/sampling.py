@@ -19,7 +19,7 @@ import numpy as np
 
 from wallbot_msgs_py.codec import PlanarState, to_nanoseconds
 from wallbot_sim.control.tracking import TrackingController
-from wallbot_sim.model import DOF, ModelError, Robot, RobotParameters, Simulation, StepOutputs
+from wallbot_sim.model import DEFAULT_STEP, DOF, ModelError, Robot, RobotParameters, Simulation, StepOutputs
 
 CONTROL_RATE_HZ = 50
 """The controller's default rate (Hz of simulation time). Its feedback is slow against it (2 alpha =
@@ -27,6 +27,12 @@ CONTROL_RATE_HZ = 50
 times the CPU."""
 MAX_WHEEL_TORQUE = 5.0
 """Commands are clamped to +- this (N m): the dynamics' default limit."""
+
+
+def steps_per_period(rate_hz: int, step: float = DEFAULT_STEP) -> int:
+    """Dynamics steps of ``step`` seconds in one period of a loop at ``rate_hz`` of simulation time
+    (what a lockstep dynamics waits on: 20 for the tracking controller's 50 Hz at 1 kHz)."""
+    return round(1.0 / (rate_hz * step))
 
 
 def controller_robot(params: RobotParameters, mass_scale: float) -> Robot:

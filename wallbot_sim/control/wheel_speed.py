@@ -25,6 +25,9 @@ from wallbot_sim.model.numbers import NumberRange
 POSITIVE_LIMIT = NumberRange(1e-6, 1e3)
 """A velocity or acceleration limit: above 0, from 1e-6 on so that a parameter descriptor's closed
 range says exactly what is accepted."""
+SPEED_LOOP_RATE_HZ = 100
+"""cmd_vel_node's default rate (Hz of simulation time), every 10th state of the 1 kHz dynamics. At
+50 Hz the loop turned a scripted square's corners a degree off (test_cmd_vel_graph.py)."""
 GAIN = NumberRange(0.0, 1e3)
 """A PI gain (>= 0)."""
 

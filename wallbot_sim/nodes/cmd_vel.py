@@ -38,16 +38,14 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.sampling import ControlInstants, Rewind
-from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, AxisLimits, WheelSpeedController,
-                                             WheelSpeedSettings)
+from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, SPEED_LOOP_RATE_HZ, AxisLimits,
+                                             WheelSpeedController, WheelSpeedSettings)
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
                                      parameter_result, run, subscribe_odom_when_recorded)
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
-RATE_HZ = 100
-"""Default control rate (Hz of simulation time): every 10th state of the 1 kHz dynamics."""
 GEOMETRY = NumberRange(1e-4, 10.0)
 TIMEOUT = NumberRange(1e-3, 1e3)
 RANGES = {
@@ -84,7 +82,7 @@ class CmdVelNode(Node):
                                       AxisLimits(2.0, 4.0))
         self.use_stamped = bool(declare(self, 'use_stamped_vel', True, 'cmd_vel is geometry_msgs/TwistStamped '
                                         '(false: geometry_msgs/Twist)', read_only=True))
-        self.rate_hz = declare(self, 'rate_hz', RATE_HZ, 'control rate in simulation time (Hz)', low=1, high=1000,
+        self.rate_hz = declare(self, 'rate_hz', SPEED_LOOP_RATE_HZ, 'control rate in simulation time (Hz)', low=1, high=1000,
                                read_only=True)
         described = {
             'wheel_separation': (defaults.wheel_separation, "distance between the left and right wheels (m; "

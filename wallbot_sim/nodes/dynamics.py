@@ -76,6 +76,8 @@ from wallbot_msgs_py.snapshot import DynamicsSnapshot, snapshot_from_message, sn
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.control.sampling import CONTROL_RATE_HZ, steps_per_period
+from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
 from wallbot_sim.model.numbers import NumberRange
@@ -124,9 +126,9 @@ COMMAND_WAIT_TIMEOUT = 30.0
 the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
 state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
 controller started by hand later wants more, or 0."""
-CONTROL_ODOM_EVERY = 10
-"""Default control_odom_every (steps): 100 Hz at 1 kHz, the cmd_vel node's default rate; the tracking
-controller's 50 Hz is a multiple of it."""
+CONTROL_ODOM_EVERY = math.gcd(steps_per_period(CONTROL_RATE_HZ), steps_per_period(SPEED_LOOP_RATE_HZ))
+"""Default control_odom_every (steps): every state either commander acts on at its default rate
+(10: the cmd_vel node's 100 Hz at 1 kHz, of which the tracking controller's 50 Hz is a multiple)."""
 BACKPRESSURE_WINDOW = 200
 """Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
 how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
