@@ -24,11 +24,14 @@ Arguments (defaults as ``wallbot-sim run``):
   frame_prefix:=                       before the robot's own frames (base_link, the wheel links) in its
                                        odometry, robot_description and tf, as robot_state_publisher's frame_prefix
                                        (e.g. robot2/); the wall is not prefixed
+  domain_clock:=true                   the dynamics also publishes the domain's /clock (which RViz and other
+                                       tools with use_sim_time follow): false on every robot but one in a domain
 
 Examples:
   ros2 launch wallbot_sim wallbot.launch.py scenario:=figure8 constraints:=belt,nonslip record:=/tmp/fig8
   ros2 launch wallbot_sim wallbot.launch.py drive:=cmd_vel record:=/tmp/teleop
-  ros2 launch wallbot_sim wallbot.launch.py namespace:=/robot2 frame_prefix:=robot2/ scenario:=figure8
+  ros2 launch wallbot_sim wallbot.launch.py namespace:=/robot2 frame_prefix:=robot2/ domain_clock:=false \
+      scenario:=figure8
 """
 from pathlib import Path
 
@@ -67,6 +70,8 @@ ARGUMENTS = {
     'frame_prefix': ('', "before the robot's own frames (base_link, the wheel links) in its odometry, "
                          "robot_description and tf, as robot_state_publisher's frame_prefix (e.g. robot2/); the wall "
                          'is not prefixed'),
+    'domain_clock': ('true', "the dynamics also publishes the domain's /clock, which tools with use_sim_time "
+                             'follow (false on every robot but one in a domain)'),
 }
 
 
@@ -82,7 +87,8 @@ def _graph(context, *args, **kwargs):
         bag=Path(arg('record')) if arg('record') else None, realtime_priority=int(arg('realtime_priority')),
         robot_file=Path(arg('robot')).resolve() if arg('robot') else None, contact_model=arg('contact'),
         adhesion_force=float(arg('adhesion_force')) if arg('adhesion_force') else None,
-        viewer=true('viewer'), engine=arg('engine'), compose=true('compose'), frame_prefix=arg('frame_prefix'))
+        viewer=true('viewer'), engine=arg('engine'), compose=true('compose'), frame_prefix=arg('frame_prefix'),
+        domain_clock=true('domain_clock'))
     if arg('drive'):
         scenario_arguments = [name for name in ('scenario', 'constraints', 'controller_mass_scale')
                               if arg(name) != ARGUMENTS[name][0]] + (['controller'] if true('controller') else [])

@@ -134,16 +134,20 @@ def test_a_second_robot_has_its_namespace_and_its_frame_prefix_on_every_node_nam
     """namespace:= and frame_prefix:= (a second robot): every node in that namespace, and the
     prefix on the nodes that name the robot's frames (the dynamics' odometry, constraint_config's
     robot_description, the viewer's tf), nowhere else; by default no node has a frame parameter."""
-    nodes = launched_nodes(launch_file, namespace='/robot2', frame_prefix='robot2/', viewer='true', drive=drive)
+    nodes = launched_nodes(launch_file, namespace='/robot2', frame_prefix='robot2/', viewer='true', drive=drive,
+                           domain_clock='false')
     if drive:
-        expected = describe_driven_graph(drive, viewer=True, frame_prefix='robot2/')
+        expected = describe_driven_graph(drive, viewer=True, frame_prefix='robot2/', domain_clock=False)
     else:
         expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
-                                  viewer=True, frame_prefix='robot2/')
+                                  viewer=True, frame_prefix='robot2/', domain_clock=False)
     assert nodes == as_launched(expected, '/robot2')
     prefixed = {n['executable'] for n in nodes if n['parameters'][0].get('frame_prefix') == 'robot2/'}
     assert prefixed == {'constraint_config_node', 'viewer_node', 'dynamics_node'}
-    assert not any('frame_prefix' in n['parameters'][0] for n in launched_nodes(launch_file, viewer='true', drive=drive))
+    # domain_clock:=false: the second robot's dynamics leaves the domain's /clock to the first's
+    assert [n['executable'] for n in nodes if n['parameters'][0].get('domain_clock') is False] == ['dynamics_node']
+    default = launched_nodes(launch_file, viewer='true', drive=drive)
+    assert not any('frame_prefix' in n['parameters'][0] or 'domain_clock' in n['parameters'][0] for n in default)
 
 
 def test_engine_numba_is_the_dynamics_engine_as_run_engine_gives_it(launch_file):

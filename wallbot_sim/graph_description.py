@@ -69,7 +69,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    robot_file: Path | None = None, contact_model: str = 'ideal',
                    adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
                    foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON, compose: bool = False,
-                   frame_prefix: str = '') -> list[NodeSpec]:
+                   frame_prefix: str = '', domain_clock: bool = True) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -84,6 +84,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     process (``nodes.dynamics_recorder``), started first in the recorder's place. ``frame_prefix``
     (e.g. ``robot2/``): the robot's frames' prefix, given to every node that names them (the
     dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
+    ``domain_clock`` false: the dynamics leaves the domain's ``/clock`` to another robot's.
     """
     reference = scenario.reference
     if isinstance(reference, Circle):
@@ -116,7 +117,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
             CONTROLLER_REMAPS))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                         adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames)
+                         adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames, domain_clock)
     return _with_recorder(specs, dynamics, recorder, compose)
 
 
@@ -124,15 +125,16 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                           bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
                           contact_model: str = 'ideal', adhesion_force: float | None = None, viewer: bool = False,
                           foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
-                          engine: str = PYTHON, compose: bool = False, frame_prefix: str = '') -> list[NodeSpec]:
+                          engine: str = PYTHON, compose: bool = False, frame_prefix: str = '',
+                          domain_clock: bool = True) -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
 
     ``cmd_vel``: cmd_vel_node, the dynamics waiting for it and in lockstep with its loop.
     ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
     wait, since the commands come from the user's controller_manager (zero torque until then).
-    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``, ``frame_prefix``: as
-    for describe_graph.
+    ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``, ``frame_prefix``,
+    ``domain_clock``: as for describe_graph.
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
@@ -152,7 +154,8 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
         *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
-                         adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine, frames)
+                         adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine, frames,
+                         domain_clock)
     return _with_recorder(specs, dynamics, recorder, compose)
 
 
@@ -189,13 +192,13 @@ def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[st
 
 def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,
               robot: dict[str, str], contact_model: str, adhesion_force: float | None,
-              lockstep_every: int | None, engine: str, frames: dict[str, str]) -> NodeSpec:
+              lockstep_every: int | None, engine: str, frames: dict[str, str], domain_clock: bool) -> NodeSpec:
     """The dynamics node; ``lockstep_every`` set: it waits for its controller and runs in lockstep."""
     return NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': recorded, 'realtime_priority': int(realtime_priority),
-        **robot, **frames,
+        **robot, **frames, **({} if domain_clock else {'domain_clock': False}),
         'contact_model': contact_model, 'engine': engine,
         **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
         **({'wait_for_command': True, 'lockstep_every': lockstep_every, 'control_odom_every': lockstep_every}
