@@ -195,6 +195,44 @@ def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(held_planner
     assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
 
 
+def clock_message(t_ns: int):
+    from rosgraph_msgs.msg import Clock
+    clock = Clock()
+    clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
+    return clock
+
+
+def test_a_clock_that_came_while_a_plan_was_built_is_checked_once_the_planner_is_idle(held_planner):
+    """At factor 0 the dynamics runs to the end of a new plan as soon as it is published and waits
+    there, publishing no more clocks: the clocks of those states may all come before the planner
+    thread has finished. The newest of them is checked once the planner is idle, and the node
+    replans from it, without another clock."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    from recorder_probe import spin_until
+    from wallbot_sim import messages
+
+    node = held_planner.node
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        held_planner.release.set()
+        assert node.planner.wait_idle(WAIT)
+        first = node.plan
+        middle = 0.5 * (first.times[0] + first.times[-1])
+        held_planner.release.clear()  # the next plan is held while it builds
+        node._on_clock(clock_message(round((middle + 0.1) * 1e9)))  # past the middle: a replan
+        assert node.planner.busy
+        waiting_at = first.times[-1] + 4.0  # the dynamics ran past the replan's middle meanwhile
+        node._on_clock(clock_message(round(waiting_at * 1e9)))
+        held_planner.release.set()
+        spin_until(executor, lambda: not node.planner.busy and not messages.replan_due(node.plan, waiting_at),
+                   WAIT, f'no plan for t = {waiting_at} s, where the dynamics waits')
+        assert node.plan.times[0] <= waiting_at < node.plan.times[-1]
+    finally:
+        executor.shutdown()
+
+
 def test_with_wait_for_recorder_the_first_plan_waits_until_a_recorder_hears_reference(ros_domain):
     """The reference poses are volatile: a run that records must not start (the dynamics starts on
     the first plan) before the recorder's reference subscription is matched to this node."""

@@ -18,6 +18,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
+from rclpy.timer import Timer
 
 from wallbot_msgs_py import topics
 from wallbot_sim.model import ModelError
@@ -260,6 +261,12 @@ def heard_by_every(node: Node, publisher: Publisher, senders_topic: str) -> bool
             and publisher.get_subscription_count() >= len(listeners))
 
 
+def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Timer:
+    """A timer of ``node`` on the steady clock: every ``period`` wall seconds, also in a node that
+    follows simulation time (whose own clock stands still while the simulation waits)."""
+    return node.create_timer(period, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
 def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) -> dict[str, object]:
     """{name: value} of a parameter callback's list; only the names in ``known`` when given."""
     names = None if known is None else set(known)
@@ -282,7 +289,7 @@ class WhenRecorded:
     def __init__(self, node: Node, publishers: Sequence[Publisher], action: Callable[[], None], done: str) -> None:
         self.node, self.publishers, self.action, self.done = node, tuple(publishers), action, done
         self.progress_topic = node.resolve_topic_name(topics.RECORD_PROGRESS.name)
-        self.timer = node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.timer = steady_timer(node, self.CHECK_PERIOD, self._check)
 
     @property
     def waiting(self) -> bool:
@@ -335,7 +342,7 @@ class HeldCommands:
         self.heard = False
         self.state_publishers = 0
         self.unsent = None
-        self.retry = node.create_timer(self.CHECK_PERIOD, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.retry = steady_timer(node, self.CHECK_PERIOD, self._check)
         self.retry.cancel()
 
     def _heard(self) -> bool:

@@ -61,7 +61,6 @@ from typing import Callable, Sequence
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
 from nav_msgs.msg import Odometry
-from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -84,7 +83,7 @@ from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 from wallbot_sim.nodes.common import (COORDINATE, FRAME_PREFIX_DESCRIPTION, WHEEL_TORQUE_LIMIT, choice_reason, declare,
-                                      heard_by_every, param_dict, parameter_result, range_reasons, run)
+                                      heard_by_every, param_dict, parameter_result, range_reasons, run, steady_timer)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY, Pacer
@@ -304,7 +303,7 @@ class DynamicsNode(Node):
                                  qos_profile(topics.INITIALPOSE))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.create_timer(1.0, self._publish_diagnostics, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        steady_timer(self, 1.0, self._publish_diagnostics)
         self.loop_thread = threading.Thread(target=self._run_loop, name='simulation', daemon=True)
         self.loop_thread.start()
 

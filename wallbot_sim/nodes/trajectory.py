@@ -49,11 +49,16 @@ from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
 from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, WhenRecorded, choice_reason, declare,
-                                      param_dict, parameter_result, range_reasons, run)
+                                      param_dict, parameter_result, range_reasons, run, steady_timer)
 
 MAX_POSE_BURST = 100
 """Most reference poses published for one /clock message (the newest ones): a clock that jumps
 ahead (a resumed run) is no reason to publish the whole interval."""
+RECHECK_PERIOD = 0.01
+"""Wall seconds between looks at the planner, from a clock that came while it was busy until it is
+idle; then the plan is checked against the newest clock. At factor 0 the dynamics runs to the end
+of a new plan as soon as it is published and waits there: the clocks of all those states may come
+before the planner thread has finished, and without a later check the run would wait for ever."""
 MAX_PLAN_SAMPLES = 5_000
 """Largest plan accepted: every subscriber decodes a whole plan in one callback."""
 RANGES = {
@@ -186,6 +191,8 @@ class TrajectoryNode(Node):
                                               'a recorder hears reference: planning')
         else:
             self.replan(self._now())
+        self.recheck = steady_timer(self, RECHECK_PERIOD, self._recheck)
+        self.recheck.cancel()
         self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
 
     def _now(self) -> float:
@@ -223,13 +230,23 @@ class TrajectoryNode(Node):
         plan = self.plan
         jumped_back = now < self.last_now - 1e-9 or (plan is not None and now < plan.times[0])
         self.last_now = now
-        if self.planner.busy or plan is None:
+        if self.planner.busy:
+            if self.recheck.is_canceled():
+                self.recheck.reset()
+            return
+        if plan is None:
             return
         if jumped_back:
             self.get_logger().info(f'simulation time went back to {now:.3f} s: replanning')
             self.replan(now)
         elif messages.replan_due(plan, now):
             self.replan(now)
+
+    def _recheck(self) -> None:
+        if self.planner.busy:
+            return
+        self.recheck.cancel()
+        self._check_plan(self.clock_ns * 1e-9)
 
     def close(self) -> None:
         """Stop the planner thread (called by ``run`` before the node is destroyed)."""

@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 import sys
 
-from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
@@ -32,7 +31,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.nodes.common import (FRAME_PREFIX_DESCRIPTION, ROBOT_CLOCK_ARGS, declare, param_dict,
-                                      parameter_result, run)
+                                      parameter_result, run, steady_timer)
 from wallbot_sim.nodes.recorder import message_class
 from wallbot_sim.urdf import RobotFrames
 from wallbot_sim.view import Pose, Scene
@@ -133,7 +132,7 @@ class ViewerNode(Node):
             self.scene.forget_wheels_and_contact()
 
     def _frame_timer(self):
-        return self.create_timer(1.0 / self.rate_hz, self.frame, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        return steady_timer(self, 1.0 / self.rate_hz, self.frame)
 
     # --- a frame ---------------------------------------------------------------------------------
     def _take(self, topic: topics.Topic) -> list[bytes]:
