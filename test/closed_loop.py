@@ -45,17 +45,28 @@ def recorded(bag: Path, leaf: str) -> list:
 def model_closed_loop(scenario_name: str, mass_scale: float, steps: int) -> np.ndarray:
     """Centre positions of the same loop on the model alone: torques from the state at each control
     instant (the controller's default rate), clamped to the limit, held until the next."""
+    return model_loop_states(scenario_name, mass_scale, steps)[:, :2]
+
+
+def model_loop_states(scenario_name: str, mass_scale: float, steps: int, lost_answer: int | None = None) -> np.ndarray:
+    """The states (x, y, theta, xd, yd, thd) after each of ``steps`` steps, from the start, of the loop
+    of ``model_closed_loop``. ``lost_answer``: the step of a control instant whose command never
+    arrives (the controller still computed it): the previous command runs on for that period."""
     params, scenario = ROBOT.params, load_scenario(scenario_name)
     plant = Simulation(ROBOT, None, DRIVEN, *scenario.initial_state(ROBOT))
     controller = TrackingController(Robot(params.replace(body_mass=params.body_mass * mass_scale)), scenario.reference)
-    positions = [plant.q[:2].copy()]
+    states = [np.r_[plant.q[:3], plant.qd[:3]]]
+    held = (0.0, 0.0)
     for k in range(steps):
         if k % CONTROL_STEPS == 0:
             command = controller.update(plant.t, plant.q, plant.qd, CONTROL_STEPS * plant.dt)
-            plant.set_motor_torque(*(min(MAX_TORQUE, max(-MAX_TORQUE, tau)) for tau in (command.tau_left, command.tau_right)))
+            answer = tuple(min(MAX_TORQUE, max(-MAX_TORQUE, tau)) for tau in (command.tau_left, command.tau_right))
+            if k != lost_answer:
+                held = answer
+                plant.set_motor_torque(*held)
         plant.step()
-        positions.append(plant.q[:2].copy())
-    return np.array(positions)
+        states.append(np.r_[plant.q[:3], plant.qd[:3]])
+    return np.array(states)
 
 
 def check_complete(run, duration: float) -> None:
