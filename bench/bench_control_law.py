@@ -4,9 +4,11 @@ The tracking controller node spends most of each control instant in ``SampledCon
 (the inverse-dynamics solve of its robot copy, on the plan as the node interpolates it). Measured
 back to back, in a loop, that call runs with warm caches; in the node it runs once per control
 period, after the process slept, and other processes (the dynamics, the recorder) have had the
-core meanwhile. This calls it --calls times back to back (the baseline), then --calls times with a
-sleep of one control period before each, and prints the thread CPU time of a call in both cases and
-their ratio, which is what the node pays beyond the hot figure.
+core meanwhile. For each engine of the law (python, the baseline: the model's modules and
+least-squares solve; numba: the compiled kernel) this calls it --calls times back to back, then
+--calls times with a sleep of one control period before each, and prints the thread CPU time of a
+call in both cases, the paced figure as a share of a core at the rate, and the numba law's figures
+as ratios to the python law's.
 
     python bench/bench_control_law.py [--calls 500] [--rate-hz 50]
 """
@@ -22,15 +24,18 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController
 from wallbot_sim.model import Robot
+from wallbot_sim.model.compiled import compile_inverse_dynamics
+from wallbot_sim.model.simulation import ENGINES, PYTHON
 
 
-def sampled_controller(rate_hz: int) -> tuple[SampledController, list[PlanarState]]:
-    """The node's loop on the circle's first plan, and the states of one lap of its control instants
-    (the scenario's start repeated with each instant's stamp: the cost does not depend on the state)."""
+def sampled_controller(rate_hz: int, engine: str) -> tuple[SampledController, list[PlanarState]]:
+    """The node's loop on the circle's first plan with the ``engine`` law, and the states of one lap of its
+    control instants (the scenario's start repeated with each instant's stamp: the cost does not depend on
+    the state)."""
     robot = Robot(load_robot_parameters())
     scenario = load_scenario('circle')
     plan = messages.plan_ahead(scenario.reference, 0.0)
-    controller = TrackingController(robot, messages.sampled_reference(plan))
+    controller = TrackingController(robot, messages.sampled_reference(plan), engine=engine)
     q, qd = scenario.initial_state(robot)
     period_ns = round(1e9 / rate_hz)
     instants = int(plan.times[-1] * rate_hz)
@@ -56,13 +61,18 @@ def main() -> int:
     parser.add_argument('--rate-hz', type=int, default=CONTROL_RATE_HZ,
                         help=f'control rate: the sleep is one period (default {CONTROL_RATE_HZ})')
     options = parser.parse_args()
-    loop, states = sampled_controller(options.rate_hz)
-    cpu_per_call(loop, states, 50, 0.0)  # imports, first-call allocations
-    hot = cpu_per_call(loop, states, options.calls, 0.0)
-    paced = cpu_per_call(loop, states, options.calls, 1.0 / options.rate_hz)
-    print(f'control law, back to back:         {hot * 1e3:6.3f} ms CPU a call (baseline)')
-    print(f'control law, one call per period: {paced * 1e3:6.3f} ms CPU a call  ({paced / hot:.2f} x baseline, '
-          f'{paced * options.rate_hz * 100:.1f} % of a core at {options.rate_hz} Hz)')
+    compile_inverse_dynamics()
+    figures = {}
+    for engine in ENGINES:
+        loop, states = sampled_controller(options.rate_hz, engine)
+        cpu_per_call(loop, states, 50, 0.0)  # imports, first-call allocations
+        figures[engine] = (cpu_per_call(loop, states, options.calls, 0.0),
+                           cpu_per_call(loop, states, options.calls, 1.0 / options.rate_hz))
+    baseline_hot, baseline_paced = figures[PYTHON]
+    for engine, (hot, paced) in figures.items():
+        print(f'{engine:>6} law: back to back {hot * 1e3:6.3f} ms CPU a call ({hot / baseline_hot:.2f} x python); '
+              f'one call per period {paced * 1e3:6.3f} ms ({paced / baseline_paced:.2f} x python, {paced / hot:.2f} x '
+              f'back to back), {paced * options.rate_hz * 100:.1f} % of a core at {options.rate_hz} Hz')
     return 0
 
 

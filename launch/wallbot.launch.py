@@ -12,7 +12,8 @@ Arguments (defaults as ``wallbot-sim run``):
   robot:=PATH.yaml                     robot parameter file (default: the installed config/robot.yaml)
   contact:=ideal|coulomb               wheel-wall contact model (coulomb with controller:=true)
   adhesion_force:=N                    adhesion force in N (default: the robot file's)
-  engine:=python|numba                 how the dynamics computes the ideal-contact steps (numba: compiled kernel)
+  engine:=python|numba                 how the dynamics computes its steps and the controller its law
+                                       (numba: the compiled kernel)
   viewer:=false                        true: viewer_node publishes markers (and /tf with tf2_msgs installed)
   compose:=false                       true (with record): dynamics and recorder in one process,
                                        dynamics_recorder_node; the per-step topics are recorded in process
@@ -58,8 +59,8 @@ ARGUMENTS = {
     'robot': ('', 'robot parameter YAML (empty: the installed config/robot.yaml)'),
     'contact': ('ideal', 'wheel-wall contact model: ideal or coulomb (coulomb with controller:=true)'),
     'adhesion_force': ('', "adhesion force in N (empty: the robot file's)"),
-    'engine': ('python', "how the dynamics computes the ideal-contact steps: python, or numba (the batch's compiled "
-                         'kernel; it compiles on first use on a machine)'),
+    'engine': ('python', "how the dynamics computes its steps and the controller its law: python, or numba (the "
+                         "batch's compiled kernel; it compiles on first use on a machine)"),
     'viewer': ('false', 'true: viewer_node publishes markers (and /tf where tf2_msgs is installed)'),
     'compose': ('false', 'true (with record): the dynamics and the recorder in one process (dynamics_recorder_node), '
                          'the per-step topics recorded in process'),

@@ -58,24 +58,31 @@ def fast_circle(tmp_path: Path) -> Path:
 
 
 # --- the same loop as the graph's ---------------------------------------------------------------
-@pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
-def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact):
+@pytest.mark.parametrize('contact, engine', [('ideal', 'python'), ('coulomb', 'python'), ('ideal', 'numba')])
+def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine):
     """run --controller at factor 0 and simulate --controller: the same states at the same stamps,
     and in their bags the same wheel_torque_cmd (type, offered QoS, the command of each control
     instant in order).
 
     With coulomb contact the circle's start (0.2 m off the path, at rest) slips both tractions
-    in the first 0.36 s: the slip transitions are part of what must agree.
+    in the first 0.36 s: the slip transitions are part of what must agree. With ``--engine numba``
+    the dynamics and the controller's law are the compiled kernel's in both.
     """
     pytest.importorskip('rclpy')
+    if engine == 'numba':
+        pytest.importorskip('numba')
+        from wallbot_sim.model.compiled import compile_kernel
+        compile_kernel()  # so that the nodes load it from numba's cache instead of compiling it for up to a minute
     duration = 1.0
-    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--real-time-factor', '0',
-                    '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
+    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, '--real-time-factor',
+                    '0', '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
     assert graph.returncode == 0, graph.stderr + graph.stdout
+    assert f'tracking controller at {CONTROL_RATE_HZ} Hz of simulation time, {engine} engine' in (
+        tmp_path / 'run' / 'logs' / 'controller.log').read_text()
     recorded = load_run(tmp_path / 'run' / 'bag')
     headless_bag = tmp_path / 'headless'
-    computed = headless(tmp_path / 'headless.csv', '--contact', contact, '--duration', str(duration),
-                        '--bag', str(headless_bag))
+    computed = headless(tmp_path / 'headless.csv', '--contact', contact, '--engine', engine,
+                        '--duration', str(duration), '--bag', str(headless_bag))
 
     check_complete(recorded, duration)  # every 1 ms state from 0 to the end, each once
     assert np.array_equal(np.round(recorded.t * 1e9).astype(np.int64), np.round(computed.t * 1e9).astype(np.int64))

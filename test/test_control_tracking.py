@@ -76,3 +76,50 @@ def test_bad_gains_and_missing_reference_are_refused():
         ControllerGains(integral=-1.0)
     with pytest.raises(ParameterError, match='no reference'):
         TrackingController(Robot(load_robot_parameters())).update(0.0, np.zeros(7), np.zeros(7), 0.005)
+
+
+def test_the_compiled_law_gives_the_models_torques():
+    """engine numba (the kernel's inverse dynamics) against the python engine (the model's modules and
+    least-squares solve): the same commands to round-off along a closed loop, and after the gains and
+    the robot copy change (its constants must follow)."""
+    pytest.importorskip('numba')
+    params = load_robot_parameters()
+    scenario = load_scenario('figure8')
+    plant_robot = Robot(params)
+    q0, qd0 = scenario.initial_state(plant_robot)
+    plant = Simulation(plant_robot, None, DRIVEN, q0, qd0)
+    copy = Robot(params.replace(body_mass=params.body_mass * 1.2))
+    model, compiled = (TrackingController(copy, scenario.reference, engine=engine) for engine in ('python', 'numba'))
+    changes = {1000: lambda c: setattr(c, 'gains', ControllerGains(alpha=4.0, beta=6.0, look_ahead=0.12)),
+               2000: lambda c: setattr(c, 'robot', Robot(params.replace(body_mass=params.body_mass * 0.8)))}
+    worst = 0.0
+    for k in range(3000):
+        if k in changes:
+            changes[k](model)
+            changes[k](compiled)
+        if k % 20 == 0:
+            expected = model.update(plant.t, plant.q, plant.qd, 0.02)
+            got = compiled.update(plant.t, plant.q, plant.qd, 0.02)
+            for name in ('tau_left', 'tau_right'):
+                value = getattr(expected, name)
+                worst = max(worst, abs(getattr(got, name) - value) / max(1.0, abs(value)))
+            for side in ('left', 'right', 'lateral'):
+                assert getattr(got.drive, side) == pytest.approx(getattr(expected.drive, side), rel=1e-9, abs=1e-9)
+            assert got.tracking_error == expected.tracking_error
+            plant.set_motor_torque(expected.tau_left, expected.tau_right)
+        plant.step()
+    assert worst < 1e-9
+
+
+def test_an_unknown_engine_and_a_trajectory_task_beside_the_look_ahead_task_are_refused():
+    robot = Robot(load_robot_parameters())
+    with pytest.raises(ParameterError, match="unknown engine 'fortran'"):
+        TrackingController(robot, engine='fortran')
+    pytest.importorskip('numba')
+    from wallbot_sim.model import BaumgarteGains, ConstraintSelection
+    from wallbot_sim.model.compiled import CompiledInverseDynamics
+    from wallbot_sim.model.constraints.look_ahead import PointReference
+    at_rest = PointReference((0.0, 0.0), (0.0, 0.0), (0.0, 0.0), 0.0)
+    with pytest.raises(ParameterError, match='takes the place of the trajectory task'):
+        CompiledInverseDynamics().constraint_force(robot, BaumgarteGains(), ConstraintSelection.structural(), at_rest,
+                                                   0.05, np.zeros(7), np.zeros(7))

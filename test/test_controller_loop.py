@@ -272,7 +272,8 @@ def test_cdr_stamp_and_odometry_decoding():
 @pytest.mark.parametrize('param, reason', [('alpha:=-1.0', 'alpha must be in [0.001, 10000]'),
                                            ('mass_scale:=0.0', 'mass_scale must be in [0.001, 1000]'),
                                            ('integral:=-2.0', 'integral must be in [0, 1e+06]'),
-                                           ('max_wheel_torque:=.nan', 'max_wheel_torque must be a finite number')])
+                                           ('max_wheel_torque:=.nan', 'max_wheel_torque must be a finite number'),
+                                           ('engine:=fortran', 'engine must be one of python, numba')])
 def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, reason):
     proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.controller', '--ros-args', '-p', param],
                                 'controller')

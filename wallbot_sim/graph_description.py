@@ -80,7 +80,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     ``adhesion_force`` None: the robot file's. ``viewer``: the viewer node (markers, tf), started
     before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
     it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``. ``engine``: the
-    dynamics' (python or numba). ``compose`` (with ``bag``): the dynamics and the recorder in one
+    dynamics' and the controller's (python or numba). ``compose`` (with ``bag``): the dynamics and the recorder in one
     process (``nodes.dynamics_recorder``), started first in the recorder's place. ``frame_prefix``
     (e.g. ``robot2/``): the robot's frames' prefix, given to every node that names them (the
     dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
@@ -113,7 +113,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     ]
     if closed_loop:
         specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
-            'mass_scale': float(controller_mass_scale), 'wait_for_recorder': bag is not None, **SIM_TIME},
+            'mass_scale': float(controller_mass_scale), 'engine': engine, 'wait_for_recorder': bag is not None,
+            **SIM_TIME},
             CONTROLLER_REMAPS))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,

@@ -112,9 +112,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
     parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help="how the dynamics computes the steps: python (the model; the default), "
-                             "or numba (the batch's compiled kernel, the same states to 1e-9; it compiles on first "
-                             'use on a machine, then loads from the cache)')
+                        help="how the dynamics computes the steps and the controller its law: python (the model; "
+                             "the default), or numba (the batch's compiled kernel, the same states to 1e-9; it "
+                             'compiles on first use on a machine, then loads from the cache)')
     parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')

@@ -62,8 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help='how the steps are computed: python (the model), or numba (the batch\'s compiled '
-                             'kernel, ideal and coulomb contact)')
+                        help='how the steps (and the --controller\'s law) are computed: python (the model), or '
+                             'numba (the batch\'s compiled kernel, ideal and coulomb contact)')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -118,7 +118,8 @@ def build_controller(args: argparse.Namespace, simulation: Simulation,
     if not args.controller:
         return None
     robot = controller_robot(load_robot_parameters(args.robot), args.controller_mass_scale)
-    return close_loop(simulation, SampledController(TrackingController(robot, simulation.reference)), on_command)
+    controller = TrackingController(robot, simulation.reference, engine=args.engine)
+    return close_loop(simulation, SampledController(controller), on_command)
 
 
 def parse_torque(text: str | None) -> tuple[float, float]:

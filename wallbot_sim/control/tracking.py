@@ -20,9 +20,11 @@ import numpy as np
 from wallbot_sim.model import BaumgarteGains, ConstraintSelection, DriveForces, ParameterError, Reference, Robot
 from wallbot_sim.model.constraint_set import build_modules
 from wallbot_sim.model.constraints import LookAheadPointTask
+from wallbot_sim.model.constraints.look_ahead import point_reference
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.outputs import drive_forces, side_motor_torques
-from wallbot_sim.model.simulation import constrained_motion
+from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON, constrained_motion
+from wallbot_sim.model.trajectories import ReferenceSample
 
 DRIVEN = ConstraintSelection.structural(trajectory=False)
 """The constraints of the driven robot: belts, no side slip, wheels rolling on the wall."""
@@ -66,14 +68,27 @@ class MotorCommand:
 
 
 class TrackingController:
-    """Motor torques that make a driven robot follow a reference with its centre."""
+    """Motor torques that make a driven robot follow a reference with its centre.
+
+    ``engine`` computes the inverse dynamics: ``python`` by the model's modules and solve, ``numba`` by
+    the compiled kernel (the same constraint force to round-off, a fraction of the CPU a call).
+    """
 
     def __init__(self, robot: Robot, reference: Reference | None = None,
-                 gains: ControllerGains | None = None) -> None:
+                 gains: ControllerGains | None = None, engine: str = PYTHON) -> None:
+        if engine not in ENGINES:
+            raise ParameterError(f'unknown engine {engine!r} (use {" or ".join(ENGINES)})')
         self.robot = robot
         self.gains = gains or ControllerGains()
         self.reference = reference
+        self.engine = engine
         self._error_integral = np.zeros(2)
+        self._compiled = None
+        self._baumgarte: tuple[ControllerGains, BaumgarteGains] | None = None
+        if engine == NUMBA:
+            # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
+            from wallbot_sim.model.compiled import CompiledInverseDynamics
+            self._compiled = CompiledInverseDynamics()
 
     def reset(self) -> None:
         """Forget the integrated error."""
@@ -84,16 +99,32 @@ class TrackingController:
         if self.reference is None:
             raise ParameterError('the controller has no reference yet')
         gains = self.gains
-        task = LookAheadPointTask(self.reference, BaumgarteGains(gains.alpha, gains.beta), gains.look_ahead)
-        modules = build_modules(DRIVEN, self.robot, None, BaumgarteGains(gains.alpha, gains.beta)) + [task]
-        motion = constrained_motion(self.robot, modules, t, q, qd)
-        error = q[:2] - np.asarray(self.reference.sample(t).position)
+        sample = self.reference.sample(t)
+        constraint_force = self._constraint_force(t, sample, q, qd)
+        error = q[:2] - np.asarray(sample.position)
         distance = math.hypot(error[0], error[1])
         if distance < gains.integral_zone:
             self._error_integral += error * dt
-        wrench = motion.constraint_force[:3].copy()
+        wrench = constraint_force[:3].copy()
         wrench[:2] -= gains.integral * self.robot.total_mass * self._error_integral
         params = self.robot.params
         drive = drive_forces(q[2], wrench, params.half_track)
-        tau_left, tau_right = side_motor_torques(drive, motion.constraint_force[3:], params.wheel_radius)
+        tau_left, tau_right = side_motor_torques(drive, constraint_force[3:], params.wheel_radius)
         return MotorCommand(tau_left, tau_right, drive, distance)
+
+    def _constraint_force(self, t: float, sample: ReferenceSample, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Q_c of the robot copy under the driven set and the look-ahead point task at (t, q, qd)."""
+        gains = self.gains
+        baumgarte = self._baumgarte_gains()
+        if self._compiled is not None:
+            return self._compiled.constraint_force(self.robot, baumgarte, DRIVEN,
+                                                   point_reference(sample, gains.look_ahead), gains.look_ahead, q, qd)
+        task = LookAheadPointTask(self.reference, baumgarte, gains.look_ahead)
+        modules = build_modules(DRIVEN, self.robot, None, baumgarte) + [task]
+        return constrained_motion(self.robot, modules, t, q, qd).constraint_force
+
+    def _baumgarte_gains(self) -> BaumgarteGains:
+        """The task's and the structural modules' gains (the same object while the gains are)."""
+        if self._baumgarte is None or self._baumgarte[0] is not self.gains:
+            self._baumgarte = (self.gains, BaumgarteGains(self.gains.alpha, self.gains.beta))
+        return self._baumgarte[1]

@@ -24,6 +24,7 @@ from wallbot_sim.model.batch.kernel import DRIVE_ROW, LOADS_ROW, STATUS_ROW
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
+from wallbot_sim.model.constraints.look_ahead import PointReference
 from wallbot_sim.model.contact import CoulombContact
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
@@ -45,12 +46,57 @@ def require_numba() -> None:
 
 
 def compile_kernel() -> None:
-    """Compile the kernel's run, or load it from numba's cache (which the first compilation on a machine
-    writes, 20-60 s), so that no simulation's first numba step waits for it."""
+    """Compile the kernel's run and the tracking controller's inverse dynamics, or load them from numba's cache
+    (which the first compilation on a machine writes, 20-60 s), so that no first numba step waits for them."""
     still = np.zeros(DOF)
     Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still, still,
                engine=NUMBA).run_table(0.002, lambda _table: None)
+    compile_inverse_dynamics()
 
+
+def compile_inverse_dynamics() -> None:
+    """Compile the tracking controller's inverse dynamics (``kernel.tracking_force``) or load it from the cache."""
+    still, at_rest = np.zeros(DOF), PointReference((0.0, 0.0), (0.0, 0.0), (0.0, 0.0), 0.0)
+    CompiledInverseDynamics().constraint_force(Robot(RobotParameters()), BaumgarteGains(1.0, 1.0),
+                                               ConstraintSelection.structural(trajectory=False), at_rest, 0.05,
+                                               still, still)
+
+
+
+class CompiledInverseDynamics:
+    """Q_c of an unpowered robot under a constraint set and the look-ahead point task, by the kernel
+    (``kernel.tracking_force``): ``constrained_motion``'s constraint force with those modules, to round-off.
+
+    The robot's constants are rebuilt only when the robot, gains or set are other objects.
+    """
+
+    def __init__(self) -> None:
+        require_numba()
+        self._robot: Robot | None = None
+        self._gains: BaumgarteGains | None = None
+        self._selection: ConstraintSelection | None = None
+        self._constants = np.empty(0)
+        self._flags = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_)
+        self._state = np.zeros(2 * DOF)
+
+    def constraint_force(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
+                         point: PointReference, distance: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Q_c (7,) at (q, qd): ``selection``'s modules, then the task steering the point ``distance`` ahead
+        of the centre onto ``point``."""
+        if robot is not self._robot or gains is not self._gains:
+            self._robot, self._gains = robot, gains
+            self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
+                                                     np.array([gains.beta]))[0]
+        if selection is not self._selection:
+            flags, _ = kernel.module_flags(selection.active_names())
+            if flags[0] or flags[1]:
+                raise ParameterError('the look-ahead point task takes the place of the trajectory task: '
+                                     'a selection without it is needed')
+            self._selection, self._flags = selection, flags
+        self._state[:DOF], self._state[DOF:] = q, qd
+        out = np.empty(DOF)
+        kernel.tracking_force(self._state, np.array(point[:3]), self._flags, self._constants, float(distance), out)
+        return out
 
 class Measured(NamedTuple):
     """What a simulation's outputs derive at one state: the motion, normal loads, friction use, drive forces."""

@@ -52,8 +52,9 @@ from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rew
 from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
-                                      parameter_result, range_reasons, run, subscribe_odom_when_recorded)
+from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, choice_reason, declare,
+                                      param_dict, parameter_result, range_reasons, run, subscribe_odom_when_recorded)
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
@@ -125,10 +126,23 @@ class ControllerNode(Node):
             'max_wheel_torque': declare(self, 'max_wheel_torque', MAX_WHEEL_TORQUE,
                                         "commands are clamped to +-this (N m; the dynamics' limit)",
                                         allowed=RANGES['max_wheel_torque']),
+            'engine': declare(self, 'engine', PYTHON,
+                              'how the control law computes its inverse dynamics: python (the model), or numba (the '
+                              "batch's compiled kernel, the same torques to round-off at a fraction of the CPU; it "
+                              'compiles on first use on a machine, then loads from the cache)',
+                              choices=ENGINES, read_only=True),
         }
+        reason = choice_reason('engine', self.values['engine'], ENGINES)
+        if reason:
+            raise ValueError(reason)
         self.file_params = load_robot_parameters(self.values['robot_file'] or None)
         self.plans = Plans()
-        self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values))
+        self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values),
+                                             self.values['engine'])
+        if self.values['engine'] == NUMBA:
+            # before the first state can come: a first call would compile or load the kernel, seconds to a minute
+            from wallbot_sim.model.compiled import compile_inverse_dynamics
+            compile_inverse_dynamics()
         self.controller.reference = self.plans
         self.loop = SampledController(self.controller, self.values['rate_hz'], float(self.values['max_wheel_torque']))
         self.pending: bytes | None = None
@@ -145,7 +159,8 @@ class ControllerNode(Node):
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
             f'tracking controller at {self.values["rate_hz"]} Hz of simulation time, '
-            f'mass_scale {self.values["mass_scale"]:g} (body_mass {self.controller.robot.params.body_mass:g} kg), '
+            f'{self.values["engine"]} engine, mass_scale {self.values["mass_scale"]:g} '
+            f'(body_mass {self.controller.robot.params.body_mass:g} kg), '
             + ', '.join(f'{name} {self.values[name]:g}' for name in GAIN_NAMES))
 
     # --- model ---------------------------------------------------------------------------------

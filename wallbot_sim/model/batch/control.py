@@ -17,9 +17,10 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.simulation import BatchOutputs, BatchSimulation, StepHook
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.constraints.look_ahead import point_reference
 from wallbot_sim.model.errors import ModelError
 from wallbot_sim.model.robot import DOF, Robot
-from wallbot_sim.model.trajectories import Reference, tangent_heading
+from wallbot_sim.model.trajectories import Reference
 
 
 class TrackingGains(Protocol):
@@ -103,15 +104,8 @@ class BatchTrackingController:
 
     def _look_ahead_rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``LookAheadPointTask.rows`` of every robot: the point L ahead of the centre on its shifted reference."""
-        sample = self.reference.sample(t)
-        heading = tangent_heading(sample)
-        angle, rate, turn = (0.0, 0.0, 0.0) if heading is None else heading
-        along = np.array([np.cos(angle), np.sin(angle)])
-        normal = np.array([-along[1], along[0]])
         length, alpha, beta = self.gains.look_ahead, self.gains.alpha, self.gains.beta
-        position = np.add(sample.position, length * along)
-        velocity = np.add(sample.velocity, length * rate * normal)
-        acceleration = np.add(sample.acceleration, length * (turn * normal - rate * rate * along))
+        position, velocity, acceleration, _ = point_reference(self.reference.sample(t), length)
         cos_t, sin_t, thd = np.cos(q[:, 2]), np.sin(q[:, 2]), qd[:, 2]
         direction = np.stack((cos_t, sin_t), axis=1)
         point = q[:, :2] + length * direction

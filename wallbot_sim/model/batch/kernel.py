@@ -580,6 +580,39 @@ def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, cou
     return steps
 
 
+
+def tracking_force(y: np.ndarray, point: np.ndarray, flags: np.ndarray, constants: np.ndarray, distance: float,
+                   out: np.ndarray) -> None:
+    """Q_c (7,) into ``out``: the inverse dynamics of one unpowered robot at y (14,) under the modules of
+    ``flags`` and the look-ahead point task (``LookAheadPointTask.rows``) stacked after them.
+
+    ``point`` (3, 2): the point's reference position, velocity and acceleration; ``distance``: L.
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    motion = np.zeros((3, DOF))
+    no_torque, sticking, no_bounds = np.zeros(2), np.zeros(3, dtype=np.bool_), np.zeros(5)
+    q, qd = y[:DOF], y[DOF:]
+    count = _problem(q, qd, np.zeros(REFERENCE_FIELDS), flags, constants, no_torque, sticking, no_bounds, rows, rhs,
+                     factor, vectors[0])
+    alpha, beta = constants[10], constants[11]
+    cos_t, sin_t, thd = math.cos(q[2]), math.sin(q[2]), qd[2]
+    heading = (cos_t, sin_t)
+    point_velocity = (qd[0] - distance * thd * sin_t, qd[1] + distance * thd * cos_t)
+    for axis in range(2):
+        rows[count, axis] = 1.0
+        rows[count, 2] = distance * (-sin_t if axis == 0 else cos_t)
+        rhs[count] = (point[2, axis] - 2.0 * alpha * (point_velocity[axis] - point[1, axis])
+                      - beta * beta * (q[axis] + distance * heading[axis] - point[0, axis])
+                      + distance * thd * thd * heading[axis])
+        count += 1
+    for i in range(DOF):
+        motion[1, i] = vectors[0, i]
+    _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, motion[0])
+    _motion_of(y, constants, motion, rows, rhs, count)
+    for i in range(DOF):
+        out[i] = motion[2, i]
+
 # --- coulomb contact: the stick/slip of one robot at each step boundary (docs/model.md 11.3) -------------
 
 ADHESION, STATIC, KINETIC, STICK, HEIGHT, HALF_BASE, HALF_TRACK = range(7)
@@ -1120,6 +1153,7 @@ _workspace = _compile(_workspace, inline="always")
 _motion_of = _compile(_motion_of, inline="always")
 _motion = _compile(_motion, inline="always")
 robot_run = _compile(robot_run)
+tracking_force = _compile(tracking_force)
 _normal_loads = _compile(_normal_loads, inline="always")
 _ratio = _compile(_ratio, inline="always")
 _measure = _compile(_measure, inline="always")

@@ -10,12 +10,40 @@ of it anywhere. This is the task a tracking controller imposes on a driven robot
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from wallbot_sim.model.constraints.base import BaumgarteGains
 from wallbot_sim.model.numbers import POSITIVE
-from wallbot_sim.model.trajectories import Reference, tangent_heading
+from wallbot_sim.model.trajectories import Reference, ReferenceSample, Vec2, tangent_heading
+
+
+class PointReference(NamedTuple):
+    """The look-ahead point's reference at one instant, and the direction it was shifted along."""
+
+    position: Vec2
+    velocity: Vec2
+    acceleration: Vec2
+    direction: float
+    """The path's tangent heading, or the direction at rest the shift kept (rad)."""
+
+
+def point_reference(sample: ReferenceSample, distance: float, direction_at_rest: float = 0.0) -> PointReference:
+    """The reference ``sample`` shifted ``distance`` ahead along the path's tangent, with its derivatives.
+
+    At rest the path has no tangent: the shift is along ``direction_at_rest``, not turning.
+    """
+    heading = tangent_heading(sample)
+    angle, rate, turn = (direction_at_rest, 0.0, 0.0) if heading is None else heading
+    along_x, along_y = math.cos(angle), math.sin(angle)  # the normal is (-along_y, along_x)
+    (x, y), (vx, vy), (ax, ay) = sample.position, sample.velocity, sample.acceleration
+    swing, centripetal = distance * rate, rate * rate
+    return PointReference((x + distance * along_x, y + distance * along_y),
+                          (vx - swing * along_y, vy + swing * along_x),
+                          (ax + distance * (-turn * along_y - centripetal * along_x),
+                           ay + distance * (turn * along_x - centripetal * along_y)),
+                          angle)
 
 
 class LookAheadPointTask:
@@ -30,21 +58,12 @@ class LookAheadPointTask:
         self.distance = distance
         self._last_direction = 0.0
 
-    def point_reference(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity and acceleration of the point's reference at t."""
-        sample = self.reference.sample(t)
-        heading = tangent_heading(sample)
-        if heading is None:  # at rest: keep shifting along the last direction of travel
-            angle, rate, acceleration = self._last_direction, 0.0, 0.0
-        else:
-            angle, rate, acceleration = heading
-            self._last_direction = angle
-        along = np.array([math.cos(angle), math.sin(angle)])
-        normal = np.array([-along[1], along[0]])
-        length = self.distance
-        return (np.add(sample.position, length * along),
-                np.add(sample.velocity, length * rate * normal),
-                np.add(sample.acceleration, length * (acceleration * normal - rate * rate * along)))
+    def point_reference(self, t: float) -> tuple[Vec2, Vec2, Vec2]:
+        """Position, velocity and acceleration of the point's reference at t (at rest: shifted along the
+        last direction of travel)."""
+        point = point_reference(self.reference.sample(t), self.distance, self._last_direction)
+        self._last_direction = point.direction
+        return point.position, point.velocity, point.acceleration
 
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         position, velocity, acceleration = self.point_reference(t)
