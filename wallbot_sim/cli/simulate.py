@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              'needs a run without the trajectory task: rest, or --controller)')
     parser.add_argument('--controller', action='store_true',
                         help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with the '
-                             'example tracking controller commanding the wheel torques at 50 Hz of simulation '
+                             'example tracking controller commanding the wheel torques at 25 Hz of simulation '
                              'time, as run --controller does over DDS')
     parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
                         help="with --controller: the controller's robot mass relative to the simulator's "

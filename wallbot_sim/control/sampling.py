@@ -5,7 +5,7 @@ ROS-free. ``tracking_controller_node`` runs it on the odometry it receives; ``wa
 message carries, so the headless closed loop is the graph's lockstep loop.
 
 Timing is simulation time: the controller acts on the first state stamped at or after each
-multiple of the control period (every 20th step of the 1 kHz dynamics at the default 50 Hz).
+multiple of the control period (every 40th step of the 1 kHz dynamics at the default 25 Hz).
 """
 
 from __future__ import annotations
@@ -21,17 +21,17 @@ from wallbot_msgs_py.codec import PlanarState, to_nanoseconds
 from wallbot_sim.control.tracking import TrackingController
 from wallbot_sim.model import DEFAULT_STEP, DOF, ModelError, Robot, RobotParameters, Simulation, StepOutputs
 
-CONTROL_RATE_HZ = 50
+CONTROL_RATE_HZ = 25
 """The controller's default rate (Hz of simulation time). Its feedback is slow against it (2 alpha =
-20/s, beta^2 = 100/s^2): at 200 Hz it tracks within 0.08 mm of the same (docs/controller.md) and costs four
-times the CPU."""
+20/s, beta^2 = 100/s^2): at 200 Hz it tracks within 0.2 mm of the same (docs/controller.md) and costs eight
+times the CPU, and a lockstep dynamics waits for it half as often as at 50 Hz."""
 MAX_WHEEL_TORQUE = 5.0
 """Commands are clamped to +- this (N m): the dynamics' default limit."""
 
 
 def steps_per_period(rate_hz: int, step: float = DEFAULT_STEP) -> int:
     """Dynamics steps of ``step`` seconds in one period of a loop at ``rate_hz`` of simulation time
-    (what a lockstep dynamics waits on: 20 for the tracking controller's 50 Hz at 1 kHz)."""
+    (what a lockstep dynamics waits on: 40 for the tracking controller's 25 Hz at 1 kHz)."""
     return round(1.0 / (rate_hz * step))
 
 

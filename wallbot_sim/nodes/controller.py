@@ -13,7 +13,7 @@ speaking the same three topics:
 
 Timing is simulation time taken from the odometry stamps, not from a ROS timer: the
 controller acts on the first ``odom`` stamped at or after each multiple of 1 / ``rate_hz``
-(every 20th message of the 1 kHz dynamics at 50 Hz). So its control instants are the same
+(every 40th message of the 1 kHz dynamics at 25 Hz). So its control instants are the same
 at any real-time factor or CPU load, and no ``/clock`` subscription is needed. A stamp that
 goes back into the first control period (the dynamics' ``~/reset``, or a dynamics started afresh)
 restarts the controller (integral cleared); one that goes back less is a dynamics resumed after a
