@@ -150,13 +150,16 @@ def test_a_second_robot_has_its_namespace_and_its_frame_prefix_on_every_node_nam
     assert not any('frame_prefix' in n['parameters'][0] or 'domain_clock' in n['parameters'][0] for n in default)
 
 
-def test_engine_numba_is_the_dynamics_engine_as_run_engine_gives_it(launch_file):
+def test_engine_numba_is_the_dynamics_and_controller_engine_as_run_engine_gives_it(launch_file):
     nodes = launched_nodes(launch_file, engine='numba')
     expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
                               engine='numba')
     assert nodes == as_launched(expected) and nodes[-1]['parameters'][0]['engine'] == 'numba'
     assert launched_nodes(launch_file)[-1]['parameters'][0]['engine'] == 'python'
     assert describe_driven_graph('joint_commands', engine='numba')[-1].parameters['engine'] == 'numba'
+    # and the tracking controller's law, as run --controller --engine numba gives it
+    closed = {n['name']: n['parameters'][0] for n in launched_nodes(launch_file, controller='true', engine='numba')}
+    assert closed['controller']['engine'] == closed['dynamics']['engine'] == 'numba'
 
 
 @pytest.mark.parametrize('drive, executable', [('cmd_vel', 'cmd_vel_node'), ('joint_commands', 'joint_bridge_node')])
