@@ -34,7 +34,7 @@ view, which builds the markers every frame; no client connected), so its cost sh
 
 ``--controller`` runs the closed loop, ``run --controller``: the tracking controller answering every
 40th state in lockstep, its CPU share beside the others'. ``--cmd-vel`` runs ``run rest --drive
-cmd_vel`` instead of the circle: cmd_vel_node answering every 10th state in lockstep (zero commands:
+cmd_vel`` instead of the circle: cmd_vel_node answering every 20th state in lockstep (zero commands:
 nothing publishes cmd_vel), no trajectory node.
 """
 

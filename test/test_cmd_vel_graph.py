@@ -30,14 +30,14 @@ LOCKSTEP = ('wait_for_command:=true', f'lockstep_every:={CMD_VEL_STEPS}')  # cmd
 PERIOD_NS = CMD_VEL_STEPS * 1_000_000
 SIDE, SPEED, TURN_RATE = 0.5, 0.2, 1.0
 LEG_TOLERANCE = 0.003
-"""m: each leg's length within this of 0.5 m (0.5 mm measured)."""
+"""m: each leg's length within this of 0.5 m (0.4 mm measured)."""
 TURN_DRIFT = 0.02
-"""m: how far a turn in place may move the centre (1.1-1.3 cm measured: gravity along the heading
+"""m: how far a turn in place may move the centre (1.3 cm measured: gravity along the heading
 as it sweeps through 90 degrees, which the wheel-speed loop follows with a lag)."""
 CORNER_TOLERANCE = 0.06
-"""m: each corner within this of the ideal square (the turns' drifts add up: 4.4 cm measured at the end)."""
+"""m: each corner within this of the ideal square (the turns' drifts add up: 4.3 cm measured at the end)."""
 HEADING_TOLERANCE = math.radians(1.0)
-"""Every heading and leg direction (0.3 degrees measured)."""
+"""Every heading and leg direction (0.16 degrees measured)."""
 
 
 @pytest.fixture
@@ -106,14 +106,17 @@ def test_scripted_cmd_vel_drives_a_square_on_the_wall(graph):
     The script is timed in simulation time, so this process's latency on a loaded machine does not
     enter: the dynamics pauses at the end of each segment (``stop_at``), the next command is
     published (and acknowledged), then ``stop_at`` moves on. cmd_vel_timeout is 10 s, so a command
-    published once holds for its segment. The command ramps at the acceleration limits, so a leg
-    covers 0.2 m/s x 2.5 s and a turn 1 rad/s x pi/2 s like a step would; what remains is the
-    wheel-speed loop's lag (gravity pulls along the legs up and down the wall).
+    published once holds for its segment. Segments last whole control periods, so a turn's rate is
+    the one that makes 90 degrees in the periods nearest pi/2 s. The command ramps at the
+    acceleration limits, so a leg covers 0.2 m/s x 2.5 s and a turn its 90 degrees like a step
+    would; what remains is the wheel-speed loop's lag (gravity pulls along the legs up and down the
+    wall).
     """
     graph.start('cmd_vel', 'use_sim_time:=true', 'cmd_vel_timeout:=10.0')
+    turn_time = round(math.pi / 2 / TURN_RATE * 1e9 / PERIOD_NS) * PERIOD_NS * 1e-9  # whole control periods
     segments = []
     for _ in range(4):
-        segments += [((SPEED, 0.0), SIDE / SPEED), ((0.0, 0.0), 1.0), ((0.0, TURN_RATE), math.pi / 2 / TURN_RATE),
+        segments += [((SPEED, 0.0), SIDE / SPEED), ((0.0, 0.0), 1.0), ((0.0, math.pi / 2 / turn_time), turn_time),
                      ((0.0, 0.0), 1.0)]
     first_pause = 0.1
     start_graph(graph, *AT_ORIGIN, *LOCKSTEP, 'real_time_factor:=0.0', f'stop_at:={first_pause}',

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from wallbot_sim.config import load_scenario
-from wallbot_sim.graph_description import (CONTROL_STEPS, EXECUTABLES, describe_driven_graph, describe_graph,
-                                           launch_name)
+from wallbot_sim.graph_description import (CMD_VEL_STEPS, CONTROL_STEPS, EXECUTABLES, describe_driven_graph,
+                                           describe_graph, launch_name)
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
@@ -182,7 +182,7 @@ def test_drive_starts_the_graph_of_run_rest_drive(launch_file, tmp_path, drive, 
     assert nodes[2]['parameters'][0]['wait_for_recorder'] is True  # forwards nothing the recorder does not hear
     # cmd_vel_node reads the odometry of its lockstep instants only; joint_bridge_node reads wheel_states
     assert nodes[2]['remappings'] == ([('odom', 'control_odom')] if drive == 'cmd_vel' else [])
-    assert nodes[-1]['parameters'][0].get('control_odom_every') == (10 if drive == 'cmd_vel' else None)
+    assert nodes[-1]['parameters'][0].get('control_odom_every') == (CMD_VEL_STEPS if drive == 'cmd_vel' else None)
     assert nodes[0]['parameters'][0]['topics'] == expected[0].parameters['topics']
     composed = launched_nodes(launch_file, drive=drive, record=str(tmp_path / 'bag'), compose='true')
     assert composed == as_launched(describe_driven_graph(drive, bag=tmp_path / 'bag', compose=True))

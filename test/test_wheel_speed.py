@@ -1,5 +1,6 @@
 """cmd_vel_node's loop without ROS: diff_drive_controller's limiter and timeout, the wheel-speed PI on
-the model (the driven plant at 1 kHz, the loop at 100 Hz), and the joint_commands side mapping."""
+the model (the driven plant at 1 kHz, the loop at cmd_vel_node's default rate), and the joint_commands side
+mapping."""
 
 from __future__ import annotations
 
@@ -14,12 +15,13 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.control.wheel_speed import AxisLimits, WheelSpeedController, WheelSpeedSettings, wheel_speeds
+from wallbot_sim.control.wheel_speed import (SPEED_LOOP_RATE_HZ, AxisLimits, WheelSpeedController, WheelSpeedSettings,
+                                             wheel_speeds)
 from wallbot_sim.model import Robot, Simulation
 
 PARAMS = load_robot_parameters()
 SEPARATION, RADIUS = 2.0 * PARAMS.half_track, PARAMS.wheel_radius
-PERIOD_STEPS = 10
+PERIOD_STEPS = 1000 // SPEED_LOOP_RATE_HZ
 
 
 def settings(**changes) -> WheelSpeedSettings:
@@ -82,7 +84,7 @@ def test_the_integral_does_not_wind_up_while_the_torque_is_saturated():
 
 
 def drive(commands, heading: float = 0.0, duration: float = 3.0, **changes):
-    """The driven plant (belt, non_lateral, nonslip; ideal contact) under the loop at 100 Hz.
+    """The driven plant (belt, non_lateral, nonslip; ideal contact) under the loop at its default rate.
     ``commands(t)`` -> (v, omega). Returns times, v_long, yaw rate and the torques."""
     plant = Simulation(Robot(PARAMS), None, DRIVEN, np.array([0.0, 0.0, heading, 0, 0, 0, 0]), np.zeros(7))
     controller = WheelSpeedController(settings(**changes))
@@ -106,6 +108,18 @@ def test_the_model_reaches_the_commanded_speed_along_and_up_and_down_the_wall(he
     settled = t >= 1.5  # 0.2 s of ramp at 1 m/s^2, then the PI settles (integral against gravity)
     assert np.abs(v[settled] - 0.2).max() < 0.004
     assert np.abs(omega[settled]).max() < 1e-6
+
+
+def test_the_default_gain_leaves_a_margin_at_the_default_rate():
+    """Each torque is held for a whole period, so a gain too high for the rate oscillates and diverges:
+    1.5 times the default kp still settles up the wall; 3 times (past the limit, 0.6-0.75 N m s/rad
+    at 50 Hz) swings between the torque limits."""
+    kp = WheelSpeedSettings.kp
+    for factor, settles in ((1.5, True), (3.0, False)):
+        t, v, _omega, tau_left, _ = drive(lambda _t: (0.2, 0.0), math.pi / 2, kp=factor * kp)
+        settled = t >= 1.5
+        assert bool(np.abs(v[settled] - 0.2).max() < 0.004) == settles, factor
+        assert bool(np.ptp(tau_left[settled]) > 5.0) != settles, factor
 
 
 def test_the_model_turns_at_the_commanded_rate():

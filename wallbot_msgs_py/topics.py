@@ -53,7 +53,7 @@ class Topic:
 ODOM = Topic('odom', 'nav_msgs/msg/Odometry')
 CONTROL_ODOM = Topic('control_odom', 'nav_msgs/msg/Odometry')
 """The odometry of the states at control instants: every ``control_odom_every``-th step of the
-dynamics (a parameter; 10 by default, 100 Hz at 1 kHz), the same messages as on ``odom``. A
+dynamics (a parameter; 20 by default, 50 Hz at 1 kHz), the same messages as on ``odom``. A
 controller acting at a fraction of the step rate subscribes it in place of ``odom`` (``-r
 odom:=control_odom``; ``wallbot-sim run`` and the launch file do so for the tracking controller and
 cmd_vel_node), so it wakes once per control period instead of once per step: the control instants it

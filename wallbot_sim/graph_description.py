@@ -42,7 +42,7 @@ CONTROL_STEPS = steps_per_period(CONTROL_RATE_HZ)
 """Dynamics steps per control period: the controller's default rate at the dynamics' 1 kHz. The
 dynamics runs in lockstep with it (``lockstep_every``): a closed-loop run does not depend on CPU load."""
 CMD_VEL_STEPS = steps_per_period(SPEED_LOOP_RATE_HZ)
-"""Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 100 Hz), in lockstep likewise."""
+"""Dynamics steps per period of cmd_vel_node's wheel-speed loop (its default 50 Hz), in lockstep likewise."""
 CONTROLLER_REMAPS = (topics.CONTROL_ODOM_REMAP,)
 """A commander (the tracking controller, cmd_vel_node) reads control_odom, published at its lockstep
 instants (the dynamics' ``control_odom_every``), instead of every step's odom: one wake per control period."""

@@ -25,9 +25,10 @@ from wallbot_sim.model.numbers import NumberRange
 POSITIVE_LIMIT = NumberRange(1e-6, 1e3)
 """A velocity or acceleration limit: above 0, from 1e-6 on so that a parameter descriptor's closed
 range says exactly what is accepted."""
-SPEED_LOOP_RATE_HZ = 100
-"""cmd_vel_node's default rate (Hz of simulation time), every 10th state of the 1 kHz dynamics. At
-50 Hz the loop turned a scripted square's corners a degree off (test_cmd_vel_graph.py)."""
+SPEED_LOOP_RATE_HZ = 50
+"""cmd_vel_node's default rate (Hz of simulation time), every 20th state of the 1 kHz dynamics: a
+scripted square on the wall ends within 0.2 degrees of its heading and 3.3 cm of its corners, as at
+100 Hz (test_cmd_vel_graph.py), for half the node's wake-ups."""
 GAIN = NumberRange(0.0, 1e3)
 """A PI gain (>= 0)."""
 
@@ -58,8 +59,11 @@ class WheelSpeedSettings:
     angular: AxisLimits
     cmd_vel_timeout: float = 0.5
     """s of simulation time after which the last command counts as zero."""
-    kp: float = 0.5
-    """N m per rad/s of wheel-speed error."""
+    kp: float = 0.3
+    """N m per rad/s of wheel-speed error. The sampled loop holds each torque for a whole period, so
+    too high a gain for the rate oscillates and diverges: with this robot the square diverged from
+    kp 0.7 at 50 Hz and 0.3 at 25 Hz (stable at 1.3 at 100 Hz), a limit near 0.012-0.013 N m s/rad
+    times the rate in Hz. 0.3 leaves a factor of 2 at the default rate."""
     ki: float = 5.0
     """N m per rad of integrated wheel-speed error."""
     max_wheel_torque: float = 5.0

@@ -127,7 +127,7 @@ state, so a missing controller ends the run with the dynamics' reason before ``r
 controller started by hand later wants more, or 0."""
 CONTROL_ODOM_EVERY = math.gcd(steps_per_period(CONTROL_RATE_HZ), steps_per_period(SPEED_LOOP_RATE_HZ))
 """Default control_odom_every (steps): every state either commander acts on at its default rate
-(10: the cmd_vel node's 100 Hz at 1 kHz; the tracking controller's 25 Hz is every 40th)."""
+(20: the cmd_vel node's 50 Hz at 1 kHz; the tracking controller's 25 Hz is every 40th)."""
 BACKPRESSURE_WINDOW = 200
 """Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
 how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
