@@ -3,9 +3,10 @@
 Runs ``wallbot-sim run circle`` (all constraints, the recorder writing every topic) twice, on a
 private ROS domain:
   * at real-time factor 1 for --duration simulated seconds: each process's CPU share (utime +
-    stime from /proc, over the run's steady part: from --warmup wall seconds after every node is up
-    until the first one exits), their total in CPU seconds per simulated second, and the steps
-    later than 2 ms that the dynamics reported in its /diagnostics (read back from the bag);
+    stime from /proc, over the run's steady part: from --warmup simulated seconds on, when every
+    node has started and found the others, until the first one exits), their total in CPU seconds
+    per simulated second, and the steps later than 2 ms that the dynamics reported in its
+    /diagnostics (read back from the bag);
   * at factor 0 for --fast-duration simulated seconds: the simulated seconds per wall second
     (from the robot's clock messages in the bag, 10 per simulated second: their simulation time
     against the time they were logged, from t = 1 s to the end).
@@ -122,6 +123,13 @@ class Run:
         sim = [float(d['simulation time']) for _, d in self.diagnostics]
         return float(np.interp(self.window[1], wall, sim) - np.interp(self.window[0], wall, sim))
 
+    def simulation_time(self, wall: float) -> float:
+        """The robot's simulation time (s) at wall time ``wall`` (time.time()), from the clock messages;
+        0 before the first."""
+        if not self.clocks or wall < self.clocks[0][0]:
+            return 0.0
+        return float(np.interp(wall, *zip(*self.clocks)))
+
     def speed(self, after: float = 1.0) -> float:
         """Simulated s per wall s from simulation time ``after`` to the last clock message (10 a simulated
         second: a short fast run still has many, where the 1 Hz diagnostics may have one)."""
@@ -149,9 +157,7 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
                           '--realtime-priority', priority, *viewer, *(['--compose'] if compose else []),
                           *options], name)
     pids: dict[str, int] = {}
-    first: tuple[float, dict[str, float]] | None = None
-    last: tuple[float, dict[str, float]] | None = None
-    all_up = None
+    samples: list[tuple[float, dict[str, float]]] = []
     while run.poll() is None:
         time.sleep(SAMPLE_PERIOD)
         if len(pids) < len(nodes):
@@ -159,20 +165,21 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
                     for node, module in nodes.items() if module in cmd.split()}
             if len(pids) == len(nodes):
                 pids['run'] = run.pid
-                all_up = time.monotonic()
             continue
         try:
-            sample = (time.time(), {node: cpu_seconds(pid) for node, pid in pids.items()})
+            samples.append((time.time(), {node: cpu_seconds(pid) for node, pid in pids.items()}))
         except (OSError, IndexError):
             break  # a node has exited: the run is stopping
-        if first is None and time.monotonic() - all_up >= warmup:
-            first = sample
-        last = sample
     if run.wait() != 0:
         raise SystemExit(f'{name} failed with status {run.returncode}: see {launcher.log(name)}')
-    if first is None or last is None or last[0] <= first[0]:
+    result = Run()
+    for raw in messages(out / 'bag', [topics.CLOCK.resolve()]):
+        result.clocks.append((raw.timestamp * 1e-9, codec.leading_stamp_ns(raw.data) * 1e-9))
+    steady = [sample for sample in samples if result.simulation_time(sample[0]) >= warmup]
+    if len(steady) < 2 or steady[-1][0] <= steady[0][0]:
         raise SystemExit(f'{name}: too short to measure; raise the duration')
-    result = Run({node: last[1][node] - first[1][node] for node in pids}, (first[0], last[0]))
+    (start, first), (end, last) = steady[0], steady[-1]
+    result.cpu, result.window = {node: last[node] - first[node] for node in pids}, (start, end)
     for raw in messages(out / 'bag', ['/diagnostics']):
         status = bagio.deserialize(raw.data, raw.type).status
         for report in status:
@@ -180,8 +187,6 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
                 result.diagnostics.append((raw.timestamp * 1e-9, {kv.key: kv.value for kv in report.values}))
     if len(result.diagnostics) < 2:
         raise SystemExit(f'{name}: fewer than two /diagnostics of the dynamics in the bag')
-    for raw in messages(out / 'bag', [topics.CLOCK.resolve()]):
-        result.clocks.append((raw.timestamp * 1e-9, codec.leading_stamp_ns(raw.data) * 1e-9))
     return result
 
 
@@ -198,7 +203,7 @@ def main() -> int:
     parser.add_argument('--fast-duration', type=float, default=20.0,
                         help='simulated seconds at factor 0 (default 20)')
     parser.add_argument('--warmup', type=float, default=3.0,
-                        help='wall seconds after every node is up before CPU is counted (default 3)')
+                        help='simulated seconds before CPU is counted (default 3): start-up is not steady work')
     parser.add_argument('--model-seconds', type=float, default=2.0,
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
     parser.add_argument('--sleep-seconds', type=float, default=20.0,
