@@ -1,4 +1,5 @@
-"""A dynamics node whose start cannot be made: it says what it waits for, then exits (a real process)."""
+"""A dynamics node's start: one that cannot be made says what it waits for, then exits (a real process); the
+numba engine's kernel loaded and frozen while it starts."""
 
 from __future__ import annotations
 
@@ -76,3 +77,35 @@ def test_a_start_waiting_for_a_missing_controller_warns_then_exits_with_status_1
 def level(name: str) -> bytes:
     """A diagnostic level as rclpy gives a received DiagnosticStatus's (a byte)."""
     return bytes([codec.LEVELS[name]])
+
+
+FROZEN_KERNEL_PROBE = '''
+import gc, sys
+import rclpy
+from rclpy.parameter import Parameter
+from wallbot_sim.model.batch import kernel
+from wallbot_sim.nodes.dynamics import started_node
+context = rclpy.Context()
+rclpy.init(context=context)
+contact = sys.argv[1]
+node = started_node(context=context, parameter_overrides=[Parameter('engine', value='numba'),
+                                                          Parameter('contact_model', value=contact)])
+run = kernel.robot_run if contact == 'ideal' else kernel.robot_contact_run
+loaded = list(run.overloads.values())
+tracked = {id(o) for o in gc.get_objects()}
+print(len(loaded), sum(id(o) in tracked for o in loaded), node.loop.stepped)
+'''
+
+
+@pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
+def test_on_the_numba_engine_the_kernel_is_loaded_at_start_and_frozen_with_it(process_runner, contact):
+    """Loading the kernel makes many objects; loaded by the first step, they cost the loop thread a full
+    collection of 12 ms seconds later. The node loads it while it starts, so they are frozen
+    (``gc.freeze``) with the rest of the start-up's: out of every collection's reach."""
+    pytest.importorskip('numba')
+    from wallbot_sim.model.compiled import compile_run
+    compile_run(contact)  # numba's cache: the node loads instead of compiling for up to a minute
+    proc = process_runner.start([sys.executable, '-c', FROZEN_KERNEL_PROBE, contact], 'probe')
+    assert proc.wait(timeout=120) == 0, process_runner.output('probe')
+    loaded, tracked, stepped = process_runner.output('probe').split()[-3:]
+    assert int(loaded) >= 1 and int(tracked) == 0 and stepped == 'False', process_runner.output('probe')

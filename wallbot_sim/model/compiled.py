@@ -25,7 +25,7 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
 from wallbot_sim.model.constraints.look_ahead import PointReference
-from wallbot_sim.model.contact import CoulombContact
+from wallbot_sim.model.contact import IDEAL, CoulombContact
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepTable
@@ -48,10 +48,17 @@ def require_numba() -> None:
 def compile_kernel() -> None:
     """Compile the kernel's run and the tracking controller's inverse dynamics, or load them from numba's cache
     (which the first compilation on a machine writes, 20-60 s), so that no first numba step waits for them."""
-    still = np.zeros(DOF)
-    Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False), still, still,
-               engine=NUMBA).run_table(0.002, lambda _table: None)
+    compile_run(IDEAL)
     compile_inverse_dynamics()
+
+
+def compile_run(contact: str) -> None:
+    """Compile the kernel's run under ``contact`` (ideal or coulomb: what a numba ``Simulation`` steps by) or
+    load it from numba's cache."""
+    still = np.zeros(DOF)
+    simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False),
+                            still, still, contact=contact, engine=NUMBA)
+    simulation.step()
 
 
 def compile_inverse_dynamics() -> None:
