@@ -187,7 +187,7 @@ def test_the_trajectory_task_waits_for_a_plan_covering_the_next_step():
     decisions = ticks(loop, 12)
     assert decisions[:9] == [Decision.STEPPED] * 9 and set(decisions[9:]) == {Decision.NOT_READY}
     assert str(loop.status) == 'waiting for a reference_trajectory covering t = 0.009 s'
-    assert log.said('reference plan 0.000 .. 0.010 s at t = 0.000 s')
+    assert not log.said('plan')  # said by the node that receives it, not in the loop thread (0.3 ms a line)
     assert loop.command_state() == messages.COMMAND_IGNORED
     assert graph.clocks == pytest.approx([0.0, 0.009])  # the start, and the state it waits at
     loop.post(plan(0.005, 0.02))

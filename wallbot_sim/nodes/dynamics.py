@@ -324,7 +324,12 @@ class DynamicsNode(Node):
         except (ValueError, ModelError) as error:
             self.get_logger().error(f'ignoring reference_trajectory: {error}')
             return
-        self.loop.post(NewPlan(reference, plan.times[0], plan.times[-1], messages.plan_is_final(plan)))
+        final = messages.plan_is_final(plan)
+        self.loop.post(NewPlan(reference, plan.times[0], plan.times[-1], final))
+        # said here, not where the loop applies it: an rclpy log line takes 0.3 ms (up to 15 ms), which in the
+        # loop thread made the state after every plan late
+        self.get_logger().info(f'reference plan {plan.times[0]:.3f} .. {plan.times[-1]:.3f} s'
+                               f'{" (ends at rest)" if final else ""}')
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         try:

@@ -439,9 +439,6 @@ class DynamicsLoop:
                 self.pending_constraints = event
             case NewPlan():
                 self.plan = event
-                self._log.info(
-                    f'reference plan {event.start:.3f} .. {event.end:.3f} s'
-                    f'{" (ends at rest)" if event.final else ""} at t = {self.sim.t if self.sim else 0.0:.3f} s')
                 if self.sim is not None:
                     self.sim.set_reference(event.reference)
                     self._snapshot()
