@@ -27,8 +27,8 @@ POSITIVE_LIMIT = NumberRange(1e-6, 1e3)
 range says exactly what is accepted."""
 SPEED_LOOP_RATE_HZ = 50
 """cmd_vel_node's default rate (Hz of simulation time), every 20th state of the 1 kHz dynamics: a
-scripted square on the wall ends within 0.2 degrees of its heading and 3.3 cm of its corners, as at
-100 Hz (test_cmd_vel_graph.py), for half the node's wake-ups."""
+scripted square on the wall ends within 0.2 degrees of its heading and 4.3 cm of its last corner, as
+at 100 Hz (test_cmd_vel_graph.py), for half the node's wake-ups."""
 GAIN = NumberRange(0.0, 1e3)
 """A PI gain (>= 0)."""
 

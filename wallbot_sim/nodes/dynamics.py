@@ -327,7 +327,7 @@ class DynamicsNode(Node):
         final = messages.plan_is_final(plan)
         self.loop.post(NewPlan(reference, plan.times[0], plan.times[-1], final))
         # said here, not where the loop applies it: an rclpy log line takes 0.3 ms (up to 15 ms), which in the
-        # loop thread made the state after every plan late
+        # loop thread came out of the 1 ms before the state after every plan is due
         self.get_logger().info(f'reference plan {plan.times[0]:.3f} .. {plan.times[-1]:.3f} s'
                                f'{" (ends at rest)" if final else ""}')
 
