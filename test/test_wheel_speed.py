@@ -13,7 +13,7 @@ import pytest
 from wallbot_msgs_py import topics
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.joint_interface import side_torques
-from wallbot_sim.control.sampling import ControlInstants, Rewind
+from wallbot_sim.control.sampling import ControlInstants, Rewind, steps_per_period
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.control.wheel_speed import (SPEED_LOOP_RATE_HZ, AxisLimits, WheelSpeedController, WheelSpeedSettings,
                                              wheel_speeds)
@@ -21,7 +21,7 @@ from wallbot_sim.model import Robot, Simulation
 
 PARAMS = load_robot_parameters()
 SEPARATION, RADIUS = 2.0 * PARAMS.half_track, PARAMS.wheel_radius
-PERIOD_STEPS = 1000 // SPEED_LOOP_RATE_HZ
+PERIOD_STEPS = steps_per_period(SPEED_LOOP_RATE_HZ)
 
 
 def settings(**changes) -> WheelSpeedSettings:
