@@ -642,7 +642,7 @@ class DynamicsLoop:
         ``command_wait_timeout`` (wall, 0: never) of either wait.
 
         Each wait counts from its own beginning: the answer to the t = 0 state can only come once
-        that state is out, which a numba engine compiling its kernel may delay by tens of seconds.
+        that state is out, which a wait for the recorder or for the constraints may delay.
         Giving up logs one error line naming what was missing, sets :attr:`gave_up` and stops the
         loop; the node then exits with status 1, as it does for a start it cannot make otherwise.
         """
