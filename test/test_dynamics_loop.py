@@ -106,8 +106,11 @@ def make_loop(**params):
     return loop, graph, log, clock
 
 
-def plan(start: float, end: float) -> NewPlan:
-    sampled = sample_plan(Circle(radius=0.8, period=20.0), start, end, 0.001)
+def plan(start: float, end: float, radius: float = 0.8, moved: tuple[float, float] = (0.0, 0.0)) -> NewPlan:
+    """The circle's plan over [start, end]; its samples at times in [moved[0], moved[1]) moved a nanometre in x."""
+    sampled = sample_plan(Circle(radius=radius, period=20.0), start, end, 0.001)
+    sampled.positions[:] = [(x + 1e-9, y) if moved[0] <= t < moved[1] else (x, y)
+                            for t, (x, y) in zip(sampled.times, sampled.positions)]
     return NewPlan(SampledReference(*sampled), sampled.times[0], sampled.times[-1], messages.plan_is_final(sampled))
 
 
@@ -627,15 +630,18 @@ def test_blocks_of_steps_at_factor_0_publish_what_single_steps_publish_to_the_bi
     assert times.count(0.0) == 2 and abs(times[-1] - 0.24) < 1e-12
 
 
-def run_paced(blocks: bool) -> EncodingGraph:
-    """A paced tracking run on the numba engine (factor 20: a short sleep a step) with events between its
-    states: a recorder's progress every 7 ticks, new gains, a plan replaced, a reset and its new plan."""
+PACED_EVENTS = {0: [TRACKING, plan(0.0, 0.3)], 33: [ConstraintSwitch(TRACKING.selection, BaumgarteGains(8.0, 8.0))],
+                61: [plan(0.05, 0.35)], 90: [Reset()], 95: [plan(0.0, 0.3)]}
+"""New gains, a plan replaced, a reset and its new plan, by tick."""
+
+
+def run_paced(blocks: bool, events: dict[int, list] = PACED_EVENTS, ticks: int = 220) -> EncodingGraph:
+    """A paced tracking run on the numba engine (factor 20: a short sleep a step) with ``events`` between its
+    states, and a recorder's progress every 7 ticks."""
     graph, log = EncodingGraph(blocks), FakeLog()
     loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 20.0, 'snapshot_period': 0.05,
                          'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
-    events = {0: [TRACKING, plan(0.0, 0.3)], 33: [ConstraintSwitch(TRACKING.selection, BaumgarteGains(8.0, 8.0))],
-              61: [plan(0.05, 0.35)], 90: [Reset()], 95: [plan(0.0, 0.3)]}
-    for tick in range(220):
+    for tick in range(ticks):
         for event in events.get(tick, []):
             loop.post(event)
         if tick % 7 == 3:
@@ -657,3 +663,26 @@ def test_paced_blocks_publish_one_state_a_tick_and_an_event_drops_the_rest_of_th
     # the next block is encoded while the last state of the one before waits (computed one state earlier):
     # a block's boundary publishes without computing; after an event the block is computed there
     assert blocks.leads.count(2) >= 5 and set(blocks.leads) <= {1, 2}
+
+
+@NEEDS_NUMBA
+@pytest.mark.parametrize('renewal, recomputes', [
+    ({61: [plan(0.05, 0.35)]}, False),  # the trajectory node's renewal: the same samples where they overlap
+    ({68: [plan(0.05, 0.35, moved=(0.095, 1.0))]}, False),  # other samples only after the blocks computed
+    ({61: [plan(0.05, 0.35, radius=0.81)]}, True),  # another reference
+    ({61: [plan(0.05, 0.35, moved=(0.063, 0.066))]}, True),  # other samples in the steps just after the event
+    ({68: [plan(0.05, 0.35, moved=(0.075, 1.0))]}, True),  # the block being published stays, the next one not
+], ids=['renewal', 'differs-later', 'other-reference', 'differs-next', 'differs-in-the-next-block'])
+def test_a_plan_that_gives_the_states_computed_ahead_keeps_them(renewal, recomputes):
+    """A plan that gives the steps computed ahead (paced: the block being published and the next one) as the
+    plan in force did, to the bit, keeps them; otherwise the steps it changes are dropped and computed again.
+    Either way the messages and snapshots are the single steps'."""
+    start = {0: [TRACKING, plan(0.0, 0.3)]}
+    without = run_paced(blocks=True, events=start, ticks=120)
+    single, blocks = run_paced(False, {**start, **renewal}, 120), run_paced(True, {**start, **renewal}, 120)
+    assert blocks.messages == single.messages and len(blocks.messages) == 121
+    assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
+    assert len(blocks.snapshots) == len(without.snapshots) + 1  # the plan's
+    # a block computed at the boundary after the last state published (lead 1) is the start's, or a recomputation
+    assert blocks.leads.count(1) == (2 if recomputes else 1) and without.leads.count(1) == 1
+    assert blocks.block_sizes == without.block_sizes or recomputes

@@ -58,6 +58,23 @@ def test_overlapping_plans_agree_exactly():
     assert late.start == 5.0
     for t in np.arange(5.0, 10.0, 0.001):
         assert early.sample(t) == late.sample(t)
+    assert early.agrees(late, 5.0, 9.999) and late.agrees(early, 7.3, 7.3)
+    # agreement is claimed only where both interpolate: not before the later start, nor at or past an end
+    assert not early.agrees(late, 4.999, 6.0) and not early.agrees(late, 9.0, 10.0)
+
+
+def test_plans_that_differ_in_one_bit_of_a_sample_used_do_not_agree():
+    plan = sample_plan(Circle(), 0.0, 1.0, 0.01)
+    k = 50  # the sample at 0.5 s, an end of the segments on either side of it
+    x, y = plan.positions[k]
+    up = math.nextafter(x, math.inf)
+    this = messages.sampled_reference(plan)
+    that = messages.sampled_reference(plan._replace(positions=[*plan.positions[:k], (up, y), *plan.positions[k + 1:]]))
+    assert not this.agrees(that, 0.495, 0.495) and not this.agrees(that, 0.5, 0.5) and not that.agrees(this, 0.3, 0.7)
+    assert this.agrees(that, 0.3, 0.489) and this.agrees(that, 0.511, 0.7)
+    at_rest, signed = ([SampledReference([0.0, 1.0, 2.0], [(0.0, 0.0), (zero, 0.0), (0.0, 0.0)], [(0.0, 0.0)] * 3,
+                                         [(0.0, 0.0)] * 3) for zero in (0.0, -0.0)])
+    assert not at_rest.agrees(signed, 0.5, 0.5) and at_rest.sample(0.5) == signed.sample(0.5)  # == cannot tell
 
 
 def test_final_plan_ends_at_rest():

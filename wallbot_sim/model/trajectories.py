@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from array import array
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol, Sequence
 
@@ -207,6 +208,23 @@ class SampledReference:
         x = t - times[k]
         cx, cy = self._coefficients
         return ReferenceSample(*zip(_quintic(x, *cx), _quintic(x, *cy)))
+
+    def agrees(self, other: SampledReference, t0: float, t1: float) -> bool:
+        """Whether ``sample`` gives bit-identical values in both for every t in [t0, t1]: both interpolate there
+        (t0 at or after each one's first sample, t1 before each one's last) between the same samples, to the bit.
+
+        Two plans of one reference on one grid agree wherever they overlap (``sample_plan``); this checks it.
+        """
+        if not (max(self.times[0], other.times[0]) <= t0 <= t1 < min(self.times[-1], other.times[-1])):
+            return False
+        mine, theirs = self._samples_over(t0, t1), other._samples_over(t0, t1)
+        return array('d', mine).tobytes() == array('d', theirs).tobytes()  # bits: 0.0 and -0.0 differ
+
+    def _samples_over(self, t0: float, t1: float) -> list[float]:
+        """The times and samples of the segments that ``sample`` uses for t in [t0, t1], flat."""
+        first = bisect.bisect_right(self.times, t0) - 1
+        last = bisect.bisect_right(self.times, t1)
+        return [value for k in range(first, last + 1) for value in (self.times[k], *self._samples[k])]
 
     def _segment_coefficients(self, k: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         h = self.times[k + 1] - self.times[k]

@@ -389,18 +389,21 @@ class DynamicsLoop:
     def tick(self) -> Decision:
         """Apply the queued events, then take one step if nothing holds it back.
 
-        A state of a block computed ahead is published instead while no event but a recorder's progress
-        came; any other event drops the rest of the block first (:meth:`_rewind`), so it applies at the
-        boundary after the last state published, as it does between single steps.
+        A state of a block computed ahead is published instead while no event came but a recorder's progress
+        and plans that give the states computed ahead (``_plan_keeps``); any other event drops the rest of the
+        block first (:meth:`_rewind`), so it applies at the boundary after the last state published, as it does
+        between single steps.
         """
         events = self._take_events()
-        progress_only = all(isinstance(event, RecordProgress) for event in events)
-        if self._ahead is not None and progress_only:
+        if self._ahead is not None and all(self._keeps_ahead(event) for event in events):
+            if self._next is not None and not all(self._plan_keeps(event, self._next)
+                                                  for event in events if isinstance(event, NewPlan)):
+                self._next = None
             for event in events:
                 self._apply(event)
             self._publish_ahead()
             return Decision.STEPPED
-        if not progress_only:
+        if not all(isinstance(event, RecordProgress) for event in events):
             self._next = None  # computed before the event
         if self._ahead is not None:
             self._rewind()
@@ -424,6 +427,22 @@ class DynamicsLoop:
         if self.paused:  # a step that a Step event allowed
             self.steps_to_take -= 1
         return Decision.STEPPED
+
+    def _keeps_ahead(self, event: Event) -> bool:
+        """Whether the block computed ahead stays through ``event``: a recorder's progress, or a plan that keeps it."""
+        return isinstance(event, RecordProgress) or isinstance(event, NewPlan) and self._plan_keeps(event, self._ahead)
+
+    def _plan_keeps(self, plan: NewPlan, ahead: Ahead) -> bool:
+        """Whether ``plan`` gives the steps of ``ahead`` not published yet as the plan in force gave them, to the bit.
+
+        The trajectory node's plans lie on one sample grid, so a renewal agrees with the plan it replaces over
+        their overlap: the states computed ahead stand, and the state after a plan is not computed in the
+        millisecond before it is due while the executor decodes the plan.
+        """
+        dt, margin = self.sim.dt, 1e-9  # stamps are whole nanoseconds; the steps' times are within 0.5 ns of them
+        start = ahead.stamps[ahead.published] * 1e-9 - dt - margin
+        end = ahead.stamps[-1] * 1e-9 + margin
+        return self.plan is not None and plan.reference.agrees(self.plan.reference, start, end)
 
     def _take_events(self) -> list[Event]:
         events = []
@@ -944,13 +963,19 @@ class DynamicsLoop:
     def _rewind(self) -> None:
         """Drop the states of the block computed ahead that are not published: the simulation goes back to
         the last state published (``Simulation.restore``, which continues bit for bit)."""
-        ahead, self._ahead, self._next = self._ahead, None, None
+        self.sim.restore(*self._published_state())
+        self._ahead = self._next = None
+        self.last_outputs = self.sim.outputs()
+
+    def _published_state(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """The step count, q and qd of the last state published: the simulation's, or a row of the block ahead."""
+        ahead, sim = self._ahead, self.sim
+        if ahead is None:
+            return sim.steps, sim.q, sim.qd
         row = ahead.published
         if row == 0:
-            self.sim.restore(*ahead.before)
-        else:
-            self.sim.restore(ahead.before[0] + row, ahead.block.q[row - 1], ahead.block.qd[row - 1])
-        self.last_outputs = self.sim.outputs()
+            return ahead.before
+        return ahead.before[0] + row, ahead.block.q[row - 1], ahead.block.qd[row - 1]
 
     def _waits_next(self) -> bool:
         """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
@@ -964,15 +989,16 @@ class DynamicsLoop:
         sim = self.sim
         if sim is None:
             return
+        steps, q, qd = self._published_state()
         command, since = self.command if self.command is not None else (None, 0.0)
         switches = messages.switches_from_selection(sim.selection)
         self._graph.publish_snapshot(DynamicsSnapshot(
-            anchor=sim.initial_time, steps=sim.steps, dt=sim.dt, q=tuple(sim.q), qd=tuple(sim.qd),
+            anchor=sim.initial_time, steps=steps, dt=sim.dt, q=tuple(q), qd=tuple(qd),
             motor_torque=sim.motor_torque, command=command, command_since=since,
             command_expired=self.command_expired,
             switches=tuple(switches[name] for name in SWITCHES),
             gains=(float(sim.gains.alpha), float(sim.gains.beta)), paused=self.paused,
-            seen_until_ns=codec.to_nanoseconds(sim.t)))
+            seen_until_ns=codec.to_nanoseconds(sim.initial_time + steps * sim.dt)))
 
     def _publish(self, out: StepOutputs) -> None:
         """Publish the messages of the current state (start, reset)."""
