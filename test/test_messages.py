@@ -126,6 +126,27 @@ def test_bad_plans_are_refused_with_a_reason(decode_plan, build, reason):
         decode_plan(msg)
 
 
+def test_the_plan_read_from_the_bytes_is_the_converted_message_s_in_any_layout():
+    """plan_from_cdr reads the bytes; plan_from_message takes the message rosbags converted: the same plan,
+    whatever shifts the alignment (frame and joint names of any length) or adds elements after the first."""
+    msg = decode(messages.trajectory_message(sample_plan(FigureEight(), 1.0, 3.0, 0.05)), topics.REFERENCE_TRAJECTORY)
+    for frame, joints, extra in (('wall', ['base_link'], 0), ('w', [], 1), ('odom_', ['a', 'bc', 'def'], 2)):
+        msg.header.frame_id, msg.joint_names = frame, joints
+        for point in msg.points:
+            point.transforms[1:] = [point.transforms[0]] * extra
+            point.velocities[1:] = [point.accelerations[0]] * extra
+            point.accelerations[1:] = [point.velocities[0]] * (2 * extra)
+        data = bagio.serialize(msg, topics.REFERENCE_TRAJECTORY.type)
+        assert messages.plan_from_cdr(data) == messages.plan_from_message(msg)
+
+
+def test_a_serialized_plan_cut_anywhere_is_refused_as_malformed():
+    data = messages.trajectory_message(sample_plan(Circle(), 0.0, 0.05, 0.01))
+    for cut in range(len(data)):
+        with pytest.raises(ValueError, match='malformed reference_trajectory'):
+            messages.plan_from_cdr(data[:cut])
+
+
 @pytest.mark.parametrize('cut', [0, 3, 40, -9])
 def test_truncated_serialized_plan_is_refused(cut):
     data = messages.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01))
