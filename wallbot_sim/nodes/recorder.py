@@ -44,6 +44,7 @@ from typing import Any, Sequence
 
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
+from wallbot_sim.bag.writer import FLUSH_PERIOD
 from wallbot_sim.nodes.step_tap import StepTap
 
 NODE_NAME = topics.NODE_RECORDER
@@ -156,7 +157,7 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
                     message_class(topic.type), name,
                     lambda data, topic=topic, name=name: self._on_message(topic, name, data),
                     subscription_qos(topic), raw=True)
-            self.create_timer(0.2, writer.flush_if_due)
+            self.create_timer(FLUSH_PERIOD, writer.flush_if_due)
             # back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock
             # stamp up to which every message has been written. The per-step topics arrive on
             # readers of their own and may lag /clock (seen: odometry 0.48 s behind under load), so
