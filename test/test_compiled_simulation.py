@@ -14,14 +14,15 @@ import pytest
 from batch_helpers import TOLERANCE, assert_agree, perturbed_starts, random_robots
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import (
-    BaumgarteGains, ConstraintSelection, DivergedError, ModelError, ParameterError, Robot, Scenario, Simulation,
-    SmoothStop, StepOutputs)
+    BaumgarteGains, Circle, ConstraintSelection, DivergedError, ModelError, ParameterError, Robot, SampledReference,
+    Scenario, Simulation, SmoothStop, StepOutputs)
 from wallbot_sim.model import compiled
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.compiled import AHEAD_FIRST, AHEAD_MOST
 from wallbot_sim.model.constraints import NonLateral
 from wallbot_sim.model.outputs import StepBlock, StepTable
 from wallbot_sim.model.robot import DOF
+from wallbot_sim.model.trajectories import sample_plan
 
 pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
 
@@ -218,6 +219,26 @@ def test_a_diverging_state_stops_with_the_same_error_and_keeps_the_last_finite_s
     assert errors[0] == errors[1]
     assert states[0][0] == states[1][0] > 0
     assert np.allclose(states[0][1], states[1][1], rtol=1e-12) and np.allclose(states[0][2], states[1][2], rtol=1e-12)
+
+
+def test_a_state_diverging_through_an_unfactorable_mass_matrix_stops_as_the_python_engine_does():
+    """A reference jumping 1 cm between two samples 1 ms apart drives the tracked state to NaN; on the way the
+    kernel's Cholesky fails and its LU fallback meets the non-finite matrix. That is a divergence, at the
+    step where the python engine meets it, not numba's LinAlgError."""
+    plan = sample_plan(Circle(radius=0.8, period=20.0), 0.0, 0.3, 0.001)
+    jumped = [(x + 0.01, y) if t >= 0.075 else (x, y) for t, (x, y) in zip(plan.times, plan.positions)]
+    reference = SampledReference(plan.times, jumped, plan.velocities, plan.accelerations)
+    selection = ConstraintSelection(belt=False, non_lateral=True, nonslip=True)
+    q0 = np.array([0.8, 0.0, np.pi / 2, 0.0, 0.0, 0.0, 0.0])
+    stopped = []
+    for engine in ('python', 'numba'):
+        simulation = Simulation(Robot(load_robot_parameters()), reference, selection, q0, np.zeros(DOF),
+                                gains=BaumgarteGains(5.0, 5.0), engine=engine)
+        with pytest.raises(DivergedError, match='no longer finite') as error:
+            for _ in range(200):
+                simulation.step()
+        stopped.append((simulation.steps, str(error.value)))
+    assert stopped[0] == stopped[1] and stopped[0][0] > 75
 
 
 def test_an_unknown_engine_is_refused_by_name():

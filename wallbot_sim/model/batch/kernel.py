@@ -141,8 +141,10 @@ def _solve_factored(matrix: np.ndarray, size: int, factored: bool, lower: np.nda
     """vector <- M^-1 vector with M's Cholesky factor in ``lower`` if ``factored``, else by LU."""
     if factored:
         _substitute(lower, size, vector)
-    else:
+    elif np.all(np.isfinite(matrix[:size, :size])):
         vector[:size] = np.linalg.solve(matrix[:size, :size], vector[:size].copy())
+    else:  # from a state gone non-finite: so is the result (the caller stops there), not numba's LinAlgError
+        vector[:size] = np.nan
 
 
 def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, lower: np.ndarray,
