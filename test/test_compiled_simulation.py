@@ -380,14 +380,16 @@ def test_steps_taken_ahead_are_the_steps_one_at_a_time_through_every_change(monk
         assert all(np.array_equal(a[key], b[key]) for key in a), i
 
 
-def advanced(simulation: Simulation, sizes: list[int], taken: bool) -> tuple[list[StepBlock], list[StepOutputs]]:
+def advanced(simulation: Simulation, sizes: list[int], how: str) -> tuple[list[StepBlock], list[StepOutputs]]:
     """Blocks of ``sizes`` steps, a single step and its outputs between each two; the outputs after each block.
-    ``taken``: each block computed (``compute_block``, which must leave the simulation as it was), then taken."""
+    ``how``: 'advance', or each block computed (``compute_block``, which must leave the simulation as it was),
+    then taken ('compute_block-take'), its reference sampled beforehand for more steps ('sampled-...')."""
     blocks, after = [], []
     for size in sizes:
-        if taken:
+        if how != 'advance':
+            sampled = simulation.sample_reference(size + 3) if how.startswith('sampled') else None
             steps, outputs = simulation.steps, simulation.outputs()
-            blocks.append(simulation.compute_block(size))
+            blocks.append(simulation.compute_block(size, sampled))
             assert simulation.steps == steps
             assert_outputs_equal(simulation.outputs(), outputs)
             simulation.take(blocks[-1])
@@ -408,12 +410,13 @@ def assert_outputs_equal(got: StepOutputs, expected: StepOutputs) -> None:
         expected.contact.use, expected.contact.limits, expected.contact.slipping, expected.contact.friction_force)
 
 
-@pytest.mark.parametrize('taken', [False, True], ids=['advance', 'compute_block-take'])
+@pytest.mark.parametrize('how', ['advance', 'compute_block-take', 'sampled-compute_block-take'])
 @pytest.mark.parametrize('scenario_name, torque', [('circle', None), ('figure8', None), (None, (1.5, -0.7))])
-def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenario_name, torque, taken):
+def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenario_name, torque, how):
     """advance (a block of steps by one kernel call, its outputs as arrays) against step and outputs one at a
     time: every row, what its messages carry (wheel torques, friction limits), and the outputs after it.
-    The same for a block computed without moving the simulation, then taken (what a paced loop does)."""
+    The same for a block computed without moving the simulation, then taken (what a paced loop does), and
+    for one whose reference was sampled beforehand."""
     rng = np.random.default_rng(33)
     (robot,) = random_robots(rng, 1)
     if scenario_name is None:
@@ -428,7 +431,7 @@ def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenari
         run.set_motor_torque(*(torque or (0.0, 0.0)))
     sizes = [1, 7, 50, 2, 31]
     outputs = step_by_step(runs[0], sum(sizes) + len(sizes))
-    blocks, after = advanced(runs[1], sizes, taken)
+    blocks, after = advanced(runs[1], sizes, how)
     first = 1
     for block, size, last in zip(blocks, sizes, after):
         rows = outputs[first:first + size]
@@ -439,6 +442,29 @@ def test_steps_advanced_in_blocks_are_the_steps_one_at_a_time_to_the_bit(scenari
         assert_outputs_equal(last, rows[-1])
         first += size + 1
     assert runs[1].steps == runs[0].steps and np.array_equal(runs[1].q, runs[0].q)
+
+
+def test_a_block_uses_the_reference_sampled_beforehand_only_if_sampled_for_it(monkeypatch):
+    """compute_block takes sample_reference's rows instead of sampling (the Python part of its work) when they
+    were sampled from its first step for the reference in force; otherwise it samples its own."""
+    robot, circle = Robot(load_robot_parameters()), load_scenario('circle')
+    simulation = Simulation(robot, circle.reference, ConstraintSelection(), *circle.initial_state(robot),
+                            engine='numba')
+    elsewhere = simulation.sample_reference(10)
+    simulation.take(simulation.compute_block(5))
+    here = simulation.sample_reference(12)
+    samplings = []
+    monkeypatch.setattr(kernel, 'reference_samples', lambda *args, _sample=kernel.reference_samples: (
+        samplings.append(args[2]), _sample(*args))[1])
+    fresh = simulation.compute_block(10)
+    assert samplings == [5]  # from its first step
+    for sampled, sampling in ((here, False), (elsewhere, True)):
+        block = simulation.compute_block(10, sampled)
+        assert all(np.array_equal(a, b) for a, b in zip(block.table, fresh.table) if a is not None)
+        assert samplings == [5, 5] if sampling else samplings == [5]
+    simulation.set_reference(Circle(radius=0.5))
+    simulation.compute_block(10, here)
+    assert samplings == [5, 5, 5]  # sampled for the reference before
 
 
 def test_a_block_reaching_a_diverging_state_leaves_the_simulation_where_it_was():

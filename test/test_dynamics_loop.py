@@ -19,7 +19,7 @@ from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.batch import kernel
-from wallbot_sim.model.simulation import NUMBA, PYTHON
+from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
 from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, COMMAND_WAIT_WARNING, ConstraintSwitch, Decision,
                                              DynamicsLoop, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
@@ -651,11 +651,20 @@ def run_paced(blocks: bool, events: dict[int, list] = PACED_EVENTS, ticks: int =
 
 
 @NEEDS_NUMBA
-def test_paced_blocks_publish_one_state_a_tick_and_an_event_drops_the_rest_of_the_block():
+def test_paced_blocks_publish_one_state_a_tick_and_an_event_drops_the_rest_of_the_block(monkeypatch):
     """Paced, the loop computes a block ahead and publishes one state a tick when due; an event (not a
     recorder's progress) drops the states not yet published and applies after the last one that was,
     as between single steps: the same messages, /clock flags and snapshots, to the bit."""
+    sampled_ahead = []  # per block computed: whether its reference was sampled a state before, for it
+
+    def compute_block(simulation, count, sampled=None, _compute=Simulation.compute_block):
+        sampled_ahead.append(sampled is not None and sampled.sampled_for[3] == simulation.steps)
+        return _compute(simulation, count, sampled)
+    monkeypatch.setattr(Simulation, 'compute_block', compute_block)
     single, blocks = run_paced(blocks=False), run_paced(blocks=True)
+    # a block computed at the boundary after the last state published (lead 1: the start's, after an event)
+    # samples its own reference; the others' was sampled a state before
+    assert sampled_ahead.count(False) == blocks.leads.count(1) and sampled_ahead.count(True) >= 8
     assert blocks.messages == single.messages and len(single.messages) > 200
     assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
     assert sum(blocks.block_sizes) > len(blocks.messages) + 10  # some states were computed and dropped

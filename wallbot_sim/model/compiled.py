@@ -105,6 +105,17 @@ class CompiledInverseDynamics:
         kernel.tracking_force(self._state, np.array(point[:3]), self._flags, self._constants, float(distance), out)
         return out
 
+class ReferenceRows(NamedTuple):
+    """The reference at the RK4 instants of consecutive steps (``kernel.reference_samples``), sampled ahead of
+    the run that uses them (``CompiledDynamics.reference_rows``); a run uses them only for what they were
+    sampled for."""
+
+    sampled_for: tuple[Reference | None, float, float, int]
+    """The reference, the simulation's initial time and dt, and the first step."""
+    rows: np.ndarray
+    """(instants, 3, 10)."""
+
+
 class Measured(NamedTuple):
     """What a simulation's outputs derive at one state: the motion, normal loads, friction use, drive forces."""
 
@@ -309,10 +320,23 @@ class CompiledDynamics:
         self._ahead_measured = self._ahead_rows = None
         return 0
 
-    def run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int, steps: int) -> CompiledRun:
+    def reference_rows(self, step: int, instants: int) -> ReferenceRows:
+        """The reference at the RK4 instants of ``instants`` steps from the simulation's ``step``-th: the Python
+        part of a ``run``, which can be done beforehand."""
+        return ReferenceRows((self._reference, self._initial_time, self._dt, step),
+                             kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt))
+
+    def run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int, steps: int,
+            sampled: ReferenceRows | None = None) -> CompiledRun:
         """From y, the simulation's ``step``-th instant: the motion at ``instants`` consecutive instants and
-        the ``steps`` (``instants`` or one fewer) RK4 steps between and after them (``kernel.robot_run``)."""
-        references = kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt)
+        the ``steps`` (``instants`` or one fewer) RK4 steps between and after them (``kernel.robot_run``).
+        ``sampled``: ``reference_rows`` of at least ``instants`` from ``step``, if sampled for what is configured
+        now (else they are sampled here)."""
+        if (sampled is not None and sampled.sampled_for == (self._reference, self._initial_time, self._dt, step)
+                and len(sampled.rows) >= instants):
+            references = sampled.rows[:instants]
+        else:
+            references = self.reference_rows(step, instants).rows
         states = np.empty((instants + 1, 2 * DOF))
         states[0] = y
         motions, residuals = np.empty((instants, 3, DOF)), np.empty(instants)

@@ -21,7 +21,7 @@ from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration
 from wallbot_sim.model.trajectories import LastSample, Reference
 
 if TYPE_CHECKING:
-    from wallbot_sim.model.compiled import CompiledDynamics
+    from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
@@ -392,9 +392,7 @@ class Simulation:
         count = round(duration / self.dt)
         done = 0
         while True:
-            compiled = self._compiled_now()
-            if compiled is None or self.coulomb_applies:
-                raise ModelError('run_table needs the numba engine with ideal contact (Simulation.tabulates)')
+            compiled = self._tabulating('run_table')
             instants = min(chunk, count - done + 1)
             steps = min(instants, count - done)
             run = compiled.run(self._y, self.steps, self.motor_torque, instants, steps)
@@ -421,13 +419,17 @@ class Simulation:
             self.take(block)
         return block
 
-    def compute_block(self, count: int) -> StepBlock | None:
+    def sample_reference(self, count: int) -> ReferenceRows:
+        """The reference at the RK4 instants of the ``count`` steps from here, for a ``compute_block`` of up to
+        ``count`` steps from here: the Python part of its work, which a caller with deadlines can do at another
+        time. A block from elsewhere, or after the reference changed, samples its own."""
+        return self._tabulating('sample_reference').reference_rows(self.steps, count + 1)
+
+    def compute_block(self, count: int, sampled: ReferenceRows | None = None) -> StepBlock | None:
         """``advance``'s block, the simulation left where it is: ``take`` moves it to the block's end, unless
-        something changed it in between (then the block is of no use)."""
-        compiled = self._compiled_now()
-        if compiled is None or self.coulomb_applies:
-            raise ModelError('advance needs the numba engine with ideal contact (Simulation.tabulates)')
-        run = compiled.run(self._y, self.steps, self.motor_torque, count + 1, count)
+        something changed it in between (then the block is of no use). ``sampled``: ``sample_reference``'s."""
+        compiled = self._tabulating('advance')
+        run = compiled.run(self._y, self.steps, self.motor_torque, count + 1, count, sampled)
         if run.taken < count:
             return None
         table = StepTable(*(None if column is None else column[1:]
@@ -441,6 +443,12 @@ class Simulation:
                          np.stack((static * (table.loads[:, 0] + table.loads[:, 1]),
                                    static * (table.loads[:, 2] + table.loads[:, 3]),
                                    np.full(count, static * self.robot.adsorption.applied_force)), axis=1))
+
+    def _tabulating(self, what: str) -> CompiledDynamics:
+        compiled = self._compiled_now()
+        if compiled is None or self.coulomb_applies:
+            raise ModelError(f'{what} needs the numba engine with ideal contact (Simulation.tabulates)')
+        return compiled
 
     def take(self, block: StepBlock) -> None:
         """Continue from the last instant of ``block``, which ``compute_block`` gave from the current state."""

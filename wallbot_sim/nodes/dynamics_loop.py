@@ -24,7 +24,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from enum import Enum, auto
-from typing import Callable, Mapping, Protocol, Sequence, Union
+from typing import TYPE_CHECKING, Callable, Mapping, Protocol, Sequence, Union
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.nodes.pacing import Pacer
 from wallbot_sim.nodes.resume import ResumeGate
+
+if TYPE_CHECKING:
+    from wallbot_sim.model.compiled import ReferenceRows
 
 BACKPRESSURE_TIMEOUT = 2.0
 """Wall seconds the loop waits for a recorder's progress to move before stepping on without it: a
@@ -335,6 +338,8 @@ class DynamicsLoop:
         """A block of steps computed, not all published yet (the simulation is at its end)."""
         self._next: Ahead | None = None
         """Paced: the block after ``_ahead``, computed (and encoded) between its last states, not taken yet."""
+        self._sampled: ReferenceRows | None = None
+        """Paced: the reference of the block after ``_ahead``, sampled a state before it is computed."""
 
     # --- any thread ---------------------------------------------------------------------------------
     def post(self, event: Event) -> None:
@@ -911,20 +916,26 @@ class DynamicsLoop:
         sim = self.sim
         before = (sim.steps, sim.q, sim.qd)
         began = time.perf_counter()
-        block = sim.compute_block(size)
+        block = sim.compute_block(size, self._sampled)
+        self._sampled = None
         if block is None:
             return None
         step_time = (time.perf_counter() - began) / size
         return Ahead(block, (), [codec.to_nanoseconds(t) for t in block.t.tolist()], before, step_time)
 
     def _prepare_next(self) -> None:
-        """Paced, after publishing a state of a block: with two states of it left, compute the next block; with
-        one left, encode its messages. So each part takes the time up to the next state's due time, and the
-        block boundary publishes a state without computing any: on a slow machine computing and encoding a
-        block of 20 takes 2-4 ms, which made the first state of every block late. Any event but a recorder's
-        progress drops the block (``tick``); so does a boundary that is not where it starts."""
+        """Paced, after publishing a state of a block: with three states of it left, sample the next block's
+        reference (the Python part of computing it); with two, compute the next block; with one, encode its
+        messages. So each part takes the time up to the next state's due time, and the block boundary
+        publishes a state without computing any: on a slow machine computing and encoding a block of 20 takes
+        2-4 ms, which made the first state of every block late. Any event but a recorder's progress drops the
+        block (``tick``); so does a boundary that is not where it starts."""
         left = len(self._ahead.stamps) - self._ahead.published
-        if self._next is None and left <= 2:
+        if self._next is None and left == 3:
+            size = self._block_size()
+            if size > 1:
+                self._sampled = self.sim.sample_reference(size)
+        elif self._next is None and left <= 2:
             size = self._block_size()  # from the simulation's state: the end of the block being published
             if size > 1:
                 self._next = self._compute_block(size)
