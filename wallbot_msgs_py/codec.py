@@ -51,7 +51,7 @@ def duration(ns: int) -> Any:
 
 def stamp_nanoseconds(msg: Any) -> int:
     """A Time or Duration as integer nanoseconds."""
-    return int(msg.sec) * NS_PER_S + int(msg.nanosec)
+    return _nanoseconds(int(msg.sec), int(msg.nanosec))
 
 
 def seconds(msg: Any) -> float:

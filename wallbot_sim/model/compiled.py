@@ -105,6 +105,7 @@ class CompiledInverseDynamics:
         kernel.tracking_force(self._state, np.array(point[:3]), self._flags, self._constants, float(distance), out)
         return out
 
+
 class ReferenceRows(NamedTuple):
     """The reference at the RK4 instants of consecutive steps (``kernel.reference_samples``), sampled ahead of
     the run that uses them (``CompiledDynamics.reference_rows``); a run uses them only for what they were
