@@ -1,10 +1,11 @@
-"""nodes.common: run exits cleanly on a signal while the node is built and still raises a real
-failure; heard_by_every."""
+"""nodes.common: run exits cleanly on a signal while the node is built or while an EventsExecutor waits,
+and still raises a real failure; heard_by_every."""
 
 from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
 from types import SimpleNamespace
 
@@ -31,6 +32,30 @@ def test_a_signal_while_the_node_is_built_is_a_clean_exit(signum):
     assert common.run(build, []) == 0
     assert time.monotonic() - started < 5.0, 'a stall, not a timing figure'
     assert built and signal.getsignal(signum) is before
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_ends_an_events_executors_wait_at_once(monkeypatch, signum):
+    monkeypatch.setattr(common, 'EVENTS_SPIN_PERIOD', 30.0)  # without the wake the wait would end only after this
+    spinning = threading.Event()
+    signalled = []
+
+    def build() -> Node:
+        node = Node('signalled_while_spinning')
+        first = node.create_timer(0.01, lambda: (first.cancel(), spinning.set()))
+        return node
+
+    def signal_when_spinning() -> None:
+        if spinning.wait(30.0):
+            signalled.append(time.monotonic())
+            os.kill(os.getpid(), signum)
+
+    sender = threading.Thread(target=signal_when_spinning)
+    sender.start()
+    assert common.run(build, [], events=True) == 0
+    sender.join()
+    assert signalled, 'the node never spun'
+    assert time.monotonic() - signalled[0] < 10.0, 'a stall, not a timing figure'
 
 
 def test_an_error_while_running_is_not_hidden():

@@ -323,7 +323,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from wallbot_sim.nodes.common import EVENTS_SPIN_PERIOD, StopSignals, events_executor
+    from wallbot_sim.nodes.common import EVENTS_SPIN_PERIOD, StopSignals, events_executor, wake_on_stop
 
     argv = list(sys.argv if argv is None else argv)
     stop = StopSignals()
@@ -339,6 +339,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         node = make_recorder(writer, recorded, stop)
         executor = events_executor()
         executor.add_node(node)
+        wake_on_stop(node, stop)
         while not stop.requested and rclpy.ok():
             # a signal is handled before any message taken after it is written
             executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
