@@ -101,3 +101,55 @@ UNKNOWN = ('_NODE_NAMESPACE_UNKNOWN_', common.UNKNOWN_NODE)
 ])
 def test_heard_by_every(senders, listeners, matched, heard):
     assert common.heard_by_every(FakeGraph(senders, listeners), publisher(matched), '/wallbot/cmd') is heard
+
+
+class FakeCommander(FakeGraph):
+    """A node as HeldCommands uses it: graph queries (counted), a timer, a publisher."""
+
+    def __init__(self, senders, listeners):
+        super().__init__(senders, listeners)
+        self.queries = 0
+        self.published = []
+        self.timer = SimpleNamespace(canceled=True)
+        self.timer.cancel = lambda: setattr(self.timer, 'canceled', True)
+        self.timer.reset = lambda: setattr(self.timer, 'canceled', False)
+        self.timer.is_canceled = lambda: self.timer.canceled
+        self.publisher = SimpleNamespace(topic_name='/wallbot/cmd', publish=self.published.append,
+                                         get_subscription_count=lambda: len(self.listeners))
+
+    def get_publishers_info_by_topic(self, topic):
+        self.queries += 1
+        return super().get_publishers_info_by_topic(topic)
+
+    def resolve_topic_name(self, name):
+        return name
+
+    def create_timer(self, period, callback, clock=None):
+        self.timer.callback = callback
+        return self.timer
+
+
+def test_held_commands_ask_the_graph_after_a_pause_only(monkeypatch):
+    now = [100.0]
+    monkeypatch.setattr(common.time, 'monotonic', lambda: now[0])
+    dynamics, restarted = ('/wallbot', 'dynamics'), ('/wallbot', 'dynamics_restarted')
+    node = FakeCommander([dynamics], [dynamics])
+    commands = common.HeldCommands(node, node.publisher, '/wallbot/odom')
+
+    for k in range(50):  # a steady stream at 50 Hz: the graph is asked at the first send only
+        assert commands.send(k)
+        now[0] += 0.02
+    assert node.published == list(range(50)) and node.queries == 1
+
+    node.senders, node.listeners = [restarted], []  # the dynamics restarted; it has not subscribed yet
+    now[0] += 2.0
+    assert not commands.send('first answer') and not commands.send('newest answer')
+    assert node.queries == 3 and node.published[-1] == 49  # asked at each send while held
+    assert not node.timer.is_canceled()
+    node.timer.callback()
+    assert node.published[-1] == 49, 'sent before the restarted dynamics hears it'
+    node.listeners = [restarted]
+    node.timer.callback()
+    assert node.published[-1] == 'newest answer' and node.timer.is_canceled()
+    now[0] += 0.02
+    assert commands.send('next') and node.published[-1] == 'next'
