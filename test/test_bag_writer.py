@@ -294,3 +294,47 @@ def test_the_headless_bag_holds_the_robot_model_of_its_robot_file(tmp_path):
     assert model.get_transform(wheel.name, topics.BASE_FRAME)[1, 3] == pytest.approx(0.14)
     qos = info(bag).topic(name).offered_qos[0]
     assert qos.durability.name == 'TRANSIENT_LOCAL' and qos.depth == 1
+
+
+def test_the_writer_writes_the_bytes_rosbags_writes(tmp_path):
+    """BagWriter appends messages itself (``_append_message``); the bag must be rosbags' own, byte for byte:
+    several topics, sizes from empty to past a chunk, log times out of order, flushes between."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ours = BagWriter(tmp_path / 'ours' / 'bag', flush_period=3600.0)  # one name: the bag names its file
+    theirs = Writer(tmp_path / 'theirs' / 'bag', version=9, storage_plugin=StoragePlugin.MCAP)
+    theirs.open()
+    graph_topics = [topics.ODOM, topics.WHEEL_STATES, topics.CLOCK, topics.DIAGNOSTICS]
+    ours_by_topic = {t: ours.add_graph_topic(t) for t in graph_topics}
+    theirs_by_topic = {t: theirs.add_connection(t.resolve(topics.NAMESPACE), t.type, typestore=bagio.typestore(),
+                                                serialization_format='cdr',
+                                                offered_qos_profiles=bagio.offered_qos(t))
+                       for t in graph_topics}
+    rng = np.random.default_rng(7)
+    sizes = [0, 1, 7, 700, 2**20 + 5, 40, 3000]
+    for k in range(3000):
+        topic = graph_topics[int(rng.integers(len(graph_topics)))]
+        data = rng.bytes(sizes[k % len(sizes)] if k % 500 == 4 else int(rng.integers(0, 900)))
+        log_ns = 10**9 + 1_000_000 * k + int(rng.integers(-3_000_000, 3_000_000))
+        ours.write(ours_by_topic[topic], log_ns, data if k % 2 else memoryview(data))
+        theirs.write(theirs_by_topic[topic], log_ns, data)
+        if k % 701 == 700:
+            ours.flush()
+            theirs.storage.close_chunk()
+    ours.close()
+    theirs.close()
+    assert ours.count == 3000
+    for name in ('bag.mcap', 'metadata.yaml'):
+        assert (tmp_path / 'ours/bag' / name).read_bytes() == (tmp_path / 'theirs/bag' / name).read_bytes()
+
+
+def test_the_writer_refuses_a_connection_of_another_bag(tmp_path):
+    from rosbags.rosbag2.errors import WriterError
+
+    one, other = BagWriter(tmp_path / 'one'), BagWriter(tmp_path / 'other')
+    other.add_graph_topic(topics.CLOCK)
+    stranger = other.add_graph_topic(topics.ODOM)
+    with pytest.raises(WriterError):
+        one.write(stranger, 1, b'')
+    one.close()
+    other.close()
