@@ -58,7 +58,7 @@ setup(
         'numpy',
         'scipy',
         'pyyaml',
-        'rosbags',
+        'rosbags>=0.11,<0.12',  # BagWriter writes MCAP records and chunks in rosbags' own layout
         'matplotlib',
         'numba',
         'dask[distributed]',

@@ -352,8 +352,8 @@ class HeldCommands:
     CHECK_PERIOD = 0.02
     """Wall seconds between checks while a command is held."""
     RECHECK_AFTER = 0.25
-    """Wall seconds between two sends after which the graph is asked again. Asking costs: counting the
-    publishers of ``state_topic`` at every send took 0.1 ms of CPU (0.4 % of a core at 50 Hz) on the project's VM."""
+    """Wall seconds between two sends after which the graph is asked again. A graph query once per control
+    instant runs from cold caches: 0.1 ms of CPU on the project's VM, 0.4 % of a core at 50 Hz."""
 
     def __init__(self, node: Node, publisher: Publisher, state_topic: str) -> None:
         self.node, self.publisher = node, publisher
