@@ -332,9 +332,13 @@ def test_the_writer_refuses_a_connection_of_another_bag(tmp_path):
     from rosbags.rosbag2.errors import WriterError
 
     one, other = BagWriter(tmp_path / 'one'), BagWriter(tmp_path / 'other')
+    own = [one.add_graph_topic(topics.CLOCK), one.add_graph_topic(topics.DIAGNOSTICS)]
     other.add_graph_topic(topics.CLOCK)
     stranger = other.add_graph_topic(topics.ODOM)
+    assert stranger.id == own[1].id  # the channel id alone does not make it this bag's
     with pytest.raises(WriterError):
         one.write(stranger, 1, b'')
     one.close()
     other.close()
+    with pytest.raises(WriterError):
+        one.write(own[0], 2, b'')  # closed

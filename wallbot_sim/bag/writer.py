@@ -91,6 +91,8 @@ class BagWriter:
         except (WriterError, OSError) as error:
             raise BagError(f'cannot create bag {self.path}: {error}') from None
         self._connections: dict[str, Any] = {}
+        self._channels: dict[int, Any] = {}
+        """The connections added here by their ids, which are the MCAP channel ids."""
         self._last_flush = time.monotonic()
         self.count = 0
 
@@ -105,6 +107,7 @@ class BagWriter:
         connection = self._writer.add_connection(name, msgtype, typestore=store, serialization_format='cdr',
                                                  offered_qos_profiles=list(qos or ()))
         self._connections[name] = connection
+        self._channels[connection.id] = connection
         return connection
 
     def add_graph_topic(self, topic: topics.Topic, namespace: str = topics.NAMESPACE,
@@ -124,9 +127,9 @@ class BagWriter:
     def write(self, connection: Any, timestamp_ns: int, data: bytes | memoryview) -> None:
         """Append serialized ``data`` (CDR, as received) with its receive time in ns."""
         timestamp_ns = int(timestamp_ns)
-        if connection.id in self._writer.counts and self._writer.storage is not None:
+        if self._channels.get(connection.id) is connection and self._writer.storage is not None:
             self._append_message(connection.id, timestamp_ns, data)
-        else:  # rosbags raises its error
+        else:  # rosbags checks it: an equal connection is written, another or a closed bag raises its error
             self._writer.write(connection, timestamp_ns, data)
         self.count += 1
         self.flush_if_due()
