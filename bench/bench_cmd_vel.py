@@ -1,7 +1,7 @@
 """CPU of ``cmd_vel_node`` alone, idle and answering control instants (issue 14; a measurement, not a test).
 
-Starts the node as ``wallbot-sim run rest --drive cmd_vel`` does (``use_sim_time``, ``odom`` remapped to
-``control_odom``) on a private ROS domain, and plays the dynamics from this process: for --seconds it
+Starts the node as ``wallbot-sim run rest --drive cmd_vel`` describes it (``use_sim_time``, ``odom`` remapped
+to ``control_odom``; no recorder) on a private ROS domain, and plays the dynamics from this process: for --seconds it
 only watches the node idle, then for --seconds it publishes ``control_odom`` at the node's 50 Hz of wall
 time (stamps 20 ms apart, the robot at rest: factor 1) and ``/clock`` at 10 Hz, and counts the node's
 ``wheel_torque_cmd`` answers. Printed: the node's CPU (utime + stime from /proc, all its threads) per
@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 from typing import Callable
 
 import rclpy
@@ -31,7 +32,8 @@ from wallbot_msgs_py import topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.domain import claim_domain_id
-from wallbot_sim.graph import cpu_seconds
+from wallbot_sim.graph import ChildProcesses, cpu_seconds
+from wallbot_sim.graph_description import DRIVES, describe_driven_graph
 
 CLOCK_RATE_HZ = 10
 ANSWERS_TAKEN = 3
@@ -94,12 +96,12 @@ def main() -> int:
     args = parser.parse_args()
 
     model = model_cpu_per_simulated_second(2.0)
+    _name, module = DRIVES['cmd_vel']
+    spec = next(spec for spec in describe_driven_graph('cmd_vel') if spec.module == module)
     with claim_domain_id() as claim:
-        env = claim.env()
-        os.environ.update(env)
-        node = subprocess.Popen([sys.executable, '-m', 'wallbot_sim.nodes.cmd_vel', '--ros-args',
-                                 '-p', 'use_sim_time:=true', '-r', 'odom:=control_odom'],
-                                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        os.environ.update(claim.env())
+        nodes = ChildProcesses(Path(tempfile.mkdtemp(prefix='wallbot_bench_cmd_vel_')), os.environ)
+        node = nodes.start(spec.command(), spec.name)
         rclpy.init()
         try:
             dynamics = Dynamics()
@@ -109,8 +111,7 @@ def main() -> int:
             answered = []
             fed = cpu_per_second(node.pid, args.seconds, lambda seconds: answered.append(dynamics.feed(seconds)))
         finally:
-            node.terminate()
-            node.wait(10)
+            nodes.stop(node)
             rclpy.try_shutdown()
     instants = SPEED_LOOP_RATE_HZ * args.seconds
     print(f'two-pinv model alone: {model:.3f} CPU s per simulated s')
