@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from wallbot_sim.model import Circle, FigureEight, ParameterError, SampledReference, SmoothStop, tangent_heading
+from wallbot_sim.model.trajectories import sample_plan
 
 
 def derivative(fn, t, h=1e-5):
@@ -71,6 +72,24 @@ def test_sampled_reference_interpolates_far_below_a_micrometre():
     t = 12.3456
     for field in ('velocity', 'acceleration', 'jerk'):
         assert np.allclose(getattr(sampled.sample(t), field), getattr(eight.sample(t), field), atol=1e-6)
+
+
+def test_a_sampled_reference_moves_a_stamp_s_rounding_beyond_its_ends_and_rests_further_out():
+    """Sample times travel as whole nanoseconds: a plan from 0.6 s reads its first sample back at
+    0.6000000000000001 s, and a follower at 0.6 s must see the reference moving there, not at rest."""
+    eight = FigureEight(1.0, 6.0)
+    plan = sample_plan(eight, 0.6, 1.2, 0.02)
+    stamped = [round(t * 1e9) * 1e-9 for t in plan.times]
+    sampled = SampledReference(stamped, plan.positions, plan.velocities, plan.accelerations)
+    assert sampled.start > 0.6 and sampled.end > 1.2
+    for t, exact in ((0.6, eight.sample(0.6)), (sampled.end + 0.5e-9, eight.sample(1.2))):
+        got = sampled.sample(t)
+        assert math.hypot(*exact.velocity) > 0.5
+        for field in ('position', 'velocity', 'acceleration'):
+            assert np.allclose(getattr(got, field), getattr(exact, field), rtol=0.0, atol=1e-8), field
+    for t, rest in ((sampled.start - 2e-9, plan.positions[0]), (sampled.end + 2e-9, plan.positions[-1])):
+        held = sampled.sample(t)
+        assert held.position == rest and held.velocity == held.acceleration == (0.0, 0.0)
 
 
 def test_sampled_reference_refuses_bad_samples():

@@ -19,6 +19,8 @@ Vec2 = tuple[float, float]
 
 _REST_SPEED = 1e-9
 """Below this reference speed (m/s) the tangent direction is undefined."""
+STAMP_RESOLUTION = 1e-9
+"""Sample times travel as whole-nanosecond stamps (s): a time this close to a sampled reference's span is in it."""
 
 
 class ReferenceSample(NamedTuple):
@@ -163,8 +165,8 @@ class SampledReference:
     """A reference given at sample times with position, velocity and acceleration.
 
     Between samples it is the quintic Hermite polynomial matching all three at both ends
-    (continuous acceleration, so the trajectory task sees no jumps); before the first and
-    after the last sample it holds that sample's position at rest.
+    (continuous acceleration, so the trajectory task sees no jumps); more than STAMP_RESOLUTION
+    before the first or after the last sample it holds that sample's position at rest.
     """
 
     def __init__(self, times: Sequence[float], positions: Sequence[Vec2],
@@ -194,16 +196,16 @@ class SampledReference:
         return self.times[-1]
 
     def sample(self, t: float) -> ReferenceSample:
-        # The sample points themselves belong to the interpolated span: at exactly the first or
-        # last sample time the reference moves with that sample's velocity (a plan that starts
-        # at the current time, or the step that ends at a plan's last sample, must see it).
-        if t < self.times[0] or t > self.times[-1]:
-            px, py = self._samples[0 if t < self.times[0] else -1][:2]
-            return ReferenceSample((px, py), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
+        # The sample points themselves belong to the interpolated span, and so does a stamp's rounding
+        # around them: a plan that starts at the current time (0.6 s, whose stamp reads back as
+        # 0.6000000000000001), or the step that ends at a plan's last sample, must see it moving.
         times = self.times
+        if t < times[0] - STAMP_RESOLUTION or t > times[-1] + STAMP_RESOLUTION:
+            px, py = self._samples[0 if t < times[0] else -1][:2]
+            return ReferenceSample((px, py), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
         k = self._segment
         if not times[k] <= t < times[k + 1]:  # the segment bisect would pick; mostly the last one
-            k = self._segment = min(bisect.bisect_right(times, t) - 1, len(times) - 2)
+            k = self._segment = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
             self._coefficients = self._segment_coefficients(k)
         x = t - times[k]
         cx, cy = self._coefficients
