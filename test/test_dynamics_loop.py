@@ -356,6 +356,34 @@ def test_a_kept_snapshot_resumes_bit_for_bit_without_republishing_what_the_graph
     assert second.sim.engine == engine
 
 
+def planned(reference, now: float, horizon: float) -> NewPlan:
+    """The trajectory node's plan from ``now`` as the dynamics node decodes it (sample times through nanoseconds)."""
+    renewal = messages.plan_ahead(reference, now, 0.02, horizon)
+    sampled = messages.sampled_reference(renewal)
+    return NewPlan(sampled, sampled.start, sampled.end, messages.plan_is_final(renewal))
+
+
+@pytest.mark.parametrize('engine', [PYTHON, pytest.param(NUMBA, marks=NEEDS_NUMBA)])
+def test_a_renewal_from_the_step_the_loop_stands_at_continues_the_motion_to_the_bit(engine):
+    """Renewals made at 0.06 s and 0.12 s, applied with the loop at those very steps: on the sample grid, where a
+    stamp reads back a rounding later (0.060000000000000005 s). The states are those of one plan for the run."""
+    circle = Circle(radius=0.8, period=2.0)
+    renewed, graph, _log, _clock = make_loop(engine=engine)
+    renewed.post(TRACKING)
+    renewed.post(planned(circle, 0.0, 0.1))
+    while len(graph.published) <= 150:
+        if renewed.sim is not None and renewed.sim.steps in (60, 120):
+            renewed.post(planned(circle, renewed.sim.t, 0.1))
+        assert renewed.tick() is Decision.STEPPED or renewed.sim is None
+    one_plan, single, _log, _clock = make_loop(engine=engine)
+    one_plan.post(TRACKING)
+    one_plan.post(planned(circle, 0.0, 1.0))
+    ticks(one_plan, 151)
+    assert graph.times == single.times[:len(graph.times)] and len(graph.times) > 150
+    for (_t, q), (_t_single, q_single) in zip(graph.published, single.published):
+        np.testing.assert_array_equal(q, q_single)
+
+
 def resumed_driven_loop(**params):
     """A driven loop with wait_for_command resuming the snapshot of step 5 of a run the graph saw
     up to step 8, its controller not yet there."""

@@ -90,7 +90,8 @@ def test_plans_cover_at_most_the_horizon_and_a_finite_run_ends_at_rest():
     long_run = {**DEFAULTS, 'duration': 1464.9, 'sample_dt': 0.05}  # once a 29,257-sample plan
     assert not check_values(long_run)
     first = build_plan(PlanRequest(long_run, 2.1, 0.0)).plan
-    assert first.times[0] <= 2.1 < first.times[1] and first.times[-1] == pytest.approx(12.1, abs=0.05)
+    # from a sample before the grid point at or before 2.1 s: a follower at 2.1 s is inside it, stamps rounded
+    assert 2.1 - 2 * 0.05 < first.times[0] <= 2.1 - 0.05 + 1e-12 and first.times[-1] == pytest.approx(12.1, abs=0.05)
     assert not messages.plan_is_final(first)
     last = build_plan(PlanRequest(long_run, 1460.0, 0.0)).plan
     assert last.times[-1] >= 1464.9 + 2.0 and messages.plan_is_final(last)

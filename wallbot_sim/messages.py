@@ -58,13 +58,18 @@ class ClockSchedule:
 
 def plan_ahead(reference: Reference, now: float, sample_dt: float = SAMPLE_DT, horizon: float = HORIZON,
                rest_at: float | None = None) -> Plan:
-    """The plan from ``now`` (rounded down to the sample grid) ``horizon`` seconds ahead, or up to
-    ``rest_at`` (plus a sample) for a reference that comes to rest sooner: a plan never grows with
-    the run's length, so no subscriber has to decode an unbounded one."""
+    """The plan ``horizon`` seconds ahead of ``now``, or up to ``rest_at`` (plus a sample) for a
+    reference that comes to rest sooner: a plan never grows with the run's length, so no subscriber
+    has to decode an unbounded one.
+
+    It starts a sample before ``now`` (on the grid, from t = 0 at the earliest): a follower at
+    ``now`` then interpolates the segment the plan before gave it, to the bit. From ``now`` itself
+    on the grid, the first sample's stamp could read back a rounding after ``now``.
+    """
     end = now + horizon
     if rest_at is not None:
         end = max(min(end, rest_at + sample_dt), now)
-    return sample_plan(reference, now, end, sample_dt)
+    return sample_plan(reference, max(now - sample_dt, 0.0), end, sample_dt)
 
 
 def replan_due(plan: Plan, now: float) -> bool:

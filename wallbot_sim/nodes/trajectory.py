@@ -206,7 +206,7 @@ class TrajectoryNode(Node):
 
     # --- planning ----------------------------------------------------------------------------
     def replan(self, now: float) -> None:
-        """Plan from ``now`` (rounded down to the sample grid) on the planner thread; returns at once."""
+        """Plan from ``now`` (``messages.plan_ahead``) on the planner thread; returns at once."""
         self.planner.submit(PlanRequest(dict(self.values), now, self.yaw, self.frame))
 
     def _publish_plan(self, built: BuiltPlan) -> None:
