@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ParameterError, SampledReference, SmoothStop, tangent_heading
 from wallbot_sim.model.trajectories import sample_plan
 
@@ -79,8 +80,7 @@ def test_a_sampled_reference_moves_a_stamp_s_rounding_beyond_its_ends_and_rests_
     0.6000000000000001 s, and a follower at 0.6 s must see the reference moving there, not at rest."""
     eight = FigureEight(1.0, 6.0)
     plan = sample_plan(eight, 0.6, 1.2, 0.02)
-    stamped = [round(t * 1e9) * 1e-9 for t in plan.times]
-    sampled = SampledReference(stamped, plan.positions, plan.velocities, plan.accelerations)
+    sampled = messages.sampled_reference(plan)  # as the dynamics decodes the plan's message
     assert sampled.start > 0.6 and sampled.end > 1.2
     for t, exact in ((0.6, eight.sample(0.6)), (sampled.end + 0.5e-9, eight.sample(1.2))):
         got = sampled.sample(t)

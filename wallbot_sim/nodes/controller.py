@@ -53,6 +53,7 @@ from wallbot_sim.control.tracking import GAIN_RANGES
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
+from wallbot_sim.model.trajectories import STAMP_RESOLUTION
 from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, choice_reason, declare,
                                       param_dict, parameter_result, range_reasons, run, subscribe_odom_when_recorded)
 
@@ -73,7 +74,7 @@ class Plans:
         self.plans: list[tuple[float, SampledReference]] = []
 
     def add(self, start: float, reference: SampledReference) -> None:
-        self.plans = [p for p in self.plans if p[0] < start - 1e-9][-(KEPT_PLANS - 1):] + [(start, reference)]
+        self.plans = [p for p in self.plans if p[0] < start - STAMP_RESOLUTION][-(KEPT_PLANS - 1):] + [(start, reference)]
 
     def clear(self) -> None:
         self.plans = []
@@ -83,7 +84,7 @@ class Plans:
 
     def sample(self, t: float):
         for start, reference in reversed(self.plans):
-            if start <= t + 1e-9:
+            if start <= t + STAMP_RESOLUTION:
                 return reference.sample(t)
         return self.plans[0][1].sample(t)
 

@@ -36,6 +36,7 @@ from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, Diverge
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.scenario import moving_start
+from wallbot_sim.model.trajectories import STAMP_RESOLUTION
 from wallbot_sim.nodes.pacing import Pacer
 from wallbot_sim.nodes.resume import ResumeGate
 
@@ -88,9 +89,10 @@ class NewPlan:
 
         A plan that ends moving must extend strictly past t1: at its last sample time the
         quintic is evaluated at the segment's far end, which equals the sample only to
-        rounding, while the next plan evaluates it exactly; the step waits for that plan.
+        rounding, while the next plan evaluates it exactly; the step waits for that plan. Within
+        STAMP_RESOLUTION of its first sample a step is inside it, as the reference samples it.
         """
-        return self.start <= t0 + 1e-9 and (self.final or t1 < self.end - 1e-9)
+        return self.start <= t0 + STAMP_RESOLUTION and (self.final or t1 < self.end - STAMP_RESOLUTION)
 
 
 @dataclass(frozen=True)
@@ -444,9 +446,9 @@ class DynamicsLoop:
         their overlap: the states computed ahead stand, and the state after a plan is not computed in the
         millisecond before it is due while the executor decodes the plan.
         """
-        dt, margin = self.sim.dt, 1e-9  # stamps are whole nanoseconds; the steps' times are within 0.5 ns of them
-        start = ahead.stamps[ahead.published] * 1e-9 - dt - margin
-        end = ahead.stamps[-1] * 1e-9 + margin
+        dt = self.sim.dt  # the steps' times are within half a nanosecond of their stamps
+        start = ahead.stamps[ahead.published] * 1e-9 - dt - STAMP_RESOLUTION
+        end = ahead.stamps[-1] * 1e-9 + STAMP_RESOLUTION
         return self.plan is not None and plan.reference.agrees(self.plan.reference, start, end)
 
     def _take_events(self) -> list[Event]:
@@ -641,7 +643,7 @@ class DynamicsLoop:
             self.status = Status(RunState.STOPPED, t=sim.t)
             return False
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
-            if self.resume.catching_up and self.plan.start > sim.t + 1e-9:
+            if self.resume.catching_up and self.plan.start > sim.t + STAMP_RESOLUTION:
                 # the plan of the kept state was replaced before the kill: publishing this earlier
                 # state makes the trajectory node replan from it (its clock went back)
                 self._log.warning(f'the newest plan starts at {self.plan.start:.3f} s, after the kept '
