@@ -26,8 +26,8 @@ from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
 
 PUBLISHER = r'''
 import sys, time
-from wallbot_sim.bag.flow_control import install_fast_heartbeat
-install_fast_heartbeat()
+from wallbot_sim.heartbeat import FLOW_CONTROL_HEARTBEAT, install_heartbeat
+install_heartbeat(FLOW_CONTROL_HEARTBEAT)
 import rclpy
 from rclpy.duration import Duration
 from rclpy.qos import QoSProfile, ReliabilityPolicy, DurabilityPolicy

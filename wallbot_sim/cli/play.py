@@ -89,8 +89,8 @@ def main(args: argparse.Namespace) -> int:
     if not names:
         raise CliError(f'{args.bag}: nothing to play')
 
-    from wallbot_sim.bag.flow_control import install_fast_heartbeat
-    install_fast_heartbeat()  # so the final wait_for_all_acked does not wait a 3 s heartbeat
+    from wallbot_sim.heartbeat import FLOW_CONTROL_HEARTBEAT, install_heartbeat
+    install_heartbeat(FLOW_CONTROL_HEARTBEAT)  # each wait_for_all_acked: ~5 ms, not up to a 3 s heartbeat
 
     import rclpy
     from rclpy.signals import SignalHandlerOptions

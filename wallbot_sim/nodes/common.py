@@ -14,6 +14,7 @@ from typing import Callable, Iterable, Sequence
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -22,6 +23,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.timer import Timer
 
 from wallbot_msgs_py import topics
+from wallbot_sim.heartbeat import NODE_HEARTBEAT, install_heartbeat
 from wallbot_sim.model import ModelError
 from wallbot_sim.model.numbers import NumberRange
 
@@ -211,8 +213,11 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
 
     A node that cannot go on (it logged why) sets its ``exit_status``: the process then ends as on
     a signal, with that status, once the executor next wakes (every node that sets it has a timer).
+    Before the nodes leave DDS, what they published is delivered (:func:`deliver_published`); their
+    writers have a heartbeat of ``NODE_HEARTBEAT`` unless the user set a Fast DDS profile file.
     """
     stop = StopSignals()
+    install_heartbeat(NODE_HEARTBEAT)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     nodes: Sequence[Node] = ()
     executor = None
@@ -244,11 +249,29 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
             close = getattr(node, 'close', None)
             if close is not None:
                 close()
+        deliver_published(nodes)
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
         stop.restore()
     return status
+
+
+DELIVERY_WAIT = 2.0
+"""Most wall seconds a stopping process waits for its subscribers to acknowledge what it published (a dead
+subscriber is waited for this long; a live one behind by a few hundred messages needs well under a second)."""
+
+
+def deliver_published(nodes: Sequence[Node], wait: float = DELIVERY_WAIT) -> None:
+    """Wait, at most ``wait`` seconds in all, until every subscriber of the nodes' publishers has acknowledged
+    what they published: a sample a reliable subscriber lost in transit (a starved one's queue overflowing) is
+    repaired only while its writer is in DDS, at the writer's next heartbeat. A recorder stopped after the
+    other nodes (``wallbot-sim run``) thus holds everything they published."""
+    deadline = time.monotonic() + wait
+    for node in nodes:
+        for publisher in node.publishers:
+            if publisher.get_subscription_count():
+                publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic())))
 
 
 def exit_status(nodes: Sequence[Node]) -> int:

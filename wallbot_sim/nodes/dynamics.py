@@ -512,15 +512,10 @@ class DynamicsNode(Node):
         self.diagnostics_pub.publish(codec.diagnostics(t, [report]))
 
     def close(self) -> None:
-        """Stop the loop thread (called by main on shutdown); then, for at most CLOSE_DRAIN_WAIT, let every
-        subscriber of the per-step topics acknowledge what was published. A recorder may be up to
-        ``backpressure_window`` steps behind, and what it has not taken when the node leaves DDS is lost."""
+        """Stop the loop thread (called by main on shutdown, before what was published is delivered:
+        a recorder may be up to ``backpressure_window`` steps behind, see ``common.deliver_published``)."""
         self.loop.stop()
         self.loop_thread.join(timeout=2.0)
-        deadline = time.monotonic() + CLOSE_DRAIN_WAIT
-        for publisher in (*self.publishers_.values(), self.control_odom_pub):
-            if publisher.get_subscription_count():
-                publisher.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic())))
 
 
 def main(args: list[str] | None = None) -> None:
@@ -531,9 +526,6 @@ def main(args: list[str] | None = None) -> None:
 FINAL_DIAGNOSTICS_WAIT = 5.0
 """Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (Fast DDS
 acknowledges at its heartbeat, every 3 s by default)."""
-CLOSE_DRAIN_WAIT = 2.0
-"""Most wall seconds a stopping node waits for its per-step messages to be acknowledged (a dead subscriber is
-waited for this long; a live recorder behind by a few hundred steps needs well under a second)."""
 SWITCH_INTERVAL = 5e-4
 """sys.setswitchinterval of a process hosting the dynamics: executor callbacks yield the GIL to the loop within 0.5 ms."""
 

@@ -323,10 +323,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from wallbot_sim.heartbeat import NODE_HEARTBEAT, install_heartbeat
     from wallbot_sim.nodes.common import EVENTS_SPIN_PERIOD, StopSignals, events_executor, wake_on_stop
 
     argv = list(sys.argv if argv is None else argv)
     stop = StopSignals()
+    install_heartbeat(NODE_HEARTBEAT)  # a lost record_progress holds the dynamics back until it is repaired
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     writer = node = executor = None
     try:

@@ -1,0 +1,72 @@
+"""A short writer heartbeat for Fast DDS (the Jazzy default RMW), as a default XML profile.
+
+A reliable Fast DDS writer learns what a reader lacks only from the reader's ACKNACK, which answers
+the writer's periodic heartbeat, every 3 s by default. So a sample lost in transit (a starved
+reader's shared-memory queue or socket buffer overflowing) holds every later sample of that writer
+back from the reader for up to 3 s, and is never repaired if the writer leaves DDS first; and
+``publisher.wait_for_all_acked()`` takes up to 3 s. With a heartbeat every ``period`` seconds both
+take about that period (docs/nodes.md, "Reliable delivery").
+
+Fast DDS reads the profile when the process creates its first participant: put the variable in
+the environment of the process (``heartbeat_env``), or call ``install_heartbeat()`` before
+``rclpy.init()``. A profile file the user set (either variable of ``PROFILES_ENVS``) is never
+overridden: it is theirs to give a heartbeat.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
+"""The variable Fast DDS 2 (Jazzy) reads."""
+PROFILES_ENVS = (PROFILES_ENV, 'FASTDDS_DEFAULT_PROFILES_FILE')
+"""Either names the user's own profile file (the second is Fast DDS 3's name)."""
+NODE_HEARTBEAT = 0.02
+"""Seconds between heartbeats of the nodes' writers: a sample lost to a starved reader is repaired
+within about this, a lockstep dynamics waits about this for a lost command. On the 1 kHz per-step
+topics a writer with unacknowledged samples sends one heartbeat a period to each reader, which
+answers it: 50 a second each; the graph's CPU did not move beyond run-to-run noise (bench_graph)."""
+FLOW_CONTROL_HEARTBEAT = 0.002
+"""Seconds between heartbeats for a publisher paced by ``wait_for_all_acked`` (``play``): a wait
+takes about 5 ms instead of up to 3 s (docs/bags.md)."""
+
+
+def profile_xml(period: float) -> str:
+    """A Fast DDS profile file whose default data writer sends a heartbeat every ``period`` seconds."""
+    seconds, nanoseconds = divmod(round(period * 1e9), 1_000_000_000)
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <profiles>
+    <data_writer profile_name="wallbot_heartbeat" is_default_profile="true">
+      <times>
+        <heartbeatPeriod><sec>{seconds}</sec><nanosec>{nanoseconds}</nanosec></heartbeatPeriod>
+      </times>
+    </data_writer>
+  </profiles>
+</dds>
+"""
+
+
+def profile_path(period: float, directory: Path | str | None = None) -> Path:
+    """Write the profile of ``period`` (once) into ``directory`` (default: the temp dir); its path."""
+    text = profile_xml(period)
+    path = Path(directory or tempfile.gettempdir()) / f'wallbot_fastdds_heartbeat_{round(period * 1e6)}us.xml'
+    if not path.is_file() or path.read_text() != text:
+        tmp = path.with_name(f'.{path.name}.{os.getpid()}')
+        tmp.write_text(text)
+        tmp.replace(path)
+    return path
+
+
+def heartbeat_env(period: float, directory: Path | str | None = None) -> dict[str, str]:
+    """Environment entries giving a process the profile of ``period`` (none if it has a profile file)."""
+    if any(os.environ.get(name) for name in PROFILES_ENVS):
+        return {}
+    return {PROFILES_ENV: str(profile_path(period, directory))}
+
+
+def install_heartbeat(period: float, directory: Path | str | None = None) -> None:
+    """Give this process the profile of ``period``; call before ``rclpy.init()``."""
+    os.environ.update(heartbeat_env(period, directory))
