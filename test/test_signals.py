@@ -19,6 +19,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 import pytest
 import yaml
@@ -40,6 +41,8 @@ STOP_BOUND = 3.0
 signal, or keeps recording for seconds). The requirement is 1 s, met on an unloaded machine
 (bench/bench_signals.py, docs/robustness.md); beside other test runs on 2 cores (load average 11)
 the interpreter's and Fast DDS's teardown after the bag was closed alone took up to 1.7 s."""
+RUN_STOP_BOUND = 2 * STOP_BOUND
+"""The same for ``wallbot-sim run``, which stops two groups in turn: its nodes, then the recorder."""
 MS = 1_000_000
 SIGNALS = [signal.SIGINT, signal.SIGTERM]
 
@@ -65,11 +68,14 @@ class BackgroundJob:
     def output(self) -> str:
         return self.runner.output(self.name)
 
-    def stop(self, sig: signal.Signals) -> tuple[int, int]:
-        """Send ``sig`` to the job; (its exit status, time.time_ns() when the signal was sent)."""
+    def stop(self, sig: signal.Signals, bound: float = STOP_BOUND,
+             while_waiting: Callable[[], None] = lambda: None) -> tuple[int, int]:
+        """Send ``sig`` to the job, calling ``while_waiting`` until it exits; (its exit status, time.time_ns()
+        when the signal was sent)."""
         sent_ns, sent = time.time_ns(), time.monotonic()
         os.kill(self.pid, sig)
-        while self.shell.poll() is None and time.monotonic() - sent < STOP_BOUND:
+        while self.shell.poll() is None and time.monotonic() - sent < bound:
+            while_waiting()
             time.sleep(0.01)
         status = self.shell.poll()
         if status is None:
@@ -78,7 +84,7 @@ class BackgroundJob:
                 took = f'it exited {time.monotonic() - sent:.2f} s after'
             except subprocess.TimeoutExpired:
                 took = 'still running 30 s after'
-            raise AssertionError(f'{self.name} still running {STOP_BOUND} s after {sig.name} ({took}):\n'
+            raise AssertionError(f'{self.name} still running {bound} s after {sig.name} ({took}):\n'
                                  f'{self.output()}')
         return status, sent_ns
 
@@ -107,17 +113,23 @@ def bag_bytes(bag: Path) -> int:
     return sum(f.stat().st_size for f in bag.glob('*.mcap')) if bag.is_dir() else 0
 
 
-def check_nothing_recorded_after(bag: Path, sig: signal.Signals, sent_ns: int) -> None:
+def stop_time_ns(bag: Path) -> int:
+    """When the recorder of ``bag`` handled its stop signal (time.time_ns)."""
+    custom = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']['custom_data']
+    return int(custom['wallbot.recorder.stop_time_ns'])
+
+
+def check_nothing_recorded_after(bag: Path, sig: signal.Signals, sent_ns: int, bound: float = STOP_BOUND) -> None:
     """The bag reads with rosbags, its recording ended at the recorder's handling of ``sig``
-    (within STOP_BOUND of sending it), no message in it was received later, and no odometry is
+    (within ``bound`` of sending it), no message in it was received later, and no odometry is
     missing before that."""
     custom = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']['custom_data']
     assert custom['wallbot.recorder.stop_signal'] == sig.name
-    stop_ns = int(custom['wallbot.recorder.stop_time_ns'])
-    assert sent_ns <= stop_ns < sent_ns + STOP_BOUND * 1e9
+    stop_ns = stop_time_ns(bag)
+    assert sent_ns <= stop_ns < sent_ns + bound * 1e9
     received = [raw.timestamp for raw in messages(bag)]
     assert received and max(received) <= stop_ns
-    assert max(received) > sent_ns - STOP_BOUND * 1e9, 'recording had stalled before the signal'
+    assert max(received) > sent_ns - bound * 1e9, 'recording had stalled before the signal'
     stamps = [bagio.deserialize(raw.data, raw.type).header.stamp for raw in messages(bag, ['/wallbot/odom'])]
     steps = [(s.sec * 1_000_000_000 + s.nanosec) // MS for s in stamps]  # in receive-time order
     assert len(steps) > 100 and steps == list(range(steps[0], steps[0] + len(steps)))
@@ -242,19 +254,40 @@ def simulated_seconds(output: str) -> float:
     return float(shown[-1]) if shown else 0.0
 
 
-def test_run_stops_its_graph_at_once(process_runner, tmp_path):
+def running(pid: int) -> bool:
+    try:
+        return 'zombie' not in Path(f'/proc/{pid}/status').read_text()
+    except FileNotFoundError:
+        return False
+
+
+def test_run_stops_its_graph_at_once_and_the_recorder_last(process_runner, tmp_path):
+    """Ctrl-C: ``run`` stops its nodes, then the recorder once they have exited (so it holds whatever they
+    delivered on their way out), and exits 130 within RUN_STOP_BOUND."""
     out = tmp_path / 'run'
     job = BackgroundJob(process_runner, [*WALLBOT, 'run', 'circle', '--duration', '600', '--out', out, '--no-plots'],
                         'run', tmp_path)
     wait_for(lambda: simulated_seconds(job.output()) > 1.0, 120, 'a second simulated')
-    nodes = list(child_processes(job.pid))
+    nodes = child_processes(job.pid)
     assert len(nodes) == 4
-    status, sent_ns = job.stop(signal.SIGINT)
+    others = [pid for pid, command in nodes.items() if 'wallbot_sim.nodes.recorder' not in command]
+    assert len(others) == 3
+    seen_running: dict[int, int] = {}
+
+    def watch() -> None:
+        for pid in others:
+            now = time.time_ns()  # before the look: a node running then ran at this time
+            if running(pid):
+                seen_running[pid] = now
+    status, sent_ns = job.stop(signal.SIGINT, RUN_STOP_BOUND, watch)
     assert status == 130, job.output()
     assert 'Traceback' not in job.output()
-    for pid in nodes:
-        assert not Path(f'/proc/{pid}').exists() or 'zombie' in Path(f'/proc/{pid}/status').read_text()
-    check_nothing_recorded_after(out / 'bag', signal.SIGINT, sent_ns)
+    assert not any(map(running, nodes))
+    check_nothing_recorded_after(out / 'bag', signal.SIGINT, sent_ns, RUN_STOP_BOUND)
+    assert len(seen_running) == 3, 'a node had exited before run was stopped'
+    late = {nodes[pid].split()[2]: (t - stop_time_ns(out / 'bag')) / 1e6
+            for pid, t in seen_running.items() if t >= stop_time_ns(out / 'bag')}
+    assert not late, f'nodes still running after the recorder stopped (ms after): {late}'
 
 
 @pytest.mark.parametrize('sig, raised', [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, SystemExit)],

@@ -113,33 +113,41 @@ class ChildProcesses:
         _kill_group(process.pid)
         return process.returncode
 
-    def stop_all(self, first: tuple[str, ...] = ()) -> None:
-        """Signal every running process (:meth:`signal_all`) and wait for them (:meth:`wait_all`)."""
-        self.signal_all(first)
+    def stop_all(self, first: tuple[str, ...] = (), last: tuple[str, ...] = ()) -> None:
+        """Signal every running process (:meth:`signal_all`) and wait for them (:meth:`wait_all`); those
+        named in ``last`` (with SIGINT, in that order) only once the others have exited."""
+        if last:
+            self.signal_all(first, keep=last)
+            self.wait_all(keep=last)
+        self.signal_all((*first, *last))
         self.wait_all()
 
-    def signal_all(self, first: tuple[str, ...] = ()) -> None:
-        """Signal every running process, those named in ``first`` with SIGINT (in that order), then the
-        rest with SIGTERM, newest first, without waiting: each node needs a few hundred milliseconds
-        to leave DDS, and one after another the launcher would take seconds to stop."""
+    def signal_all(self, first: tuple[str, ...] = (), keep: tuple[str, ...] = ()) -> None:
+        """Signal every running process but those named in ``keep``: those named in ``first`` with SIGINT
+        (in that order), then the rest with SIGTERM, newest first, without waiting: each node needs a few
+        hundred milliseconds to leave DDS, and one after another the launcher would take seconds to stop."""
         named = [process for name in first for started, process in self._started if started == name]
-        rest = [process for name, process in reversed(self._started) if name not in first]
+        rest = [process for name, process in reversed(self._started) if name not in first and name not in keep]
         for process in named + rest:
             if process.poll() is None:
                 _signal(process.pid, signal.SIGINT if process in named else signal.SIGTERM)
 
-    def wait_all(self) -> None:
-        """Wait up to ``stop_timeout`` for every process to exit; SIGKILL whatever is left, and what is
-        left of their process groups. Their exit statuses stay in :attr:`processes`."""
+    def wait_all(self, keep: tuple[str, ...] = ()) -> None:
+        """Wait up to ``stop_timeout`` for every process but those named in ``keep`` to exit; SIGKILL
+        whatever is left, and what is left of their process groups. Their exit statuses stay in
+        :attr:`processes`."""
         deadline = time.monotonic() + self.stop_timeout
-        for _name, process in self._started:
+        for name, process in self._started:
+            if name in keep:
+                continue
             try:
                 process.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 _signal(process.pid, signal.SIGKILL)
                 process.wait()
             _kill_group(process.pid)
-        self._started.clear()  # reaped: their ids may belong to other processes from now on
+        # reaped: their ids may belong to other processes from now on
+        self._started = [(name, process) for name, process in self._started if name in keep]
 
 
 class Graph(ChildProcesses):

@@ -287,8 +287,9 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         # (seen once: run hung there after the graph's signal, a discovery callback waiting for the lock
         # the deletion held); with the graph still up no endpoint is being removed meanwhile
         monitor.close()
-        graph.signal_all(first=(RECORDER, DYNAMICS_RECORDER))  # the recorder's bag ends at its signal
-        graph.wait_all()
+        # the recorder last, its bag ending at its signal: every other node has delivered what it published
+        # before it left DDS (a message a starved recorder lost in transit is repaired only meanwhile)
+        graph.stop_all(last=(RECORDER, DYNAMICS_RECORDER))
 
 
 def main(args: argparse.Namespace) -> int:
