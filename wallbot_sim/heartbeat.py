@@ -23,11 +23,12 @@ PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'
 """The variable Fast DDS 2 (Jazzy) reads."""
 PROFILES_ENVS = (PROFILES_ENV, 'FASTDDS_DEFAULT_PROFILES_FILE')
 """Either names the user's own profile file (the second is Fast DDS 3's name)."""
-NODE_HEARTBEAT = 0.02
+NODE_HEARTBEAT = 0.1
 """Seconds between heartbeats of the nodes' writers: a sample lost to a starved reader is repaired
-within about this, a lockstep dynamics waits about this for a lost command. On the 1 kHz per-step
-topics a writer with unacknowledged samples sends one heartbeat a period to each reader, which
-answers it: 50 a second each; the graph's CPU did not move beyond run-to-run noise (bench_graph)."""
+within about this, a lockstep dynamics waits about this for a lost command (its lockstep_timeout is
+2 s). A writer that keeps publishing always has samples not yet acknowledged, so it sends a
+heartbeat every period to each reader, which answers it: the period is long enough for that to
+cost nothing measurable beside the graph's 1 kHz traffic (docs/nodes.md, "Reliable delivery")."""
 FLOW_CONTROL_HEARTBEAT = 0.002
 """Seconds between heartbeats for a publisher paced by ``wait_for_all_acked`` (``play``): a wait
 takes about 5 ms instead of up to 3 s (docs/bags.md)."""
