@@ -28,7 +28,7 @@ from wallbot_sim.nodes.common import run, steady_timer  # noqa: E402
 
 TOPIC, LAST_TOPIC = 'delivery', 'delivery_last'
 PADDING = 'x' * 1000
-"""Makes each message about 1 kB, so a burst is far more than a small socket buffer holds."""
+"""Makes each message about 1 kB, so that a burst fills a stopped listener's queue."""
 
 
 def qos(depth: int) -> QoSProfile:
@@ -48,7 +48,7 @@ class Sender(Node):
         self.timer = steady_timer(self, 0.01, self._check)
 
     def _check(self) -> None:
-        if not self.matched and self.publisher.get_subscription_count() and self.last_publisher.get_subscription_count():
+        if not self.matched and all(p.get_subscription_count() for p in (self.publisher, self.last_publisher)):
             self.matched = True
             self.get_logger().info('matched')
         if self.asked:
