@@ -524,8 +524,8 @@ def main(args: list[str] | None = None) -> None:
 
 
 FINAL_DIAGNOSTICS_WAIT = 5.0
-"""Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (Fast DDS
-acknowledges at its heartbeat, every 3 s by default)."""
+"""Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (at the writer's
+heartbeat: 0.1 s with the nodes' profile, 3 s with Fast DDS's default under a user's profile that sets none)."""
 SWITCH_INTERVAL = 5e-4
 """sys.setswitchinterval of a process hosting the dynamics: executor callbacks yield the GIL to the loop within 0.5 ms."""
 
