@@ -17,6 +17,7 @@ rclpy = pytest.importorskip('rclpy')
 
 from rclpy.node import Node  # noqa: E402
 
+from cli_helpers import wait_for_output  # noqa: E402
 from wallbot_sim.heartbeat import PROFILES_ENV  # noqa: E402
 from wallbot_sim.nodes import common  # noqa: E402
 
@@ -87,13 +88,6 @@ BURST = 5000
 3,000-5,000 (2026-12-03), the rest only at the sender's next heartbeat."""
 
 
-def poll(predicate, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, f'timed out waiting for {what}'
-        time.sleep(0.02)
-
-
 def test_a_node_delivers_what_a_starved_subscriber_lost_before_it_leaves(process_runner):
     """A subscriber stopped while a node publishes loses what arrives once its queue is full: here the
     end of a burst, and a last message on a topic of its own (a controller's last command among the
@@ -105,12 +99,12 @@ def test_a_node_delivers_what_a_starved_subscriber_lost_before_it_leaves(process
     (NODE_HEARTBEAT) brings it within that; Fast DDS's default heartbeat, every 3 s, would not."""
     listener = process_runner.start([sys.executable, PROBE, 'listen'], 'listener')
     sender = process_runner.start([sys.executable, PROBE, 'send', str(BURST)], 'sender')
-    poll(lambda: 'matched' in process_runner.output('sender'), 60, 'the sender to match the listener')
+    wait_for_output(process_runner, 'sender', 'matched', 60)
 
     os.kill(listener.pid, signal.SIGSTOP)
     try:
         os.kill(sender.pid, signal.SIGUSR1)
-        poll(lambda: f'sent {BURST}' in process_runner.output('sender'), 30, 'the burst')
+        wait_for_output(process_runner, 'sender', f'sent {BURST}', 30)
     finally:
         os.kill(listener.pid, signal.SIGCONT)
     os.kill(sender.pid, signal.SIGTERM)

@@ -285,8 +285,8 @@ def test_run_stops_its_graph_at_once_and_the_recorder_last(process_runner, tmp_p
     assert not any(map(running, nodes))
     check_nothing_recorded_after(out / 'bag', signal.SIGINT, sent_ns, RUN_STOP_BOUND)
     assert len(seen_running) == 3, 'a node had exited before run was stopped'
-    late = {nodes[pid].split()[2]: (t - stop_time_ns(out / 'bag')) / 1e6
-            for pid, t in seen_running.items() if t >= stop_time_ns(out / 'bag')}
+    stopped_ns = stop_time_ns(out / 'bag')
+    late = {nodes[pid].split()[2]: (t - stopped_ns) / 1e6 for pid, t in seen_running.items() if t >= stopped_ns}
     assert not late, f'nodes still running after the recorder stopped (ms after): {late}'
 
 
