@@ -5,7 +5,6 @@ nodes that are not the clock's owner following the robot's clock at factor 0.5 a
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
 
@@ -38,6 +37,8 @@ CORNER_TOLERANCE = 0.06
 """m: each corner within this of the ideal square (the turns' drifts add up: 4.3 cm measured at the end)."""
 HEADING_TOLERANCE = math.radians(1.0)
 """Every heading and leg direction (0.16 degrees measured)."""
+COMMAND_AT, CHECK_AT = 0.1, 1.5
+"""s of simulation time: when the clock test commands 0.1 m/s, and when it checks the speed."""
 
 
 @pytest.fixture
@@ -54,8 +55,7 @@ def keep(graph: Graph, kind, topic: topics.Topic, name: str | None = None) -> li
 
 
 class Driver:
-    """Publishes cmd_vel from this process on every poll (20 ms wall: alive for any cmd_vel_timeout at
-    factors up to 25) and reads the pose from odometry."""
+    """Publishes cmd_vel from this process and reads the pose from odometry."""
 
     def __init__(self, graph: Graph) -> None:
         self.graph = graph
@@ -64,34 +64,16 @@ class Driver:
 
     def send(self, linear: float, angular: float) -> None:
         """One command, returned once the subscriber (cmd_vel_node) has acknowledged it."""
+        self.graph.wait_for(lambda: self.publisher.get_subscription_count() > 0, 15, 'cmd_vel_node hearing cmd_vel')
         message = TwistStamped()
         message.twist.linear.x, message.twist.angular.z = linear, angular
         self.publisher.publish(message)
         assert self.publisher.wait_for_all_acked(rclpy.duration.Duration(seconds=10.0))
 
     def pose(self) -> codec.PlanarState:
-        # the newest odometry alone: decoding the whole 1 kHz backlog on every poll starved this
-        # process on a loaded machine, and a command it then sent too late timed out (0.5 s of
-        # simulation time at factor 0)
+        # the newest odometry alone: decoding the whole 1 kHz backlog on every poll starves this
+        # process on a loaded machine
         return codec.planar_state(self.graph.wait_for(lambda: self.graph.newest(topics.ODOM.name), 60, 'odometry'))
-
-    def until(self, linear: float, angular: float, done, what: str, timeout: float = 60.0) -> codec.PlanarState:
-        """Command (linear, angular) until ``done(state)``; a stall of simulation time fails."""
-        deadline = time.monotonic() + timeout
-        while True:
-            state = self.pose()
-            if done(state):
-                return state
-            message = TwistStamped()
-            message.twist.linear.x, message.twist.angular.z = linear, angular
-            self.publisher.publish(message)
-            if time.monotonic() > deadline:
-                self.graph._fail(f'timed out: {what} at {state}')
-            self.graph._check_alive()
-            time.sleep(0.02)
-
-    def stop(self) -> codec.PlanarState:
-        return self.until(0.0, 0.0, lambda s: math.hypot(s.xd, s.yd) < 1e-3 and abs(s.thd) < 1e-3, 'stopping')
 
 
 def wrap(angle: float) -> float:
@@ -212,10 +194,14 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
     possible): simulated time advances only as the drive answers, the drive acts in simulation time
     (the robot at the commanded speed, or closing on the circle), the trajectory node's reference
     poses keep up with the clock, and after ``~/reset`` (time back to 0) all of them carry on
-    without a restart: no lockstep wait timed out, the same behaviour again."""
+    without a restart: no lockstep wait timed out, the same behaviour again.
+
+    cmd_vel is timed in simulation time, as in the square: the dynamics pauses at COMMAND_AT (``stop_at``),
+    the command is published and acknowledged, and the run goes on to CHECK_AT; cmd_vel_timeout is
+    10 s, so that one command holds, however late this process runs on a loaded machine."""
     if drive == 'cmd_vel':
-        graph.start('cmd_vel', 'use_sim_time:=true')
-        dynamics = (*AT_ORIGIN, *LOCKSTEP)
+        graph.start('cmd_vel', 'use_sim_time:=true', 'cmd_vel_timeout:=10.0')
+        dynamics = (*AT_ORIGIN, *LOCKSTEP, f'stop_at:={COMMAND_AT}')
     else:
         graph.start('controller', 'use_sim_time:=true')
         dynamics = ('wait_for_command:=true', f'lockstep_every:={CONTROL_STEPS}')  # starts 0.2 m inside the unit circle
@@ -225,11 +211,15 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
 
     def check_segment(segment: str) -> None:
         if drive == 'cmd_vel':
-            state = driver.until(0.1, 0.0, lambda s: s.t >= 1.5, f'{segment}: simulation time 1.5 s', timeout=120)
-            assert state.xd == pytest.approx(0.1, abs=0.002), segment  # reached at 0.1 s, settled by 1.5 s
-        else:
-            graph.wait_sim_time(1.5, timeout=30)
-            state = driver.pose()
+            graph.wait_sim_time(COMMAND_AT, timeout=30)
+            driver.send(0.1, 0.0)
+            graph.set_parameters('dynamics', stop_at=CHECK_AT)
+        graph.wait_sim_time(CHECK_AT, timeout=30)
+        state = driver.pose()
+        if drive == 'cmd_vel':
+            assert state.stamp_ns == round(CHECK_AT * 1e9), segment  # paused there
+            assert state.xd == pytest.approx(0.1, abs=0.002), segment  # reached 0.1 s after the command, settled
+            graph.set_parameters('dynamics', stop_at=COMMAND_AT)  # the next run pauses there again
         reference = graph.wait_for(lambda: [m for m in graph.messages(topics.REFERENCE.name)
                                             if abs(ns(m) - state.stamp_ns) <= 10_000_000],
                                    30, f'{segment}: the reference pose of the clock (100 Hz)')
