@@ -319,43 +319,21 @@ def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: 
     return Recorder()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    from wallbot_sim.heartbeat import NODE_HEARTBEAT, install_heartbeat
-    from wallbot_sim.nodes.common import EVENTS_SPIN_PERIOD, StopSignals, events_executor, wake_on_stop
-
-    argv = list(sys.argv if argv is None else argv)
-    stop = StopSignals()
-    install_heartbeat(NODE_HEARTBEAT)  # a lost record_progress holds the dynamics back until it is repaired
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    writer = node = executor = None
+def recorder_nodes(stop: Any) -> list[Any]:
+    """The recorder of this process's parameters, for ``common.run_nodes`` (which closes it, and so the bag)."""
+    output, recorded = recording_options()
+    writer = open_bag(output, 'recorder_node')
     try:
-        try:
-            output, recorded = recording_options()
-            writer = open_bag(output, 'recorder_node')
-        except RecorderOptionError as error:
-            print(f'recorder_node: error: {error}', file=sys.stderr)
-            return 2
-        node = make_recorder(writer, recorded, stop)
-        executor = events_executor()
-        executor.add_node(node)
-        wake_on_stop(node, stop)
-        while not stop.requested and rclpy.ok():
-            # a signal is handled before any message taken after it is written
-            executor.spin_once(timeout_sec=EVENTS_SPIN_PERIOD)
-        node.close()
-        return 0
-    finally:
-        if writer is not None:
-            writer.close()
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        stop.restore()
+        return [make_recorder(writer, recorded, stop)]
+    except BaseException:
+        writer.close()
+        raise
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``recorder_node``: 0 after SIGINT/SIGTERM, 1 (one line on stderr) if it cannot record as asked."""
+    from wallbot_sim.nodes.common import run_nodes
+    return run_nodes(recorder_nodes, None if argv is None else list(argv), events=True)
 
 
 if __name__ == '__main__':
