@@ -7,10 +7,9 @@ back from the reader for up to 3 s, and is never repaired if the writer leaves D
 ``publisher.wait_for_all_acked()`` takes up to 3 s. With a heartbeat every ``period`` seconds both
 take about that period (docs/nodes.md, "Reliable delivery").
 
-Fast DDS reads the profile when the process creates its first participant: put the variable in
-the environment of the process (``heartbeat_env``), or call ``install_heartbeat()`` before
-``rclpy.init()``. A profile file the user set (either variable of ``PROFILES_ENVS``) is never
-overridden: it is theirs to give a heartbeat.
+Fast DDS reads the profile when the process creates its first participant: call
+``install_heartbeat()`` before ``rclpy.init()``. A profile file the user set (either variable of
+``PROFILES_ENVS``) is never overridden: it is theirs to give a heartbeat.
 """
 
 from __future__ import annotations
@@ -50,10 +49,10 @@ def profile_xml(period: float) -> str:
 """
 
 
-def profile_path(period: float, directory: Path | str | None = None) -> Path:
-    """Write the profile of ``period`` (once) into ``directory`` (default: the temp dir); its path."""
+def profile_path(period: float) -> Path:
+    """Write the profile of ``period`` (once) into the temp directory; its path."""
     text = profile_xml(period)
-    path = Path(directory or tempfile.gettempdir()) / f'wallbot_fastdds_heartbeat_{round(period * 1e6)}us.xml'
+    path = Path(tempfile.gettempdir()) / f'wallbot_fastdds_heartbeat_{round(period * 1e6)}us.xml'
     if not path.is_file() or path.read_text() != text:
         tmp = path.with_name(f'.{path.name}.{os.getpid()}')
         tmp.write_text(text)
@@ -61,13 +60,7 @@ def profile_path(period: float, directory: Path | str | None = None) -> Path:
     return path
 
 
-def heartbeat_env(period: float, directory: Path | str | None = None) -> dict[str, str]:
-    """Environment entries giving a process the profile of ``period`` (none if it has a profile file)."""
-    if any(os.environ.get(name) for name in PROFILES_ENVS):
-        return {}
-    return {PROFILES_ENV: str(profile_path(period, directory))}
-
-
-def install_heartbeat(period: float, directory: Path | str | None = None) -> None:
-    """Give this process the profile of ``period``; call before ``rclpy.init()``."""
-    os.environ.update(heartbeat_env(period, directory))
+def install_heartbeat(period: float) -> None:
+    """Give this process the profile of ``period`` (not if it has a profile file); call before ``rclpy.init()``."""
+    if not any(os.environ.get(name) for name in PROFILES_ENVS):
+        os.environ[PROFILES_ENV] = str(profile_path(period))
