@@ -6,7 +6,9 @@
   from other concurrent test runs on this machine.
 * ``process_runner`` (function): starts child processes with that environment
   (``wallbot_sim.graph.ChildProcesses``, as ``wallbot-sim run`` starts its nodes), logs their
-  output to files in tmp_path and always stops them at teardown.
+  output to files in tmp_path and always stops them at teardown. A test that fails reports the
+  end of each of its processes' logs (``pytest_runtest_makereport``), so that a failure seen once,
+  in CI on a loaded machine, says what the nodes were doing.
 """
 from __future__ import annotations
 
@@ -25,6 +27,8 @@ from wallbot_sim.domain import DomainClaim, claim_domain_id, isolated_ros_env  #
 from wallbot_sim.graph import ChildProcesses  # noqa: E402
 
 _ENV_KEYS = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
+LOG_TAIL = 3000
+"""Characters of each child process's log a failed test reports."""
 
 
 @pytest.fixture(scope='session', autouse=True)
@@ -55,3 +59,12 @@ def process_runner(tmp_path: Path, ros_domain: DomainClaim) -> Iterator[ChildPro
         yield runner
     finally:
         runner.stop_all()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item):
+    report = (yield).get_result()
+    runner = getattr(item, 'funcargs', {}).get('process_runner')
+    if report.failed and report.when == 'call' and runner is not None:
+        for log in sorted(runner.log_dir.glob('*.log')):
+            report.sections.append((f'{log.stem} log (end)', log.read_text(errors='replace')[-LOG_TAIL:]))
