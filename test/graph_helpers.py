@@ -139,16 +139,12 @@ class Graph:
                 return value
             self._check_alive()
             time.sleep(0.02)
-        self._fail(f'timed out waiting for {what}')
+        pytest.fail(f'timed out waiting for {what}')  # the nodes' logs: conftest's report
 
     def _check_alive(self) -> None:
         for name, proc in self.procs.items():
             if proc.poll() is not None:
                 pytest.fail(f'{name} exited with {proc.returncode}:\n{self.runner.output(name)}')
-
-    def _fail(self, what: str) -> None:
-        logs = '\n'.join(f'--- {n}\n{self.runner.output(n)[-3000:]}' for n in self.procs)
-        pytest.fail(f'{what}\n{logs}')
 
     def last_stamp(self) -> int:
         """The newest odometry stamp received (read from its bytes), -1 before any."""
@@ -165,7 +161,7 @@ class Graph:
         progressed = time.monotonic()
         while newest < target:
             if time.monotonic() - progressed > timeout:
-                self._fail(f'simulation time stalled at {newest * 1e-9:.3f} s for {timeout:g} s '
+                pytest.fail(f'simulation time stalled at {newest * 1e-9:.3f} s for {timeout:g} s '
                            f'waiting for {t} s' if newest >= 0 else f'no odometry within {timeout:g} s')
             self._check_alive()
             time.sleep(0.02)
