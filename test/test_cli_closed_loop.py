@@ -58,15 +58,19 @@ def fast_circle(tmp_path: Path) -> Path:
 
 
 # --- the same loop as the graph's ---------------------------------------------------------------
-@pytest.mark.parametrize('contact, engine', [('ideal', 'python'), ('coulomb', 'python'), ('ideal', 'numba')])
-def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine):
+@pytest.mark.parametrize('contact, engine, pacing', [
+    ('ideal', 'python', ['--real-time-factor', '0']), ('coulomb', 'python', ['--real-time-factor', '0']),
+    ('ideal', 'numba', ['--real-time-factor', '0']), ('ideal', 'numba', ['--real-time-factor', '1', '--compose'])],
+    ids=['ideal-python', 'coulomb-python', 'ideal-numba', 'ideal-numba-paced-composed'])
+def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine, pacing):
     """run --controller at factor 0 and simulate --controller: the same states at the same stamps,
     and in their bags the same wheel_torque_cmd (type, offered QoS, the command of each control
     instant in order).
 
     With coulomb contact the circle's start (0.2 m off the path, at rest) slips both tractions
     in the first 0.36 s: the slip transitions are part of what must agree. With ``--engine numba``
-    the dynamics and the controller's law are the compiled kernel's in both.
+    the dynamics and the controller's law are the compiled kernel's in both; paced, the dynamics takes
+    blocks of steps between the controller's answers (composed: in process with the recorder).
     """
     pytest.importorskip('rclpy')
     if engine == 'numba':
@@ -74,8 +78,8 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine)
         from wallbot_sim.model.compiled import compile_kernel
         compile_kernel()  # so that the nodes load it from numba's cache instead of compiling it for up to a minute
     duration = 1.0
-    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, '--real-time-factor',
-                    '0', '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
+    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, *pacing,
+                    '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
     assert graph.returncode == 0, graph.stderr + graph.stdout
     assert f'tracking controller at {CONTROL_RATE_HZ} Hz of simulation time, {engine} engine' in (
         tmp_path / 'run' / 'logs' / 'controller.log').read_text()

@@ -21,9 +21,10 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
-from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, COMMAND_WAIT_WARNING, ConstraintSwitch, Decision,
-                                             DynamicsLoop, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
-                                             ResumeSnapshot, RunState, Step, Teleport, TorqueCommand)
+from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, BLOCK_PACED, COMMAND_WAIT_WARNING,
+                                             ConstraintSwitch, Decision, DynamicsLoop, NewPlan, ParameterChange, Pause,
+                                             RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
+                                             TorqueCommand)
 from wallbot_sim.nodes.pacing import Pacer
 
 DT = 1e-3
@@ -723,3 +724,48 @@ def test_a_plan_that_gives_the_states_computed_ahead_keeps_them(renewal, recompu
     # a block computed at the boundary after the last state published (lead 1) is the start's, or a recomputation
     assert blocks.leads.count(1) == (2 if recomputes else 1) and without.leads.count(1) == 1
     assert blocks.block_sizes == without.block_sizes or recomputes
+
+
+DRIVEN_COMMANDS = {0: [DRIVEN], 4: [TorqueCommand((0.4, 0.3))], 57: [TorqueCommand((-0.2, 0.5))],
+                   140: [TorqueCommand((0.1, 0.1))]}
+"""A free-running driven run's commands by tick: each is 30 ms old (command_timeout) before the next comes."""
+
+
+def run_driven(blocks: bool, factor: float, lockstep_every: int = 0, events: dict[int, list] = DRIVEN_COMMANDS,
+               stop_at: float = 0.0, ticks: int = 260) -> tuple[EncodingGraph, FakeLog]:
+    """A driven run on the numba engine at ``factor`` (20: paced, a short sleep a step) with ``events`` by tick;
+    with ``lockstep_every``, a controller answers each state the loop waits on at once, with a torque of its time."""
+    graph, log = EncodingGraph(blocks), FakeLog()
+    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': factor, 'snapshot_period': 0.05,
+                         'lockstep_every': lockstep_every, 'command_timeout': 0.03, 'stop_at': stop_at,
+                         'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
+    for tick in range(ticks):
+        for event in events.get(tick, []):
+            loop.post(event)
+        if loop.tick() is Decision.LOCKSTEP:
+            t = graph.published[-1][0]
+            loop.post(TorqueCommand((0.5 * np.sin(20.0 * t), 0.4 * np.cos(15.0 * t))))
+    return graph, log
+
+
+@NEEDS_NUMBA
+@pytest.mark.parametrize('factor, lockstep_every, events, stop_at, ticks, timeouts, largest', [
+    (20.0, 0, DRIVEN_COMMANDS, 0.0, 260, 3, BLOCK_PACED),
+    (20.0, 20, {0: [DRIVEN]}, 0.0, 260, 0, 19),
+    (0.0, 40, {0: [DRIVEN]}, 0.25, 300, 6, 30)],  # answers at 0, 40, ..., 240 ms, each timed out 31 steps later
+    ids=['paced-free', 'paced-lockstep', 'fast-lockstep'])
+def test_driven_blocks_hold_one_torque_and_publish_what_single_steps_publish(factor, lockstep_every, events,
+                                                                                 stop_at, ticks, timeouts, largest):
+    """Driven, the loop takes blocks under the torque in force: a new command drops the states computed ahead
+    and applies after the last one published; a block ends before the command times out (zero torque from
+    there, said once) and at each lockstep state (the step after it waits for the answer). A new torque's
+    first step is a single one (so the largest block after an answer is a step short of lockstep_every; at
+    factor 0, the 30 steps left to the timeout). The messages, their wheel efforts included, and the snapshots
+    are those of one step per tick, to the bit."""
+    (single, single_log), (blocks, block_log) = (run_driven(b, factor, lockstep_every, events, stop_at, ticks)
+                                                 for b in (False, True))
+    assert blocks.messages == single.messages and len(single.messages) > 240
+    assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
+    timed_out = block_log.said('no wheel_torque_cmd for 0.03 s')
+    assert timed_out == single_log.said('no wheel_torque_cmd for 0.03 s') and len(timed_out) == timeouts
+    assert max(blocks.block_sizes) == largest and not single.block_sizes

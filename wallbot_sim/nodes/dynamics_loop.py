@@ -803,18 +803,24 @@ class DynamicsLoop:
         return False
 
     def _motor_torque(self) -> tuple[float, float]:
+        """The torque of the step from the current state (``_torque_at``), saying once when the command timed out."""
         sim = self.sim
-        if sim.selection.trajectory or self.command is None:
+        if not sim.selection.trajectory and self._timed_out(sim.t) and not self.command_expired:
+            self.command_expired = True
+            self._log.warning(
+                f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time (the last '
+                f'at t = {self.command[1]:.3f} s): zero torque from t = {sim.t:.3f} s', throttle_duration_sec=THROTTLE)
+        return self._torque_at(sim.t)
+
+    def _torque_at(self, t: float) -> tuple[float, float]:
+        """The motor torque of a step from time ``t``: the command in force while driven, zero under the
+        trajectory task, before the first command and once the command is command_timeout old."""
+        if self.sim.selection.trajectory or self.command is None or self._timed_out(t):
             return (0.0, 0.0)
-        torque, since = self.command
-        if sim.t - since > self.params['command_timeout'] + 1e-12:
-            if not self.command_expired:
-                self.command_expired = True
-                self._log.warning(
-                    f'no wheel_torque_cmd for {self.params["command_timeout"]:g} s of simulation time (the last '
-                    f'at t = {since:.3f} s): zero torque from t = {sim.t:.3f} s', throttle_duration_sec=THROTTLE)
-            return (0.0, 0.0)
-        return torque
+        return self.command[0]
+
+    def _timed_out(self, t: float) -> bool:
+        return self.command is not None and t - self.command[1] > self.params['command_timeout'] + 1e-12
 
     def _step(self) -> None:
         self.stepped = True
@@ -866,25 +872,31 @@ class DynamicsLoop:
     def _block_size(self) -> int:
         """How many steps this tick may take as one block (1: a single step).
 
-        Blocks are taken on the compiled engine with ideal contact (``Simulation.tabulates``), under
-        the trajectory task (no torque command to apply), publishing every state, not resuming. A block
-        ends where a single step would do something between its steps: at the last step the plan
-        covers, before stop_at, at the recorder's window and at the next snapshot. So the states and
-        messages are the single steps', to the bit.
+        Blocks are taken on the compiled engine with ideal contact (``Simulation.tabulates``), publishing every
+        state, not resuming, under one motor torque: zero under the trajectory task; driven, the command's, set
+        by the single step after it changes. A block ends where a single step would do something between its
+        steps: at the last step the plan covers (trajectory task), before the command in force times out, at a
+        lockstep state (the step after it waits for the controller's answer), before stop_at, at the recorder's
+        window and at the next snapshot. So the states and messages are the single steps', to the bit.
         """
         sim, params = self.sim, self.params
-        if (not sim.tabulates or not sim.selection.trajectory or self.paused or self.resume.catching_up
-                or params['publish_every'] != 1 or not self._graph.encodes_blocks(self._factor <= 0.0)):
+        if (not sim.tabulates or self.paused or self.resume.catching_up or params['publish_every'] != 1
+                or self._torque_at(sim.t) != sim.motor_torque or self._answer_awaited()
+                or not self._graph.encodes_blocks(self._factor <= 0.0)):
             return 1
         size = BLOCK_PACED if self._factor > 0.0 else BLOCK_MOST
         every = round(params['snapshot_period'] / sim.dt)
         if every > 0:
             size = min(size, every - sim.steps % every)
+        lockstep = params['lockstep_every']
+        if lockstep > 0 and not sim.selection.trajectory and not self.lockstep_lost:
+            size = min(size, lockstep - sim.steps % lockstep)
         window = params['backpressure_window'] * sim.dt
         stop_at = params['stop_at']
         while size > 1:
             t = sim.initial_time + (sim.steps + size - 1) * sim.dt  # the block's last step starts here
-            if (not self.plan.covers(t, t + sim.dt)
+            if ((sim.selection.trajectory and not self.plan.covers(t, t + sim.dt))
+                    or self._torque_at(t) != sim.motor_torque
                     or (stop_at > 0.0 and t >= stop_at - 0.5 * sim.dt)
                     or (self.recorder_present and (self.progress_ns is None
                                                    or t - self.progress_ns * 1e-9 > window))):
@@ -898,8 +910,6 @@ class DynamicsLoop:
         if it starts here, else ``size`` steps computed now; publish its first state, or all at factor 0.
         False, nothing taken, if a state among them is not finite (``_step`` then meets it)."""
         sim = self.sim
-        if sim.motor_torque != (0.0, 0.0):
-            sim.set_motor_torque(0.0, 0.0)
         ahead, self._next = self._next, None
         if ahead is None or ahead.before[0] != sim.steps or len(ahead.stamps) > size:
             ahead = self._compute_block(size)
