@@ -128,6 +128,9 @@ controller started by hand later wants more, or 0."""
 CONTROL_ODOM_EVERY = math.gcd(steps_per_period(CONTROL_RATE_HZ), steps_per_period(SPEED_LOOP_RATE_HZ))
 """Default control_odom_every (steps): every state either commander acts on at its default rate
 (20: the cmd_vel node's 50 Hz at 1 kHz; the tracking controller's 25 Hz is every 40th)."""
+BURST_CONTROL_ODOM_EVERY = 10
+"""Smallest control_odom_every at which the loop publishes a block's states at once (factor 0) to a DDS
+subscriber of control_odom: five of its messages at most in a burst of 50 states."""
 BACKPRESSURE_WINDOW = 200
 """Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
 how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
@@ -412,8 +415,12 @@ class DynamicsNode(Node):
         # shared-memory queue on a loaded machine; reliability repairs the loss only at Fast DDS's next
         # heartbeat, seconds later (seen: a separate recorder missing one message of a 1.5 s run). So
         # bursts only where no DDS subscriber takes the per-step topics (a composed recorder takes them
-        # from the tap); paced, a block's states go out one at a time
-        return self.noise is None and not (burst and self._heard())
+        # from the tap); paced, a block's states go out one at a time. A controller's control_odom carries
+        # at most every BURST_CONTROL_ODOM_EVERY-th state, a few of a burst: no queue overflows for them
+        heard = self._heard()
+        if self.params['control_odom_every'] >= BURST_CONTROL_ODOM_EVERY:
+            heard.discard(topics.CONTROL_ODOM)
+        return self.noise is None and not (burst and heard)
 
     def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
         heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states
