@@ -6,6 +6,7 @@ with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end,
 
     python bench/bench_memory.py --duration 600      # the issue's 10-minute figure
     python bench/bench_memory.py --duration 600 --compose --engine numba   # the composed process
+    python bench/bench_memory.py --duration 600 --compose --engine numba --controller   # the closed loop
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
 COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder'}
 """The process of ``run --compose`` that holds both."""
+CONTROLLER = {'controller': 'wallbot_sim.nodes.controller'}
+"""The tracking controller of ``run --controller``."""
 
 
 def main() -> int:
@@ -30,13 +33,15 @@ def main() -> int:
     parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
     parser.add_argument('--compose', action='store_true', help='run --compose: the dynamics and recorder in one process')
     parser.add_argument('--engine', choices=('python', 'numba'), default='python', help="the dynamics' engine")
+    parser.add_argument('--controller', action='store_true', help='run --controller: the closed loop (driven mode)')
     args = parser.parse_args()
-    nodes = COMPOSED_NODES if args.compose else NODES
+    nodes = {**(COMPOSED_NODES if args.compose else NODES), **(CONTROLLER if args.controller else {})}
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_mem_'))
     launcher = ChildProcesses(work / 'logs', os.environ, stop_timeout=120.0)
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
                           '--no-plots', '--out', str(work / 'run'), '--engine', args.engine,
-                          *(['--compose'] if args.compose else [])], 'run')
+                          *(['--compose'] if args.compose else []), *(['--controller'] if args.controller else [])],
+                         'run')
     try:
         pids: dict[str, int] = {}
         while len(pids) < len(nodes):
