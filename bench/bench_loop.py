@@ -3,10 +3,12 @@
 Runs the dynamics node's loop (``DynamicsLoop``, ROS-free) on the numba engine through the circle
 scenario with all constraints, encoding every state's messages to CDR as the node does and sending
 them nowhere, in this process: once with single steps (a graph that does not take blocks, as with
-sensor noise or the Python engine) and once with blocks of steps (``Simulation.advance`` and
-``StepEncoder.encode_rows``). At factor 1 each for --seconds of wall time, at factor 0 for
+sensor noise or the Python engine), once with blocks of steps (``Simulation.advance`` and
+``StepEncoder.encode_rows``) heard by a subscriber outside the process (each state published when
+due), and at factor 1 once more with blocks nobody outside hears (a composed recorder's: handed over
+ahead of time, a wake-up a block). At factor 1 each for --seconds of wall time, at factor 0 for
 --fast-steps steps; beside them a bare 1 kHz sleep loop, the cost of the wake-ups alone. Prints the
-loop thread's CPU time per step and the ratios, blocks to single steps.
+loop thread's CPU time per step and the ratios to single steps.
 
     python bench/bench_loop.py [--seconds 4] [--fast-steps 20000]
 """
@@ -39,8 +41,8 @@ PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=T
 class EncodingGraph:
     """Encodes every state's messages as the node does; publishes nothing; no recorder, keeper or controller."""
 
-    def __init__(self, blocks: bool) -> None:
-        self.blocks = blocks
+    def __init__(self, blocks: bool, heard: bool) -> None:
+        self.blocks, self.heard = blocks, heard
         self.encoder = StepEncoder()
 
     def prepare(self, out, clock: bool) -> Callable[[], None]:
@@ -50,8 +52,11 @@ class EncodingGraph:
     def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
 
-    def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
-        return [lambda clock: None for _encoded in self.encoder.encode_rows(block)]
+    def prepare_block(self, block: StepBlock) -> list[Callable[[bool, float], None]]:
+        return [lambda clock, ahead: None for _encoded in self.encoder.encode_rows(block)]
+
+    def hears_steps(self) -> bool:
+        return self.heard
 
     def publish_snapshot(self, snapshot) -> None:
         pass
@@ -76,14 +81,14 @@ class QuietLog:
     warning = error = info
 
 
-def running_loop(blocks: bool, factor: float) -> DynamicsLoop:
+def running_loop(blocks: bool, heard: bool, factor: float) -> DynamicsLoop:
     """A loop through its first 300 ticks of the circle (the kernel warm), at ``factor``."""
     scenario = load_scenario('circle')
     plan = sample_plan(scenario.reference, 0.0, 1e4, 0.01)
     selection = messages.selection_from_switches(dict(belt=True, non_lateral=True, nonslip=True,
                                                       tangent_heading=True, trajectory_task=True))
     loop = DynamicsLoop({**PARAMS, 'real_time_factor': factor, 'initial_x': float(plan.positions[0][0])},
-                        load_robot_parameters(None), EncodingGraph(blocks), QuietLog(), Pacer(0, print))
+                        load_robot_parameters(None), EncodingGraph(blocks, heard), QuietLog(), Pacer(0, print))
     loop.post(ConstraintSwitch(selection, BaumgarteGains(5.0, 5.0)))
     loop.post(NewPlan(SampledReference(*plan), plan.times[0], plan.times[-1], messages.plan_is_final(plan)))
     for _ in range(300):
@@ -91,9 +96,9 @@ def running_loop(blocks: bool, factor: float) -> DynamicsLoop:
     return loop
 
 
-def cpu_per_step(blocks: bool, factor: float, seconds: float, steps: int) -> float:
+def cpu_per_step(blocks: bool, heard: bool, factor: float, seconds: float, steps: int) -> float:
     """The loop thread's CPU seconds per step: for ``seconds`` of wall time, or ``steps`` steps at factor 0."""
-    loop = running_loop(blocks, factor)
+    loop = running_loop(blocks, heard, factor)
     first, started, cpu = loop.sim.steps, time.perf_counter(), time.thread_time()
     while (time.perf_counter() - started < seconds) if factor > 0 else (loop.sim.steps - first < steps):
         loop.tick()
@@ -121,10 +126,14 @@ def main() -> int:
     wake = wake_up_cost(args.seconds)
     print(f'bare 1 kHz sleep loop: {1e6 * wake:.1f} us CPU per wake-up')
     for factor in (1.0, 0.0):
-        single = cpu_per_step(False, factor, args.seconds, args.fast_steps)
-        block = cpu_per_step(True, factor, args.seconds, args.fast_steps)
-        print(f'factor {factor:g}: single steps {1e6 * single:6.1f} us CPU per step, blocks {1e6 * block:6.1f} us '
-              f'(ratio {block / single:.2f})')
+        single = cpu_per_step(False, True, factor, args.seconds, args.fast_steps)
+        block = cpu_per_step(True, True, factor, args.seconds, args.fast_steps)
+        line = (f'factor {factor:g}: single steps {1e6 * single:6.1f} us CPU per step, blocks {1e6 * block:6.1f} us '
+                f'(ratio {block / single:.2f})')
+        if factor > 0.0:
+            unheard = cpu_per_step(True, False, factor, args.seconds, args.fast_steps)
+            line += f', blocks nobody outside hears {1e6 * unheard:6.1f} us (ratio {unheard / single:.2f})'
+        print(line)
     return 0
 
 

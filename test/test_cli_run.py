@@ -307,7 +307,9 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, eng
     """run --compose (the per-step topics through the in-process tap) and run (all over DDS) of the
     same scenario at factor 0: the same per-step messages byte for byte, a step every 1 ms, the
     log times never going back in the file; the robot model recorded by each. On the numba engine
-    the dynamics takes its steps in blocks at factor 0, encoded at once."""
+    the dynamics takes its steps in blocks at factor 0, encoded at once. And composed at factor 2:
+    the same bytes again (on the numba engine its blocks go to the tap ahead of their due times,
+    nobody outside hearing them), its log times never going back either."""
     from bag_helpers import by_topic
     from wallbot_sim.config import load_robot_parameters
     from wallbot_sim.urdf import robot_urdf
@@ -319,9 +321,11 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, eng
         compile_kernel()  # so that the node loads it from numba's cache instead of compiling it for up to a minute
 
     bags = {}
-    for label, extra in (('composed', ['--compose']), ('separate', [])):
+    for label, extra in (('composed', ['--compose', '--real-time-factor', '0']),
+                         ('separate', ['--real-time-factor', '0']),
+                         ('paced', ['--compose', '--real-time-factor', '2'])):
         out = tmp_path / label
-        result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1.5', '--real-time-factor', '0',
+        result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1.5',
                                  '--engine', engine, '--no-plots', '--out', str(out), *extra],
                                 capture_output=True, text=True, timeout=180)
         assert result.returncode == 0, result.stderr + result.stdout
@@ -330,12 +334,14 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, eng
     assert meta['custom_data']['wallbot.recorder'] == 'dynamics_recorder_node'
     composed, log_times = step_messages(bags['composed'])
     separate, _ = step_messages(bags['separate'])
-    assert log_times == sorted(log_times)
+    paced, paced_log_times = step_messages(bags['paced'])
+    assert log_times == sorted(log_times) and paced_log_times == sorted(paced_log_times)
     steps = list(range(0, 1_500_000_001, 1_000_000))
     for name in STEP_TOPICS[:-1]:
         assert sorted(composed[name]) == steps, name
     assert len(composed['/wallbot/clock']) > 10
     assert composed == separate
+    assert paced == separate
     for bag in bags.values():  # the robot model, subscribed over DDS by both recorders
         recorded = [m.data for m in by_topic(bag)['/wallbot/robot_description']]
         assert recorded and set(recorded) == {robot_urdf(load_robot_parameters())}

@@ -579,23 +579,28 @@ def test_the_loop_thread_wakes_on_a_posted_event_and_stops():
 
 class EncodingGraph(FakeGraph):
     """Publishes what the node publishes, the CDR bytes of every message with its /clock flag; with
-    ``blocks`` it takes blocks of states (prepare_block) too."""
+    ``blocks`` it takes blocks of states (prepare_block) too. ``heard``: a subscriber outside the process
+    takes the states (else a paced loop hands them over ahead of time; ``aheads``: by how much, per state)."""
 
-    def __init__(self, blocks: bool) -> None:
+    def __init__(self, blocks: bool, heard: bool = True) -> None:
         super().__init__()
-        self.blocks = blocks
+        self.blocks, self.heard = blocks, heard
         self.encoder = StepEncoder()
         self.messages: list[tuple[list, bool]] = []
         self.block_sizes: list[int] = []
         self.leads: list[int] = []
+        self.aheads: list[float] = []
 
     def prepare(self, out, clock):
         encoded = self.encoder.encode(out)
         send = super().prepare(out, clock)
-        return lambda: (send(), self.messages.append((encoded, clock)))
+        return lambda: (send(), self.messages.append((encoded, clock)), self.aheads.append(0.0))
 
     def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
+
+    def hears_steps(self) -> bool:
+        return self.heard
 
     def prepare_block(self, block):
         self.block_sizes.append(len(block.t))
@@ -603,9 +608,10 @@ class EncodingGraph(FakeGraph):
             self.leads.append(round((block.t[0] - self.published[-1][0]) / 1e-3))
 
         def sender(encoded, t, q):
-            def send(clock):
+            def send(clock, ahead):
                 self.published.append((t, q.copy()))
                 self.messages.append((encoded, clock))
+                self.aheads.append(ahead)
                 if clock:
                     self.clocks.append(t)
             return send
@@ -724,6 +730,54 @@ def test_a_plan_that_gives_the_states_computed_ahead_keeps_them(renewal, recompu
     # a block computed at the boundary after the last state published (lead 1) is the start's, or a recomputation
     assert blocks.leads.count(1) == (2 if recomputes else 1) and without.leads.count(1) == 1
     assert blocks.block_sizes == without.block_sizes or recomputes
+
+
+HANDED_OVER_EVENTS = {0: [TRACKING, plan(0.0, 0.3)],
+                      33: [ConstraintSwitch(TRACKING.selection, BaumgarteGains(8.0, 8.0))],
+                      61: [plan(0.05, 0.35, radius=0.81)], 90: [Reset()], 95: [plan(0.0, 0.3)],
+                      150: [TorqueCommand((0.1, 0.2)), DRIVEN], 190: [TorqueCommand((-0.3, 0.2))]}
+"""New gains, another reference, a reset and its new plan, then driven under two torques, by states published."""
+
+
+def run_handed_over(blocks: bool, heard: bool, applied_at: dict[int, int]) -> tuple[EncodingGraph, int]:
+    """A paced run on the numba engine (factor 2) with ``HANDED_OVER_EVENTS`` posted once as many states as their
+    key are out; ``applied_at`` maps each key to the count of states out when it was posted (filled in if empty,
+    else used as the keys: a run of single steps then gets each event after the same state). Returns the graph
+    and the ticks taken for 240 states."""
+    graph, log = EncodingGraph(blocks, heard), FakeLog()
+    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 2.0, 'snapshot_period': 0.05,
+                         'clock_rate_hz': 40.0, 'command_timeout': 1.0}, load_robot_parameters(None), graph, log,
+                        Pacer(0, log.warning))
+    given, pending, ticks = dict(applied_at), sorted(HANDED_OVER_EVENTS), 0
+    while len(graph.published) < 240 and ticks < 1000:
+        while pending and len(graph.published) >= given.setdefault(pending[0], len(graph.published)):
+            for event in HANDED_OVER_EVENTS[pending.pop(0)]:
+                loop.post(event)
+        loop.tick()
+        ticks += 1
+    applied_at.update(given)
+    return graph, ticks
+
+
+@NEEDS_NUMBA
+def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_block():
+    """Paced with no subscriber outside the process (a composed recorder takes the states from its tap), a block's
+    states are handed over at once, ahead of their due times, up to the next one carrying /clock or ending the
+    block, which waits until due: a tick (a wake-up) per block and per /clock, not per state. Events apply after
+    the last state handed over: the messages, /clock flags and snapshots are those of single steps given the
+    same events after the same states, to the bit."""
+    applied_at: dict[int, int] = {}
+    early, early_ticks = run_handed_over(blocks=True, heard=False, applied_at=applied_at)
+    single, single_ticks = run_handed_over(blocks=False, heard=True, applied_at=applied_at)
+    heard, heard_ticks = run_handed_over(blocks=True, heard=True, applied_at={})
+    assert len(single.messages) == 240 and early.messages[:240] == single.messages
+    kept = [(s.steps, s.q, s.qd) for s in single.snapshots]
+    assert [(s.steps, s.q, s.qd) for s in early.snapshots][:len(kept)] == kept and len(kept) > 4
+    # handed over in a block's tick: everything but the states that wait until due (/clock, a block's last)
+    assert early_ticks < len(early.messages) / 4 and min(heard_ticks, single_ticks) > 0.9 * len(heard.messages)
+    assert all(ahead == 0.0 for (_encoded, clock), ahead in zip(early.messages, early.aheads) if clock)
+    assert len(early.clocks) > 8 and max(early.aheads) > 0.0 and not any(heard.aheads)
+    assert sum(early.block_sizes) > len(early.messages)  # an event dropped states computed ahead
 
 
 DRIVEN_COMMANDS = {0: [DRIVEN], 4: [TorqueCommand((0.4, 0.3))], 57: [TorqueCommand((-0.2, 0.5))],

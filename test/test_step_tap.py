@@ -122,3 +122,24 @@ def test_a_stop_requested_while_a_drain_runs_cuts_off_the_steps_the_loop_puts_af
     now[0] = 180  # the drain at the stop
     assert tap.drain(write_then_signal, floor_ns=0, stopped_at=lambda: stop[0]) == 3
     assert len(written) == 3
+
+
+def test_a_step_handed_over_ahead_of_time_is_logged_and_written_when_it_is_due():
+    """The paced dynamics hands a block's states to the tap ahead of their due times (nobody outside hears them):
+    each is logged at its due time and no drain writes it before; after a stop, one due after it is refused."""
+    now = [1_000]
+    tap = StepTap(NAMES, lambda: now[0])
+    for index in range(4):
+        tap.put(step(index), clock=index == 0, stamp_ns=index, ahead=index * 1e-6)  # due 1 us apart from now
+    written: list[tuple] = []
+    now[0] = 2_500  # steps 0 and 1 are due, 2 and 3 not yet
+    assert tap.drain(lambda *entry: written.append(entry), floor_ns=0) == 0
+    assert [(data, log_ns) for *_, data, log_ns in written] == [
+        (b'odom:0', 1_000), (b'wheel_states:0', 1_000), (b'clock:0', 1_000),
+        (b'odom:1', 2_000), (b'wheel_states:1', 2_000)] and tap.newest_stamp_ns == 1
+    now[0] = 3_500  # a stop at 3,200: step 2 (due at 3,000) is written, step 3 (4,000) refused and not kept
+    assert tap.drain(lambda *entry: written.append(entry), floor_ns=0, stopped_at=lambda: 3_200) == 2
+    assert [log_ns for *_, log_ns in written[5:]] == [3_000, 3_000] and tap.newest_stamp_ns == 2
+    now[0] = 5_000
+    assert tap.drain(lambda *entry: written.append(entry), floor_ns=0, stopped_at=lambda: 3_200) == 0
+    assert len(written) == 7

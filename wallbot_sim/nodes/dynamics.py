@@ -422,11 +422,14 @@ class DynamicsNode(Node):
             heard.discard(topics.CONTROL_ODOM)
         return self.noise is None and not (burst and heard)
 
-    def prepare_block(self, block: StepBlock) -> list[Callable[[bool], None]]:
+    def prepare_block(self, block: StepBlock) -> list[Callable[[bool, float], None]]:
         heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states
-        return [lambda clock, encoded=encoded, stamp_ns=codec.to_nanoseconds(t): self._send(encoded, clock, stamp_ns,
-                                                                                          heard)
+        return [lambda clock, ahead, encoded=encoded, stamp_ns=codec.to_nanoseconds(t): self._send(
+                    encoded, clock, stamp_ns, heard, ahead)
                 for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist())]
+
+    def hears_steps(self) -> bool:
+        return bool(self._heard())
 
     def _heard(self) -> set[topics.Topic]:
         # a per-step message nobody is matched to would only cost its write into Fast DDS
@@ -442,8 +445,9 @@ class DynamicsNode(Node):
         return every > 0 and round(stamp_ns * 1e-9 * self.params['rate_hz']) % every == 0
 
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
-              heard: set[topics.Topic]) -> None:
-        """Publish one state's messages (/clock if ``clock``, the others where ``heard``); hand them to the tap."""
+              heard: set[topics.Topic], ahead: float = 0.0) -> None:
+        """Publish one state's messages (/clock if ``clock``, the others where ``heard``); hand them to the tap,
+        ``ahead`` seconds before the state is due (the loop does so only where nothing is heard)."""
         for topic, data in encoded:
             if topic is not topics.CLOCK:
                 if topic in heard:
@@ -455,7 +459,7 @@ class DynamicsNode(Node):
                 if self.domain_clock_pub is not None:
                     self.domain_clock_pub.publish(data)
         if self.tap is not None:
-            self.tap.put(encoded, clock, stamp_ns)
+            self.tap.put(encoded, clock, stamp_ns, ahead)
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
         self.snapshot_pub.publish(snapshot_message(snapshot.to_values()))

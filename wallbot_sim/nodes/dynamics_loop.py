@@ -240,9 +240,13 @@ class Graph(Protocol):
         """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise);
         ``burst``: its states will be published back to back (factor 0), not each when it is due."""
 
-    def prepare_block(self, block: StepBlock) -> Sequence[Callable[[bool], None]]:
+    def prepare_block(self, block: StepBlock) -> Sequence[Callable[[bool, float], None]]:
         """``prepare`` of each state of ``block`` at once: one call per state, in order, publishes it (with
-        /clock if its argument is true)."""
+        /clock if its first argument is true; the second, how many seconds before the state is due it is
+        handed over, 0 when it is due)."""
+
+    def hears_steps(self) -> bool:
+        """Whether a subscriber outside the loop's process takes some per-step message (control_odom included)."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
@@ -272,8 +276,9 @@ class Ahead:
     """A block of steps computed ahead of publishing (``DynamicsLoop._start_block``)."""
 
     block: StepBlock
-    senders: Sequence[Callable[[bool], None]]
-    """Publish one state each (the argument: with /clock), from the graph's ``prepare_block``."""
+    senders: Sequence[Callable[[bool, float], None]]
+    """Publish one state each (the arguments: with /clock, seconds ahead of its due time), from the graph's
+    ``prepare_block``."""
     stamps: list[int]
     """Each state's simulation time (ns)."""
     before: tuple[int, np.ndarray, np.ndarray]
@@ -281,6 +286,9 @@ class Ahead:
     step_time: float
     """The block's compute time per step (s)."""
     published: int = 0
+    ahead_of_time: bool = False
+    """Paced with nobody outside the process hearing the states (``DynamicsLoop._publish_ahead``): each is handed
+    over at once, ahead of its due time, but those that carry /clock and the last, which wait until due."""
 
 
 class DynamicsLoop:
@@ -919,6 +927,7 @@ class DynamicsLoop:
             ahead.senders = self._graph.prepare_block(ahead.block)
         sim.take(ahead.block)
         self.stepped = True
+        ahead.ahead_of_time = self._factor > 0.0 and not self._graph.hears_steps()
         self._ahead = ahead
         self._publish_ahead()
         return True
@@ -935,13 +944,21 @@ class DynamicsLoop:
         step_time = (time.perf_counter() - began) / size
         return Ahead(block, (), [codec.to_nanoseconds(t) for t in block.t.tolist()], before, step_time)
 
-    def _prepare_next(self) -> None:
+    def _prepare_next(self, all_at_once: bool = False) -> None:
         """Paced, after publishing a state of a block: with three states of it left, sample the next block's
         reference (the Python part of computing it); with two, compute the next block; with one, encode its
         messages. So each part takes the time up to the next state's due time, and the block boundary
         publishes a state without computing any: on a slow machine computing and encoding a block of 20 takes
-        2-4 ms, which made the first state of every block late. Any event but a recorder's progress drops the
-        block (``tick``); so does a boundary that is not where it starts."""
+        2-4 ms, which made the first state of every block late. ``all_at_once``: the three parts now (before
+        the wait for a block's last state handed over ahead of time; a state before it if it carries /clock).
+        Any event but a recorder's progress drops the block (``tick``); so does a boundary that is not where
+        it starts."""
+        if all_at_once:
+            if self._next is None and (size := self._block_size()) > 1:
+                self._next = self._compute_block(size)
+            if self._next is not None and not self._next.senders:
+                self._next.senders = self._graph.prepare_block(self._next.block)
+            return
         left = len(self._ahead.stamps) - self._ahead.published
         if self._next is None and left == 3:
             size = self._block_size()
@@ -955,20 +972,34 @@ class DynamicsLoop:
             self._next.senders = self._graph.prepare_block(self._next.block)
 
     def _publish_ahead(self) -> None:
-        """Publish the next state of the block computed ahead when it is due (at factor 0, all of them)."""
+        """Publish the next state of the block computed ahead when it is due (at factor 0, all of them).
+
+        Paced with nobody outside the process hearing the states (``Ahead.ahead_of_time``), the states up to the
+        next one that carries /clock or ends the block are handed over at once, each ahead of its due time (a
+        composed recorder logs it then), and the loop sleeps until that one is due: a wake-up per block and per
+        /clock instead of one per state. Events still apply at the boundary after the last state published,
+        which is then the last handed over; they wait at most a block for it.
+        """
         ahead, sim, window = self._ahead, self.sim, self._window
         while True:
             row = ahead.published
             steps, last = ahead.before[0] + row + 1, row == len(ahead.stamps) - 1
             clock = self.clock_schedule.due(ahead.stamps[row], final=last and self._waits_next())
-            lateness = self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping)
+            factor = self._factor  # another thread may set it to 0 meanwhile
+            early = ahead.ahead_of_time and not (clock or last) and factor > 0.0
+            if early:
+                lateness = time.perf_counter() - self.pacer.due(steps, sim.dt, factor)
+            else:
+                if ahead.ahead_of_time:
+                    self._prepare_next(all_at_once=True)
+                lateness = self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping)
             window.steps += 1
             window.step_time_sum += ahead.step_time
             window.step_time_max = max(window.step_time_max, ahead.step_time)
             window.lateness_max = max(window.lateness_max, lateness)
             if lateness > LATE_LIMIT:
                 window.late += 1
-            ahead.senders[row](clock)
+            ahead.senders[row](clock, max(-lateness, 0.0))
             self._mark_sync()
             self._note_residual(float(ahead.block.table.residual[row]))
             ahead.published += 1
@@ -979,8 +1010,11 @@ class DynamicsLoop:
                     self._snapshot()
                 self.last_outputs = sim.outputs()
                 return
+            if early:
+                continue
             if self._factor > 0.0:
-                self._prepare_next()
+                if not ahead.ahead_of_time:
+                    self._prepare_next()
                 return
 
     def _rewind(self) -> None:

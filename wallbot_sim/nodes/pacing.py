@@ -84,10 +84,7 @@ class Pacer:
         if paced <= 0.0:
             self._schedule(0)
             return 0.0
-        if self._anchor is None:
-            self._anchor = (time.perf_counter(), step - 1)
-        anchor_wall, anchor_step = self._anchor
-        due = anchor_wall + (step - anchor_step) * dt / paced
+        due = self.due(step, dt, paced)
         remaining = due - time.perf_counter()
         self._schedule(self._priority if remaining > 0.0 else 0)
         while remaining > 0.0 and not stopping.is_set():
@@ -98,6 +95,14 @@ class Pacer:
                 break
             remaining = due - time.perf_counter()
         return time.perf_counter() - due
+
+    def due(self, step: int, dt: float, factor: float) -> float:
+        """The ``time.perf_counter()`` time step number ``step`` is due at ``factor`` (> 0); the first
+        step of a run segment is due a step from now."""
+        if self._anchor is None:
+            self._anchor = (time.perf_counter(), step - 1)
+        anchor_wall, anchor_step = self._anchor
+        return anchor_wall + (step - anchor_step) * dt / factor
 
     def _schedule(self, wanted: int) -> None:
         """Run the calling thread under SCHED_FIFO ``wanted`` (0: the normal scheduler)."""

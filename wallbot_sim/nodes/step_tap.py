@@ -36,17 +36,20 @@ class StepTap:
         self.newest_stamp_ns: int | None = None
         """The stamp of the newest step a drain wrote (None: none yet, or put without stamps)."""
 
-    def put(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int | None = None) -> None:
+    def put(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int | None = None,
+            ahead: float = 0.0) -> None:
         """One step's messages as the dynamics sends them (``clock``: its clock message is sent too),
-        logged now; ``stamp_ns``: their header stamp (the step's simulation time). Loop thread; the
-        messages' bytes must not change afterwards."""
-        self._steps.append((self.now_ns(), clock, encoded, stamp_ns))
+        logged now, or ``ahead`` seconds from now (a state handed over before it is due is logged when
+        it is due, and no drain writes it before); ``stamp_ns``: their header stamp (the step's
+        simulation time). Loop thread; the messages' bytes must not change afterwards."""
+        self._steps.append((self.now_ns() + round(ahead * 1e9), clock, encoded, stamp_ns))
 
     def drain(self, write: Write, floor_ns: int, stopped_at: Callable[[], int | None] = lambda: None) -> int:
         """Write the steps logged before this drain began, oldest first, at their log times but never
         before ``floor_ns`` or the previous message's. ``stopped_at``: when a stop was requested
-        (None: not yet); a step logged after it is not written. Returns how many messages were not
-        written for that. Executor thread only.
+        (None: not yet); a step logged after it is not written (nor kept: one handed over ahead of a
+        time after the stop included). Returns how many messages were not written for that. Executor
+        thread only.
 
         The drain's own time is read before the stop: a stop requested after that read comes later
         than every step the drain writes, even when it is requested while the drain runs and the
@@ -56,7 +59,7 @@ class StepTap:
         stop_ns = stopped_at()
         refused = 0
         steps, names = self._steps, self.names
-        while steps and steps[0][0] <= until_ns:
+        while steps and (steps[0][0] <= until_ns or stop_ns is not None and steps[0][0] > stop_ns):
             logged_ns, clock, encoded, stamp_ns = steps.popleft()
             sent = [(topic, names[topic], data) for topic, data in encoded
                     if topic in names and (clock or topic is not topics.CLOCK)]
