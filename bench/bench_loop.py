@@ -27,7 +27,7 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.compiled import compile_kernel
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.trajectories import sample_plan
-from wallbot_sim.nodes.dynamics_loop import ConstraintSwitch, DynamicsLoop, NewPlan
+from wallbot_sim.nodes.dynamics_loop import ConstraintSwitch, DynamicsLoop, NewPlan, PreparedState
 from wallbot_sim.nodes.pacing import Pacer
 
 PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
@@ -52,11 +52,8 @@ class EncodingGraph:
     def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
 
-    def prepare_block(self, block: StepBlock) -> list[Callable[[bool, float], None]]:
-        return [lambda clock, ahead: None for _encoded in self.encoder.encode_rows(block)]
-
-    def hears_steps(self) -> bool:
-        return self.heard
+    def prepare_block(self, block: StepBlock) -> list[PreparedState]:
+        return [PreparedState(lambda clock, ahead: None, self.heard) for _encoded in self.encoder.encode_rows(block)]
 
     def publish_snapshot(self, snapshot) -> None:
         pass

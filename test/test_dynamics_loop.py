@@ -23,8 +23,8 @@ from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
 from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, BLOCK_PACED, COMMAND_WAIT_WARNING,
                                              ConstraintSwitch, Decision, DynamicsLoop, NewPlan, ParameterChange, Pause,
-                                             RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
-                                             TorqueCommand)
+                                             PreparedState, RecordProgress, Reset, ResumeSnapshot, RunState, Step,
+                                             Teleport, TorqueCommand)
 from wallbot_sim.nodes.pacing import Pacer
 
 DT = 1e-3
@@ -579,12 +579,13 @@ def test_the_loop_thread_wakes_on_a_posted_event_and_stops():
 
 class EncodingGraph(FakeGraph):
     """Publishes what the node publishes, the CDR bytes of every message with its /clock flag; with
-    ``blocks`` it takes blocks of states (prepare_block) too. ``heard``: a subscriber outside the process
-    takes the states (else a paced loop hands them over ahead of time; ``aheads``: by how much, per state)."""
+    ``blocks`` it takes blocks of states (prepare_block) too. ``heard_every``: a subscriber outside the process
+    takes every state (1), none (0), or those at multiples of this many steps (as a controller's control_odom);
+    a paced loop may hand the others over ahead of time (``aheads``: by how much, per state)."""
 
-    def __init__(self, blocks: bool, heard: bool = True) -> None:
+    def __init__(self, blocks: bool, heard_every: int = 1) -> None:
         super().__init__()
-        self.blocks, self.heard = blocks, heard
+        self.blocks, self.heard_every = blocks, heard_every
         self.encoder = StepEncoder()
         self.messages: list[tuple[list, bool]] = []
         self.block_sizes: list[int] = []
@@ -599,9 +600,6 @@ class EncodingGraph(FakeGraph):
     def encodes_blocks(self, burst: bool) -> bool:
         return self.blocks
 
-    def hears_steps(self) -> bool:
-        return self.heard
-
     def prepare_block(self, block):
         self.block_sizes.append(len(block.t))
         if self.published:  # how many steps after the newest state published the block starts
@@ -615,8 +613,9 @@ class EncodingGraph(FakeGraph):
                 if clock:
                     self.clocks.append(t)
             return send
-        return [sender(encoded, t, q) for encoded, t, q in zip(self.encoder.encode_rows(block), block.t.tolist(),
-                                                                 block.q)]
+        every = self.heard_every
+        return [PreparedState(sender(encoded, t, q), every > 0 and round(t / DT) % every == 0)
+                for encoded, t, q in zip(self.encoder.encode_rows(block), block.t.tolist(), block.q)]
 
 
 def run_as_fast_as_possible(blocks: bool) -> tuple[EncodingGraph, DynamicsLoop, FakeClock]:
@@ -734,50 +733,56 @@ def test_a_plan_that_gives_the_states_computed_ahead_keeps_them(renewal, recompu
 
 HANDED_OVER_EVENTS = {0: [TRACKING, plan(0.0, 0.3)],
                       33: [ConstraintSwitch(TRACKING.selection, BaumgarteGains(8.0, 8.0))],
-                      61: [plan(0.05, 0.35, radius=0.81)], 90: [Reset()], 95: [plan(0.0, 0.3)],
+                      61: [plan(0.05, 0.35, radius=0.81)], 90: [Reset(), plan(0.0, 0.3)],
                       150: [TorqueCommand((0.1, 0.2)), DRIVEN], 190: [TorqueCommand((-0.3, 0.2))]}
 """New gains, another reference, a reset and its new plan, then driven under two torques, by states published."""
 
 
-def run_handed_over(blocks: bool, heard: bool, applied_at: dict[int, int]) -> tuple[EncodingGraph, int]:
+def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) -> tuple[EncodingGraph, int]:
     """A paced run on the numba engine (factor 2) with ``HANDED_OVER_EVENTS`` posted once as many states as their
     key are out; ``applied_at`` maps each key to the count of states out when it was posted (filled in if empty,
     else used as the keys: a run of single steps then gets each event after the same state). Returns the graph
     and the ticks taken for 240 states."""
-    graph, log = EncodingGraph(blocks, heard), FakeLog()
+    graph, log = EncodingGraph(blocks, heard_every), FakeLog()
     loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 2.0, 'snapshot_period': 0.05,
                          'clock_rate_hz': 40.0, 'command_timeout': 1.0}, load_robot_parameters(None), graph, log,
                         Pacer(0, log.warning))
     given, pending, ticks = dict(applied_at), sorted(HANDED_OVER_EVENTS), 0
     while len(graph.published) < 240 and ticks < 1000:
-        while pending and len(graph.published) >= given.setdefault(pending[0], len(graph.published)):
-            for event in HANDED_OVER_EVENTS[pending.pop(0)]:
+        while pending and len(graph.published) >= given.get(pending[0], pending[0]):
+            key = pending.pop(0)
+            applied_at.setdefault(key, len(graph.published))
+            for event in HANDED_OVER_EVENTS[key]:
                 loop.post(event)
         loop.tick()
         ticks += 1
-    applied_at.update(given)
     return graph, ticks
 
 
 @NEEDS_NUMBA
-def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_block():
-    """Paced with no subscriber outside the process (a composed recorder takes the states from its tap), a block's
-    states are handed over at once, ahead of their due times, up to the next one carrying /clock or ending the
-    block, which waits until due: a tick (a wake-up) per block and per /clock, not per state. Events apply after
-    the last state handed over: the messages, /clock flags and snapshots are those of single steps given the
-    same events after the same states, to the bit."""
+@pytest.mark.parametrize('heard_every', [0, 7], ids=['nobody-outside', 'every-7th-heard'])
+def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_block(heard_every):
+    """Paced with no subscriber outside the process for a state (a composed recorder takes it from its tap), a
+    block's states are handed over at once, ahead of their due times, up to the next one carrying /clock, heard
+    outside (as a controller's control_odom) or ending the block, which waits until due: a tick (a wake-up) per
+    block and per such state, not per state. Events apply after the last state handed over: the messages, /clock
+    flags and snapshots are those of single steps given the same events after the same states, to the bit.
+    Driven without lockstep (from state 150 on) each state waits until due, so a command applies within a step."""
     applied_at: dict[int, int] = {}
-    early, early_ticks = run_handed_over(blocks=True, heard=False, applied_at=applied_at)
-    single, single_ticks = run_handed_over(blocks=False, heard=True, applied_at=applied_at)
-    heard, heard_ticks = run_handed_over(blocks=True, heard=True, applied_at={})
+    early, early_ticks = run_handed_over(True, heard_every, applied_at)
+    single, single_ticks = run_handed_over(False, 1, applied_at)
+    heard, heard_ticks = run_handed_over(True, 1, {})
     assert len(single.messages) == 240 and early.messages[:240] == single.messages
     kept = [(s.steps, s.q, s.qd) for s in single.snapshots]
     assert [(s.steps, s.q, s.qd) for s in early.snapshots][:len(kept)] == kept and len(kept) > 4
-    # handed over in a block's tick: everything but the states that wait until due (/clock, a block's last)
-    assert early_ticks < len(early.messages) / 4 and min(heard_ticks, single_ticks) > 0.9 * len(heard.messages)
-    assert all(ahead == 0.0 for (_encoded, clock), ahead in zip(early.messages, early.aheads) if clock)
-    assert len(early.clocks) > 8 and max(early.aheads) > 0.0 and not any(heard.aheads)
     assert sum(early.block_sizes) > len(early.messages)  # an event dropped states computed ahead
+    # under the trajectory task, all but the states that wait until due (/clock, heard, a block's last) in a tick
+    driven = applied_at[150]
+    assert early_ticks < driven / 4 + (len(early.messages) - driven) and min(heard_ticks, single_ticks) > 200
+    waited = [ahead == 0.0 for ahead in early.aheads]
+    assert all(waited[index] for index, (_encoded, clock) in enumerate(early.messages) if clock)
+    assert all(waited[index] for index, (t, _q) in enumerate(early.published) if heard_every and round(t / DT) % 7 == 0)
+    assert not all(waited[:driven]) and all(waited[driven:]) and not any(heard.aheads) and len(early.clocks) > 8
 
 
 DRIVEN_COMMANDS = {0: [DRIVEN], 4: [TorqueCommand((0.4, 0.3))], 57: [TorqueCommand((-0.2, 0.5))],
@@ -786,10 +791,11 @@ DRIVEN_COMMANDS = {0: [DRIVEN], 4: [TorqueCommand((0.4, 0.3))], 57: [TorqueComma
 
 
 def run_driven(blocks: bool, factor: float, lockstep_every: int = 0, events: dict[int, list] = DRIVEN_COMMANDS,
-               stop_at: float = 0.0, ticks: int = 260) -> tuple[EncodingGraph, FakeLog]:
+               stop_at: float = 0.0, ticks: int = 260, heard_every: int = 1) -> tuple[EncodingGraph, FakeLog]:
     """A driven run on the numba engine at ``factor`` (20: paced, a short sleep a step) with ``events`` by tick;
-    with ``lockstep_every``, a controller answers each state the loop waits on at once, with a torque of its time."""
-    graph, log = EncodingGraph(blocks), FakeLog()
+    with ``lockstep_every``, a controller answers each state the loop waits on at once, with a torque of its time.
+    ``heard_every``: which states a subscriber outside the process takes (``EncodingGraph``)."""
+    graph, log = EncodingGraph(blocks, heard_every), FakeLog()
     loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': factor, 'snapshot_period': 0.05,
                          'lockstep_every': lockstep_every, 'command_timeout': 0.03, 'stop_at': stop_at,
                          'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
@@ -803,23 +809,31 @@ def run_driven(blocks: bool, factor: float, lockstep_every: int = 0, events: dic
 
 
 @NEEDS_NUMBA
-@pytest.mark.parametrize('factor, lockstep_every, events, stop_at, ticks, timeouts, largest', [
-    (20.0, 0, DRIVEN_COMMANDS, 0.0, 260, 3, BLOCK_PACED),
-    (20.0, 20, {0: [DRIVEN]}, 0.0, 260, 0, 19),
-    (0.0, 40, {0: [DRIVEN]}, 0.25, 300, 6, 30)],  # answers at 0, 40, ..., 240 ms, each timed out 31 steps later
-    ids=['paced-free', 'paced-lockstep', 'fast-lockstep'])
+@pytest.mark.parametrize('factor, lockstep_every, events, stop_at, ticks, timeouts, largest, heard_every', [
+    (20.0, 0, DRIVEN_COMMANDS, 0.0, 260, 3, BLOCK_PACED, 1),
+    (20.0, 0, DRIVEN_COMMANDS, 0.0, 260, 3, BLOCK_PACED, 0),
+    (20.0, 20, {0: [DRIVEN]}, 0.0, 260, 0, 19, 1),
+    (20.0, 20, {0: [DRIVEN]}, 0.25, 300, 0, 19, 20),
+    (0.0, 40, {0: [DRIVEN]}, 0.25, 300, 6, 30, 1)],  # answers at 0, 40, ..., 240 ms, each timed out 31 steps later
+    ids=['paced-free', 'paced-free-unheard', 'paced-lockstep', 'paced-lockstep-control-odom', 'fast-lockstep'])
 def test_driven_blocks_hold_one_torque_and_publish_what_single_steps_publish(factor, lockstep_every, events,
-                                                                                 stop_at, ticks, timeouts, largest):
+                                                                                 stop_at, ticks, timeouts, largest,
+                                                                                 heard_every):
     """Driven, the loop takes blocks under the torque in force: a new command drops the states computed ahead
     and applies after the last one published; a block ends before the command times out (zero torque from
     there, said once) and at each lockstep state (the step after it waits for the answer). A new torque's
     first step is a single one (so the largest block after an answer is a step short of lockstep_every; at
     factor 0, the 30 steps left to the timeout). The messages, their wheel efforts included, and the snapshots
-    are those of one step per tick, to the bit."""
-    (single, single_log), (blocks, block_log) = (run_driven(b, factor, lockstep_every, events, stop_at, ticks)
-                                                 for b in (False, True))
+    are those of one step per tick, to the bit. With lockstep and only the lockstep states heard outside the
+    process (a controller's control_odom), the others are handed over ahead of time; free-running, a command may
+    come at any step, so each state waits until due even where nobody outside hears it."""
+    (single, single_log), (blocks, block_log) = (run_driven(b, factor, lockstep_every, events, stop_at, ticks,
+                                                            heard_every if b else 1) for b in (False, True))
     assert blocks.messages == single.messages and len(single.messages) > 240
     assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
     timed_out = block_log.said('no wheel_torque_cmd for 0.03 s')
     assert timed_out == single_log.said('no wheel_torque_cmd for 0.03 s') and len(timed_out) == timeouts
     assert max(blocks.block_sizes) == largest and not single.block_sizes
+    handed_over = [ahead > 0.0 for ahead in blocks.aheads]
+    assert any(handed_over) == (factor > 0.0 and lockstep_every > 0 and heard_every != 1)
+    assert not any(early for early, (t, _q) in zip(handed_over, blocks.published) if round(t / DT) % 20 == 0)

@@ -88,7 +88,8 @@ from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 from wallbot_sim.nodes.common import (COORDINATE, FRAME_PREFIX_DESCRIPTION, WHEEL_TORQUE_LIMIT, choice_reason, declare,
                                       heard_by_every, param_dict, parameter_result, range_reasons, run, steady_timer)
 from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
-                                             RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
+                                             PreparedState, RecordProgress, Reset, ResumeSnapshot, Step, Teleport,
+                                             TorqueCommand)
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY, Pacer
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
@@ -425,14 +426,17 @@ class DynamicsNode(Node):
             heard.discard(topics.CONTROL_ODOM)
         return self.noise is None and not (burst and heard)
 
-    def prepare_block(self, block: StepBlock) -> list[Callable[[bool, float], None]]:
+    def prepare_block(self, block: StepBlock) -> list[PreparedState]:
         heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states
-        return [lambda clock, ahead, encoded=encoded, stamp_ns=codec.to_nanoseconds(t): self._send(
-                    encoded, clock, stamp_ns, heard, ahead)
-                for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist())]
-
-    def hears_steps(self) -> bool:
-        return bool(self._heard())
+        every_state = bool(heard - {topics.CONTROL_ODOM})
+        prepared = []
+        for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist()):
+            stamp_ns = codec.to_nanoseconds(t)
+            prepared.append(PreparedState(
+                lambda clock, ahead, encoded=encoded, stamp_ns=stamp_ns: self._send(encoded, clock, stamp_ns, heard,
+                                                                                    ahead),
+                every_state or (topics.CONTROL_ODOM in heard and self._control_instant(stamp_ns))))
+        return prepared
 
     def _heard(self) -> set[topics.Topic]:
         # a per-step message nobody is matched to would only cost its write into Fast DDS
@@ -450,7 +454,7 @@ class DynamicsNode(Node):
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
               heard: set[topics.Topic], ahead: float = 0.0) -> None:
         """Publish one state's messages (/clock if ``clock``, the others where ``heard``); hand them to the tap,
-        ``ahead`` seconds before the state is due (the loop does so only where nothing is heard)."""
+        ``ahead`` seconds before the state is due (the loop does so only for a state nobody outside hears)."""
         for topic, data in encoded:
             if topic is not topics.CLOCK:
                 if topic in heard:

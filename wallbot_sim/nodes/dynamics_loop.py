@@ -240,13 +240,8 @@ class Graph(Protocol):
         """Whether ``prepare_block`` may be called (the messages carry the states as they are: no sensor noise);
         ``burst``: its states will be published back to back (factor 0), not each when it is due."""
 
-    def prepare_block(self, block: StepBlock) -> Sequence[Callable[[bool, float], None]]:
-        """``prepare`` of each state of ``block`` at once: one call per state, in order, publishes it (with
-        /clock if its first argument is true; the second, how many seconds before the state is due it is
-        handed over, 0 when it is due)."""
-
-    def hears_steps(self) -> bool:
-        """Whether a subscriber outside the loop's process takes some per-step message (control_odom included)."""
+    def prepare_block(self, block: StepBlock) -> Sequence[PreparedState]:
+        """``prepare`` of each state of ``block`` at once, in order."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
 
@@ -263,6 +258,17 @@ class Graph(Protocol):
         """Whether a wheel_torque_cmd publisher exists and hears odom (see ``heard_by_every``)."""
 
 
+@dataclass(frozen=True)
+class PreparedState:
+    """A state of a block with its messages encoded (``Graph.prepare_block``)."""
+
+    send: Callable[[bool, float], None]
+    """Publishes it, with /clock if the first argument is true; the second: how many seconds before its due time
+    it is handed over (0: when due; only a state not ``heard`` is handed over ahead of time)."""
+    heard: bool
+    """Whether a subscriber outside the loop's process takes one of its messages over DDS."""
+
+
 class Log(Protocol):
     def info(self, message: str, **kwargs: object) -> object: ...
 
@@ -276,9 +282,8 @@ class Ahead:
     """A block of steps computed ahead of publishing (``DynamicsLoop._start_block``)."""
 
     block: StepBlock
-    senders: Sequence[Callable[[bool, float], None]]
-    """Publish one state each (the arguments: with /clock, seconds ahead of its due time), from the graph's
-    ``prepare_block``."""
+    senders: Sequence[PreparedState]
+    """Its states' messages, from the graph's ``prepare_block``."""
     stamps: list[int]
     """Each state's simulation time (ns)."""
     before: tuple[int, np.ndarray, np.ndarray]
@@ -287,8 +292,8 @@ class Ahead:
     """The block's compute time per step (s)."""
     published: int = 0
     ahead_of_time: bool = False
-    """Paced with nobody outside the process hearing the states (``DynamicsLoop._publish_ahead``): each is handed
-    over at once, ahead of its due time, but those that carry /clock and the last, which wait until due."""
+    """Whether its states nobody outside the process hears are handed over ahead of their due times
+    (``DynamicsLoop._publish_ahead``)."""
 
 
 class DynamicsLoop:
@@ -927,10 +932,18 @@ class DynamicsLoop:
             ahead.senders = self._graph.prepare_block(ahead.block)
         sim.take(ahead.block)
         self.stepped = True
-        ahead.ahead_of_time = self._factor > 0.0 and not self._graph.hears_steps()
+        ahead.ahead_of_time = self._hands_over_ahead() and not all(state.heard for state in ahead.senders)
         self._ahead = ahead
         self._publish_ahead()
         return True
+
+    def _hands_over_ahead(self) -> bool:
+        """Whether a block's states may be handed over ahead of their due times: paced, and no command awaited
+        between two of its states (under the trajectory task commands are ignored; with lockstep the next is the
+        answer to the block's last state). A free-running driven loop publishes each when due: a command then
+        applies within a step of its arrival, not after the states handed over before it."""
+        lockstep = self.params['lockstep_every'] > 0 and not self.lockstep_lost
+        return self._factor > 0.0 and (self.sim.selection.trajectory or lockstep)
 
     def _compute_block(self, size: int) -> Ahead | None:
         """``size`` steps from the simulation's state, not taken yet and not encoded; None if one is not finite."""
@@ -950,7 +963,7 @@ class DynamicsLoop:
         messages. So each part takes the time up to the next state's due time, and the block boundary
         publishes a state without computing any: on a slow machine computing and encoding a block of 20 takes
         2-4 ms, which made the first state of every block late. ``all_at_once``: the three parts now (before
-        the wait for a block's last state handed over ahead of time; a state before it if it carries /clock).
+        the wait for the last state of a block handed over ahead of time).
         Any event but a recorder's progress drops the block (``tick``); so does a boundary that is not where
         it starts."""
         if all_at_once:
@@ -974,23 +987,24 @@ class DynamicsLoop:
     def _publish_ahead(self) -> None:
         """Publish the next state of the block computed ahead when it is due (at factor 0, all of them).
 
-        Paced with nobody outside the process hearing the states (``Ahead.ahead_of_time``), the states up to the
-        next one that carries /clock or ends the block are handed over at once, each ahead of its due time (a
-        composed recorder logs it then), and the loop sleeps until that one is due: a wake-up per block and per
-        /clock instead of one per state. Events still apply at the boundary after the last state published,
-        which is then the last handed over; they wait at most a block for it.
+        Handing over ahead of time (``Ahead.ahead_of_time``), the states up to the next one that carries /clock,
+        is heard outside the process (``PreparedState.heard``) or ends the block go out at once, each ahead of its
+        due time (a composed recorder's tap logs it then), and the loop sleeps until that one is due: with nobody
+        outside hearing the per-step topics, a wake-up per block and per /clock instead of one per state (the
+        next block prepared whole before its last). Events still apply at the boundary after the last state
+        published, then the last handed over; they wait at most a block for it.
         """
         ahead, sim, window = self._ahead, self.sim, self._window
         while True:
             row = ahead.published
             steps, last = ahead.before[0] + row + 1, row == len(ahead.stamps) - 1
             clock = self.clock_schedule.due(ahead.stamps[row], final=last and self._waits_next())
-            factor = self._factor  # another thread may set it to 0 meanwhile
-            early = ahead.ahead_of_time and not (clock or last) and factor > 0.0
+            state, factor = ahead.senders[row], self._factor  # another thread may set the factor to 0 meanwhile
+            early = ahead.ahead_of_time and not (clock or last or state.heard) and factor > 0.0
             if early:
                 lateness = time.perf_counter() - self.pacer.due(steps, sim.dt, factor)
             else:
-                if ahead.ahead_of_time:
+                if ahead.ahead_of_time and last:
                     self._prepare_next(all_at_once=True)
                 lateness = self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping)
             window.steps += 1
@@ -999,7 +1013,7 @@ class DynamicsLoop:
             window.lateness_max = max(window.lateness_max, lateness)
             if lateness > LATE_LIMIT:
                 window.late += 1
-            ahead.senders[row](clock, max(-lateness, 0.0))
+            state.send(clock, max(-lateness, 0.0))
             self._mark_sync()
             self._note_residual(float(ahead.block.table.residual[row]))
             ahead.published += 1
