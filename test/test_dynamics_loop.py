@@ -763,11 +763,11 @@ def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) 
 @pytest.mark.parametrize('heard_every', [0, 7], ids=['nobody-outside', 'every-7th-heard'])
 def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_block(heard_every):
     """Paced with no subscriber outside the process for a state (a composed recorder takes it from its tap), a
-    block's states are handed over at once, ahead of their due times, up to the next one carrying /clock, heard
-    outside (as a controller's control_odom) or ending the block, which waits until due: a tick (a wake-up) per
-    block and per such state, not per state. Events apply after the last state handed over: the messages, /clock
-    flags and snapshots are those of single steps given the same events after the same states, to the bit.
-    Driven without lockstep (from state 150 on) each state waits until due, so a command applies within a step."""
+    block's states are handed over at once, ahead of their due times, up to the next one carrying /clock or heard
+    outside (as a controller's control_odom), which waits until due: a tick (a wake-up) per block and per such
+    state, not per state. Events apply after the last state handed over: the messages, /clock flags and snapshots
+    are those of single steps given the same events after the same states, to the bit. Driven without lockstep
+    (from state 150 on) each state waits until due, so a command applies within a step."""
     applied_at: dict[int, int] = {}
     early, early_ticks = run_handed_over(True, heard_every, applied_at)
     single, single_ticks = run_handed_over(False, 1, applied_at)
@@ -776,7 +776,7 @@ def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_b
     kept = [(s.steps, s.q, s.qd) for s in single.snapshots]
     assert [(s.steps, s.q, s.qd) for s in early.snapshots][:len(kept)] == kept and len(kept) > 4
     assert sum(early.block_sizes) > len(early.messages)  # an event dropped states computed ahead
-    # under the trajectory task, all but the states that wait until due (/clock, heard, a block's last) in a tick
+    # under the trajectory task, all but the states that wait until due (/clock, heard) in a block's tick
     driven = applied_at[150]
     assert early_ticks < driven / 4 + (len(early.messages) - driven) and min(heard_ticks, single_ticks) > 200
     waited = [ahead == 0.0 for ahead in early.aheads]

@@ -22,10 +22,10 @@ a busy machine does not delay its wake-ups (``pacing``); off by default, since t
 saves is shifted onto the rest of the graph (controllers, recorders) on a small machine.
 On the compiled engine with ideal contact (under the trajectory task, or driven under one torque),
 the loop computes blocks of steps ahead and publishes each state when due (``dynamics_loop``: an
-event drops the states not yet published, so it applies as between single steps). Where no
-subscriber outside the process hears the per-step topics (a composed recorder takes them from its
-tap), it hands a block's states over at once, each logged at its due time, and wakes only for
-the states that carry /clock and a block's last.
+event drops the states not yet published, so it applies as between single steps). A state no
+subscriber outside the process hears (a composed recorder takes the per-step topics from its tap)
+is handed over ahead of time, logged at its due time, under the trajectory task or with lockstep:
+the loop wakes once per block and for the states that carry /clock or are heard outside.
 
 Back-pressure (lossless recording at any factor). DDS acknowledgements are not enough: a
 reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the

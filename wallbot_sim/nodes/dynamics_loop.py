@@ -57,6 +57,10 @@ BLOCK_MOST = 50
 """Most steps computed as one block at real-time factor 0 (:meth:`DynamicsLoop._block_size`), all
 published in one tick: an event waits at most this many steps (about 2 ms of wall time) for its step
 boundary."""
+HANDOVER_LEAD = 0.005
+"""Wall seconds before a state handed over ahead of time is due that the loop wakes to hand it over
+(``DynamicsLoop._publish_ahead``): a wake-up up to this much later than asked makes no state late (the
+project's VMs woke a sleeping 1 kHz loop up to 9.7 ms late, most of those late by 2-5 ms)."""
 BLOCK_PACED = 20
 """Most steps computed as one block while paced: each is published when due, one a tick, and an event
 arriving between them drops the rest (:meth:`DynamicsLoop._rewind`). Small enough that computing a
@@ -963,7 +967,7 @@ class DynamicsLoop:
         messages. So each part takes the time up to the next state's due time, and the block boundary
         publishes a state without computing any: on a slow machine computing and encoding a block of 20 takes
         2-4 ms, which made the first state of every block late. ``all_at_once``: the three parts now (before
-        the wait for the last state of a block handed over ahead of time).
+        a wait of a block handed over ahead of time).
         Any event but a recorder's progress drops the block (``tick``); so does a boundary that is not where
         it starts."""
         if all_at_once:
@@ -987,12 +991,12 @@ class DynamicsLoop:
     def _publish_ahead(self) -> None:
         """Publish the next state of the block computed ahead when it is due (at factor 0, all of them).
 
-        Handing over ahead of time (``Ahead.ahead_of_time``), the states up to the next one that carries /clock,
-        is heard outside the process (``PreparedState.heard``) or ends the block go out at once, each ahead of its
-        due time (a composed recorder's tap logs it then), and the loop sleeps until that one is due: with nobody
-        outside hearing the per-step topics, a wake-up per block and per /clock instead of one per state (the
-        next block prepared whole before its last). Events still apply at the boundary after the last state
-        published, then the last handed over; they wait at most a block for it.
+        Handing over ahead of time (``Ahead.ahead_of_time``), the states up to the next one that carries /clock
+        or is heard outside the process (``PreparedState.heard``), which waits until due, go out at once,
+        ``HANDOVER_LEAD`` before the first of them is due, each logged at its due time by a composed recorder's
+        tap: with nobody outside hearing the per-step topics, a wake-up per block and per /clock instead of one
+        per state, and the next block prepared whole before each wait. Events still apply at the boundary after
+        the last state published, then the last handed over; they wait at most a block for it.
         """
         ahead, sim, window = self._ahead, self.sim, self._window
         while True:
@@ -1000,11 +1004,15 @@ class DynamicsLoop:
             steps, last = ahead.before[0] + row + 1, row == len(ahead.stamps) - 1
             clock = self.clock_schedule.due(ahead.stamps[row], final=last and self._waits_next())
             state, factor = ahead.senders[row], self._factor  # another thread may set the factor to 0 meanwhile
-            early = ahead.ahead_of_time and not (clock or last or state.heard) and factor > 0.0
+            early = ahead.ahead_of_time and not (clock or state.heard) and factor > 0.0
             if early:
-                lateness = time.perf_counter() - self.pacer.due(steps, sim.dt, factor)
+                due = self.pacer.due(steps, sim.dt, factor)
+                if due - time.perf_counter() > HANDOVER_LEAD:
+                    self._prepare_next(all_at_once=True)
+                    self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping, lead=HANDOVER_LEAD)
+                lateness = time.perf_counter() - due
             else:
-                if ahead.ahead_of_time and last:
+                if ahead.ahead_of_time:
                     self._prepare_next(all_at_once=True)
                 lateness = self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping)
             window.steps += 1

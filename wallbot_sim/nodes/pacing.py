@@ -74,8 +74,10 @@ class Pacer:
         """The SCHED_FIFO priority the loop thread holds now (0: normal scheduling)."""
         return self._applied
 
-    def wait(self, step: int, dt: float, factor: Callable[[], float], stopping: threading.Event) -> float:
-        """Sleep until step number ``step`` is due at the current factor; return the lateness (s).
+    def wait(self, step: int, dt: float, factor: Callable[[], float], stopping: threading.Event,
+             lead: float = 0.0) -> float:
+        """Sleep until step number ``step`` is due at the current factor, or ``lead`` seconds before; return
+        the lateness (s) against that time.
 
         ``factor()`` is read again while sleeping: when it changes, the step is due at once and
         the next one starts a new segment. At factor 0 nothing waits and the lateness is 0.
@@ -84,7 +86,7 @@ class Pacer:
         if paced <= 0.0:
             self._schedule(0)
             return 0.0
-        due = self.due(step, dt, paced)
+        due = self.due(step, dt, paced) - lead
         remaining = due - time.perf_counter()
         self._schedule(self._priority if remaining > 0.0 else 0)
         while remaining > 0.0 and not stopping.is_set():
