@@ -57,14 +57,14 @@ BLOCK_MOST = 50
 """Most steps computed as one block at real-time factor 0 (:meth:`DynamicsLoop._block_size`), all
 published in one tick: an event waits at most this many steps (about 2 ms of wall time) for its step
 boundary."""
-HANDOVER_LEAD = 0.005
-"""Wall seconds before a state handed over ahead of time is due that the loop wakes to hand it over
-(``DynamicsLoop._publish_ahead``): a wake-up up to this much later than asked makes no state late (the
-project's VMs woke a sleeping 1 kHz loop up to 9.7 ms late, most of those late by 2-5 ms)."""
 BLOCK_PACED = 20
 """Most steps computed as one block while paced: each is published when due, one a tick, and an event
 arriving between them drops the rest (:meth:`DynamicsLoop._rewind`). Small enough that computing a
 block stays well inside the 1 ms before the next state is due."""
+HANDOVER_LEAD = 0.005
+"""Wall seconds before a state handed over ahead of time is due that the loop wakes to hand it over
+(``DynamicsLoop._publish_ahead``): a wake-up up to this much later than asked makes no state late (the
+project's VMs woke a sleeping 1 kHz loop up to 9.7 ms late, most of those late by 2-5 ms)."""
 COMMAND_WAIT_WARNING = 5.0
 """Wall seconds of a wait for the controller (wait_for_command) after which the log says so: a
 controller started with the dynamics is there well before, so a longer wait is worth a line."""
@@ -996,7 +996,7 @@ class DynamicsLoop:
         ``HANDOVER_LEAD`` before the first of them is due, each logged at its due time by a composed recorder's
         tap: with nobody outside hearing the per-step topics, a wake-up per block and per /clock instead of one
         per state, and the next block prepared whole before each wait. Events still apply at the boundary after
-        the last state published, then the last handed over; they wait at most a block for it.
+        the last state published, then the last handed over; they wait at most a block and the lead for it.
         """
         ahead, sim, window = self._ahead, self.sim, self._window
         while True:
