@@ -738,15 +738,26 @@ HANDED_OVER_EVENTS = {0: [TRACKING, plan(0.0, 0.3)],
 """New gains, another reference, a reset and its new plan, then driven under two torques, by states published."""
 
 
+class CountingPacer(Pacer):
+    """Counts the loop's waits (each a wake-up when it sleeps)."""
+
+    waits = 0
+
+    def wait(self, *args, **kwargs) -> float:
+        self.waits += 1
+        return super().wait(*args, **kwargs)
+
+
 def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) -> tuple[EncodingGraph, int]:
     """A paced run on the numba engine (factor 2) with ``HANDED_OVER_EVENTS`` posted once as many states as their
     key are out; ``applied_at`` maps each key to the count of states out when it was posted (filled in if empty,
     else used as the keys: a run of single steps then gets each event after the same state). Returns the graph
-    and the ticks taken for 240 states."""
+    and the loop's waits for 240 states."""
     graph, log = EncodingGraph(blocks, heard_every), FakeLog()
+    pacer = CountingPacer(0, log.warning)
     loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 2.0, 'snapshot_period': 0.05,
                          'clock_rate_hz': 40.0, 'command_timeout': 1.0}, load_robot_parameters(None), graph, log,
-                        Pacer(0, log.warning))
+                        pacer)
     given, pending, ticks = dict(applied_at), sorted(HANDED_OVER_EVENTS), 0
     while len(graph.published) < 240 and ticks < 1000:
         while pending and len(graph.published) >= given.get(pending[0], pending[0]):
@@ -756,7 +767,7 @@ def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) 
                 loop.post(event)
         loop.tick()
         ticks += 1
-    return graph, ticks
+    return graph, pacer.waits
 
 
 @NEEDS_NUMBA
@@ -764,21 +775,21 @@ def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) 
 def test_states_nobody_outside_hears_are_handed_over_ahead_of_time_a_wake_up_a_block(heard_every):
     """Paced with no subscriber outside the process for a state (a composed recorder takes it from its tap), a
     block's states are handed over at once, ahead of their due times, up to the next one carrying /clock or heard
-    outside (as a controller's control_odom), which waits until due: a tick (a wake-up) per block and per such
+    outside (as a controller's control_odom), which waits until due: a wait (a wake-up) per block and per such
     state, not per state. Events apply after the last state handed over: the messages, /clock flags and snapshots
     are those of single steps given the same events after the same states, to the bit. Driven without lockstep
     (from state 150 on) each state waits until due, so a command applies within a step."""
     applied_at: dict[int, int] = {}
-    early, early_ticks = run_handed_over(True, heard_every, applied_at)
-    single, single_ticks = run_handed_over(False, 1, applied_at)
-    heard, heard_ticks = run_handed_over(True, 1, {})
+    early, early_waits = run_handed_over(True, heard_every, applied_at)
+    single, single_waits = run_handed_over(False, 1, applied_at)
+    heard, heard_waits = run_handed_over(True, 1, {})
     assert len(single.messages) == 240 and early.messages[:240] == single.messages
     kept = [(s.steps, s.q, s.qd) for s in single.snapshots]
     assert [(s.steps, s.q, s.qd) for s in early.snapshots][:len(kept)] == kept and len(kept) > 4
     assert sum(early.block_sizes) > len(early.messages)  # an event dropped states computed ahead
-    # under the trajectory task, all but the states that wait until due (/clock, heard) in a block's tick
+    # under the trajectory task, all but the states that wait until due (/clock, heard) after one wait a block
     driven = applied_at[150]
-    assert early_ticks < driven / 4 + (len(early.messages) - driven) and min(heard_ticks, single_ticks) > 200
+    assert early_waits < driven / 4 + (len(early.messages) - driven) and min(heard_waits, single_waits) > 200
     waited = [ahead == 0.0 for ahead in early.aheads]
     assert all(waited[index] for index, (_encoded, clock) in enumerate(early.messages) if clock)
     assert all(waited[index] for index, (t, _q) in enumerate(early.published) if heard_every and round(t / DT) % 7 == 0)

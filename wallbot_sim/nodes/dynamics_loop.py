@@ -999,6 +999,7 @@ class DynamicsLoop:
         the last state published, then the last handed over; they wait at most a block and the lead for it.
         """
         ahead, sim, window = self._ahead, self.sim, self._window
+        woke = False  # handing over ahead of time, the first state of this call waits, the rest go with it
         while True:
             row = ahead.published
             steps, last = ahead.before[0] + row + 1, row == len(ahead.stamps) - 1
@@ -1007,9 +1008,10 @@ class DynamicsLoop:
             early = ahead.ahead_of_time and not (clock or state.heard) and factor > 0.0
             if early:
                 due = self.pacer.due(steps, sim.dt, factor)
-                if due - time.perf_counter() > HANDOVER_LEAD:
+                if not woke and due - time.perf_counter() > HANDOVER_LEAD:
                     self._prepare_next(all_at_once=True)
                     self.pacer.wait(steps, sim.dt, lambda: self._factor, self.stopping, lead=HANDOVER_LEAD)
+                woke = True
                 lateness = time.perf_counter() - due
             else:
                 if ahead.ahead_of_time:
