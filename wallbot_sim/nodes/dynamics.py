@@ -411,8 +411,12 @@ class DynamicsNode(Node):
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
-        encoded = self.encoder.encode(out, sensed)
-        return lambda: self._send(encoded, clock, codec.to_nanoseconds(out.t), self._heard())
+        encoded, stamp_ns = self.encoder.encode(out, sensed), codec.to_nanoseconds(out.t)
+
+        def send() -> None:
+            heard = self._heard()
+            self._send(encoded, clock, stamp_ns, heard, self._to_controller(heard, stamp_ns), 0.0)
+        return send
 
     def encodes_blocks(self, burst: bool) -> bool:
         # A burst of a block's messages (hundreds within a millisecond) can overflow a DDS subscriber's
@@ -432,10 +436,11 @@ class DynamicsNode(Node):
         prepared = []
         for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist()):
             stamp_ns = codec.to_nanoseconds(t)
+            controller = self._to_controller(heard, stamp_ns)
             prepared.append(PreparedState(
-                lambda clock, ahead, encoded=encoded, stamp_ns=stamp_ns: self._send(encoded, clock, stamp_ns, heard,
-                                                                                    ahead),
-                every_state or (topics.CONTROL_ODOM in heard and self._control_instant(stamp_ns))))
+                lambda clock, ahead, encoded=encoded, stamp_ns=stamp_ns, controller=controller: self._send(
+                    encoded, clock, stamp_ns, heard, controller, ahead),
+                every_state or controller))
         return prepared
 
     def _heard(self) -> set[topics.Topic]:
@@ -447,19 +452,22 @@ class DynamicsNode(Node):
             heard.add(topics.CONTROL_ODOM)
         return heard
 
-    def _control_instant(self, stamp_ns: int) -> bool:
+    def _to_controller(self, heard: set[topics.Topic], stamp_ns: int) -> bool:
+        """Whether the state at ``stamp_ns`` goes out on control_odom: subscribed, and a control instant."""
         every = self.params['control_odom_every']
-        return every > 0 and round(stamp_ns * 1e-9 * self.params['rate_hz']) % every == 0
+        return (topics.CONTROL_ODOM in heard and every > 0
+                and round(stamp_ns * 1e-9 * self.params['rate_hz']) % every == 0)
 
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
-              heard: set[topics.Topic], ahead: float = 0.0) -> None:
-        """Publish one state's messages (/clock if ``clock``, the others where ``heard``); hand them to the tap,
-        ``ahead`` seconds before the state is due (the loop does so only for a state nobody outside hears)."""
+              heard: set[topics.Topic], controller: bool, ahead: float) -> None:
+        """Publish one state's messages (/clock if ``clock``, the others where ``heard``, odom on control_odom if
+        ``controller``: ``_to_controller``); hand them to the tap, ``ahead`` seconds before the state is due (the
+        loop does so only for a state nobody outside hears)."""
         for topic, data in encoded:
             if topic is not topics.CLOCK:
                 if topic in heard:
                     self.publishers_[topic].publish(data)
-                if topic is topics.ODOM and topics.CONTROL_ODOM in heard and self._control_instant(stamp_ns):
+                if topic is topics.ODOM and controller:
                     self.control_odom_pub.publish(data)
             elif clock:
                 self.publishers_[topic].publish(data)
