@@ -20,18 +20,19 @@ and nothing else) in this process, under the dynamics' scheduling, for --sleep-s
 after the runs: its wake-ups later than 2 ms per minute are what the machine gives any sleeping
 1 kHz loop, beside the graph's late steps per minute.
 
-    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine python|numba]
-                                [--markers | --foxglove] [--compose] [--controller | --cmd-vel]
+    python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine numba|python]
+                                [--markers | --foxglove] [--no-compose] [--controller | --cmd-vel]
 
-``--engine`` is the dynamics' (``run --engine``; default python, the model); with numba the
-kernel is compiled here before the runs if numba's cache lacks it, so no run waits for it.
+With no options it measures the graph as ``wallbot-sim run circle`` starts it. ``--engine`` is the
+dynamics' (``run --engine``; default numba, run's); ``--engine python`` measures the model as written.
 
 ``--markers`` runs the graph with ``run --markers`` (viewer_node at its 30 frames per second, nothing
 subscribing its markers), ``--foxglove`` with ``run --foxglove`` (the viewer also serving the live
 view, which builds the markers every frame; no client connected), so its cost shows beside the others'.
 
-``--compose`` runs the graph with ``run --compose``: the dynamics and the recorder in one process
-(dynamics_recorder_node, the per-step topics recorded in process), shown as one line.
+By default the dynamics and the recorder run in one process (dynamics_recorder_node, the per-step
+topics recorded in process; ``run``'s default), shown as one line; ``--no-compose`` runs them as two
+(``run --no-compose``, everything over DDS).
 
 ``--controller`` runs the closed loop, ``run --controller``: the tracking controller answering every
 40th state in lockstep, its CPU share beside the others'. ``--cmd-vel`` runs ``run rest --drive
@@ -61,8 +62,7 @@ from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import ChildProcesses, child_processes, cpu_seconds
 from wallbot_sim.model import ConstraintSelection, Robot
-from wallbot_sim.model.compiled import compile_kernel
-from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
+from wallbot_sim.model.simulation import ENGINES, NUMBA
 from wallbot_sim.nodes.dynamics_loop import LATE_LIMIT
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
@@ -70,7 +70,7 @@ NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.no
 """The recorded graph's nodes, by the module each child of ``run`` runs."""
 COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder',
                   **{name: module for name, module in NODES.items() if name not in ('dynamics', 'recorder')}}
-"""The nodes of ``run --compose``."""
+"""The nodes of ``run`` (``--compose``, its default)."""
 LOOPS = {'open': ('circle', [], None, None),
          'controller': ('circle', ['--controller'], None, 'wallbot_sim.nodes.controller'),
          'cmd_vel': ('rest', ['--drive', 'cmd_vel'], 'trajectory', 'wallbot_sim.nodes.cmd_vel')}
@@ -143,7 +143,7 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
               engine: str, viewer: list[str], compose: bool, priority: int, loop: str) -> Run:
     """Run the circle scenario at ``factor`` for ``duration`` simulated seconds with the dynamics'
     ``engine``, sampling /proc; ``viewer``: the run's options that start the viewer (none: no viewer);
-    ``compose``: with ``run --compose``; ``priority``: its ``--realtime-priority``; ``loop``: the
+    ``compose``: ``run --compose`` or ``--no-compose``; ``priority``: its ``--realtime-priority``; ``loop``: the
     ``LOOPS`` entry (open loop, ``run --controller``, ``run rest --drive cmd_vel``)."""
     name = f'run_factor_{factor:g}'
     scenario, options, without, controller = LOOPS[loop]
@@ -154,7 +154,7 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
         nodes = {**nodes, loop: controller}
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', scenario, '--duration', duration,
                           '--real-time-factor', factor, '--no-plots', '--out', out, '--engine', engine,
-                          '--realtime-priority', priority, *viewer, *(['--compose'] if compose else []),
+                          '--realtime-priority', priority, *viewer, '--compose' if compose else '--no-compose',
                           *options], name)
     pids: dict[str, int] = {}
     samples: list[tuple[float, dict[str, float]]] = []
@@ -208,13 +208,13 @@ def main() -> int:
                         help='simulated seconds the two-pinv model steps, before and after the runs (default 2)')
     parser.add_argument('--sleep-seconds', type=float, default=20.0,
                         help='seconds the bare 1 kHz sleep loop runs, before and after the runs (default 20)')
-    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help="the dynamics' engine (run --engine; default python)")
+    parser.add_argument('--engine', choices=ENGINES, default=NUMBA,
+                        help="the dynamics' engine (run --engine; default numba, run's)")
     choice = parser.add_mutually_exclusive_group()
     choice.add_argument('--markers', action='store_true', help='run with --markers (viewer_node)')
     choice.add_argument('--foxglove', action='store_true', help='run with --foxglove on a free port')
-    parser.add_argument('--compose', action='store_true',
-                        help='run with --compose (the dynamics and the recorder in one process)')
+    parser.add_argument('--compose', action=argparse.BooleanOptionalAction, default=True,
+                        help="the dynamics and the recorder in one process (run's default), or two (--no-compose)")
     closed = parser.add_mutually_exclusive_group()
     closed.add_argument('--controller', action='store_const', dest='loop', const='controller', default='open',
                         help='run with --controller (the tracking controller in lockstep, driven mode)')
@@ -224,8 +224,6 @@ def main() -> int:
                         help="run with --realtime-priority N (SCHED_FIFO for the dynamics' loop thread; default 0)")
     args = parser.parse_args()
     viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
-    if args.engine == NUMBA:
-        compile_kernel()
 
     claim = claim_domain_id()
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_graph_'))
@@ -252,7 +250,7 @@ def main() -> int:
     print(f'two-pinv model alone (circle, all constraints, 1 kHz): {model:.3f} CPU s per simulated s '
           f'(before the runs {model_before:.3f}, after {model_after:.3f})')
     scenario, options, _without, _controller = LOOPS[args.loop]
-    composed = ((' --compose' if args.compose else '') + ''.join(f' {option}' for option in options)
+    composed = (('' if args.compose else ' --no-compose') + ''.join(f' {option}' for option in options)
                 + (f' --realtime-priority {args.realtime_priority}' if args.realtime_priority else ''))
     print(f'\nwallbot-sim run {scenario} --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')

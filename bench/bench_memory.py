@@ -4,9 +4,9 @@ Starts ``wallbot-sim run circle`` (the real graph, factor 1, all constraints, re
 bag), samples VmRSS of its dynamics and recorder processes every few seconds, and stops the run
 with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end, and the growth.
 
-    python bench/bench_memory.py --duration 600      # the issue's 10-minute figure
-    python bench/bench_memory.py --duration 600 --compose --engine numba   # the composed process
-    python bench/bench_memory.py --duration 600 --compose --engine numba --controller   # the closed loop
+    python bench/bench_memory.py --duration 600      # the issue's 10-minute figure: run's defaults, one process
+    python bench/bench_memory.py --duration 600 --controller   # the closed loop
+    python bench/bench_memory.py --duration 600 --no-compose --engine python   # two processes, the model as written
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
 COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder'}
-"""The process of ``run --compose`` that holds both."""
+"""The process of ``run`` (``--compose``, its default) that holds both."""
 CONTROLLER = {'controller': 'wallbot_sim.nodes.controller'}
 """The tracking controller of ``run --controller``."""
 
@@ -31,8 +31,10 @@ CONTROLLER = {'controller': 'wallbot_sim.nodes.controller'}
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
-    parser.add_argument('--compose', action='store_true', help='run --compose: the dynamics and recorder in one process')
-    parser.add_argument('--engine', choices=('python', 'numba'), default='python', help="the dynamics' engine")
+    parser.add_argument('--compose', action=argparse.BooleanOptionalAction, default=True,
+                        help="the dynamics and the recorder in one process (run's default), or two (--no-compose)")
+    parser.add_argument('--engine', choices=('python', 'numba'), default='numba',
+                        help="the dynamics' engine (default numba, run's)")
     parser.add_argument('--controller', action='store_true', help='run --controller: the closed loop (driven mode)')
     args = parser.parse_args()
     nodes = {**(COMPOSED_NODES if args.compose else NODES), **(CONTROLLER if args.controller else {})}
@@ -40,7 +42,8 @@ def main() -> int:
     launcher = ChildProcesses(work / 'logs', os.environ, stop_timeout=120.0)
     run = launcher.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'run', 'circle', '--duration', '1e6',
                           '--no-plots', '--out', str(work / 'run'), '--engine', args.engine,
-                          *(['--compose'] if args.compose else []), *(['--controller'] if args.controller else [])],
+                          '--compose' if args.compose else '--no-compose',
+                          *(['--controller'] if args.controller else [])],
                          'run')
     try:
         pids: dict[str, int] = {}

@@ -12,11 +12,13 @@ Arguments (defaults as ``wallbot-sim run``):
   robot:=PATH.yaml                     robot parameter file (default: the installed config/robot.yaml)
   contact:=ideal|coulomb               wheel-wall contact model (coulomb with controller:=true)
   adhesion_force:=N                    adhesion force in N (default: the robot file's)
-  engine:=python|numba                 how the dynamics computes its steps and the controller its law
-                                       (numba: the compiled kernel)
+  engine:=numba|python                 how the dynamics computes its steps and the controller its law
+                                       (numba: the compiled kernel; python: the model as written)
   viewer:=false                        true: viewer_node publishes markers (and /tf with tf2_msgs installed)
-  compose:=false                       true (with record): dynamics and recorder in one process,
-                                       dynamics_recorder_node; the per-step topics are recorded in process
+  compose:=true                        with record: dynamics and recorder in one process,
+                                       dynamics_recorder_node, the per-step topics recorded in process;
+                                       false: two processes (a restarted dynamics resumes from the
+                                       snapshot the recorder keeps)
   drive:=cmd_vel|joint_commands        the robot at rest at the origin driven by you, as `wallbot-sim run rest
                                        --drive`: cmd_vel_node or joint_bridge_node instead of the trajectory
                                        (scenario, constraints and controller left at their defaults); default
@@ -59,11 +61,13 @@ ARGUMENTS = {
     'robot': ('', 'robot parameter YAML (empty: the installed config/robot.yaml)'),
     'contact': ('ideal', 'wheel-wall contact model: ideal or coulomb (coulomb with controller:=true)'),
     'adhesion_force': ('', "adhesion force in N (empty: the robot file's)"),
-    'engine': ('python', "how the dynamics computes its steps and the controller its law: python, or numba (the "
-                         "batch's compiled kernel; it compiles on first use on a machine)"),
+    'engine': ('numba', "how the dynamics computes its steps and the controller its law: numba (the batch's "
+                        "compiled kernel; a machine's first start compiles it, about a minute), or python (the "
+                        'model as written)'),
     'viewer': ('false', 'true: viewer_node publishes markers (and /tf where tf2_msgs is installed)'),
-    'compose': ('false', 'true (with record): the dynamics and the recorder in one process (dynamics_recorder_node), '
-                         'the per-step topics recorded in process'),
+    'compose': ('true', 'with record: the dynamics and the recorder in one process (dynamics_recorder_node), the '
+                        'per-step topics recorded in process; false: two processes (a restarted dynamics resumes '
+                        'from the snapshot the recorder keeps)'),
     'drive': ('', f'{" or ".join(DRIVES)}: the robot at rest at the origin driven by you, as wallbot-sim run rest '
                   '--drive (scenario, constraints and controller stay at their defaults); empty: the scenario'),
     'namespace': (topics.NAMESPACE, 'the namespace of every node (a second robot in the domain: its own, '

@@ -74,15 +74,14 @@ def test_run_records_what_simulate_computes(tmp_path, scenario, factor, duration
 
 
 def test_a_graph_on_the_numba_engine_records_what_simulate_on_it_computes(tmp_path):
-    """run --engine numba (factor 0): the odometry is simulate --engine numba's exactly (the same
-    compiled steps on the same plans) and the Python model's to 1e-9 relative."""
+    """run on its default engine, numba (factor 0): the odometry is simulate --engine numba's exactly
+    (the same compiled steps on the same plans) and the Python model's to 1e-9 relative. The run
+    compiles the kernel, or loads it from numba's cache, before its nodes start."""
     from wallbot_sim.model.batch import kernel
     if not kernel.available():
         pytest.skip('numba is not installed')
-    from wallbot_sim.model.compiled import compile_kernel
-    compile_kernel()  # so that the node loads it from numba's cache instead of compiling it for up to a minute
     out = tmp_path / 'run'
-    result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--engine', 'numba',
+    result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0',
                              '--realtime-priority', '50', '--no-plots', '--out', str(out)], capture_output=True, text=True,
                             timeout=240)
     assert result.returncode == 0, result.stderr + result.stdout
@@ -121,16 +120,20 @@ def start_run(process_runner, out: Path, *extra: str) -> subprocess.Popen:
         time.sleep(0.2)
 
 
-def test_a_node_that_dies_ends_the_run_with_its_status_and_log(tmp_path, process_runner):
+@pytest.mark.parametrize('compose, node', [('--compose', 'dynamics_recorder'), ('--no-compose', 'dynamics')])
+def test_a_node_that_dies_ends_the_run_with_its_status_and_log(tmp_path, process_runner, compose, node):
     out = tmp_path / 'run'
-    process = start_run(process_runner, out)
-    dynamics = [pid for pid, cmd in child_processes(process.pid).items() if 'wallbot_sim.nodes.dynamics' in cmd]
+    process = start_run(process_runner, out, compose)
+    dynamics = [pid for pid, cmd in child_processes(process.pid).items()
+                if re.search(rf'wallbot_sim\.nodes\.{node}\b', cmd)]
     assert len(dynamics) == 1
     os.kill(dynamics[0], signal.SIGKILL)
     assert process.wait(timeout=60) == 1
     error = process_runner.output('run').strip().splitlines()[-1]
-    assert 'node dynamics exited with status -9' in error and str(out / 'logs' / 'dynamics.log') in error
+    assert f'node {node} exited with status -9' in error and str(out / 'logs' / f'{node}.log') in error
     assert 'partial bag kept' in error
+    # composed, the recorder died with the dynamics, its bag unclosed: run rebuilt its index and metadata
+    assert ('its recorder did not close it; reindexed' in error) == (node == 'dynamics_recorder')
     assert (out / 'bag' / 'metadata.yaml').is_file() and len(odometry(out / 'bag')) > 500
     assert child_processes(process.pid) == {}
 
@@ -191,7 +194,8 @@ def test_a_headless_bag_holds_the_messages_of_a_graph_run(tmp_path):
 
     graph_out, headless = tmp_path / 'run', tmp_path / 'headless'
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1', '--real-time-factor', '0', '--no-plots',
-                             '--out', str(graph_out)], capture_output=True, text=True, timeout=180)
+                             '--engine', 'python', '--out', str(graph_out)], capture_output=True, text=True,
+                            timeout=180)
     assert result.returncode == 0, result.stderr
     result = subprocess.run([*WALLBOT, 'simulate', '--scenario', 'circle', '--constraints', 'belt,non_lateral,nonslip',
                              '--duration', '1', '--bag', str(headless), '--quiet'], capture_output=True, text=True,
@@ -304,7 +308,7 @@ def step_messages(bag: Path) -> tuple[dict[str, dict[int, bytes]], list[int]]:
 
 @pytest.mark.parametrize('engine', ['python', 'numba'])
 def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, engine):
-    """run --compose (the per-step topics through the in-process tap) and run (all over DDS) of the
+    """run --compose (the per-step topics through the in-process tap) and --no-compose (all over DDS) of the
     same scenario at factor 0: the same per-step messages byte for byte, a step every 1 ms, the
     log times never going back in the file; the robot model recorded by each. On the numba engine
     the dynamics takes its steps in blocks at factor 0, encoded at once. And composed at factor 2:
@@ -322,7 +326,7 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, eng
 
     bags = {}
     for label, extra in (('composed', ['--compose', '--real-time-factor', '0']),
-                         ('separate', ['--real-time-factor', '0']),
+                         ('separate', ['--no-compose', '--real-time-factor', '0']),
                          ('paced', ['--compose', '--real-time-factor', '2'])):
         out = tmp_path / label
         result = subprocess.run([*WALLBOT, 'run', 'circle', '--duration', '1.5',

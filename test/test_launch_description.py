@@ -20,6 +20,20 @@ from wallbot_sim.graph_description import (CMD_VEL_STEPS, CONTROL_STEPS, EXECUTA
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
+RUN_DEFAULTS = {'engine': 'numba', 'compose': True}
+"""What ``wallbot-sim run`` and the launch file start by default beside the graph description's own defaults
+(the nodes' parameters' defaults: python, two processes)."""
+
+
+def circle_graph(**options):
+    """The circle with every constraint, as run and the launch file start it, with ``options``."""
+    return describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
+                          **{**RUN_DEFAULTS, **options})
+
+
+def driven_graph(drive: str, **options):
+    """``run rest --drive DRIVE``'s graph, as run and the launch file start it, with ``options``."""
+    return describe_driven_graph(drive, **{**RUN_DEFAULTS, **options})
 
 
 class Recorded:
@@ -76,7 +90,7 @@ def as_launched(specs, namespace: str = '/wallbot') -> list[dict]:
 
 def test_defaults_are_the_circle_with_every_constraint_as_run_starts_it(launch_file):
     nodes = launched_nodes(launch_file)
-    assert nodes == as_launched(describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip')))
+    assert nodes == as_launched(circle_graph())
     assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'dynamics_node']
 
 
@@ -91,9 +105,9 @@ def test_figure8_starts_from_the_figure8_state(launch_file):
 
 def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_path):
     nodes = launched_nodes(launch_file, record=str(tmp_path / 'bag'), controller='true', controller_mass_scale='1.2',
-                           duration='20', real_time_factor='0')
-    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
-                              duration=20.0, real_time_factor=0.0, bag=tmp_path / 'bag', controller_mass_scale=1.2)
+                           duration='20', real_time_factor='0', compose='false')
+    expected = circle_graph(duration=20.0, real_time_factor=0.0, bag=tmp_path / 'bag', controller_mass_scale=1.2,
+                            compose=False)
     assert nodes == as_launched(expected)
     assert [n['name'] for n in nodes] == ['recorder', 'constraint_config', 'trajectory', 'controller', 'dynamics']
     dynamics = nodes[-1]['parameters'][0]
@@ -105,15 +119,18 @@ def test_recorded_closed_loop_is_the_graph_of_run_controller(launch_file, tmp_pa
     assert all(not n['remappings'] for n in nodes if n['name'] != 'controller')
 
 
-def test_compose_records_in_the_dynamics_process_as_run_compose_does(launch_file, tmp_path):
-    nodes = launched_nodes(launch_file, record=str(tmp_path / 'bag'), compose='true', duration='20')
-    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
-                              duration=20.0, bag=tmp_path / 'bag', compose=True)
+def test_a_recorded_graph_runs_the_dynamics_and_the_recorder_in_one_process_as_run_does(launch_file, tmp_path):
+    nodes = launched_nodes(launch_file, record=str(tmp_path / 'bag'), duration='20')
+    expected = circle_graph(duration=20.0, bag=tmp_path / 'bag')
     assert nodes == as_launched(expected)
     assert [n['executable'] for n in nodes] == ['dynamics_recorder_node', 'constraint_config_node', 'trajectory_node']
     assert 'name' not in nodes[0]  # its two nodes keep their names
     composed = nodes[0]['parameters'][0]
     assert composed['output'] == str(tmp_path / 'bag') and composed['stop_at'] == 20.0 and composed['wait_for_recorder']
+    separate = launched_nodes(launch_file, record=str(tmp_path / 'bag'), duration='20', compose='false')
+    assert separate == as_launched(circle_graph(duration=20.0, bag=tmp_path / 'bag', compose=False))
+    assert [n['executable'] for n in separate] == ['recorder_node', 'constraint_config_node', 'trajectory_node',
+                                                   'dynamics_node']
     # without a bag there is nothing to compose: the dynamics alone
     assert [n['executable'] for n in launched_nodes(launch_file, compose='true')][-1] == 'dynamics_node'
     driven = describe_driven_graph('cmd_vel', bag=tmp_path / 'bag', compose=True)
@@ -123,7 +140,7 @@ def test_compose_records_in_the_dynamics_process_as_run_compose_does(launch_file
 
 def test_viewer_true_adds_the_viewer_before_the_dynamics_as_run_markers_does(launch_file):
     nodes = launched_nodes(launch_file, viewer='true')
-    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'), viewer=True)
+    expected = circle_graph(viewer=True)
     assert nodes == as_launched(expected)
     assert [n['executable'] for n in nodes] == ['constraint_config_node', 'trajectory_node', 'viewer_node',
                                                 'dynamics_node']
@@ -137,10 +154,9 @@ def test_a_second_robot_has_its_namespace_and_its_frame_prefix_on_every_node_nam
     nodes = launched_nodes(launch_file, namespace='/robot2', frame_prefix='robot2/', viewer='true', drive=drive,
                            domain_clock='false')
     if drive:
-        expected = describe_driven_graph(drive, viewer=True, frame_prefix='robot2/', domain_clock=False)
+        expected = driven_graph(drive, viewer=True, frame_prefix='robot2/', domain_clock=False)
     else:
-        expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
-                                  viewer=True, frame_prefix='robot2/', domain_clock=False)
+        expected = circle_graph(viewer=True, frame_prefix='robot2/', domain_clock=False)
     assert nodes == as_launched(expected, '/robot2')
     prefixed = {n['executable'] for n in nodes if n['parameters'][0].get('frame_prefix') == 'robot2/'}
     assert prefixed == {'constraint_config_node', 'viewer_node', 'dynamics_node'}
@@ -152,10 +168,10 @@ def test_a_second_robot_has_its_namespace_and_its_frame_prefix_on_every_node_nam
 
 def test_engine_numba_is_the_dynamics_and_controller_engine_as_run_engine_gives_it(launch_file):
     nodes = launched_nodes(launch_file, engine='numba')
-    expected = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt,non_lateral,nonslip'),
-                              engine='numba')
+    expected = circle_graph(engine='numba')
     assert nodes == as_launched(expected) and nodes[-1]['parameters'][0]['engine'] == 'numba'
-    assert launched_nodes(launch_file)[-1]['parameters'][0]['engine'] == 'python'
+    assert launched_nodes(launch_file)[-1]['parameters'][0]['engine'] == 'numba'  # run's default
+    assert launched_nodes(launch_file, engine='python')[-1]['parameters'][0]['engine'] == 'python'
     assert describe_driven_graph('joint_commands', engine='numba')[-1].parameters['engine'] == 'numba'
     # and the tracking controller's law, as run --controller --engine numba gives it
     closed = {n['name']: n['parameters'][0] for n in launched_nodes(launch_file, controller='true', engine='numba')}
@@ -165,18 +181,18 @@ def test_engine_numba_is_the_dynamics_and_controller_engine_as_run_engine_gives_
 @pytest.mark.parametrize('drive, executable', [('cmd_vel', 'cmd_vel_node'), ('joint_commands', 'joint_bridge_node')])
 def test_drive_starts_the_graph_of_run_rest_drive(launch_file, tmp_path, drive, executable):
     nodes = launched_nodes(launch_file, drive=drive)
-    assert nodes == as_launched(describe_driven_graph(drive))
+    assert nodes == as_launched(driven_graph(drive))
     assert [n['executable'] for n in nodes] == ['constraint_config_node', executable, 'dynamics_node']
     dynamics = nodes[-1]['parameters'][0]
     assert (dynamics['initial_x'], dynamics['initial_y'], dynamics['initial_theta']) == (0.0, 0.0, 0.0)
     assert nodes[0]['parameters'][0]['trajectory_task'] is False
     # recorded, with the other arguments run rest --drive takes
     arguments = dict(record=str(tmp_path / 'bag'), duration='5', real_time_factor='0', realtime_priority='10',
-                     contact='coulomb', adhesion_force='150', engine='numba', viewer='true')
+                     contact='coulomb', adhesion_force='150', engine='python', viewer='true', compose='false')
     nodes = launched_nodes(launch_file, drive=drive, **arguments)
     expected = describe_driven_graph(drive, bag=tmp_path / 'bag', duration=5.0, real_time_factor=0.0,
                                      realtime_priority=10, contact_model='coulomb', adhesion_force=150.0,
-                                     engine='numba', viewer=True)
+                                     engine='python', viewer=True)
     assert nodes == as_launched(expected)
     assert [n['name'] for n in nodes] == ['recorder', 'constraint_config', nodes[2]['name'], 'viewer', 'dynamics']
     assert nodes[2]['parameters'][0]['wait_for_recorder'] is True  # forwards nothing the recorder does not hear
@@ -184,8 +200,8 @@ def test_drive_starts_the_graph_of_run_rest_drive(launch_file, tmp_path, drive, 
     assert nodes[2]['remappings'] == ([('odom', 'control_odom')] if drive == 'cmd_vel' else [])
     assert nodes[-1]['parameters'][0].get('control_odom_every') == (CMD_VEL_STEPS if drive == 'cmd_vel' else None)
     assert nodes[0]['parameters'][0]['topics'] == expected[0].parameters['topics']
-    composed = launched_nodes(launch_file, drive=drive, record=str(tmp_path / 'bag'), compose='true')
-    assert composed == as_launched(describe_driven_graph(drive, bag=tmp_path / 'bag', compose=True))
+    composed = launched_nodes(launch_file, drive=drive, record=str(tmp_path / 'bag'))
+    assert composed == as_launched(driven_graph(drive, bag=tmp_path / 'bag'))
     assert composed[0]['executable'] == 'dynamics_recorder_node'
 
 

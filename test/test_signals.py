@@ -265,8 +265,8 @@ def test_run_stops_its_graph_at_once_and_the_recorder_last(process_runner, tmp_p
     """Ctrl-C: ``run`` stops its nodes, then the recorder once they have exited (so it holds whatever they
     delivered on their way out), and exits 130 within RUN_STOP_BOUND."""
     out = tmp_path / 'run'
-    job = BackgroundJob(process_runner, [*WALLBOT, 'run', 'circle', '--duration', '600', '--out', out, '--no-plots'],
-                        'run', tmp_path)
+    job = BackgroundJob(process_runner, [*WALLBOT, 'run', 'circle', '--duration', '600', '--out', out, '--no-plots',
+                                         '--no-compose'], 'run', tmp_path)
     wait_for(lambda: simulated_seconds(job.output()) > 1.0, 120, 'a second simulated')
     nodes = child_processes(job.pid)
     assert len(nodes) == 4

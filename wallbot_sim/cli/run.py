@@ -1,12 +1,13 @@
 """``wallbot-sim run``: the main job. The real node graph in its own DDS domain, recorded, plotted.
 
-Starts recorder, constraint_config, trajectory and dynamics as separate processes (``--compose``:
-the dynamics and the recorder in one, the per-step topics recorded in process) with a
-ROS_DOMAIN_ID of their own (localhost discovery only; the first line on stdout is the ``export``
-that attaches another terminal), shows simulation time and real-time factor while they run,
-stops the graph once the recorder holds the whole duration (``--duration 0``: at Ctrl-C), then
-prints a summary and writes the paper's figures. A node that dies ends the run with its status and
-log named; Ctrl-C or SIGTERM stops the graph cleanly; the bag is kept either way.
+Starts constraint_config, trajectory, and the dynamics and the recorder in one process (the per-step
+topics recorded in process; ``--no-compose``: as separate processes), the dynamics on the compiled
+engine (``--engine python``: the model as written), with a ROS_DOMAIN_ID of their own (localhost
+discovery only; the first line on stdout is the ``export`` that attaches another terminal), shows
+simulation time and real-time factor while they run, stops the graph once the recorder holds the
+whole duration (``--duration 0``: at Ctrl-C), then prints a summary and writes the paper's figures.
+A node that dies ends the run with its status and log named; Ctrl-C or SIGTERM stops the graph
+cleanly; the bag is kept either way (reindexed if its recorder could not close it).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import argparse
 import math
 import os
 import sys
+import threading
 import time
 from datetime import datetime
 from pathlib import Path
@@ -36,7 +38,7 @@ from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.simulation import ENGINES, PYTHON
+from wallbot_sim.model.simulation import ENGINES, NUMBA
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
@@ -56,6 +58,8 @@ dynamics' diagnostics of the stop (published once a second) and the trajectory n
 pose at the end (it follows /clock, and lags it on a loaded machine)."""
 DURATION = NumberRange(0.0, 1e9, low_open=True, zero='until Ctrl-C')
 """Simulated seconds of a run: the dynamics' stop_at, whose 0 means never."""
+COMPILE_NOTICE = 2.0
+"""Seconds the compiled kernel may take to load from numba's cache before the run says it is compiling."""
 
 
 def domain_id(text: str) -> int:
@@ -111,10 +115,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
                         help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
-    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help="how the dynamics computes the steps and the controller its law: python (the model; "
-                             "the default), or numba (the batch's compiled kernel, the same states to 1e-9; it "
-                             'compiles on first use on a machine, then loads from the cache)')
+    parser.add_argument('--engine', choices=ENGINES, default=NUMBA,
+                        help="how the dynamics computes the steps and the controller its law: numba (the default: the "
+                             "batch's compiled kernel, the same states as the model to 1e-9; compiled by a machine's "
+                             'first run, about a minute, then loaded from the cache), or python (the model as written, '
+                             'what simulate computes by default, to the bit)')
     parser.add_argument('--adhesion-force', type=number(POSITIVE),
                         help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
@@ -142,10 +147,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--realtime-priority', type=priority, default=0, metavar='N',
                         help="SCHED_FIFO priority of the dynamics' paced loop thread (its realtime_priority; needs "
                              'an rtprio limit, else a warning and normal scheduling; default 0: normal)')
-    parser.add_argument('--compose', action='store_true',
-                        help='run the dynamics and the recorder in one process (dynamics_recorder_node): the per-step '
-                             'topics reach the bag in process instead of over DDS; no restart from snapshots after a '
-                             'SIGKILL')
+    parser.add_argument('--compose', action=argparse.BooleanOptionalAction, default=True,
+                        help='run the dynamics and the recorder in one process (dynamics_recorder_node; the default): '
+                             'the per-step topics reach the bag in process instead of over DDS; --no-compose: two '
+                             'processes, all over DDS, a restarted dynamics resuming from the snapshot the recorder '
+                             'keeps')
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -384,9 +390,11 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
                   file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
+            if args.engine == NUMBA:
+                load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
             run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
-            raise CliError(f'{died}; partial bag kept in {bag}', code=1) from None
+            raise CliError(f'{died}; partial bag kept in {bag}{repair_unclosed(bag)}', code=1) from None
         except KeyboardInterrupt:
             if duration > 0 or progress.latest is None:
                 print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
@@ -396,6 +404,38 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
             report(bag, out, robot, plots=not args.no_plots)
             return 130
     return report(bag, out, robot, plots=not args.no_plots)
+
+
+def repair_unclosed(bag: Path) -> str:
+    """Rebuild the index and metadata.yaml of a bag its recorder could not close (it was killed, or the
+    dynamics in its process was); what was done, to append to the run's error."""
+    from wallbot_sim.bag.errors import BagError
+    from wallbot_sim.bag.reindex import reindex
+    if (bag / 'metadata.yaml').is_file() or not any(bag.glob('*.mcap')):
+        return ''
+    try:
+        repaired = reindex(bag)
+    except BagError as error:
+        return f' (its recorder did not close it, and reindexing failed: {error})'
+    return f' (its recorder did not close it; reindexed: {repaired.messages} messages, {repaired.duration:.3f} s)'
+
+
+def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
+    """Load the compiled kernel the nodes step by (under ``contact``; and the controller's law) from numba's
+    cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
+    then load it in a second, well within the graph's start timeouts."""
+    from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run, require_numba
+    require_numba()
+    notice = threading.Timer(COMPILE_NOTICE, print, ['wallbot-sim run: compiling the numba kernel into its cache '
+                                                     "(a machine's first run: about a minute)..."],
+                             {'file': sys.stderr, 'flush': True})
+    notice.start()
+    try:
+        compile_run(contact)
+        if inverse_dynamics:
+            compile_inverse_dynamics()
+    finally:
+        notice.cancel()
 
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:

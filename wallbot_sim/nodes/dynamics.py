@@ -263,6 +263,8 @@ class DynamicsNode(Node):
             # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
             from wallbot_sim.model.compiled import compile_run, require_numba
             require_numba()  # a missing package is said at start, not by a failing loop thread
+            self.get_logger().info("engine numba: loading the compiled kernel (a machine's first start compiles "
+                                   "it into numba's cache, about a minute)")
             # loaded here, not by the first step: the objects loading makes are then frozen with the rest of
             # the start-up's (started_node), where in the loop thread they cost a 12 ms collection seconds later
             compile_run(p['contact_model'])
