@@ -175,6 +175,16 @@ def test_bad_arguments_give_one_line(args, message):
     assert len(lines) == 1 and message in lines[0], result.stderr
 
 
+def test_the_default_engine_without_numba_names_the_package_and_the_other_engine(monkeypatch):
+    from wallbot_sim.cli.errors import CliError
+    from wallbot_sim.cli.run import load_compiled_kernel
+    from wallbot_sim.model.batch import kernel
+    monkeypatch.setattr(kernel, 'available', lambda: False)
+    with pytest.raises(CliError, match=r"^engine 'numba' needs the numba package \(pip install numba\), or --engine "
+                                       r'python$'):
+        load_compiled_kernel('ideal', inverse_dynamics=False)
+
+
 def test_an_existing_bag_is_never_overwritten(tmp_path):
     (tmp_path / 'bag').mkdir()
     result = subprocess.run([*WALLBOT, 'run', 'circle', '--out', str(tmp_path)], capture_output=True, text=True,

@@ -37,6 +37,7 @@ from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
 from wallbot_sim.model.contact import CONTACT_MODELS
+from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.model.simulation import ENGINES, NUMBA
 from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY
@@ -370,6 +371,8 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
     """Claim a domain, run the graph ``describe`` gives for the bag's path, summarize and plot."""
     factor = args.real_time_factor
     params = load_robot_parameters(robot_file)
+    if args.engine == NUMBA:
+        load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
     robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
     try:
         claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
@@ -390,8 +393,6 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
                   file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
-            if args.engine == NUMBA:
-                load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
             run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
             raise CliError(f'{died}; partial bag kept in {bag}{repair_unclosed(bag)}', code=1) from None
@@ -425,7 +426,10 @@ def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
     cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
     then load it in a second, well within the graph's start timeouts."""
     from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run, require_numba
-    require_numba()
+    try:
+        require_numba()
+    except ParameterError as error:
+        raise CliError(f'{error}, or --engine python') from None
     notice = threading.Timer(COMPILE_NOTICE, print, ['wallbot-sim run: compiling the numba kernel into its cache '
                                                      "(a machine's first run: about a minute)..."],
                              {'file': sys.stderr, 'flush': True})
