@@ -177,12 +177,41 @@ def test_bad_arguments_give_one_line(args, message):
 
 def test_the_default_engine_without_numba_names_the_package_and_the_other_engine(monkeypatch):
     from wallbot_sim.cli.errors import CliError
-    from wallbot_sim.cli.run import load_compiled_kernel
+    from wallbot_sim.cli.run import require_compiled_engine
     from wallbot_sim.model.batch import kernel
     monkeypatch.setattr(kernel, 'available', lambda: False)
     with pytest.raises(CliError, match=r"^engine 'numba' needs the numba package \(pip install numba\), or --engine "
                                        r'python$'):
-        load_compiled_kernel('ideal', inverse_dynamics=False)
+        require_compiled_engine()
+
+
+def test_loading_the_kernel_says_it_is_compiling_only_when_it_takes_long(monkeypatch):
+    """A load slower than COMPILE_NOTICE (a machine's first run compiles for up to a minute) is said on
+    stderr while it lasts; a load from numba's cache says nothing."""
+    import io
+    from wallbot_sim.cli import run
+    from wallbot_sim.model import compiled
+    stderr = io.StringIO()
+    monkeypatch.setattr(sys, 'stderr', stderr)
+    loaded = []
+
+    def slow_compile(contact: str) -> None:
+        deadline = time.monotonic() + 30
+        while 'compiling the numba kernel' not in stderr.getvalue():
+            assert time.monotonic() < deadline, 'no notice while compiling'
+            time.sleep(0.01)
+        loaded.append(contact)
+    monkeypatch.setattr(compiled, 'compile_run', slow_compile)
+    monkeypatch.setattr(compiled, 'compile_inverse_dynamics', lambda: loaded.append('law'))
+    monkeypatch.setattr(run, 'COMPILE_NOTICE', 0.0)
+    run.load_compiled_kernel('coulomb', inverse_dynamics=True)
+    assert loaded == ['coulomb', 'law'] and stderr.getvalue().count('\n') == 1
+
+    stderr.truncate(0)
+    monkeypatch.setattr(compiled, 'compile_run', loaded.append)
+    monkeypatch.setattr(run, 'COMPILE_NOTICE', 60.0)
+    run.load_compiled_kernel('ideal', inverse_dynamics=False)
+    assert loaded[-1] == 'ideal' and stderr.getvalue() == ''
 
 
 def test_an_existing_bag_is_never_overwritten(tmp_path):

@@ -372,7 +372,7 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
     factor = args.real_time_factor
     params = load_robot_parameters(robot_file)
     if args.engine == NUMBA:
-        load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
+        require_compiled_engine()
     robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
     try:
         claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
@@ -393,6 +393,8 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
                   file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
+            if args.engine == NUMBA:
+                load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
             run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
             raise CliError(f'{died}; partial bag kept in {bag}{repair_unclosed(bag)}', code=1) from None
@@ -421,15 +423,20 @@ def repair_unclosed(bag: Path) -> str:
     return f' (its recorder did not close it; reindexed: {repaired.messages} messages, {repaired.duration:.3f} s)'
 
 
-def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
-    """Load the compiled kernel the nodes step by (under ``contact``; and the controller's law) from numba's
-    cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
-    then load it in a second, well within the graph's start timeouts."""
-    from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run, require_numba
+def require_compiled_engine() -> None:
+    """CliError unless numba imports, naming the package and the other engine."""
+    from wallbot_sim.model.compiled import require_numba
     try:
         require_numba()
     except ParameterError as error:
         raise CliError(f'{error}, or --engine python') from None
+
+
+def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
+    """Load the compiled kernel the nodes step by (under ``contact``; and the controller's law) from numba's
+    cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
+    then load it in a second, well within the graph's start timeouts."""
+    from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run
     notice = threading.Timer(COMPILE_NOTICE, print, ['wallbot-sim run: compiling the numba kernel into its cache '
                                                      "(a machine's first run: about a minute)..."],
                              {'file': sys.stderr, 'flush': True})
