@@ -61,10 +61,11 @@ BLOCK_PACED = 20
 """Most steps computed as one block while paced: each is published when due, one a tick, and an event
 arriving between them drops the rest (:meth:`DynamicsLoop._rewind`). Small enough that computing a
 block stays well inside the 1 ms before the next state is due."""
-HANDOVER_LEAD = 0.005
+HANDOVER_LEAD = 0.010
 """Wall seconds before a state handed over ahead of time is due that the loop wakes to hand it over
 (``DynamicsLoop._publish_ahead``): a wake-up up to this much later than asked makes no state late (the
-project's VMs woke a sleeping 1 kHz loop up to 9.7 ms late, most of those late by 2-5 ms)."""
+project's VMs woke a sleeping 1 kHz loop late by 2-5 ms mostly, in some hours by up to 10-16 ms). Half
+a paced block, so an event waits at most 30 ms at factor 1."""
 COMMAND_WAIT_WARNING = 5.0
 """Wall seconds of a wait for the controller (wait_for_command) after which the log says so: a
 controller started with the dynamics is there well before, so a longer wait is worth a line."""
