@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
+from wallbot_sim.model.simulation import ENGINES, NUMBA
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'recorder': 'wallbot_sim.nodes.recorder'}
 COMPOSED_NODES = {'dynamics+recorder': 'wallbot_sim.nodes.dynamics_recorder'}
@@ -33,7 +34,7 @@ def main() -> int:
     parser.add_argument('--duration', type=float, default=600.0, help='wall seconds of running (default 600)')
     parser.add_argument('--compose', action=argparse.BooleanOptionalAction, default=True,
                         help="the dynamics and the recorder in one process (run's default), or two (--no-compose)")
-    parser.add_argument('--engine', choices=('python', 'numba'), default='numba',
+    parser.add_argument('--engine', choices=ENGINES, default=NUMBA,
                         help="the dynamics' engine (default numba, run's)")
     parser.add_argument('--controller', action='store_true', help='run --controller: the closed loop (driven mode)')
     args = parser.parse_args()
