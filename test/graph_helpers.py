@@ -169,17 +169,25 @@ class Graph:
             if stamp > newest:
                 newest, progressed = stamp, time.monotonic()
 
-    def wait_until_quiet(self, quiet_for: float = 0.3, timeout: float = 10.0) -> int:
-        """The newest odometry stamp once no newer one has come for ``quiet_for`` wall seconds (a
-        paused simulation: this test's subscriber may still be taking what was sent before)."""
-        seen = {'stamp': self.last_stamp(), 'since': time.monotonic()}
+    def held_at(self, holding, last_published: int = 0, what: str = 'the dynamics holding') -> int:
+        """The simulation time (ns) at which the dynamics holds, as it reports it itself.
 
-        def quiet() -> bool:
-            if self.last_stamp() != seen['stamp']:
-                seen.update(stamp=self.last_stamp(), since=time.monotonic())
-            return time.monotonic() - seen['since'] > quiet_for
-        self.wait_for(quiet, timeout, 'no odometry while paused')
-        return self.last_stamp()
+        ``holding(status)`` picks the /diagnostics status that says it holds (paused, diverged); its
+        array's stamp is the simulation time held. Waits for that report, then for odometry up to
+        the held time less ``last_published`` (a state the loop could not finish is never
+        published), then for the next report (the node publishes one a wall second): that one must
+        hold at the same time and no odometry may be newer, i.e. the loop did not step in between.
+        Every message sent before the hold has arrived by then, however loaded the machine.
+        """
+        def held() -> list[int]:
+            return [ns(a) for a in self.messages(topics.DIAGNOSTICS.name) if any(holding(s) for s in a.status)]
+        t_held = self.wait_for(held, 10, what)[-1]
+        self.wait_for(lambda: self.last_stamp() >= t_held - last_published, 10, 'odometry up to the held time')
+        seen = len(held())
+        later = self.wait_for(lambda: held()[seen:], 10, f'a later report of {what}')
+        assert later[0] == t_held, f'held at {t_held * 1e-9} s, then reported {later[0] * 1e-9} s'
+        assert self.last_stamp() == t_held - last_published, 'odometry went on while the dynamics held'
+        return t_held
 
     def call(self, kind, name: str, request, timeout: float = 5.0):
         client = self.node.create_client(kind, name)

@@ -281,39 +281,57 @@ def test_controller_refuses_bad_parameters_with_a_reason(process_runner, param, 
 
 
 @pytest.mark.parametrize('node', ['controller', 'cmd_vel'])
-def test_a_commander_waits_for_a_recorder_before_subscribing_odom(process_runner, node):
+def test_a_commander_waits_for_a_recorder_before_subscribing_odom(ros_domain, node):
     """run --controller, run rest --drive cmd_vel: the dynamics starts once its commander subscribes
     odom; with wait_for_recorder the commander does that only when a recorder hears its commands,
-    so the bag holds every command from t = 0."""
+    so the bag holds every command from t = 0.
+
+    The commander runs in this process, so what it has done is read off the node itself: a
+    record_progress publisher that does not hear wheel_torque_cmd is in the commander's own view of
+    the graph and its recorder check has run since, and it has no odom subscription; once that
+    publisher's node also subscribes wheel_torque_cmd, the commander subscribes odom."""
     import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import Float64MultiArray
 
     from wallbot_msgs_py.qos import qos_profile
+    from wallbot_sim.nodes.cmd_vel import CmdVelNode
+    from wallbot_sim.nodes.common import WhenRecorded
+    from wallbot_sim.nodes.controller import ControllerNode
     context = rclpy.Context()
     rclpy.init(context=context)
-    probe = rclpy.create_node('recorder_probe', namespace=topics.NAMESPACE, context=context)
-    odom, commands = topics.ODOM.resolve(), topics.WHEEL_TORQUE_CMD.resolve()
-
-    def wait_for(predicate, what: str) -> None:
-        deadline = time.monotonic() + 30
-        while not predicate():
-            assert proc.poll() is None, process_runner.output(node)
-            if time.monotonic() > deadline:
-                pytest.fail(f'timed out waiting for {what}:\n{process_runner.output(node)}')
-            time.sleep(0.05)
-
+    executor = SingleThreadedExecutor(context=context)
     try:
-        proc = process_runner.start([sys.executable, '-m', f'wallbot_sim.nodes.{node}', '--ros-args',
-                                     '-p', 'wait_for_recorder:=true'], node)
-        wait_for(lambda: probe.count_publishers(commands) == 1, f'the {node} node')
-        time.sleep(1.0)
-        assert probe.count_subscribers(odom) == 0, 'subscribed odom with no recorder listening'
+        commander = {'controller': ControllerNode, 'cmd_vel': CmdVelNode}[node](
+            context=context, parameter_overrides=[Parameter('wait_for_recorder', value=True)])
+        probe = rclpy.create_node('recorder_probe', namespace=topics.NAMESPACE, context=context)
+        executor.add_node(commander)
+        executor.add_node(probe)
+        odom, progress = topics.ODOM.resolve(), topics.RECORD_PROGRESS.resolve()
+        check = next(timer for timer in commander.timers
+                     if isinstance(getattr(timer.callback, '__self__', None), WhenRecorded))
+
+        def spin_until(predicate, what: str) -> None:
+            deadline = time.monotonic() + 30  # a stall
+            while not predicate():
+                assert time.monotonic() < deadline, f'timed out waiting for {what}'
+                executor.spin_once(timeout_sec=0.05)
+
+        def subscribed_odom() -> bool:
+            return any(subscription.topic_name == odom for subscription in commander.subscriptions)
+
+        assert not subscribed_odom()
         probe.create_publisher(Clock, topics.RECORD_PROGRESS.name, qos_profile(topics.RECORD_PROGRESS))
+        spin_until(lambda: commander.count_publishers(progress) == 1, 'the commander seeing record_progress')
+        seen = time.monotonic_ns()
+        spin_until(lambda: time.monotonic_ns() - check.time_since_last_call() > seen,
+                   "the commander's recorder check after that")
+        assert not subscribed_odom(), 'subscribed odom with no recorder hearing wheel_torque_cmd'
         probe.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, lambda _msg: None,
                                   qos_profile(topics.WHEEL_TORQUE_CMD))
-        wait_for(lambda: probe.count_subscribers(odom) == 1, 'the odom subscription')
-        assert 'a recorder hears wheel_torque_cmd: subscribing odom' in process_runner.output(node)
+        spin_until(subscribed_odom, 'the odom subscription once a recorder hears the commands')
     finally:
-        probe.destroy_node()
+        executor.shutdown()
         rclpy.try_shutdown(context=context)

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import shutil
 import signal
 import sys
 import time
@@ -19,6 +20,7 @@ pytest.importorskip('rclpy')
 mcap_reader = pytest.importorskip('mcap.reader')
 
 from wallbot_msgs_py import bagio  # noqa: E402
+from wallbot_sim.bag.errors import BagError  # noqa: E402
 from wallbot_sim.bag.reader import info  # noqa: E402
 from wallbot_sim.bag.reindex import reindex  # noqa: E402
 from wallbot_sim.cli.main import main as cli  # noqa: E402
@@ -140,22 +142,39 @@ def test_signal_closes_a_complete_bag_with_every_message(process_runner, tmp_pat
     assert odom_xs(bag) == [float(i) for i in range(3000)]
 
 
-def test_sigkill_then_reindex_loses_at_most_a_second(process_runner, tmp_path):
+def flushed_odometry(bag: Path, scratch: Path) -> int:
+    """How many odometry messages a reindex recovers from what the recorder has put on disk so far
+    (read from a copy, so the live bag is never touched)."""
+    shutil.rmtree(scratch, ignore_errors=True)
+    shutil.copytree(bag, scratch)
+    try:
+        reindex(scratch)
+    except BagError:
+        return 0  # not a single chunk on disk yet
+    return len(odom_xs(scratch))
+
+
+def test_sigkill_then_reindex_keeps_everything_flushed_before_the_kill(process_runner, tmp_path):
+    """What the recorder had flushed when it was killed is recovered, contiguous from the first message;
+    how far behind the stream the flushed part runs is a measurement (bench/bench_signals.py)."""
     bag = tmp_path / 'bag'
     recorder = start_recorder(process_runner, bag)
-    start_publisher(process_runner, tmp_path, 6000, 0.001)  # 1 kHz for 6 s
+    publisher = start_publisher(process_runner, tmp_path, 6000, 0.001)  # 1 kHz for 6 s
     wait_for(lambda: 'matched' in process_runner.output('publisher'), 30, 'publisher to match')
-    time.sleep(2.5)
+    flushed = {'count': 0}
+
+    def some_flushed() -> bool:
+        flushed['count'] = flushed_odometry(bag, tmp_path / 'scratch') if bag.is_dir() else 0
+        return flushed['count'] >= 500
+    wait_for(some_flushed, 60, 'the recorder flushing 500 messages to disk')
     recorder.send_signal(signal.SIGKILL)
-    killed_at = time.time_ns()
     recorder.wait(timeout=10)
+    assert publisher.poll() is None, 'the recorder must be killed mid-stream'
     assert not (bag / 'metadata.yaml').exists()
     report = reindex(bag)
     assert report.messages > 0
-    meta = info(bag)
-    last = meta.start_ns + meta.duration_ns
-    assert (killed_at - last) * 1e-9 <= 1.0
     xs = odom_xs(bag)
+    assert len(xs) >= flushed['count']
     assert xs == [float(i) for i in range(len(xs))]  # nothing missing before the cut
 
 
