@@ -17,7 +17,7 @@ set, a few kB per robot, leaves the cache). The per-stage split at its fastest s
 goes. The compiled engine is bound by arithmetic: its cost per robot-step on one core is printed,
 and its limit is the cores over that.
 
-    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--robot-steps 40000]
+    python bench/bench_batch.py [--sizes 1,100,1000,4000,16000] [--robot-steps 40000] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from report import Report, add_write_docs_option
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.control import ControllerGains, TrackingController
@@ -140,7 +141,12 @@ def main() -> None:
     parser.add_argument('--robot-steps', type=int, default=40000, help='robot-steps per batch measurement')
     parser.add_argument('--single-steps', type=int, default=2000, help='single-robot steps per measurement')
     parser.add_argument('--repeats', type=int, default=7, help='measurements per figure (the best is kept)')
+    parser.add_argument('--closed-loop-size', type=int, default=1000,
+                        help='batch size under the controller with coulomb contact (default 1000)')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('batch')
+    figures: list[tuple[str, str]] = []
     sizes = [int(size) for size in args.sizes.split(',')]
     engines = ['numpy'] + (['numba'] if kernel.available() else [])
     print(f'# {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}'
@@ -164,16 +170,25 @@ def main() -> None:
     print(f'{"engine":>6s} {"batch size":>10s} {"robot-steps/s":>14s} {"x single":>9s} {"per CPU-s":>10s} '
           f'{"ms/step":>8s} {"ns/robot-step beyond t(1)":>26s}')
     rates = {key: key[1] / seconds for key, seconds in wall.items()}
+    rows = []
     for (engine, size), seconds in wall.items():
         overhead = wall.get((engine, 1))
         beyond = '' if overhead is None or size == 1 else f'{(seconds - overhead) / size * 1e9:26.0f}'
         print(f'{engine:>6s} {size:10d} {rates[engine, size]:14.0f} {rates[engine, size] / single:9.1f} '
               f'{size / cpu[engine, size]:10.0f} {seconds * 1e3:8.2f} {beyond}')
+        rows.append((engine, f'{size:,}', f'{rates[engine, size]:,.0f}', f'**{rates[engine, size] / single:.1f}**',
+                     f'{size / cpu[engine, size]:,.0f}', f'{seconds * 1e3:.2f}'))
+    report.table(('engine', 'batch size N', 'robot-steps/s', 'x the single-robot loop', 'robot-steps per CPU-second',
+                  'ms per batch step'), rows,
+                 f'Circle, full set, ideal contact; the single-robot loop in the same rounds: {single:,.0f} steps/s '
+                 f'(wall clock, best of {args.repeats}):')
     for engine in engines:
         check_agreement(batches[engine, sizes[-1]])
         fastest = max((size for size in sizes), key=lambda size: rates[engine, size])
         rate = rates[engine, fastest]
         print(f'{engine}: fastest N = {fastest}, {rate:.0f} robot-steps/s = {rate / single:.1f} x the single loop')
+        figures.append((f'{engine}: fastest batch', f'N = {fastest:,}: {rate:,.0f} robot-steps/s, '
+                                                    f'{rate / single:.1f} x the single loop'))
         driven = batch_of(fastest, ConstraintSelection.structural(trajectory=False), engine)
         driven.set_motor_torque((0.5, 0.4))
         driven.step()
@@ -181,6 +196,8 @@ def main() -> None:
         seconds = best_seconds(lambda: driven.run(steps), args.repeats) / steps
         print(f'  driven set without the trajectory task (B of rank 5: the rank-revealing path), N = {fastest}: '
               f'{fastest / seconds:.0f} robot-steps/s')
+        figures.append((f'{engine}: driven set without the trajectory task (the rank-revealing path)',
+                        f'N = {fastest:,}: {fastest / seconds:,.0f} robot-steps/s'))
     fastest = max((size for size in sizes), key=lambda size: rates['numpy', size])
     batch = batch_of(fastest)
     batch.run(3)
@@ -190,6 +207,8 @@ def main() -> None:
           f'the RK4 sums):')
     for name, seconds in split.items():
         print(f'  {name:26s} {seconds / fastest * 1e9:6.0f} ns per robot  {seconds / stage:5.1%}')
+    shares = ', '.join(f'{name.strip()} {seconds / stage:.0%}' for name, seconds in split.items())
+    figures.append((f'numpy: one RK4 stage at N = {fastest:,}', f'{stage / fastest * 1e9:,.0f} ns per robot: {shares}'))
     if kernel.available():
         size = max(sizes)
         batch = batches['numba', size]
@@ -205,11 +224,22 @@ def main() -> None:
               f'{size * steps / timings[threads][0]:.0f} ({timings[1][0] / timings[threads][0]:.2f}x); '
               f'one robot-step costs {per_robot * 1e9:.0f} ns of one core: with the {os.cpu_count()} cores to itself '
               f'at most {os.cpu_count() / per_robot:.0f} robot-steps/s')
-    single_rate, batch_rates = closed_loop_rates(1000, 200, min(args.repeats, 3), engines)
+        figures.append((f'numba at N = {size:,}: one thread, {threads} threads',
+                        f'{size * steps / timings[1][0]:,.0f} and {size * steps / timings[threads][0]:,.0f} '
+                        f'robot-steps/s ({timings[1][0] / timings[threads][0]:.2f}x); {per_robot * 1e9:,.0f} ns of one '
+                        f'core a robot-step, so at most {os.cpu_count() / per_robot:,.0f} robot-steps/s on '
+                        f'{os.cpu_count()} cores'))
+    size = args.closed_loop_size
+    single_rate, batch_rates = closed_loop_rates(size, 200, min(args.repeats, 3), engines)
     print(f'under the controller with coulomb contact (figure-8, driven set): single robot {single_rate:.0f} '
-          f'robot-steps/s; N = 1000: ' + ', '.join(f'{engine} {rate:.0f} ({rate / single_rate:.1f}x)'
-                                                   for engine, rate in batch_rates.items()))
+          f'robot-steps/s; N = {size}: ' + ', '.join(f'{engine} {rate:.0f} ({rate / single_rate:.1f}x)'
+                                                    for engine, rate in batch_rates.items()))
+    batches = ', '.join(f'{engine} {rate:,.0f} (**{rate / single_rate:.1f}x**)' for engine, rate in batch_rates.items())
+    figures.append(('under the controller with coulomb contact (figure-8, driven set)',
+                    f'single robot {single_rate:,.0f} robot-steps/s; N = {size:,}: {batches}'))
     print(f'load average {os.getloadavg()[0]:.1f} at end')
+    report.table(('measure', 'figure'), figures)
+    report.write(args.write_docs)
 
 
 if __name__ == '__main__':

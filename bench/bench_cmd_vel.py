@@ -9,7 +9,7 @@ wall second idle and fed, and per control instant. Beside them, the two-pinv mod
 second in this process (bench_graph's baseline): the node's CPU per simulated second over it is the
 machine-independent form of the "under 3 % of a core" target.
 
-    python bench/bench_cmd_vel.py [--seconds 10] [--warmup 3]
+    python bench/bench_cmd_vel.py [--seconds 10] [--warmup 3] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
 from bench_graph import model_cpu_per_simulated_second
+from report import Report, add_write_docs_option
 from wallbot_msgs_py import topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
@@ -93,7 +94,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--seconds', type=float, default=10.0, help='wall seconds idle, then fed (default 10 each)')
     parser.add_argument('--warmup', type=float, default=3.0, help='wall seconds fed before measuring (default 3)')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('cmd-vel')
 
     model = model_cpu_per_simulated_second(2.0)
     _name, module = DRIVES['cmd_vel']
@@ -120,6 +123,13 @@ def main() -> int:
           f'{1e3 * fed / SPEED_LOOP_RATE_HZ:.3f} ms a control instant ({answered[0]} of {instants:.0f} answered); '
           f'ratio to the two-pinv model {fed / model:.4f}   (target under 3 % of a core)')
     print(f'machine: {os.cpu_count()} CPUs, load average at the end {" ".join(f"{x:.2f}" for x in os.getloadavg())}')
+    report.table(('two-pinv model, CPU s per simulated s', 'cmd_vel_node idle, share of a core',
+                  f'fed at {SPEED_LOOP_RATE_HZ} Hz, share of a core', 'CPU a control instant', 'answered',
+                  'ratio to the two-pinv model (target: under 3 % of a core)'),
+                 [(f'{model:.3f}', f'{100 * idle:.2f} %', f'{100 * fed:.2f} %',
+                   f'{1e3 * fed / SPEED_LOOP_RATE_HZ:.3f} ms', f'{answered[0]} of {instants:.0f}',
+                   f'**{fed / model:.4f}**')])
+    report.write(args.write_docs)
     return 0
 
 

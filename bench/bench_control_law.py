@@ -10,7 +10,7 @@ least-squares solve; numba: the compiled kernel) this calls it --calls times bac
 call in both cases, the paced figure as a share of a core at the rate, and the numba law's figures
 as ratios to the python law's.
 
-    python bench/bench_control_law.py [--calls 500] [--rate-hz 50]
+    python bench/bench_control_law.py [--calls 500] [--rate-hz 25] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from report import Report, add_write_docs_option
 from wallbot_msgs_py.codec import PlanarState
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -60,7 +61,9 @@ def main() -> int:
     parser.add_argument('--calls', type=int, default=500, help='calls in each case (default 500)')
     parser.add_argument('--rate-hz', type=int, default=CONTROL_RATE_HZ,
                         help=f'control rate: the sleep is one period (default {CONTROL_RATE_HZ})')
+    add_write_docs_option(parser)
     options = parser.parse_args()
+    report = Report('control-law')
     compile_inverse_dynamics()
     figures = {}
     for engine in ENGINES:
@@ -69,10 +72,17 @@ def main() -> int:
         figures[engine] = (cpu_per_call(loop, states, options.calls, 0.0),
                            cpu_per_call(loop, states, options.calls, 1.0 / options.rate_hz))
     baseline_hot, baseline_paced = figures[PYTHON]
+    rows = []
     for engine, (hot, paced) in figures.items():
         print(f'{engine:>6} law: back to back {hot * 1e3:6.3f} ms CPU a call ({hot / baseline_hot:.2f} x python); '
               f'one call per period {paced * 1e3:6.3f} ms ({paced / baseline_paced:.2f} x python, {paced / hot:.2f} x '
               f'back to back), {paced * options.rate_hz * 100:.1f} % of a core at {options.rate_hz} Hz')
+        rows.append((engine, f'{hot * 1e3:.3f}', f'**{hot / baseline_hot:.2f}**', f'{paced * 1e3:.3f}',
+                     f'**{paced / baseline_paced:.2f}**', f'{paced * options.rate_hz * 100:.1f} %'))
+    report.table(('law', 'back to back, ms CPU a call', 'x python', 'one call per period, ms', 'x python',
+                  f'share of a core at {options.rate_hz} Hz'), rows,
+                 f'{options.calls} calls of `SampledController.command` each way; the python law is the baseline:')
+    report.write(options.write_docs)
     return 0
 
 

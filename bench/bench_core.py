@@ -21,7 +21,7 @@ dynamics node do, with ideal and with coulomb contact, on each engine. "cost" is
 extra time relative to the ideal step of the same engine; in the sticking cases it is the stick/slip
 bookkeeping alone.
 
-    python bench/bench_core.py [--seconds 2.0] [--process-seconds 20] [--repeats 3]
+    python bench/bench_core.py [--seconds 2.0] [--process-seconds 20] [--repeats 3] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from typing import Sequence
 
 import numpy as np
 
+from report import Report, add_write_docs_option
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstrainedMotion, ConstraintSelection, Robot, Simulation, solve
 from wallbot_sim.model.robot import DOF
@@ -100,15 +101,16 @@ def steps_with_outputs_per_second(simulation: Simulation, steps: int) -> float:
     return steps / (time.process_time() - started)
 
 
-def contact_table(steps: int) -> None:
+def contact_table(steps: int, report: Report) -> None:
     """Steps per second with the outputs of every step, ideal and coulomb contact, on each engine (alternating,
     best of five); "cost" is the coulomb step's extra time over the ideal step of the same engine."""
     print(f'\n{"contact case":13s} {"":17s} {"python: ideal":>13s} {"coulomb":>8s} {"cost":>7s} '
           f'{"numba: ideal":>13s} {"coulomb":>8s} {"cost":>7s}')
     driven = ConstraintSelection.parse('belt,non_lateral,nonslip', trajectory=False)
+    rows = []
     for name, heading, torque, adhesion, what in CONTACT_CASES:
         robot = Robot(load_robot_parameters().replace(adhesion_force=adhesion))
-        columns = []
+        columns, cells = [], [name, what]
         for engine in ('python', 'numba'):
             rates = [0.0, 0.0]
             for _ in range(5):  # alternating, best of five: load from other processes hits both alike
@@ -118,16 +120,23 @@ def contact_table(steps: int) -> None:
                     simulation.set_motor_torque(*torque)
                     rates[k] = max(rates[k], steps_with_outputs_per_second(simulation, steps))
             columns.append(f'{rates[0]:13.0f} {rates[1]:8.0f} {rates[0] / rates[1] - 1:7.1%}')
+            cells += [f'{rates[0]:,.0f}', f'{rates[1]:,.0f}', f'{rates[0] / rates[1] - 1:.1%}']
         print(f'{name:13s} {what:17s} {" ".join(columns)}')
+        rows.append(cells)
+    report.table(('contact case', 'what happens', 'python ideal, steps/s', 'python coulomb', 'coulomb cost',
+                  'numba ideal', 'numba coulomb', 'coulomb cost'), rows,
+                 'Wheel-wall contact: the driven robot with its outputs at every step, ideal against coulomb contact '
+                 "on each engine (the cost is the coulomb step's extra time):")
 
 
-def outputs_table(robot: Robot, steps: int) -> None:
+def outputs_table(robot: Robot, steps: int, report: Report) -> None:
     """Steps per second with the outputs of every step, the circle's default and full sets, each engine and the
     two-pinv model (best of three, alternating)."""
     print(f'\n{"outputs at every step, CPU time":58s} {"core steps/s":>12s} {"numba steps/s":>13s} '
           f'{"pinv steps/s":>12s} {"ratio":>6s} {"numba ratio":>11s}')
     scenario = load_scenario('circle')
     q0, qd0 = scenario.initial_state(robot)
+    rows = []
     for constraints in ('none', SETS[-1]):
         selection = ConstraintSelection.parse(constraints)
         rates = [0.0, 0.0, 0.0]
@@ -141,6 +150,11 @@ def outputs_table(robot: Robot, steps: int) -> None:
         core, compiled, plain = rates
         print(f'{"circle":9s} {selection.label():48s} {core:12.0f} {compiled:13.0f} {plain:12.0f} {core / plain:6.2f} '
               f'{compiled / plain:11.2f}')
+        rows.append(('circle', selection.label(), f'{core:,.0f}', f'{compiled:,.0f}', f'{plain:,.0f}',
+                     f'**{core / plain:.2f}**', f'**{compiled / plain:.2f}**'))
+    report.table(('scenario', 'constraint set', 'core steps/s', 'numba steps/s', 'two-pinv steps/s',
+                  'core / two-pinv', 'numba / two-pinv'), rows,
+                 'With the outputs computed at every step (as `simulate` and the dynamics node do), CPU time:')
 
 
 def simulate_with_pinv(argv: Sequence[str]) -> int:
@@ -163,13 +177,14 @@ def timed_process(command: Sequence[str]) -> tuple[float, float]:
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
-def process_table(seconds: float, repeats: int) -> None:
+def process_table(seconds: float, repeats: int, report: Report) -> None:
     """Whole ``simulate --csv`` processes: each engine and the two-pinv model, alternating, best of ``repeats``."""
     wallbot = [sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate']
     print(f'\nwhole processes: simulate --scenario circle --duration {seconds:g} --csv FILE, best of {repeats} '
           f'(load average {" ".join(f"{v:.2f}" for v in os.getloadavg())} before)')
     print(f'{"constraint set":25s} {"model":7s} {"wall s":>7s} {"CPU s":>7s} {"pinv/this wall":>14s} '
           f'{"pinv/this CPU":>13s}  (model: pinv = two-pinv Simulation, python and numba = --engine)')
+    rows = []
     with tempfile.TemporaryDirectory() as folder:
         timed_process([*wallbot, '--duration', '0.01', '--csv', os.devnull, '--quiet', '--engine', 'numba'])  # cache
         for constraints in ('none', SETS[-1]):
@@ -196,6 +211,12 @@ def process_table(seconds: float, repeats: int) -> None:
             for name, (wall, cpu) in best.items():
                 print(f'{constraints:25s} {name:7s} {wall:7.2f} {cpu:7.2f} {plain_wall / wall:14.2f} '
                       f'{plain_cpu / cpu:13.2f}')
+                rows.append((constraints, name, f'{wall:.2f}', f'{cpu:.2f}', f'**{plain_wall / wall:.2f}**',
+                             f'**{plain_cpu / cpu:.2f}**'))
+    report.table(('constraint set', 'model', 'wall s', 'CPU s', 'two-pinv / this, wall', 'two-pinv / this, CPU'), rows,
+                 f'Whole processes, `simulate --scenario circle --duration {seconds:g} --csv FILE` from start to exit '
+                 f'(imports and the kernel loaded from its cache included), best of {repeats}; `pinv` is the same '
+                 'command on the two-pinv model:')
     print(f'load average after: {" ".join(f"{v:.2f}" for v in os.getloadavg())}')
 
 
@@ -214,9 +235,11 @@ def main() -> None:
                         help='simulated seconds of each whole simulate process (0: none)')
     parser.add_argument('--repeats', type=int, default=3, help='processes of each kind, alternating; the best counts')
     parser.add_argument('--pinv-simulate', nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+    add_write_docs_option(parser)
     args = parser.parse_args()
     if args.pinv_simulate is not None:
         sys.exit(simulate_with_pinv(args.pinv_simulate))
+    report = Report('core')
     steps = round(args.seconds / 1e-3)
     robot = Robot(load_robot_parameters())
     print(f'# {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, '
@@ -224,6 +247,7 @@ def main() -> None:
           f'load average {" ".join(f"{v:.2f}" for v in os.getloadavg())}')
     print(f'{"scenario":9s} {"constraint set":48s} {"core steps/s":>12s} {"numba steps/s":>13s} '
           f'{"pinv steps/s":>12s} {"ratio":>6s} {"numba ratio":>11s} {"x real time":>11s} {"solve ratio":>11s}')
+    rows = []
     for name in ('circle', 'figure8'):
         scenario = load_scenario(name)
         q0, qd0 = scenario.initial_state(robot)
@@ -242,10 +266,17 @@ def main() -> None:
             fast_solve, slow_solve = solves_per_second(core)
             print(f'{name:9s} {selection.label():48s} {fast:12.0f} {faster:13.0f} {slow:12.0f} {fast / slow:6.2f} '
                   f'{faster / slow:11.2f} {fast / 1000:11.1f} {fast_solve / slow_solve:11.2f}')
-    outputs_table(robot, steps)
-    contact_table(steps)
+            rows.append((name, selection.label(), f'{fast:,.0f}', f'{faster:,.0f}', f'{slow:,.0f}',
+                         f'**{fast / slow:.2f}**', f'**{faster / slow:.2f}**', f'{fast / 1000:.1f}',
+                         f'{fast_solve / slow_solve:.2f}'))
+    report.table(('scenario', 'constraint set', 'core steps/s', 'numba steps/s', 'two-pinv steps/s', 'core / two-pinv',
+                  'numba / two-pinv', 'core x real time', 'solve: core / two-pinv'), rows,
+                 f'Steps per second of one simulation, single thread, {steps} steps of 1 ms each:')
+    outputs_table(robot, steps, report)
+    contact_table(steps, report)
     if args.process_seconds > 0:
-        process_table(args.process_seconds, args.repeats)
+        process_table(args.process_seconds, args.repeats, report)
+    report.write(args.write_docs)
 
 
 if __name__ == '__main__':

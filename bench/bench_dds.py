@@ -12,7 +12,7 @@ It prints the floor those costs put under the graph: five messages per step, pub
 taken once each, plus the step, in CPU seconds per simulated second and as a ratio to the
 two-pinv model.
 
-    python bench/bench_dds.py [--messages 20000]
+    python bench/bench_dds.py [--messages 20000] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import sys
 import time
 
 from bench_core import StraightforwardSimulation
+from report import Report, add_write_docs_option
 from wallbot_msgs_py import codec, topics
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
@@ -137,10 +138,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--messages', type=int, default=20_000, help='messages published and taken')
     parser.add_argument('--subscriber', type=int, default=None, help=argparse.SUPPRESS)
+    add_write_docs_option(parser)
     args = parser.parse_args()
     if args.subscriber is not None:
         subscriber(args.subscriber)
         return 0
+    report = Report('dds')
     robot = Robot(load_robot_parameters())
     scenario = load_scenario('circle')
     selection = ConstraintSelection.parse('belt,non_lateral,nonslip')
@@ -162,6 +165,13 @@ def main() -> int:
     print(f'floor of the graph: step + {MESSAGES_PER_STEP} x (publish + take) = {floor * 1e6:.1f} us per 1 ms step '
           f'= {floor * 1e3:.3f} CPU s per simulated s, {floor / plain:.2f}x the two-pinv model '
           f'(messages alone {MESSAGES_PER_STEP * (publish + take) / plain:.2f}x)')
+    report.table(('publish (dynamics side)', 'take (recorder side, raw)', 'model step with outputs',
+                  'two-pinv model step', f'step + {MESSAGES_PER_STEP} x (publish + take), ratio to the two-pinv step',
+                  f'{MESSAGES_PER_STEP} x (publish + take) alone, ratio'),
+                 [(f'{publish * 1e6:.1f} us', f'{take * 1e6:.1f} us', f'{step * 1e6:.0f} us', f'{plain * 1e6:.0f} us',
+                   f'**{floor / plain:.2f}**', f'**{MESSAGES_PER_STEP * (publish + take) / plain:.2f}**')],
+                 f'CPU per message or step, {args.messages:,} Odometry messages, RELIABLE KEEP_ALL:')
+    report.write(args.write_docs)
     return 0
 
 

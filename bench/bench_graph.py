@@ -22,6 +22,7 @@ after the runs: its wake-ups later than 2 ms per minute are what the machine giv
 
     python bench/bench_graph.py [--duration 60] [--fast-duration 20] [--warmup 3] [--engine numba|python]
                                 [--markers | --foxglove] [--no-compose] [--controller | --cmd-vel]
+                                [--realtime-priority N] [--write-docs [FILE]]
 
 With no options it measures the graph as ``wallbot-sim run circle`` starts it. ``--engine`` is the
 dynamics' (``run --engine``; default numba, run's); ``--engine python`` measures the model as written.
@@ -38,6 +39,9 @@ topics recorded in process; ``run``'s default), shown as one line; ``--no-compos
 40th state in lockstep, its CPU share beside the others'. ``--cmd-vel`` runs ``run rest --drive
 cmd_vel`` instead of the circle: cmd_vel_node answering every 20th state in lockstep (zero commands:
 nothing publishes cmd_vel), no trajectory node.
+
+``--write-docs`` writes the figures into the section of docs/performance.md named after the options
+(``graph``, ``graph-controller``, ``graph-python-no-compose``, ...).
 """
 
 from __future__ import annotations
@@ -56,6 +60,7 @@ import numpy as np
 
 from bench_core import StraightforwardSimulation
 from bench_wakeup import sleep_loop
+from report import Report, add_write_docs_option
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -190,6 +195,17 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
     return result
 
 
+def section_name(args: argparse.Namespace) -> str:
+    """The docs section of this variant: ``graph`` and each option that differs from ``run``'s defaults."""
+    parts = ['graph']
+    parts += [] if args.engine == NUMBA else [args.engine]
+    parts += [] if args.compose else ['no-compose']
+    parts += [] if args.loop == 'open' else [args.loop.replace('_', '-')]
+    parts += ['markers'] if args.markers else ['foxglove'] if args.foxglove else []
+    parts += [f'rt{args.realtime_priority}'] if args.realtime_priority else []
+    return '-'.join(parts)
+
+
 def free_port() -> int:
     """A TCP port nothing listens on now."""
     with socket.socket() as probe:
@@ -222,7 +238,9 @@ def main() -> int:
                         help='run rest --drive cmd_vel (cmd_vel_node in lockstep) instead of the circle')
     parser.add_argument('--realtime-priority', type=int, default=0,
                         help="run with --realtime-priority N (SCHED_FIFO for the dynamics' loop thread; default 0)")
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report(section_name(args))
     viewer = ['--markers'] if args.markers else ['--foxglove', str(free_port())] if args.foxglove else []
 
     claim = claim_domain_id()
@@ -254,9 +272,13 @@ def main() -> int:
                 + (f' --realtime-priority {args.realtime_priority}' if args.realtime_priority else ''))
     print(f'\nwallbot-sim run {scenario} --engine {args.engine}{composed}, factor 1, {args.duration:g} simulated s; '
           f'measured over {wall:.1f} wall s = {simulated:.1f} simulated s:')
+    rows = []
     for node, seconds in realtime.cpu.items():
         print(f'  {node:18s} {100 * seconds / wall:6.1f} % of a core   {seconds / simulated:6.3f} CPU s per '
               'simulated s')
+        rows.append((f'{node}, CPU s per simulated s (share of a core)',
+                     f'{seconds / simulated:.3f} ({100 * seconds / wall:.1f} %)', '< 0.03 (3 %) for a node that does '
+                     'not step the model' if node in ('trajectory', 'constraint_config', *LOOPS) else ''))
     print(f'  {"total":18s} {100 * total / wall:6.1f} % of a core   {total / simulated:6.3f} CPU s per simulated s'
           '   (target <= 50 %)')
     print(f'  ratio to the two-pinv model: {total / simulated / model:.2f}   (target <= 0.6)')
@@ -266,6 +288,14 @@ def main() -> int:
           f'{2 * args.sleep_seconds:g} s: {bare_rate:.0f} wake-ups later than 2 ms per minute '
           f'(max {1e3 * max(bare_late, default=0.0):.2f} ms)')
 
+    rows += [('**whole graph**, CPU s per simulated s (share of a core)',
+              f'**{total / simulated:.3f}** ({100 * total / wall:.1f} %)', '<= 0.5 (50 %)'),
+             ('two-pinv model alone, CPU s per simulated s (before / after the runs)',
+              f'{model:.3f} ({model_before:.3f} / {model_after:.3f})', ''),
+             ('**ratio of the whole graph to the two-pinv model**', f'**{total / simulated / model:.2f}**', '<= 0.6'),
+             (f'steps later than 2 ms in {args.duration:g} s (max lateness)', f'{late} ({lateness:.2f} ms)', '0'),
+             (f'bare 1 kHz sleep loop, wake-ups later than 2 ms a minute ({2 * args.sleep_seconds:g} s; max)',
+              f'{bare_rate:.0f} ({1e3 * max(bare_late, default=0.0):.2f} ms)', '')]
     speed = fast.speed()
     fast_wall = fast.window[1] - fast.window[0]
     print(f'\nwallbot-sim run {scenario} --engine {args.engine}{composed}, factor 0, {args.fast_duration:g} simulated s:')
@@ -273,6 +303,12 @@ def main() -> int:
     print(f'  ratio to the two-pinv model\'s speed ({1 / model:.2f} simulated s per CPU s): {speed * model:.2f}'
           '   (target >= 5)')
     print('  CPU share: ' + ', '.join(f'{node} {100 * s / fast_wall:.0f} %' for node, s in fast.cpu.items()))
+    rows += [(f'factor 0 ({args.fast_duration:g} s): simulated s per wall s', f'{speed:.2f}', ''),
+             ("**factor 0: ratio to the two-pinv model's speed**", f'**{speed * model:.2f}**', '>= 5')]
+    report.table(('measure', 'figure', 'target'), rows,
+                 f'`wallbot-sim run {scenario} --engine {args.engine}{composed}`, {args.duration:g} simulated s at '
+                 f'factor 1 (CPU over {wall:.1f} wall s = {simulated:.1f} simulated s of steady running):')
+    report.write(args.write_docs)
     load = os.getloadavg()
     print(f'\nmachine: {os.cpu_count()} CPUs, load average at the end {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, '
           f'Python {sys.version.split()[0]}')

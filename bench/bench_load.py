@@ -1,6 +1,7 @@
 """Load benchmark: the 1 kHz graph, recorded, while another process keeps one core busy.
 
     python bench/bench_load.py [--duration 20] [--no-controller] [--no-busy] [--scenario circle] [--json]
+                               [--write-docs [FILE]]
 
 Runs ``wallbot-sim run SCENARIO --duration D --no-plots`` (its own claimed DDS domain: recorder,
 constraint_config, trajectory, dynamics at real-time factor 1 with belt + non_lateral + nonslip,
@@ -28,6 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from report import Report, add_write_docs_option
 from wallbot_sim.graph import ChildProcesses, cpu_seconds
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,6 +94,23 @@ def analyse(bag: Path, duration: float) -> dict:
     return result
 
 
+def write_table(report: Report, result: dict) -> None:
+    """The run's figures as one row of a table."""
+    rate, share = result['achieved_rate_hz'], result['busy_loop_cpu_share']
+    lost = ' / '.join(str(result['topics'][leaf]['lost']) for leaf in STEP_TOPICS)
+    if 'wheel_torque_cmd_recorded' in result:
+        lost += f" ({result['wheel_torque_cmd_recorded']} wheel_torque_cmd)"
+    achieved = (f"{rate['mean']:.1f} Hz ({rate['min']:.1f} .. {rate['max']:.1f})" if rate['mean'] is not None
+                else 'no full window')
+    report.table(('run', 'busy loop got', 'achieved rate (mean of 1 s windows, min .. max)', 'steps > 2 ms late',
+                  'max lateness', 'lost on ' + ' / '.join(STEP_TOPICS), 'run wall time'),
+                 [(f"{result['scenario']} {result['duration_s']:g} s, controller "
+                   f"{'on' if result['controller'] else 'off'}",
+                   f'{100 * share:.0f} % of a core' if share is not None else 'no busy loop', achieved,
+                   f"{result['late_steps']} of {result['expected_steps'] - 1}", f"{result['lateness_max_ms']} ms", lost,
+                   f"{result['run_wall_s']:.1f} s")])
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--duration', type=float, default=20.0)
@@ -100,7 +119,10 @@ def main() -> int:
     parser.add_argument('--no-busy', action='store_true', help='no busy loop (baseline)')
     parser.add_argument('--out', help='keep the run here (default: a temporary directory, removed)')
     parser.add_argument('--json', action='store_true')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('-'.join(['load', *(['no-controller'] if args.no_controller else []),
+                              *(['no-busy'] if args.no_busy else [])]))
 
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix='bench_load_'))
     busy = None
@@ -125,6 +147,8 @@ def main() -> int:
               **analyse(out / 'run' / 'bag', args.duration)}
     if not args.out:
         shutil.rmtree(out, ignore_errors=True)
+    write_table(report, result)
+    report.write(args.write_docs)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0

@@ -7,6 +7,8 @@ with Ctrl-C after ``--duration`` seconds. Prints the RSS after 10 s, at the end,
     python bench/bench_memory.py --duration 600      # the issue's 10-minute figure: run's defaults, one process
     python bench/bench_memory.py --duration 600 --controller   # the closed loop
     python bench/bench_memory.py --duration 600 --no-compose --engine python   # two processes, the model as written
+
+``--write-docs [FILE]`` writes the figures into the section of docs/performance.md named after the options.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from report import Report, add_write_docs_option
 from wallbot_sim.graph import ChildProcesses, child_processes, resident_mib
 from wallbot_sim.model.simulation import ENGINES, NUMBA
 
@@ -37,7 +40,10 @@ def main() -> int:
     parser.add_argument('--engine', choices=ENGINES, default=NUMBA,
                         help="the dynamics' engine (default numba, run's)")
     parser.add_argument('--controller', action='store_true', help='run --controller: the closed loop (driven mode)')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('-'.join(['memory', *([] if args.engine == NUMBA else [args.engine]),
+                              *([] if args.compose else ['no-compose']), *(['controller'] if args.controller else [])]))
     nodes = {**(COMPOSED_NODES if args.compose else NODES), **(CONTROLLER if args.controller else {})}
     work = Path(tempfile.mkdtemp(prefix='wallbot_bench_mem_'))
     launcher = ChildProcesses(work / 'logs', os.environ, stop_timeout=120.0)
@@ -67,9 +73,13 @@ def main() -> int:
         for name in nodes:
             print(f'  {name:17s} RSS after 10 s {at_10[name]:6.1f} MiB, at the end {end[name]:6.1f} MiB, '
                   f'growth {end[name] - at_10[name]:+.1f} MiB')
+        report.table(('process', 'RSS after 10 s', f'after {samples[-1][0]:.0f} s', 'growth', 'target'),
+                     [(name, f'{at_10[name]:.1f} MiB', f'{end[name]:.1f} MiB',
+                       f'**{end[name] - at_10[name]:+.1f} MiB**', 'within 50 MB') for name in nodes])
     finally:
         launcher.stop_all(first=('run',))  # SIGINT, as at a terminal
         shutil.rmtree(work, ignore_errors=True)
+    report.write(args.write_docs)
     return 0
 
 

@@ -9,7 +9,7 @@ publishing every step, then reports
 Simulation time is read from the 1 Hz /diagnostics, not from /clock: a 1 kHz subscriber in
 this process would take CPU from the graph it measures.
 
-    python bench/bench_node.py [--seconds 20] [--fast-seconds 10] [--engine python|numba]
+    python bench/bench_node.py [--seconds 20] [--fast-seconds 10] [--engine python|numba] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import threading
 import time
 from pathlib import Path
 
+from report import Report, add_write_docs_option
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import ChildProcesses, cpu_seconds
 
@@ -33,7 +34,10 @@ def main() -> int:
     parser.add_argument('--fast-seconds', type=float, default=10.0)
     parser.add_argument('--engine', choices=('python', 'numba'), default='python',
                         help="the dynamics' engine parameter (default python, the model)")
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('node' if args.engine == 'python' else f'node-{args.engine}')
+    rows: list[tuple[str, str, str]] = []
 
     claim = claim_domain_id()
     os.environ.update(claim.env())
@@ -118,6 +122,11 @@ def main() -> int:
             print(f'  step compute mean      {step_mean:8.3f} ms')
             print('  CPU share (one core)   ' + ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items())
                   + '  (target dynamics <= 50)')
+            rows += [(f'factor 1, {label}: achieved step rate', f'{1000.0 * factor:.1f} Hz', '>= 999 Hz'),
+                     (f'factor 1, {label}: max lateness (steps later than 2 ms)', f'{lateness:.2f} ms ({late})',
+                      '0 steps'),
+                     (f'factor 1, {label}: CPU share',
+                      ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items()), 'dynamics <= 50 %')]
 
         # --- factor 0 ---
         for publish_every in (1, 10):
@@ -128,8 +137,13 @@ def main() -> int:
             factor, _full, cpu = measure(args.fast_seconds, pids)
             print(f'real_time_factor 0, publish_every {publish_every}, {args.fast_seconds:g} s:')
             print(f'  factor reached         {factor:8.2f}      (target >= 5)')
+            rows.append((f'factor 0, publish_every {publish_every}: factor reached', f'{factor:.2f}', '>= 5'))
             print('  CPU share (one core)   ' + ', '.join(f'{name} {share:.1f} %' for name, share in cpu.items()))
         print(f'machine: {os.cpu_count()} CPUs, Python {sys.version.split()[0]}; node logs in {nodes.log_dir}')
+        report.table(('measure', 'figure', 'target'), rows,
+                     f'dynamics (engine {args.engine}), trajectory and constraint_config, all constraints, rate_hz 1000, '
+                     f'publishing every step; {args.seconds:g} s at factor 1 for each priority:')
+        report.write(args.write_docs)
     finally:
         spinning = False
         nodes.stop_all()

@@ -9,7 +9,7 @@ how long after the kill it handled the signal (``wallbot.recorder.stop_time_ns``
 how far the bag's last receive time lies before that, and when it had written the last message
 and began to close the bag (its log line).
 
-    python bench/bench_signals.py [--rounds 3]
+    python bench/bench_signals.py [--rounds 3] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pathlib import Path
 
 import yaml
 
+from report import Report, add_write_docs_option
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_scenario
 from wallbot_sim.control.tracking import DRIVEN
@@ -116,7 +117,9 @@ def run_round(work: Path, env: dict[str, str]) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--rounds', type=int, default=3)
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('signals')
     results: dict[tuple[str, str], list[float]] = {}
     with claim_domain_id() as claim, tempfile.TemporaryDirectory() as tmp:
         env = claim.env()
@@ -132,6 +135,10 @@ def main() -> int:
     print(f'{"process":36s} {"signal":8s} {"min":>7s} {"median":>7s} {"max":>7s}  (s, {args.rounds} rounds)')
     for (name, sig), values in results.items():
         print(f'{name:36s} {sig:8s} {min(values):7.3f} {statistics.median(values):7.3f} {max(values):7.3f}')
+    report.table(('process', 'signal', 'seconds from kill to exit: min / median / max'),
+                 [(name, sig, f'{min(values):.2f} / {statistics.median(values):.2f} / {max(values):.2f}')
+                  for (name, sig), values in results.items()], f'{args.rounds} rounds:')
+    report.write(args.write_docs)
     return 0
 
 

@@ -7,7 +7,7 @@ random, alone through ``wallbot-sim simulate`` and prints the largest relative d
 their results.csv rows and what the run summary and the motor analysis give for those CSVs.
 
     python bench/bench_sweep.py [--spec examples/sweep_figure8.yaml] [--out runs/bench_sweep] [--workers N] [--check 3]
-                                [--check-only]
+                                [--check-only] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from report import Report, add_write_docs_option
 from wallbot_sim.rundata import load_run, summarize
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.sweep import load_spec
@@ -56,18 +57,21 @@ def main() -> int:
     parser.add_argument('--workers', type=int, help='local cluster size (default: one per core)')
     parser.add_argument('--check', type=int, default=3, help='robots to compare with single simulate runs')
     parser.add_argument('--check-only', action='store_true', help='only check the results already in --out')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('sweep')
 
     spec = load_spec(args.spec)
     if spec.settings.controller or spec.settings.selection.tangent_heading is not None:
         parser.error('the check runs simulate with --constraints only: a spec without controller and tangent_heading')
     if not args.check_only:
-        measure(args, spec)
-    check(args, spec)
+        measure(args, spec, report)
+    check(args, spec, report)
+    report.write(args.write_docs)
     return 0
 
 
-def measure(args: argparse.Namespace, spec) -> None:
+def measure(args: argparse.Namespace, spec, report: Report) -> None:
     """Run the sweep and print its time."""
     print(f'{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy '
           f'{np.__version__}; {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC; load average before '
@@ -82,9 +86,13 @@ def measure(args: argparse.Namespace, spec) -> None:
     print(f'{len(spec.robots)} robots x {spec.settings.steps + 1} steps in {seconds:.0f} s wall '
           f'({robot_steps / seconds:,.0f} robot-steps/s, start-up and figures included); load average after '
           f'{os.getloadavg()[0]:.1f}')
+    report.table(('robots x steps', 'workers', 'wall time', 'robot-steps/s (start-up and figures included)'),
+                 [(f'{len(spec.robots):,} x {spec.settings.steps + 1:,}',
+                   args.workers or f'{os.cpu_count()} (one per core)', f'{seconds:,.0f} s',
+                   f'{robot_steps / seconds:,.0f}')])
 
 
-def check(args: argparse.Namespace, spec) -> None:
+def check(args: argparse.Namespace, spec, report: Report) -> None:
     """Compare ``--check`` robots of the results with single simulate runs."""
     names, rows = read_results(Path(args.out) / 'results.csv')
     worst_relative, worst_absolute = 0.0, 0.0
@@ -111,6 +119,9 @@ def check(args: argparse.Namespace, spec) -> None:
         print(f'robot {index}: checked against simulate')
     print(f'largest relative difference of a checked output: {worst_relative:.2e}; of those at round-off '
           f'(|value| <= {TINY:g}: final error, residual), the largest absolute difference: {worst_absolute:.2e}')
+    report.table(('robots checked against single `simulate` runs', 'largest relative difference',
+                  f'largest absolute difference of outputs at round-off (<= {TINY:g})'),
+                 [(min(args.check, len(rows)), f'{worst_relative:.1e}', f'{worst_absolute:.1e}')])
 
 
 def _scenario_argument(spec_path: str) -> str:
