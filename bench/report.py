@@ -123,7 +123,8 @@ class Report:
 
 
 def section_pattern(name: str) -> re.Pattern[str]:
-    return re.compile(rf'(<!-- bench:{re.escape(name)} -->\n).*?(\n<!-- /bench:{re.escape(name)} -->)', re.DOTALL)
+    return re.compile(rf'(^<!-- bench:{re.escape(name)} -->\n).*?(\n<!-- /bench:{re.escape(name)} -->$)',
+                      re.DOTALL | re.MULTILINE)
 
 
 def replace_section(text: str, name: str, body: str) -> str:
