@@ -68,3 +68,23 @@ def pytest_runtest_makereport(item: pytest.Item):
     if report.failed and report.when == 'call' and runner is not None:
         for log in sorted(runner.log_dir.glob('*.log')):
             report.sections.append((f'{log.stem} log (end)', log.read_text(errors='replace')[-LOG_TAIL:]))
+
+
+FAST_MODULES = frozenset({
+    'test_batch', 'test_batch_contact', 'test_batch_control', 'test_compiled_contact', 'test_compiled_simulation',
+    'test_control_tracking', 'test_docs', 'test_dynamics_loop', 'test_launch_description', 'test_messages',
+    'test_model_contact', 'test_model_parameters', 'test_model_robot', 'test_model_simulation', 'test_model_solver',
+    'test_model_trajectories', 'test_pacing', 'test_resume', 'test_step_cdr', 'test_step_tap', 'test_suite_waits',
+    'test_view', 'test_wheel_speed',
+})
+"""The model and the units (no node processes, no DDS graph): ``make test-fast``, ``pytest -m fast``."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line('markers', 'fast: the model and the units, no node processes (make test-fast)')
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.module is not None and item.module.__name__.rpartition('.')[2] in FAST_MODULES:
+            item.add_marker(pytest.mark.fast)

@@ -31,6 +31,13 @@ NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.no
          'constraint_config': 'wallbot_sim.nodes.constraint_config', 'controller': 'wallbot_sim.nodes.controller',
          'cmd_vel': 'wallbot_sim.nodes.cmd_vel', 'joint_bridge': 'wallbot_sim.nodes.joint_bridge'}
 MS = 1_000_000
+SUBSCRIBER_DEPTH = 100_000
+"""History depth of this test's own subscriptions (the topics' QoS otherwise): DDS keeps what arrives while a
+starved test process does not take it (100 s of a 1 kHz topic), so what the test sees is what the nodes
+published, however loaded the machine. A depth is not part of QoS compatibility."""
+STALL = 30.0
+"""Wall seconds a wait gives an event before it fails the test: only a stall takes this long, however loaded
+the machine (a passing test never waits it out)."""
 
 
 def ns(msg) -> int:
@@ -85,7 +92,9 @@ class Graph:
         def keep(data: bytes) -> None:
             with self.lock:
                 self._raw[name].append(data)
-        self.node.create_subscription(kind, topic_name, keep, qos_profile(topic), raw=True)
+        deep = qos_profile(topic)
+        deep.depth = SUBSCRIBER_DEPTH
+        self.node.create_subscription(kind, topic_name, keep, deep, raw=True)
 
     def _spin(self):
         while self.context.ok():
@@ -131,7 +140,7 @@ class Graph:
             self._decoded[name].clear()
             self._cleared[name] += 1
 
-    def wait_for(self, predicate, timeout: float = 10.0, what: str = 'condition'):
+    def wait_for(self, predicate, timeout: float = STALL, what: str = 'condition'):
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             value = predicate()
@@ -154,7 +163,7 @@ class Graph:
                 return codec.leading_stamp_ns(self._raw[name][-1])
             return ns(self._decoded[name][-1]) if self._decoded[name] else -1
 
-    def wait_sim_time(self, t: float, timeout: float = 10.0):
+    def wait_sim_time(self, t: float, timeout: float = STALL):
         """Wait until odometry reaches simulation time ``t``; fail only if it stops advancing for
         ``timeout`` wall seconds (a stall), however slowly a loaded machine simulates."""
         target, newest = round(t * 1e9), self.last_stamp()
@@ -182,9 +191,9 @@ class Graph:
         def held() -> list[int]:
             return [ns(a) for a in self.messages(topics.DIAGNOSTICS.name) if any(holding(s) for s in a.status)]
         t_held = self.wait_for(held, 10, what)[-1]
-        self.wait_for(lambda: self.last_stamp() >= t_held - last_published, 10, 'odometry up to the held time')
+        self.wait_for(lambda: self.last_stamp() >= t_held - last_published, STALL, 'odometry up to the held time')
         seen = len(held())
-        later = self.wait_for(lambda: held()[seen:], 10, f'a later report of {what}')
+        later = self.wait_for(lambda: held()[seen:], STALL, f'a later report of {what}')
         assert later[0] == t_held, f'held at {t_held * 1e-9} s, then reported {later[0] * 1e-9} s'
         assert self.last_stamp() == t_held - last_published, 'odometry went on while the dynamics held'
         return t_held
@@ -229,8 +238,8 @@ def start_graph(graph: Graph, *dynamics: str, constraints: tuple[str, ...] = (),
         graph.start('trajectory', *trajectory)
     proc = graph.start('dynamics', *dynamics)
     odom = topics.ODOM.resolve(graph.namespace)
-    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
+    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, STALL, 'discovery of the dynamics node')
     # a message of the dynamics received here: its endpoints and this test's are matched both ways
-    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 15, 'the first diagnostics (1 Hz)')
+    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), STALL, 'the first diagnostics (1 Hz)')
     graph.start('constraint_config', *constraints)
     return proc

@@ -14,7 +14,7 @@ import rclpy.duration  # noqa: E402
 
 from geometry_msgs.msg import TwistStamped  # noqa: E402
 from rcl_interfaces.srv import DescribeParameters  # noqa: E402
-from graph_helpers import Graph, ns, start_graph  # noqa: E402
+from graph_helpers import STALL, Graph, ns, start_graph  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
@@ -64,7 +64,7 @@ class Driver:
 
     def send(self, linear: float, angular: float) -> None:
         """One command, returned once the subscriber (cmd_vel_node) has acknowledged it."""
-        self.graph.wait_for(lambda: self.publisher.get_subscription_count() > 0, 15, 'cmd_vel_node hearing cmd_vel')
+        self.graph.wait_for(lambda: self.publisher.get_subscription_count() > 0, STALL, 'cmd_vel_node hearing cmd_vel')
         message = TwistStamped()
         message.twist.linear.x, message.twist.angular.z = linear, angular
         self.publisher.publish(message)
@@ -159,7 +159,7 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
 
     publisher = graph.node.create_publisher(JointState, topics.JOINT_COMMANDS.resolve(graph.namespace),
                                             qos_profile(topics.JOINT_COMMANDS))
-    graph.wait_for(lambda: publisher.get_subscription_count() > 0, 15, 'joint_bridge subscribing joint_commands')
+    graph.wait_for(lambda: publisher.get_subscription_count() > 0, STALL, 'joint_bridge subscribing joint_commands')
     malformed = JointState(name=list(topics.WHEEL_JOINTS[:3]), effort=[0.5, 0.5, 0.5])
     publisher.publish(malformed)
     graph.wait_for(lambda: 'rejected: joint_commands must name each of' in graph.runner.output('joint_bridge'), 10,
@@ -175,7 +175,7 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
     def applied() -> bool:
         publisher.publish(good)  # as a controller_manager writes every update
         return bool(commands)
-    graph.wait_for(applied, 10, 'wheel_torque_cmd from joint_commands')
+    graph.wait_for(applied, STALL, 'wheel_torque_cmd from joint_commands')
     assert list(commands[0].data) == pytest.approx([0.5, 1.0], abs=1e-12)
     assert all(len(line) < 250 for line in graph.runner.output('joint_bridge').splitlines() if 'rejected' in line)
 
@@ -242,7 +242,8 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
 def test_cmd_vel_parameters_have_ranges_and_a_refusal_leaves_the_node_running(graph):
     graph.start('cmd_vel', 'use_stamped_vel:=false')
     topic = topics.CMD_VEL.resolve(graph.namespace)
-    subscriptions = graph.wait_for(lambda: graph.node.get_subscriptions_info_by_topic(topic), 15, 'cmd_vel subscribed')
+    subscriptions = graph.wait_for(lambda: graph.node.get_subscriptions_info_by_topic(topic), STALL,
+                                   'cmd_vel subscribed')
     assert [info.topic_type for info in subscriptions] == [topics.CMD_VEL_UNSTAMPED_TYPE]
     response = graph.call(DescribeParameters, f'{graph.namespace}/{topics.NODE_CMD_VEL}/describe_parameters',
                           DescribeParameters.Request(names=['linear.x.max_acceleration', 'wheel_radius',

@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from scheduling_helpers import VirtualTime
 from wallbot_msgs_py import codec
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
@@ -25,6 +26,7 @@ from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, BLOCK_PACED, 
                                              ConstraintSwitch, Decision, DynamicsLoop, NewPlan, ParameterChange, Pause,
                                              PreparedState, RecordProgress, Reset, ResumeSnapshot, RunState, Step,
                                              Teleport, TorqueCommand)
+from wallbot_sim.nodes import dynamics_loop, pacing
 from wallbot_sim.nodes.pacing import Pacer
 
 DT = 1e-3
@@ -73,6 +75,16 @@ class FakeGraph:
     @property
     def times(self) -> list[float]:
         return [round(t / DT) * DT for t, _q in self.published]
+
+
+@pytest.fixture(autouse=True)
+def virtual_wall_clock(monkeypatch) -> VirtualTime:
+    """The loop and its pacer read and sleep on a virtual clock: whether a state is late, or could be handed
+    over ahead of time, follows from the loop's logic, never from how busy the machine is."""
+    clock = VirtualTime()
+    monkeypatch.setattr(pacing, 'time', clock)
+    monkeypatch.setattr(dynamics_loop, 'time', clock)
+    return clock
 
 
 class FakeLog:

@@ -36,7 +36,7 @@ rclpy = pytest.importorskip('rclpy')
 from std_srvs.srv import Trigger  # noqa: E402
 
 from closed_loop import model_loop_states  # noqa: E402
-from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
+from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
@@ -94,7 +94,7 @@ def test_each_node_killed_and_restarted_once(process_runner, tmp_path):
                                      'the restarted constraint_config\'s constraints')[0]
         assert republished.message == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
         graph.wait_for(lambda: 'constraints trajectory+tangent_heading+belt+non_lateral+nonslip -> '
-                       in process_runner.output('dynamics'), 10, 'the dynamics re-applying the set')
+                       in process_runner.output('dynamics'), STALL, 'the dynamics re-applying the set')
 
         # 3. dynamics
         graph.wait_sim_time(graph.last_stamp() * 1e-9 + 0.5)
@@ -293,11 +293,11 @@ def test_reset_and_a_kill_in_a_closed_loop_every_node_carries_on(process_runner,
             second run's first states (seen: t = 0 to 5 ms)."""
             stamps = [ns(m) for m in graph.messages(topics.ODOM.name)]
             return stamps[-1] if any(stamp < first_run for stamp in stamps) else -1
-        graph.wait_for(lambda: since_reset() >= 0, 10, 'odometry at t = 0')
+        graph.wait_for(lambda: since_reset() >= 0, STALL, 'odometry at t = 0')
         graph.wait_for(lambda: 'controller restarted' in process_runner.output('controller'), 5,
                        'the controller restarting')
         graph.wait_for(lambda: re.search(r'simulation time went back to 0\.\d+ s: replanning',
-                                         process_runner.output('trajectory')), 10, 'the trajectory node replanning')
+                                         process_runner.output('trajectory')), STALL, 'the trajectory node replanning')
 
         graph.wait_for(lambda: since_reset() >= KILL_AT * 1e9, 30, f'{KILL_AT} s after the reset')
         first_log = process_runner.output('dynamics')

@@ -43,7 +43,7 @@ from std_msgs.msg import Float64MultiArray, MultiArrayDimension  # noqa: E402
 from rclpy.parameter import parameter_value_to_python  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from graph_helpers import Graph, ns, start_graph  # noqa: E402
+from graph_helpers import STALL, Graph, ns, start_graph  # noqa: E402
 from wallbot_msgs_py import bagio, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques  # noqa: E402
@@ -320,7 +320,7 @@ def test_fuzz_parameters_and_commands(process_runner, tmp_path):
         # this test's subscriber may drop messages on a loaded machine; the bag (lossless) is checked
         # for consecutive 1 ms steps after the reset
         assert np.all(np.diff([s for s in odom if s <= 1_000_000_000]) > 0), 'time runs on from 0 after the reset'
-        graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 10, 10, 'reference again')
+        graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 10, STALL, 'reference again')
         for name, proc in graph.procs.items():
             assert proc.poll() is None, f'{name} died:\n{process_runner.output(name)[-3000:]}'
         logs = {name: process_runner.output(name) for name in ('dynamics', 'trajectory', 'constraint_config')}

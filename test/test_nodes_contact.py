@@ -13,7 +13,7 @@ rclpy = pytest.importorskip('rclpy')
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from graph_helpers import Graph, start_graph  # noqa: E402
+from graph_helpers import STALL, Graph, start_graph  # noqa: E402
 from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_sim.paths import robot_yaml  # noqa: E402
 
@@ -41,7 +41,7 @@ def simulation_status(graph: Graph, level: int, words: str):
 
 def test_contact_model_and_adhesion_change_at_run_time(graph):
     start_graph(graph, 'initial_x:=0.0', 'contact_model:=coulomb', constraints=DRIVEN, trajectory=None)
-    first = graph.wait_for(lambda: graph.messages('contact'), 15, 'wheel_contact')[0]
+    first = graph.wait_for(lambda: graph.messages('contact'), STALL, 'wheel_contact')[0]
     assert list(first.name) == list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
     assert list(first.effort[:4]) == pytest.approx([38.10, 38.10, 56.50, 56.50], abs=0.01)
     assert first.position[6] == pytest.approx(0.667, abs=5e-4) and list(first.velocity) == [0.0] * 7
@@ -61,10 +61,10 @@ def test_contact_model_and_adhesion_change_at_run_time(graph):
     stamp = graph.last_stamp()
     held = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name)
                                    if m.header.stamp.sec * 10**9 + m.header.stamp.nanosec > stamp
-                                   and abs(m.twist.twist.linear.y) < 1e-9], 10, 'the ideal contact holding')
+                                   and abs(m.twist.twist.linear.y) < 1e-9], STALL, 'the ideal contact holding')
     assert held
     graph.clear('contact')
-    newest = graph.wait_for(lambda: graph.messages('contact'), 5, 'wheel_contact after the switch')[-1]
+    newest = graph.wait_for(lambda: graph.messages('contact'), STALL, 'wheel_contact after the switch')[-1]
     assert list(newest.velocity) == [0.0] * 7 and newest.position[6] > 1.0  # ideal: what friction would need
 
 
@@ -77,10 +77,10 @@ def test_detachment_pauses_with_an_error(graph, tmp_path):
     robot_file.write_text(yaml.safe_dump(robot))
     start_graph(graph, 'initial_x:=0.0', 'contact_model:=coulomb', f'robot_file:={robot_file}', constraints=DRIVEN,
                 trajectory=None)
-    first = graph.wait_for(lambda: graph.messages('contact'), 15, 'wheel_contact')[0]
+    first = graph.wait_for(lambda: graph.messages('contact'), STALL, 'wheel_contact')[0]
     assert first.effort[6] == pytest.approx(0.7 * 400.0)  # the robot file's force (the parameter is 0)
     assert all(result.successful for result in graph.set_parameters('dynamics', adhesion_force=130.0))
-    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.ERROR, 'detached'), 10, 'ERROR on detachment')
+    graph.wait_for(lambda: simulation_status(graph, DiagnosticStatus.ERROR, 'detached'), STALL, 'ERROR on detachment')
     detached_at = float(re.search(r'lifted off the wall: normal load -?[\d.]+ N at t = ([\d.]+) s',
                                   graph.runner.output('dynamics')).group(1))
     held = graph.held_at(lambda s: s.level == DiagnosticStatus.ERROR, what='the detached robot')  # asserts it holds

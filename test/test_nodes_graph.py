@@ -8,6 +8,7 @@ with rclpy like the ROS tools do (``ros2 param set`` = the SetParameters service
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 import time
@@ -23,7 +24,7 @@ from rclpy.serialization import serialize_message  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
-from graph_helpers import MS, Graph, ns, start_graph  # noqa: E402
+from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
 from scheduling_helpers import may_use_fifo  # noqa: E402
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
@@ -107,14 +108,14 @@ def test_topics_types_and_1khz_odometry(graph):
                if any(kind.split('/')[0] not in topics.STANDARD_PACKAGES for kind in kinds)}
     assert not unusual, f'topics of types a Jazzy install does not have: {unusual}'
     graph.wait_for(lambda: {'/wallbot/dynamics', '/wallbot/trajectory', '/wallbot/constraint_config'}
-                   <= set(graph.node.get_fully_qualified_node_names()), 10, 'node names')
+                   <= set(graph.node.get_fully_qualified_node_names()), STALL, 'node names')
 
     wheels = graph.messages(topics.WHEEL_STATES.name)[-1]
     assert list(wheels.name) == list(topics.WHEEL_JOINTS)
     assert graph.messages(topics.REFERENCE_PATH.name) and graph.messages(topics.REFERENCE_TRAJECTORY.name)
     assert graph.messages(topics.CONSTRAINTS.name)[-1].message == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
-    graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 20, 5, 'reference poses')
-    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 3, 'diagnostics')
+    graph.wait_for(lambda: len(graph.messages(topics.REFERENCE.name)) > 20, STALL, 'reference poses')
+    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), STALL, 'diagnostics')
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     assert values['active constraints'] == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
     # the rate itself depends on the machine's load (bench/ measures it); here: it steps and says so
@@ -122,7 +123,8 @@ def test_topics_types_and_1khz_odometry(graph):
     assert values['loop priority'] == 'normal'  # by default
     assert graph.set_parameters('dynamics', realtime_priority=50)[0].successful
     graph.clear(topics.DIAGNOSTICS.name)
-    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name)[1:], 5, 'diagnostics after the set')
+    diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name)[1:], STALL,
+                                 'diagnostics after the set')
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     # the node's decision; whether a step had time to sleep under FIFO depends on the machine's load
     if may_use_fifo():
@@ -142,9 +144,9 @@ def test_set_parameters_switches_constraints_mid_run(graph):
 
     results = graph.set_parameters('constraint_config', non_lateral=True)
     assert results[0].successful
-    switched_by = graph.last_stamp()
-    graph.wait_for(lambda: 'constraints belt -> belt+non_lateral' in graph.runner.output('dynamics'), 5,
-                   'switch log')
+    switch = graph.wait_for(lambda: re.search(r'constraints belt -> belt\+non_lateral at t = ([\d.]+) s',
+                                              graph.runner.output('dynamics')), 30, 'switch log')
+    switched_by = round(float(switch.group(1)) * 1e9)  # when the dynamics applied it, as it says
     graph.wait_sim_time(switched_by * 1e-9 + 0.5)
     after = [m for m in graph.messages(topics.ODOM.name) if ns(m) > switched_by + 200 * MS]
     assert len(after) > 200
@@ -172,7 +174,10 @@ def test_invalid_parameters_are_refused_and_the_nodes_keep_running(graph):
     assert graph.get_parameters('trajectory', 'shape') == ['circle']
     before = graph.last_stamp()
     graph.wait_sim_time(before * 1e-9 + 0.3)
-    assert np.all(np.diff([ns(m) for m in graph.messages(topics.ODOM.name)]) == MS)
+    # still stepping at 1 kHz (this test's own subscriber is no recorder: under load it may miss states, which
+    # the recorder's back-pressure prevents for a bag; test_recorder and test_cli_run check that)
+    steps = np.diff([ns(m) for m in graph.messages(topics.ODOM.name)])
+    assert np.all(steps > 0) and np.all(steps % MS == 0)
 
 
 def test_pause_and_reset(graph):
@@ -186,10 +191,15 @@ def test_pause_and_reset(graph):
 
     graph.clear(topics.ODOM.name)
     assert graph.call(Trigger, '/wallbot/dynamics/reset', Trigger.Request()).success
-    first = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 0], 5, 'reset')[0]
+    first = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 0], 30, 'reset')[0]
     assert (first.pose.pose.position.x, first.pose.pose.position.y, first.twist.twist.linear.x) == (0.7, 0.0, 0.0)
-    graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name) if ns(m) == 300 * MS], 5,
-                   'time running again from 0 after the reset')
+
+    def since_reset() -> list[int]:
+        stamps = [ns(m) for m in graph.messages(topics.ODOM.name)]
+        return stamps[stamps.index(0):]
+    graph.wait_for(lambda: since_reset()[-1] >= 300 * MS, 30, 'time running again from 0 after the reset')
+    assert np.all(np.diff(since_reset()) > 0), 'time runs on from 0 after the reset'
+
 
 
 def test_step_and_place_a_paused_robot(graph):
@@ -208,17 +218,18 @@ def test_step_and_place_a_paused_robot(graph):
 
     place = graph.node.create_publisher(PoseWithCovarianceStamped, topics.INITIALPOSE.resolve(),
                                         qos_profile(topics.INITIALPOSE))
-    graph.wait_for(lambda: place.get_subscription_count() > 0, 10, 'the dynamics subscribing initialpose')
+    graph.wait_for(lambda: place.get_subscription_count() > 0, STALL, 'the dynamics subscribing initialpose')
     pose = PoseWithCovarianceStamped()
     pose.header.frame_id = 'map'
     place.publish(pose)
-    graph.wait_for(lambda: "rejected: initialpose: frame 'map'" in graph.runner.output('dynamics'), 5, 'the rejection')
+    graph.wait_for(lambda: "rejected: initialpose: frame 'map'" in graph.runner.output('dynamics'), STALL,
+                   'the rejection')
     pose.header.frame_id = topics.WALL_FRAME
     pose.pose.pose.position.x, pose.pose.pose.position.y = 0.3, -0.4
     pose.pose.pose.orientation.z, pose.pose.pose.orientation.w = math.sin(0.5), math.cos(0.5)  # heading 1 rad
     place.publish(pose)
     placed = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name)
-                                     if ns(m) == held and m.pose.pose.position.x == 0.3], 5, 'the placed state')[0]
+                                     if ns(m) == held and m.pose.pose.position.x == 0.3], STALL, 'the placed state')[0]
     assert placed.pose.pose.position.y == -0.4
     assert codec.quaternion_yaw(placed.pose.pose.orientation) == pytest.approx(1.0, abs=1e-12)
     twist = placed.twist.twist
@@ -257,7 +268,7 @@ def test_driven_mode_rejects_malformed_commands_and_times_out(graph):
 
     graph.torque_pub.publish(Float64MultiArray(data=[0.02, -0.02]))
     spinning = graph.wait_for(lambda: [m for m in graph.messages(topics.WHEEL_STATES.name)
-                                       if m.velocity[0] > 0.0], 5, 'wheels driven by the command')[0]
+                                       if m.velocity[0] > 0.0], STALL, 'wheels driven by the command')[0]
     assert spinning.velocity[2] < 0.0 and spinning.effort[0] == pytest.approx(0.01, abs=1e-12)
     # held for command_timeout (0.3 s of simulation time), then zero torque and a warning
     after = ns(spinning) + 500 * MS
@@ -279,7 +290,7 @@ def test_diverging_state_pauses_with_an_error_and_never_publishes_nan(graph):
                 constraints=('baumgarte_alpha:=10000.0', 'baumgarte_beta:=10000.0'))
     graph.wait_for(lambda: 'simulation paused' in graph.runner.output('dynamics'), 60, 'divergence')  # a stall
     graph.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR for a in graph.messages(topics.DIAGNOSTICS.name)
-                               for s in a.status), 3, 'ERROR diagnostics')
+                               for s in a.status), STALL, 'ERROR diagnostics')
     for msg in graph.messages(topics.WHEEL_STATES.name):
         assert all(math.isfinite(v) for v in (*msg.position, *msg.velocity, *msg.effort))
     for msg in graph.messages(topics.ODOM.name):
@@ -289,7 +300,7 @@ def test_diverging_state_pauses_with_an_error_and_never_publishes_nan(graph):
     graph.held_at(lambda s: s.level == DiagnosticStatus.ERROR, last_published=1000 * MS, what='the diverged run')
     graph.clear(topics.ODOM.name)
     assert graph.call(Trigger, '/wallbot/dynamics/reset', Trigger.Request()).success
-    graph.wait_for(lambda: graph.last_stamp() >= 100 * MS, 5, 'running again after reset')
+    graph.wait_for(lambda: graph.last_stamp() >= 100 * MS, STALL, 'running again after reset')
 
 
 def run_to(graph: Graph, factor: str, t_end: float):
@@ -348,9 +359,9 @@ def test_a_headless_bag_played_into_a_live_dynamics_node_drives_it(graph, tmp_pa
     assert result.returncode == 0, result.stderr
     graph.start('dynamics', 'initial_x:=0.8')
     odom = topics.ODOM.resolve(graph.namespace)
-    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, 15, 'discovery of the dynamics node')
+    graph.wait_for(lambda: graph.node.count_publishers(odom) > 0, STALL, 'discovery of the dynamics node')
     # a message of the dynamics received here: matched both ways, so this test sees t = 0
-    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), 15, 'the first diagnostics (1 Hz)')
+    graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), STALL, 'the first diagnostics (1 Hz)')
     # play waits for a subscriber on each topic: let that be the dynamics, not this test's own reader
     # (play's latched messages end with it; acknowledged by this test alone they never reached the node)
     played_topics = {topics.CONSTRAINTS.resolve(graph.namespace), topics.REFERENCE_TRAJECTORY.resolve(graph.namespace)}

@@ -11,25 +11,9 @@ import threading
 
 import pytest
 
-from scheduling_helpers import may_use_fifo
+from scheduling_helpers import VirtualTime, may_use_fifo
 from wallbot_sim.nodes import pacing
 from wallbot_sim.nodes.pacing import Pacer
-
-
-class VirtualTime:
-    """perf_counter/sleep on a virtual clock; every sleep overshoots by ``overshoot``."""
-
-    def __init__(self, overshoot: float = 0.0) -> None:
-        self.now = 100.0
-        self.overshoot = overshoot
-        self.sleeps = 0
-
-    def perf_counter(self) -> float:
-        return self.now
-
-    def sleep(self, seconds: float) -> None:
-        self.sleeps += 1
-        self.now += seconds + self.overshoot
 
 
 class Scheduler:
