@@ -5,7 +5,7 @@ VPY    := $(VENV)/bin/python
 # Reinstalled whenever the packaging metadata changes.
 STAMP  := $(VENV)/.wallbot_sim-installed
 
-.PHONY: venv test run bench clean
+.PHONY: venv test test-fast run bench clean
 
 venv: $(STAMP)
 
@@ -15,8 +15,16 @@ $(STAMP): setup.py setup.cfg package.xml
 	$(VPY) -m pip install -e ".[ros,test]"
 	touch $@
 
+# Two workers (pytest-xdist), each a session of its own with its own DDS domain; a test module's
+# tests stay on one worker (its module-scoped fixtures run once).
+PYTEST := $(VPY) -m pytest -q -n 2 --dist loadscope
+
 test: venv
-	$(VPY) -m pytest -q test
+	$(PYTEST) test
+
+# The model and the units, no node processes (test/conftest.py FAST_MODULES).
+test-fast: venv
+	$(PYTEST) -m fast test
 
 run: venv
 	$(VENV)/bin/wallbot-sim run circle --constraints belt,non_lateral,nonslip --out runs/circle

@@ -66,7 +66,7 @@ setup(
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'foxglove': ['foxglove-sdk'],
-        'test': ['pytest', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy', 'foxglove-sdk',
+        'test': ['pytest', 'pytest-xdist', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy', 'foxglove-sdk',
                  'websockets'],
     },
     # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
