@@ -6,10 +6,7 @@ stacking order and the same normal-equation solve as the numba batch engine (whi
 Python model to 1e-9). The loads, friction use and drive forces of a chunk are measured at once with
 the batch's array functions; the reference at the RK4 instants is sampled in Python for the chunk.
 
-With coulomb contact (no trajectory task) ``kernel.robot_contact_run`` does the same with each
-boundary's stick/slip transitions settled in the kernel, as ``CoulombContact`` settles them, and
-measures each instant itself; the simulation's ``CoulombContact`` takes the state each boundary
-settled to, so a switch back to the Python path (a module of your own) goes on from it.
+Coulomb contact (per wheel) stays on the Python path of ``Simulation``.
 """
 
 from __future__ import annotations
@@ -20,13 +17,12 @@ import numpy as np
 
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
-from wallbot_sim.model.batch.kernel import DRIVE_ROW, LOADS_ROW, STATUS_ROW
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
+from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.constraints.look_ahead import PointReference
-from wallbot_sim.model.contact import IDEAL, CoulombContact
-from wallbot_sim.model.errors import ModelError, ParameterError
+from wallbot_sim.model.contact import IDEAL
+from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepTable
 from wallbot_sim.model.parameters import RobotParameters
@@ -34,6 +30,7 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
 from wallbot_sim.model.trajectories import Reference
+from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 
 AHEAD_FIRST, AHEAD_MOST = 4, 64
 """Steps taken ahead per kernel call: the first after a change, and the most (doubling while used up)."""
@@ -53,7 +50,7 @@ def compile_kernel() -> None:
 
 
 def compile_run(contact: str) -> None:
-    """Compile the kernel's run under ``contact`` (ideal or coulomb: what a numba ``Simulation`` steps by) or
+    """Compile what a numba ``Simulation`` under ``contact`` steps by (the kernel's run with ideal contact) or
     load it from numba's cache."""
     still = np.zeros(DOF)
     simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False),
@@ -118,12 +115,14 @@ class ReferenceRows(NamedTuple):
 
 
 class Measured(NamedTuple):
-    """What a simulation's outputs derive at one state: the motion, normal loads, friction use, drive forces."""
+    """What a simulation's outputs derive at one state: the motion, normal loads, friction use, drive forces and
+    the outputs per wheel (one row)."""
 
     motion: ConstrainedMotion
     loads: np.ndarray
     use: FrictionUse
     drive: DriveForces
+    wheels: WheelOutputs
 
 
 class CompiledRun(NamedTuple):
@@ -146,46 +145,6 @@ class CompiledRun(NamedTuple):
         return min(self.taken + 1, len(self.residuals))
 
 
-class ContactRun(NamedTuple):
-    """Consecutive instants of one robot with coulomb contact (``kernel.robot_contact_run``)."""
-
-    states: np.ndarray
-    """(T + 1, 14), as ``CompiledRun``'s (row k's velocities projected where a channel stuck again)."""
-    solutions: np.ndarray
-    """(T, 7, 7): each instant's solution (``kernel.SOLUTION_ROWS``)."""
-    slipping: np.ndarray
-    """(T + 1, 3) bool: row k + 1 the channels slipping from instant k on."""
-    held: np.ndarray
-    """(T + 1, 4): row k + 1 the loads the kinetic friction holds over step k."""
-    moving: np.ndarray
-    """(T + 1,) bool: row k + 1 whether those loads moved at instant k."""
-    taken: int
-
-    @property
-    def residuals(self) -> np.ndarray:
-        """(T,)."""
-        return self.solutions[:, STATUS_ROW, 0]
-
-
-class ContactMeasured(NamedTuple):
-    """What a simulation's outputs derive at one state with coulomb contact, and the state after its boundary."""
-
-    state: np.ndarray
-    """(14,): the velocities projected where a channel stuck again."""
-    motion: ConstrainedMotion
-    friction: np.ndarray | None
-    loads: np.ndarray
-    use: FrictionUse
-    drive: DriveForces
-    slipping: tuple[bool, bool, bool]
-    """Whether each channel (left, right, lateral) slips from this instant on."""
-
-
-ContactRow = tuple[tuple[bool, bool, bool], frozenset[str], bool, list[float], list[float], float, float]
-"""One instant of a ContactRun as Python values: slip flags, slipping channels, whether the loads moved,
-friction use, drive forces, residual, singular flag (``CompiledDynamics._contact_rows``)."""
-
-
 class CompiledDynamics:
     """The motion, outputs and RK4 steps of one robot, for what a ``Simulation`` has active now.
 
@@ -198,9 +157,7 @@ class CompiledDynamics:
     at a time gives, to the bit, with the chunk's loads, friction use and drive forces measured at
     once. Any other state starts a new chunk there. A chunk used to its end doubles the next, up to
     AHEAD_MOST; a change starts again at AHEAD_FIRST (a driven run's commands change the torque
-    every control period). With coulomb contact (``contact_measured``, ``robot_contact_run``) a chunk
-    also belongs to the simulation's ``CoulombContact``: its instants are settled from that object's
-    state, which takes the state of each instant handed out.
+    every control period.
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
@@ -210,23 +167,19 @@ class CompiledDynamics:
         self._gains: BaumgarteGains | None = None
         self._selection: ConstraintSelection | None = None
         self._reference: Reference | None = None
-        self._constants = self._contact = np.empty(0)
+        self._constants = np.empty(0)
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
         self._torque_pair: tuple[float, float] | None = None
         self._torque = np.zeros(2)
         self._batches: dict[int, RobotBatch] = {}
         """RobotBatch of that many copies of the robot, by size (the chunks' sizes are few)."""
-        self._ahead: CompiledRun | ContactRun | None = None
+        self._ahead: CompiledRun | None = None
         self._ahead_step, self._ahead_row = 0, 0
         """The simulation's step of the chunk's row 0, and the row whose state was handed out last."""
         self._ahead_state: np.ndarray | None = None
         self._ahead_torque: tuple[float, float] | None = None
         self._ahead_size = AHEAD_FIRST
-        self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._ahead_rows: list[ContactRow] | None = None
-        self._ahead_coulomb: CoulombContact | None = None
-        """The contact state a coulomb chunk's instants are settled with (None: an ideal chunk)."""
-        self._slip_names: dict[tuple[bool, bool, bool], frozenset[str]] = {}
+        self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray, WheelOutputs] | None = None
 
     def configure(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
                   reference: Reference | None, dt: float) -> CompiledDynamics:
@@ -235,7 +188,6 @@ class CompiledDynamics:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
-            self._contact = kernel.contact_constants(robot)
             self._batches = {}
             self._ahead = None
         if selection is not self._selection:
@@ -248,51 +200,20 @@ class CompiledDynamics:
         return self
 
     def measured(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> Measured:
-        """The motion, normal loads, friction use and drive forces at y (14,), the simulation's ``step``-th instant."""
-        row = self._row(y, step, torque, None)
+        """The motion, normal loads, friction use, drive forces and outputs per wheel at y (14,), the simulation's
+        ``step``-th instant."""
+        row = self._row(y, step, torque)
         run = self._ahead
         if self._ahead_measured is None:
             self._ahead_measured = self._measured(run)
-        loads, use, drive = self._ahead_measured
+        loads, use, drive, wheels = self._ahead_measured
         return Measured(ConstrainedMotion(run.motions[row, 0], run.motions[row, 2], float(run.residuals[row])),
-                        loads[row], FrictionUse(*use[row].tolist()), DriveForces(*drive[row].tolist()))
+                        loads[row], FrictionUse(*use[row].tolist()), DriveForces(*drive[row].tolist()),
+                        WheelOutputs(*(column[row:row + 1] for column in wheels)))
 
-    def contact_measured(self, y: np.ndarray, step: int, torque: tuple[float, float],
-                         coulomb: CoulombContact) -> ContactMeasured:
-        """The stick/slip transitions at y (14,), the simulation's ``step``-th instant, and what its outputs
-        derive there; ``coulomb`` takes the state its boundary settled to (as ``CoulombContact.settle``)."""
-        row = self._row(y, step, torque, coulomb)
-        run = self._ahead
-        if self._ahead_rows is None:
-            self._ahead_rows = self._contact_rows(run)
-        flags, slipping, moving, use, drive, residual, singular = self._ahead_rows[row]
-        if singular:
-            raise ModelError('normal loads and kinetic friction have no consistent value (singular coupling)')
-        coulomb.slipping, coulomb.loads, coulomb.loads_moving = slipping, run.held[row + 1], moving
-        solution = run.solutions[row]
-        return ContactMeasured(self._ahead_state, ConstrainedMotion(solution[0], solution[2], residual),
-                               solution[3] if slipping else None, solution[LOADS_ROW, :4], FrictionUse(*use),
-                               DriveForces(*drive), flags)
-
-    def _contact_rows(self, run: ContactRun) -> list[ContactRow]:
-        """Per instant of ``run``: the slip flags and slipping channels after its boundary, whether the loads
-        moved, the friction use, the drive forces, the residual and the singular flag, as Python values."""
-        names = self._slip_names
-        rows = []
-        for flags, moving, (residual, singular), loads, drive in zip(
-                map(tuple, run.slipping[1:].tolist()), run.moving[1:].tolist(),
-                run.solutions[:, STATUS_ROW, :2].tolist(), run.solutions[:, LOADS_ROW, 4:].tolist(),
-                run.solutions[:, DRIVE_ROW, :3].tolist()):
-            slipping = names.get(flags)
-            if slipping is None:
-                slipping = names[flags] = frozenset(name for name, on in zip(CHANNELS, flags) if on)
-            rows.append((flags, slipping, moving, loads, drive, residual, singular))
-        return rows
-
-    def step(self, y: np.ndarray, step: int, torque: tuple[float, float],
-             coulomb: CoulombContact | None = None) -> np.ndarray | None:
+    def step(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> np.ndarray | None:
         """The state one RK4 step after y, the simulation's ``step``-th instant, or None if it is not finite."""
-        row = self._row(y, step, torque, coulomb)
+        row = self._row(y, step, torque)
         run = self._ahead
         if row >= run.taken:  # the next state is not finite
             self._ahead = None
@@ -300,25 +221,19 @@ class CompiledDynamics:
         self._ahead_row, self._ahead_state = row + 1, run.states[row + 1]
         return self._ahead_state
 
-    def _row(self, y: np.ndarray, step: int, torque: tuple[float, float], coulomb: CoulombContact | None) -> int:
-        """The row of y in the steps ahead: the state handed out last, under the same torque and contact; else a
-        new chunk (whose first state, a coulomb chunk's settled, is handed out)."""
+    def _row(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> int:
+        """The row of y in the steps ahead: the state handed out last, under the same torque; else a new chunk."""
         ahead = self._ahead
-        same = ahead is not None and y is self._ahead_state and coulomb is self._ahead_coulomb
+        same = ahead is not None and y is self._ahead_state
         if (same and torque is self._ahead_torque and step == self._ahead_step + self._ahead_row
                 and self._ahead_row < len(ahead.residuals)):
             return self._ahead_row
         used_up = same and self._ahead_row == len(ahead.residuals)
         self._ahead_size = min(2 * self._ahead_size, AHEAD_MOST) if used_up else AHEAD_FIRST
-        if coulomb is None:
-            self._ahead = self.run(y, step, torque, self._ahead_size, self._ahead_size)
-            self._ahead_state = y
-        else:
-            self._ahead = self.contact_run(y, step, torque, self._ahead_size, coulomb)
-            self._ahead_state = self._ahead.states[0]
+        self._ahead = self.run(y, step, torque, self._ahead_size, self._ahead_size)
+        self._ahead_state = y
         self._ahead_step, self._ahead_row, self._ahead_torque = step, 0, torque
-        self._ahead_coulomb = coulomb
-        self._ahead_measured = self._ahead_rows = None
+        self._ahead_measured = None
         return 0
 
     def reference_rows(self, step: int, instants: int) -> ReferenceRows:
@@ -345,36 +260,19 @@ class CompiledDynamics:
                                  self._torque_array(torque), self._dt, steps, motions, residuals)
         return CompiledRun(states, motions, residuals, references, taken)
 
-    def contact_run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int,
-                    coulomb: CoulombContact) -> ContactRun:
-        """From y, the simulation's ``step``-th instant, with ``coulomb``'s state before its boundary: each of
-        ``instants`` instants settled and stepped from (``kernel.robot_contact_run``)."""
-        references = kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt)
-        states = np.empty((instants + 1, 2 * DOF))
-        states[0] = y
-        slipping = np.zeros((instants + 1, 3), dtype=np.bool_)
-        slipping[0] = [channel in coulomb.slipping for channel in CHANNELS]
-        held = np.empty((instants + 1, 4))
-        held[0] = coulomb.loads
-        moving = np.zeros(instants + 1, dtype=np.bool_)
-        moving[0] = coulomb.loads_moving
-        solutions = np.empty((instants, kernel.SOLUTION_ROWS, DOF))
-        taken = kernel.robot_contact_run(states, references, self._flags, self._constants, self._contact,
-                                                 self._torque_array(torque), self._dt, instants, slipping, held,
-                                                 moving, solutions)
-        return ContactRun(states, solutions, slipping, held, moving, taken)
-
     def table(self, run: CompiledRun, first_time: float, first_step: int) -> StepTable:
         """The outputs at the instants of ``run`` (its first the ``first_step``-th, at ``first_time``)."""
         shown = run.instants
-        loads, use, drive = self._measured(run)
+        loads, use, drive, wheels = self._measured(run)
         return StepTable(first_time + (first_step + np.arange(shown)) * self._dt, run.states[:shown, :DOF],
                          run.states[:shown, DOF:], run.motions[:shown, 0], run.motions[:shown, 2],
-                         run.residuals[:shown], drive, loads, use, np.zeros((shown, 3), dtype=bool),
+                         run.residuals[:shown], drive, loads, use, np.zeros((shown, 3), dtype=bool), wheels.forces,
+                         wheels.use, np.zeros((shown, 4), dtype=bool), wheels.velocities,
                          run.references[:shown, 0, :2] if self._reference is not None else None)
 
-    def _measured(self, run: CompiledRun) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Normal loads (T, 4), friction use (T, 3) and drive forces (T, 3) at the instants of ``run``."""
+    def _measured(self, run: CompiledRun) -> tuple[np.ndarray, np.ndarray, np.ndarray, WheelOutputs]:
+        """Normal loads (T, 4), friction use (T, 3), drive forces (T, 3) and the outputs per wheel at the instants
+        of ``run``."""
         shown = run.instants
         robots = self._batches.get(shown)
         if robots is None:  # built once per size: a driven run's chunks of 4 and 8 steps alternate
@@ -382,7 +280,8 @@ class CompiledDynamics:
         q = run.states[:shown]
         loads = normal_loads(robots, q[:, :DOF], q[:, DOF:], run.motions[:shown, 0])
         drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)
-        return loads, friction_use(robots, drive, loads), drive
+        wheels = ideal_wheel_outputs(self._robot, q[:, :DOF], q[:, DOF:], run.motions[:shown, 2, :3], loads)
+        return loads, friction_use(robots, drive, loads), drive, wheels
 
     def _torque_array(self, torque: tuple[float, float]) -> np.ndarray:
         if torque is not self._torque_pair:

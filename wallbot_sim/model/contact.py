@@ -1,39 +1,43 @@
-"""Wheel-wall contact (docs/model.md 11): the ideal model, and Coulomb friction with stick and slip.
+"""Wheel-wall contact (docs/model.md 11): the ideal model, and Coulomb friction per wheel with stick and slip.
 
-``ideal``: every constraint holds whatever force it needs; the normal loads and friction use are
-reported. ``coulomb``: the friction channels (left and right traction, lateral) stick while
-friction can supply their force; a slipping channel's rows leave the solve and kinetic friction
-against its slip velocity enters as a generalized force Q_f. Transitions happen at step
-boundaries; a wheel whose normal load goes negative has lifted off and ends the run.
+``ideal``: every constraint holds whatever force it needs; the normal loads and each wheel's share
+of the contact force are reported. ``coulomb``: each wheel's contact point sticks to the wall while
+its friction disc can hold it: its contact rows (the directions that nonslip and non-lateral motion
+give friction) stay in the solve. A sliding wheel's rows leave the solve and its kinetic friction
+(``kinetic_friction``) enters as a generalized force Q_f, held over the step with the loads it
+holds. Transitions happen at step boundaries; a wheel whose normal load goes negative has lifted
+off and ends the run.
 
-The contact model knows constraint modules only through ContactConstraint: which channel each
-row belongs to and which wheels' loads bound it.
+The contact model knows constraint modules only through ContactConstraint: which direction of
+the wheels' contact velocity a module's friction holds.
 """
 
 from __future__ import annotations
 
-import math
 from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
 
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.constraints import CHANNELS, LATERAL, LEFT, RIGHT, ConstraintModule, ContactConstraint
+from wallbot_sim.model.constraints import (
+    CHANNELS, LATERAL, LEFT, LONGITUDINAL, RIGHT, BaumgarteGains, ConstraintModule, ContactConstraint, WheelContact)
+from wallbot_sim.model.contact_kinematics import LATERAL_ROW, LONGITUDINAL_ROW, ContactKinematics
 from wallbot_sim.model.errors import ModelError, ParameterError
-from wallbot_sim.model.friction import FrictionUse
-from wallbot_sim.model.normal_loads import normal_load_gain, normal_loads
-from wallbot_sim.model.outputs import DriveForces, StepOutputs
-from wallbot_sim.model.parameters import RobotParameters
+from wallbot_sim.model.kinetic_friction import BoundaryResponse, consistent_friction
+from wallbot_sim.model.normal_loads import load_acceleration_gain, normal_loads
+from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.robot import Robot
-from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, motion_of, solve_with_factor
+from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
+from wallbot_sim.model.wheel_forces import split_contact_force
 
 IDEAL, COULOMB = 'ideal', 'coulomb'
 CONTACT_MODELS = (IDEAL, COULOMB)
 WHEEL_POSITIONS = ('left front', 'left rear', 'right front', 'right rear')
 """Wheels 1..4 in the order of the generalized coordinates."""
-_LOAD_TOLERANCE = 1e-9
-"""Relative difference below which the loads the kinetic friction held are the loads it produced."""
-_IDENTITY2 = np.eye(2)
+WHEELS = frozenset(range(4))
+_ROW_OF_DIRECTION = {LONGITUDINAL: LONGITUDINAL_ROW, LATERAL: LATERAL_ROW}
+_SETTLE_PASSES = 8
+"""Rounds of a boundary's transitions at most (each round stops a reversing wheel for good)."""
 
 
 def check_contact_model(name: str) -> str:
@@ -52,399 +56,244 @@ class DetachedError(ModelError):
         self.wheel, self.load, self.t = wheel, load, t
 
 
-class _RowSubset:
-    """A contact module restricted to the rows of its sticking channels."""
-
-    def __init__(self, module: ContactConstraint, keep: np.ndarray) -> None:
-        self.module, self.keep = module, keep
-        self.name = module.name
-        self.channels = tuple(module.channels[i] for i in keep)
-        self.row_wheels = module.row_wheels[keep]
-
-    def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rows, rhs = self.module.rows(t, q, qd)
-        return rows[self.keep], rhs[self.keep]
-
-    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
-        return self.module.velocity_rows(q)[self.keep]
-
-    def violation(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return self.velocity_rows(q) @ qd
+def friction_directions(modules: Sequence[ConstraintModule]) -> tuple[int, ...]:
+    """The rows of the contact velocity (0 along x_p, 1 along y_p) that the contact modules among ``modules`` give
+    friction, in order."""
+    return tuple(sorted({_ROW_OF_DIRECTION[module.direction] for module in modules
+                         if isinstance(module, ContactConstraint)}))
 
 
-Problem = Callable[[Sequence[ConstraintModule], np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
-"""(active modules, qd) -> Q and their rows A, b stacked in order, at the boundary's time and coordinates."""
-Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
-"""(active modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
-Measure = Callable[[ConstrainedMotion, np.ndarray | None, np.ndarray], tuple[np.ndarray, FrictionUse, DriveForces]]
-"""(motion, Q_f or None, qd) -> (normal loads, friction use, drive forces of the whole contact wrench)."""
+class ContactLayout:
+    """What coulomb contact derives from one list of modules: the others, the friction directions, and the
+    modules the solver sees for each set of sticking wheels (built once per set)."""
+
+    def __init__(self, modules: Sequence[ConstraintModule], kinematics: ContactKinematics,
+                 gains: BaumgarteGains) -> None:
+        self.modules, self.gains = modules, gains
+        self.others: list[ConstraintModule] = [module for module in modules
+                                               if not isinstance(module, ContactConstraint)]
+        """The modules no friction holds (the belt, tasks, modules of your own)."""
+        self.directions = friction_directions(modules)
+        self.kinematics = kinematics
+        self.wheels = WHEELS if self.directions else frozenset()
+        """The wheels that have friction at all."""
+        self._active: dict[frozenset[int], list[ConstraintModule]] = {}
+
+    def active(self, sticking: frozenset[int]) -> list[ConstraintModule]:
+        """The other modules, then the contact rows of the ``sticking`` wheels."""
+        active = self._active.get(sticking)
+        if active is None:
+            active = list(self.others)
+            if sticking and self.directions:
+                active.append(WheelContact(self.kinematics, self.gains, sorted(sticking), self.directions))
+            self._active[sticking] = active
+        return active
 
 
-class SlipVelocities(NamedTuple):
-    """The slipping rows at one state: what the friction, its load response and the stopping test share."""
+class HeldFriction:
+    """Q_f(q) = sum_i J_i(q)^T f_i of the sliding wheels, their forces held in body axes over a step."""
 
-    rows: np.ndarray
-    """a_k stacked (rows x 7)."""
-    slip: np.ndarray
-    """v_k = a_k qd."""
-    direction: np.ndarray
-    """v_k / sqrt(v_k^2 + eps^2): the smoothed sign kinetic friction opposes."""
-
-
-class KineticFriction:
-    """Q_f(q, qd) of the slipping rows with their bounding loads held over a step (9.3).
-
-    Each slipping row k with velocity row a_k and slip velocity v_k = a_k qd adds
-    Q_f -= mu_k N_k v_k / sqrt(v_k^2 + eps^2) a_k, N_k its bounding load: the traction of
-    wheel i (N_i, nonslip row) and the lateral friction (F_ad, non-lateral row).
-    """
-
-    def __init__(self, parts: Sequence[tuple[Callable[[np.ndarray], np.ndarray], np.ndarray | None]],
-                 channels: Sequence[str], per_load: np.ndarray, loads: np.ndarray, epsilon: float) -> None:
-        self.parts = parts
-        """(a module's velocity_rows, its slipping rows or None for all of them)."""
-        self.channels = channels
-        """The channel of each slipping row, in the order of the parts."""
-        self.per_load = per_load
-        """-mu_k times the wheels bounding each row (rows x 4): the bounds are per_load @ N."""
-        self.loads = loads
-        self.bounds = per_load @ loads
-        self.epsilon = epsilon
-
-    def holding(self, loads: np.ndarray) -> KineticFriction:
-        """The same rows with other loads held."""
-        return KineticFriction(self.parts, self.channels, self.per_load, loads, self.epsilon)
-
-    def velocity_rows(self, q: np.ndarray) -> np.ndarray:
-        """The slipping rows a_k at q, stacked."""
-        rows = [velocity_rows(q) if selected is None else velocity_rows(q)[selected]
-                for velocity_rows, selected in self.parts]
-        return rows[0] if len(rows) == 1 else np.concatenate(rows)
-
-    def at(self, q: np.ndarray, qd: np.ndarray) -> SlipVelocities:
-        """The slipping rows, their slip velocities and directions at (q, qd)."""
-        rows = self.velocity_rows(q)
-        slip = rows @ qd
-        return SlipVelocities(rows, slip, slip / np.hypot(slip, self.epsilon))
+    def __init__(self, kinematics: ContactKinematics, wheels: np.ndarray, directions: np.ndarray,
+                 forces: np.ndarray) -> None:
+        self.kinematics, self.wheels, self.directions, self.forces = kinematics, wheels, directions, forces
 
     def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        rows = self.velocity_rows(q)
-        slip = rows @ qd
-        return (self.bounds * slip / np.hypot(slip, self.epsilon)) @ rows
-
-    def force(self, slip: SlipVelocities) -> np.ndarray:
-        """Q_f at the state ``slip`` was taken at."""
-        return (self.bounds * slip.direction) @ slip.rows
-
-    def force_per_load(self, slip: SlipVelocities) -> np.ndarray:
-        """dQ_f/dN (7 x 4) at the state ``slip`` was taken at: Q_f = force_per_load @ N."""
-        return slip.rows.T @ (slip.direction[:, None] * self.per_load)
-
-    def stopping(self, slip: SlipVelocities, predicted: np.ndarray, stick_velocity: float) -> set[str]:
-        """The channels whose every slip velocity a_k qd is below v_st or changes sign by ``predicted``.
-
-        The second test catches a slip that the regularized kinetic friction would reverse in one
-        step: near zero slip its stiffness mu_k N / (m eps) makes fixed-step RK4 overshoot into a
-        cycle of slip speeds that straddles v_st without ever falling below it.
-        """
-        stopping = set(self.channels)
-        for channel, now, then in zip(self.channels, slip.slip.tolist(), (slip.rows @ predicted).tolist()):
-            if not (abs(now) < stick_velocity or now * then < 0.0):
-                stopping.discard(channel)
-        return stopping
+        return self.forces @ self.kinematics.jacobian(float(q[2]))[self.wheels, self.directions]
 
 
 class ContactSolution(NamedTuple):
-    """The motion at a step boundary under a stick/slip state, and what the step integrates."""
+    """The contact at a step boundary under a stick/slip state, and what the step holds."""
 
     motion: ConstrainedMotion
-    friction: np.ndarray | None
-    """Q_f at the boundary, None while no channel slips."""
+    sliding: frozenset[int]
+    """The sliding wheels (0..3)."""
     loads: np.ndarray
-    use: FrictionUse
-    drive: DriveForces
-    held: np.ndarray
-    """The loads the kinetic friction holds over the step."""
-    active: Sequence[ConstraintModule]
+    """N (4,): the loads the step holds, those of ``motion`` (docs/model.md 11.1 with the spin momentum)."""
+    wheel_forces: np.ndarray
+    """f (4, 2), body axes: the sticking wheels' split of the contact force, the sliding ones' kinetic friction."""
+    velocities: np.ndarray
+    """v (4, 2): the contact velocities at the boundary."""
+    predicted: np.ndarray
+    """(4, 2): the sliding wheels' contact velocities predicted for the step's end (zero for the others)."""
+    friction_force: np.ndarray | None
+    """Q_f (7,) at the boundary, None while no wheel slides."""
+    friction: HeldFriction | None
+    """Q_f(q, qd) over the step, None while no wheel slides."""
+    active: list[ConstraintModule]
     """The modules the solver sees over the step."""
-    function: KineticFriction | None
-    """Q_f(q, qd) over the step."""
-    slip: SlipVelocities | None
-    """The slipping rows at the boundary."""
 
 
-class _Layout:
-    """What the contact model derives from one list of modules, for each set of slipping channels.
-
-    Built once per list and slipping set (a step boundary asks for the same ones again and again),
-    so a slipping step pays for its friction, not for finding its rows.
-    """
-
-    def __init__(self, modules: Sequence[ConstraintModule]) -> None:
-        self.modules = modules
-        self.contacts: list[ContactConstraint] = [module for module in modules if isinstance(module, ContactConstraint)]
-        """The contact modules (found once: a Protocol check is slow)."""
-        self.present = frozenset(channel for module in self.contacts for channel in module.channels)
-        self._active: dict[frozenset[str], list[ConstraintModule]] = {}
-        self._slipping_rows: dict[frozenset[str], list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]] = {}
-        self._load_dependent: dict[frozenset[str], bool] = {}
-        self._slipping_channels: dict[frozenset[str], tuple[tuple[str, ...], np.ndarray]] = {}
-        self._channel_rows: dict[frozenset[str], list[tuple[ContactConstraint, list[tuple[int, str]]]]] = {}
-
-    def active(self, slipping: frozenset[str]) -> list[ConstraintModule]:
-        """The modules without the rows of ``slipping`` channels."""
-        active = self._active.get(slipping)
-        if active is None:
-            contacts = {id(module) for module in self.contacts}
-            active = []
-            for module in self.modules:
-                if id(module) in contacts:
-                    keep = np.array([i for i, channel in enumerate(module.channels) if channel not in slipping],
-                                    dtype=int)
-                    if len(keep) == len(module.channels):
-                        active.append(module)
-                    elif len(keep):
-                        active.append(_RowSubset(module, keep))
-                else:
-                    active.append(module)
-            self._active[slipping] = active
-        return active
-
-    def load_dependent(self, slipping: frozenset[str]) -> bool:
-        """Whether a slipping row's friction depends on how the load is shared among the wheels."""
-        dependent = self._load_dependent.get(slipping)
-        if dependent is None:
-            dependent = any(not wheels.all() for _module, _rows, wheels in self.slipping_rows(slipping))
-            self._load_dependent[slipping] = dependent
-        return dependent
-
-    def channel_rows(self, channels: frozenset[str]) -> list[tuple[ContactConstraint, list[tuple[int, str]]]]:
-        """(module, its (row, channel) pairs of ``channels``) for the modules that have such rows."""
-        found = self._channel_rows.get(channels)
-        if found is None:
-            found = [(module, rows) for module in self.contacts
-                     if (rows := [(row, channel) for row, channel in enumerate(module.channels) if channel in channels])]
-            self._channel_rows[channels] = found
-        return found
-
-    def slipping_channels(self, slipping: frozenset[str]) -> tuple[tuple[str, ...], np.ndarray]:
-        """The channel and the bounding wheels (rows x 4) of each slipping row, in the order of ``slipping_rows``."""
-        found = self._slipping_channels.get(slipping)
-        if found is None:
-            parts = self.slipping_rows(slipping)
-            channels = tuple(module.channels[row] for module, rows, _wheels in parts
-                             for row in (range(len(module.channels)) if rows is None else rows))
-            found = channels, np.concatenate([part_wheels for _module, _rows, part_wheels in parts])
-            self._slipping_channels[slipping] = found
-        return found
-
-    def slipping_rows(self, slipping: frozenset[str]) -> list[tuple[ContactConstraint, np.ndarray | None, np.ndarray]]:
-        """(module, its rows of ``slipping`` channels or None for all of them, the wheels bounding each row)."""
-        parts = self._slipping_rows.get(slipping)
-        if parts is None:
-            parts = []
-            for module in self.contacts:
-                rows = [i for i, channel in enumerate(module.channels) if channel in slipping]
-                if rows:
-                    selected = None if len(rows) == len(module.channels) else np.array(rows, dtype=int)
-                    parts.append((module, selected, module.row_wheels[rows]))
-            self._slipping_rows[slipping] = parts
-        return parts
+Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
+"""(modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
 
 
 class CoulombContact:
-    """The stick/slip state of the channels and the kinetic friction of the slipping ones."""
+    """Which wheels slide, and the loads their friction and rolling resistance hold over a step."""
 
-    def __init__(self, params: RobotParameters, adhesion_force: float) -> None:
-        self.kinetic_friction = params.kinetic_friction
-        self.epsilon = params.velocity_epsilon
-        self.stick_velocity = params.stick_velocity
-        self.slipping: frozenset[str] = frozenset()
-        self.loads = np.full(4, 0.25 * adhesion_force)
-        """The loads bounding kinetic friction, held over a step like the motor torques."""
-        self.loads_moving = False
-        """Whether the held loads changed at the last boundary (the next one solves for them at once)."""
-        self._layout = _Layout([])
-
-    def _layout_of(self, modules: Sequence[ConstraintModule]) -> _Layout:
-        """The layout of ``modules`` (remembered for the last list)."""
-        if modules is not self._layout.modules:
-            self._layout = _Layout(modules)
-        return self._layout
-
-    def contacts(self, modules: Sequence[ConstraintModule]) -> list[ContactConstraint]:
-        """The contact modules among ``modules``."""
-        return self._layout_of(modules).contacts
+    def __init__(self, robot: Robot, gains: BaumgarteGains) -> None:
+        self.kinematics = ContactKinematics(robot)
+        self.gains = gains
+        self.sliding: frozenset[int] = frozenset()
+        self.loads = np.full(4, 0.25 * robot.adsorption.applied_force)
+        """The loads held over the step (Newton's start at the next boundary)."""
+        self._layout = ContactLayout([], self.kinematics, gains)
 
     def reset(self, adhesion_force: float) -> None:
-        """Every channel sticking, loads at rest on a level share."""
-        self.slipping = frozenset()
+        """Every wheel sticking, loads at rest on a level share."""
+        self.sliding = frozenset()
         self.loads = np.full(4, 0.25 * adhesion_force)
-        self.loads_moving = False
 
-    # --- the problem the solver sees ---------------------------------------------------------
-    def active_modules(self, modules: Sequence[ConstraintModule],
-                       slipping: frozenset[str] | None = None) -> list[ConstraintModule]:
-        """``modules`` without the rows of slipping channels (the same list while none slips)."""
-        slipping = self.slipping if slipping is None else slipping
-        if not slipping:
-            return modules  # type: ignore[return-value]
-        return self._layout_of(modules).active(frozenset(slipping))
+    def layout(self, modules: Sequence[ConstraintModule]) -> ContactLayout:
+        """The layout of ``modules`` (remembered for the last list and gains)."""
+        if modules is not self._layout.modules or self.gains is not self._layout.gains:
+            self._layout = ContactLayout(modules, self.kinematics, self.gains)
+        return self._layout
 
-    def friction_function(self, modules: Sequence[ConstraintModule], loads: np.ndarray,
-                          slipping: frozenset[str] | None = None) -> KineticFriction | None:
-        """Q_f(q, qd) of the slipping rows with ``loads`` held; None while none slips."""
-        slipping = self.slipping if slipping is None else slipping
-        if not slipping:
-            return None
-        layout = self._layout_of(modules)
-        parts = layout.slipping_rows(frozenset(slipping))
-        if not parts:
-            return None
-        channels, wheels = layout.slipping_channels(frozenset(slipping))
-        return KineticFriction([(module.velocity_rows, rows) for module, rows, _wheels in parts], channels,
-                               -self.kinetic_friction * wheels, loads, self.epsilon)
+    def active_modules(self, modules: Sequence[ConstraintModule]) -> list[ConstraintModule]:
+        """What the solver sees of ``modules``: the others, and the contact rows of the sticking wheels."""
+        layout = self.layout(modules)
+        return layout.active(layout.wheels - self.sliding)
 
-    def slip_speed(self, modules: Sequence[ConstraintModule], channel: str, q: np.ndarray, qd: np.ndarray) -> float:
-        """The largest |slip velocity| of the channel's rows (|h_i| of a side's wheels, |v_lat|)."""
-        speed = 0.0
-        for module, rows in self._layout_of(modules).channel_rows(frozenset((channel,))):
-            slips = (module.velocity_rows(q) @ qd).tolist()
-            speed = max([speed] + [abs(slips[row]) for row, _channel in rows])
-        return speed
+    def slide_where_fast(self, modules: Sequence[ConstraintModule], held: set[tuple[int, int]], q: np.ndarray,
+                         qd: np.ndarray, stick_velocity: float) -> None:
+        """After a switch to ``modules``: a wheel moving at v_st or faster in the directions that get friction and
+        were not ``held`` ((wheel, contact row) pairs) slides on, rather than being stopped by the switch's
+        projection."""
+        velocities = self.kinematics.velocities(q, qd)
+        fast = set()
+        for wheel in range(4):
+            added = [row for row in friction_directions(modules) if (wheel, row) not in held]
+            if added and float(np.linalg.norm(velocities[wheel, added])) >= stick_velocity:
+                fast.add(wheel)
+        self.sliding = self.sliding | frozenset(fast)
 
-    # --- transitions at a step boundary ------------------------------------------------------
-    def settle(self, modules: Sequence[ConstraintModule], robot: Robot, q: np.ndarray, qd: np.ndarray, dt: float,
-               problem: Problem, project: Project, measure: Measure) -> tuple[np.ndarray, ContactSolution]:
-        """Stick/slip transitions at this boundary, then the motion of the step.
+    # --- a step boundary ---------------------------------------------------------------------
+    def settle(self, robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,
+               dt: float, motor_torque: tuple[float, float], project: Project) -> tuple[np.ndarray, ContactSolution]:
+        """Stick/slip transitions at this boundary, then what the step holds (docs/model.md 11.3).
 
-        Slipping channels that are stopping (slower than v_st, or reversing within the step ``dt``)
-        stick again when the solve with their rows restored keeps their force within the limit
-        (their remaining slip removed by the switch projection); then every sticking channel
-        whose force exceeds its limit slips. Returns the velocities (projected if a channel
-        stuck again) and the solution the step integrates.
+        In turn, until nothing changes: a sliding wheel whose slip the step would reverse (v_i . w_i < 0,
+        w_i its predicted end-of-step slip) is stopped by the switch projection and slides on from rest;
+        sliding wheels that are stopping (|v_i| or |w_i| below v_st) stick again when the solve with their
+        rows restored holds them in their friction discs (their slip projected away); then every sticking
+        wheel whose force leaves its disc (|f_i| > mu_s N_i) slides. Returns the velocities (projected
+        where a wheel stopped or stuck) and the solution the step integrates.
         """
-        present = self._layout_of(modules).present
-        self.slipping = self.slipping & present
-        result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
-        candidates = (result.function.stopping(result.slip, qd + dt * result.motion.acceleration, self.stick_velocity)
-                      if result.function is not None else None)
-        while candidates:
-            trial = self.slipping - candidates
-            trial_qd = project(self.active_modules(modules, trial), qd)
-            trial_result = self._solve(modules, robot, trial, q, trial_qd, problem, measure)
-            holding = {channel for channel in candidates if _within_limit(trial_result.use, channel)}
-            if holding == candidates:
-                self.slipping, qd, result = trial, trial_qd, trial_result
+        layout = self.layout(modules)
+        params = robot.params
+        sliding = self.sliding & layout.wheels
+        solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+        stopped: set[int] = set()
+        for _ in range(_SETTLE_PASSES):
+            reversing = {wheel for wheel in solution.sliding - stopped
+                         if float(solution.velocities[wheel] @ solution.predicted[wheel]) < 0.0}
+            if reversing:
+                stopped |= reversing
+                qd = project(layout.active(layout.wheels - sliding | frozenset(reversing)), qd)
+                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+            candidates = {wheel for wheel in sliding
+                          if _speed(solution.velocities[wheel], layout.directions) < params.stick_velocity
+                          or _speed(solution.predicted[wheel], layout.directions) < params.stick_velocity}
+            while candidates:
+                trial = sliding - candidates
+                trial_qd = project(layout.active(layout.wheels - trial), qd)
+                trial_solution = self._solve(robot, layout, trial, t, q, trial_qd, dt, motor_torque)
+                holding = {wheel for wheel in candidates if _holds(trial_solution, wheel, params.wall_friction)}
+                if holding == candidates:
+                    sliding, qd, solution = trial, trial_qd, trial_solution
+                    break
+                candidates = holding
+            while exceeded := {wheel for wheel in layout.wheels - sliding
+                               if not _holds(solution, wheel, params.wall_friction)}:
+                sliding = sliding | exceeded
+                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+            if not any(float(solution.velocities[wheel] @ solution.predicted[wheel]) < 0.0
+                       for wheel in solution.sliding - stopped):
                 break
-            candidates = holding
-        while True:
-            exceeded = {channel for channel in present - self.slipping if not _within_limit(result.use, channel)}
-            if not exceeded:
-                break
-            self.slipping = self.slipping | exceeded
-            result = self._solve(modules, robot, self.slipping, q, qd, problem, measure)
-        self.loads_moving = bool(self.slipping) and not _converged(result.held.tolist(), self.loads.tolist())
-        self.loads = result.held
-        return qd, result
+        self.sliding, self.loads = sliding, solution.loads
+        return qd, solution
 
-    def _solve(self, modules: Sequence[ConstraintModule], robot: Robot, slipping: frozenset[str], q: np.ndarray,
-               qd: np.ndarray, problem: Problem, measure: Measure) -> ContactSolution:
-        """The motion with ``slipping`` channels slipping, and the loads their friction holds.
-
-        Traction friction depends on the normal loads, which depend on the acceleration: the loads
-        the friction holds must be the loads it produces. In a steady slip the loads held over the
-        last step still are (one solve checks them); when they moved, ``_consistent_loads`` finds
-        them exactly, and while they keep moving from step to step it is used at once. A lateral
-        slip alone is bounded by sum N_i = F_ad, which needs neither.
-        """
-        active = self.active_modules(modules, slipping)
-        force, rows, rhs = problem(active, qd)
-        mass, factor = robot.mass_matrix(q), robot.mass_inverse_factor(q)
-        held = self.loads
-        function = self.friction_function(modules, held, slipping)
-        if function is None:
-            motion = solve_with_factor(mass, factor, force, rows, rhs)
-            loads, use, drive = measure(motion, None, qd)
-            return ContactSolution(motion, None, loads, use, drive, held, active, None, None)
-        slip = function.at(q, qd)
-        dependent = self._layout_of(modules).load_dependent(frozenset(slipping))
-        if not (dependent and self.loads_moving):
-            friction = function.force(slip)
-            motion = solve_with_factor(mass, factor, force + friction, rows, rhs)
-            loads, use, drive = measure(motion, friction, qd)
-            if not dependent or _converged(loads.tolist(), held.tolist()):
-                return ContactSolution(motion, friction, loads, use, drive, held, active, function, slip)
-        per_load = function.force_per_load(slip)
-        held, acceleration = _consistent_loads(robot, q, qd, factor, force, rows, rhs, per_load)
-        function = function.holding(held)
-        friction = per_load @ held
-        motion = motion_of(mass, force + friction, rows, rhs, acceleration)
-        loads, use, drive = measure(motion, friction, qd)
-        return ContactSolution(motion, friction, loads, use, drive, held, active, function, slip)
-
-
-def _consistent_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, factor: np.ndarray, force: np.ndarray,
-                      rows: np.ndarray, rhs: np.ndarray, per_load: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The loads h the kinetic friction Q_f = F h holds that are also the loads it produces, and qdd.
-
-    At a boundary everything is affine in h: qdd = qdd_0 + D h, D the solver's response to F (the
-    same solve with four more right-hand sides), and N = N(qdd_0) + U C h with C = B D[:3] (2 x 4;
-    ``normal_load_gain``: the loads move only through the two body-frame inertia forces). So the
-    fixed point h = N solves (I - U C) h = N(qdd_0), a rank-2 update of I:
-    h = N(qdd_0) + U (I_2 - C U)^-1 C N(qdd_0).
-    """
-    columns = constrained_acceleration(factor, np.concatenate((force[:, None], per_load), axis=1), rows,
-                                       np.concatenate((rhs[:, None], np.zeros((len(rhs), 4))), axis=1))
-    free, response = columns[:, 0], columns[:, 1:]
-    arms, body = normal_load_gain(robot, q)
-    coupling = body @ response[:3]  # the body-frame force per unit of each held load (2 x 4)
-    unheld = normal_loads(robot, q, qd, free)
-    held = unheld + arms @ _solve_2x2(_IDENTITY2 - coupling @ arms, coupling @ unheld)
-    return held, free + response @ held
+    def _solve(self, robot: Robot, layout: ContactLayout, sliding: frozenset[int], t: float, q: np.ndarray,
+               qd: np.ndarray, dt: float, motor_torque: tuple[float, float]) -> ContactSolution:
+        """The motion with the ``sliding`` wheels sliding: their friction and every wheel's load solved together
+        (``consistent_friction``), then the sticking wheels' share of the constraint force."""
+        params = robot.params
+        active = layout.active(layout.wheels - sliding)
+        directions = np.array(layout.directions, dtype=int)
+        wheel_of = np.repeat(np.array(sorted(sliding), dtype=int), len(directions))
+        direction_of = np.tile(directions, len(sliding))
+        jacobian = self.kinematics.jacobian(float(q[2]))
+        slip_rows = jacobian[wheel_of, direction_of]
+        parts = [module.rows(t, q, qd) for module in active]
+        rows = np.concatenate([part[0] for part in parts]) if parts else np.empty((0, 7))
+        rhs = np.concatenate([part[1] for part in parts]) if parts else np.empty(0)
+        unloaded = robot.applied_force(q, qd, motor_torque, np.zeros(4))
+        forces = np.column_stack((unloaded, slip_rows.T, robot.rolling_resistance_per_load(q, qd)))
+        right_sides = np.zeros((len(rhs), forces.shape[1]))
+        right_sides[:, 0] = rhs
+        factor = robot.mass_inverse_factor(q)
+        response = constrained_acceleration(factor, forces, rows, right_sides)
+        count = len(wheel_of)
+        solved = consistent_friction(
+            BoundaryResponse(response[:, 0], response[:, 1:1 + count], response[:, 1 + count:],
+                             normal_loads(robot, q, qd, np.zeros(7), spin_momentum=True),
+                             load_acceleration_gain(robot, q, spin_momentum=True), slip_rows, slip_rows @ qd,
+                             self.kinematics.drift(q, qd)[direction_of], wheel_of),
+            params.kinetic_friction, params.velocity_epsilon, dt, self.loads, robot.adsorption.applied_force)
+        held = HeldFriction(self.kinematics, wheel_of, direction_of, solved.friction) if count else None
+        friction = solved.friction @ slip_rows if count else None
+        force = robot.applied_force(q, qd, motor_torque, solved.loads)
+        motion = solve_with_factor(robot.mass_matrix(q), factor, force if friction is None else force + friction,
+                                   rows, rhs)
+        wheel_forces = np.zeros((4, 2))
+        wheel_forces[wheel_of, direction_of] = solved.friction
+        predicted = np.zeros((4, 2))
+        predicted[wheel_of, direction_of] = solved.predicted
+        sticking = sorted(layout.wheels - sliding)
+        if sticking:
+            stuck_wheels = np.repeat(np.array(sticking, dtype=int), len(directions))
+            stuck_directions = np.tile(directions, len(sticking))
+            other_rows = [module.rows(t, q, qd)[0] for module in layout.others]
+            wheel_forces[stuck_wheels, stuck_directions] = split_contact_force(
+                jacobian[stuck_wheels, stuck_directions], solved.loads[stuck_wheels],
+                np.concatenate(other_rows) if other_rows else np.empty((0, 7)), motion.constraint_force)
+        return ContactSolution(motion, sliding, solved.loads, wheel_forces, jacobian @ qd, predicted, friction, held,
+                               active)
 
 
-def _converged(loads: list[float], held: list[float]) -> bool:
-    """Whether the loads the friction held are the loads it produced, to _LOAD_TOLERANCE."""
-    return (max(abs(new - old) for new, old in zip(loads, held))
-            <= _LOAD_TOLERANCE * sum(abs(load) for load in loads))
+def _speed(velocity: np.ndarray, directions: Sequence[int]) -> float:
+    """|v| over the directions that have friction."""
+    return float(np.linalg.norm(velocity[list(directions)]))
 
 
-def _solve_2x2(matrix: np.ndarray, vector: np.ndarray) -> np.ndarray:
-    """matrix^-1 vector by Cramer's rule (a general solver costs more than the rest of the fixed point)."""
-    (a, b), (c, d) = matrix.tolist()
-    x, y = vector.tolist()
-    determinant = a * d - b * c
-    if determinant == 0.0:
-        raise ModelError('normal loads and kinetic friction have no consistent value (singular coupling)')
-    return np.array([(d * x - b * y) / determinant, (a * y - c * x) / determinant])
+def _holds(solution: ContactSolution, wheel: int, static_friction: float) -> bool:
+    """Whether the wheel's force lies in its friction disc, |f_i| <= mu_s N_i."""
+    force = solution.wheel_forces[wheel]
+    return not float(np.hypot(force[0], force[1])) > static_friction * float(solution.loads[wheel])
 
 
-def _within_limit(use: FrictionUse, channel: str) -> bool:
-    return not use[CHANNELS.index(channel)] > 1.0
-
-
-def slip_flags(slipping: frozenset[str]) -> tuple[bool, bool, bool]:
-    """(left, right, lateral) slipping flags."""
-    return tuple(channel in slipping for channel in CHANNELS)  # type: ignore[return-value]
+def channel_slipping(sliding: frozenset[int], directions: Sequence[int]) -> tuple[bool, bool, bool]:
+    """The paper's channels (left, right, lateral) that a sliding wheel belongs to: a side's traction when a wheel
+    of that side slides with longitudinal friction, the lateral channel when any wheel slides with lateral
+    friction."""
+    longitudinal, lateral = LONGITUDINAL_ROW in directions, LATERAL_ROW in directions
+    return (longitudinal and bool(sliding & {0, 1}), longitudinal and bool(sliding & {2, 3}),
+            lateral and bool(sliding))
 
 
 def unheld_slip(robot: Robot, selection: ConstraintSelection, out: StepOutputs) -> dict[str, float]:
     """Channels moving faster than v_st with no friction holding them, and their slip speed (m/s).
 
     A channel is held while its rows are active and it sticks; otherwise it slides when its slip
-    velocity (|h_i| of a side's wheels, |v_lat|) exceeds v_st: a slipping channel, or a robot
-    without the non-lateral or nonslip constraint sliding down the wall. None with the
-    trajectory task on: the task holds the robot.
+    speed exceeds v_st: a side's largest longitudinal contact speed, the largest lateral one. So a
+    slipping channel, or a robot without the non-lateral or nonslip constraint sliding down the wall.
+    None with the trajectory task on: the task holds the robot.
     """
     if selection.trajectory:
         return {}
-    theta = float(out.q[2])
-    cos_t, sin_t = math.cos(theta), math.sin(theta)
-    xd, yd, thd = out.qd[:3].tolist()
-    v_long, v_lat = cos_t * xd + sin_t * yd, -sin_t * xd + cos_t * yd
-    wheel_slip = np.abs(robot.params.wheel_radius * out.qd[3:] - v_long + robot.lateral_offsets * thd)
-    speeds = {LEFT: float(max(wheel_slip[:2])), RIGHT: float(max(wheel_slip[2:])), LATERAL: abs(v_lat)}
+    velocities = np.abs(out.contact.slip_velocity)
+    speeds = {LEFT: float(max(velocities[:2, LONGITUDINAL_ROW])), RIGHT: float(max(velocities[2:, LONGITUDINAL_ROW])),
+              LATERAL: float(max(velocities[:, LATERAL_ROW]))}
     rows = {LEFT: selection.nonslip, RIGHT: selection.nonslip, LATERAL: selection.non_lateral}
     slipping = dict(zip(CHANNELS, out.contact.slipping))
     return {channel: speed for channel, speed in speeds.items()

@@ -19,8 +19,13 @@ import numpy as np
 from wallbot_sim.model.robot import Robot
 
 
-def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2), wheels in order 1..4 (N)."""
+def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, spin_momentum: bool = False) -> np.ndarray:
+    """N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2), wheels in order 1..4 (N).
+
+    ``spin_momentum`` (coulomb contact, docs/model.md 11.1): the moment balance also turns the wheels'
+    spin angular momentum J_w pd_i along y_p, whose rate J_w (sum pdd_i y_p - thd sum pd_i x_p) takes
+    J_w sum pdd_i from h F_bx and J_w thd sum pd_i from h F_by.
+    """
     params = robot.params
     theta, thd, thdd = float(q[2]), float(qd[2]), float(qdd[2])
     cos_t, sin_t = math.cos(theta), math.sin(theta)
@@ -33,27 +38,33 @@ def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
     fx, fy = -inertial_x, -mass * params.gravity - inertial_y  # F_gi = m_t (g_vec - a_G), wall frame
     body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
     a, b, h = params.half_wheelbase, params.half_track, params.com_height
+    moment_x, moment_y = h * body_x, h * body_y
+    if spin_momentum:
+        spin = params.wheel_spin_inertia
+        moment_x -= spin * float(qdd[3] + qdd[4] + qdd[5] + qdd[6])
+        moment_y -= spin * thd * float(qd[3] + qd[4] + qd[5] + qd[6])
     offsets = robot.wheel_offsets
-    return (0.25 * robot.adsorption.applied_force + (0.25 * h * body_x / (a * a)) * offsets[:, 0]
-            + (0.25 * h * body_y / (b * b)) * offsets[:, 1])
+    return (0.25 * robot.adsorption.applied_force + (0.25 * moment_x / (a * a)) * offsets[:, 0]
+            + (0.25 * moment_y / (b * b)) * offsets[:, 1])
 
 
+def load_acceleration_gain(robot: Robot, q: np.ndarray, spin_momentum: bool = False) -> np.ndarray:
+    """L (4 x 7): how the loads follow the acceleration, N(qdd) = N(0) + L qdd at the same (q, qd).
 
-def normal_load_gain(robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How the loads follow the acceleration: N = N(qdd = 0) + U (B (xdd, ydd, thdd)).
-
-    B (2 x 3) maps the acceleration to the body-frame force F_b = R(th)^T m_t (g_vec - a_G), with
-    m_t a_G = (m_t xdd - thdd (R S s)_y, m_t ydd + thdd (R S s)_x) + terms in thd; U (4 x 2) holds
-    the moment arms h x_i / (4 a^2) and h y_i / (4 b^2) of ``normal_loads``. The loads move only
-    through those two forces.
+    The loads move through the two body-frame moments of ``normal_loads``: h F_b, with
+    m_t a_G = (m_t xdd - thdd (R S s)_y, m_t ydd + thdd (R S s)_x) + terms in thd, and with
+    ``spin_momentum`` the wheels' J_w sum pdd_i.
     """
     params = robot.params
     theta = float(q[2])
     cos_t, sin_t = math.cos(theta), math.sin(theta)
     sx, sy = robot.first_moment.tolist()
     rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
-    mass = robot.total_mass
-    body = np.array([[-cos_t * mass, -sin_t * mass, cos_t * rsy - sin_t * rsx],
-                     [sin_t * mass, -cos_t * mass, -sin_t * rsy - cos_t * rsx]])
-    a, b, h = params.half_wheelbase, params.half_track, params.com_height
-    return robot.wheel_offsets * (0.25 * h / (a * a), 0.25 * h / (b * b)), body
+    mass, h = robot.total_mass, params.com_height
+    moments = np.zeros((2, 7))
+    moments[:, :3] = h * np.array([[-cos_t * mass, -sin_t * mass, cos_t * rsy - sin_t * rsx],
+                                   [sin_t * mass, -cos_t * mass, -sin_t * rsy - cos_t * rsx]])
+    if spin_momentum:
+        moments[0, 3:] = -params.wheel_spin_inertia
+    a, b = params.half_wheelbase, params.half_track
+    return (robot.wheel_offsets * (0.25 / (a * a), 0.25 / (b * b))) @ moments

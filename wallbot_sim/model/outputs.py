@@ -35,6 +35,12 @@ def drive_forces(theta: float, chassis_wrench: np.ndarray, half_track: float) ->
                        -sin_t * fx + cos_t * fy)
 
 
+def wheel_force_sums(forces: np.ndarray) -> DriveForces:
+    """The channels as sums of the wheels' forces f_i (4, 2): each side's longitudinal forces, every lateral one."""
+    (left_front, lateral_1), (left_rear, lateral_2), (right_front, lateral_3), (right_rear, lateral_4) = forces.tolist()
+    return DriveForces(left_front + left_rear, right_front + right_rear, lateral_1 + lateral_2 + lateral_3 + lateral_4)
+
+
 def side_motor_torques(drive: DriveForces, wheel_torques: Sequence[float], wheel_radius: float) -> tuple[float, float]:
     """(tau_L, tau_R): what each side's motor delivers, or would have to deliver.
 
@@ -51,18 +57,27 @@ def side_motor_torques(drive: DriveForces, wheel_torques: Sequence[float], wheel
 
 @dataclass(frozen=True)
 class ContactOutputs:
-    """The contact at one instant."""
+    """The contact at one instant: per wheel, and per channel of the paper's drive forces (section 8)."""
 
     loads: np.ndarray
     """N_1..N_4 (N)."""
     use: FrictionUse
-    """Friction use per channel (9.2)."""
+    """Friction use per channel: |F_L| / (mu_s (N_1 + N_2)), |F_R| / (mu_s (N_3 + N_4)), |F_lat| / (mu_s F_ad)."""
     limits: tuple[float, float, float]
     """Friction limit per channel: mu_s (N_1 + N_2), mu_s (N_3 + N_4), mu_s F_ad (N)."""
     slipping: tuple[bool, bool, bool]
-    """Whether each channel (left, right, lateral) slips; always False with ideal contact."""
+    """Whether each channel (left, right, lateral) has a sliding wheel (``channel_slipping``); never with ideal
+    contact."""
     friction_force: np.ndarray | None
-    """Q_f (7,), the kinetic friction of the slipping channels; None while none slips."""
+    """Q_f (7,), the kinetic friction of the sliding wheels; None while none slides."""
+    wheel_forces: np.ndarray
+    """f_i (4, 2): each wheel's tangential contact force on the robot in body axes (x_p, y_p) (N)."""
+    wheel_use: np.ndarray
+    """|f_i| / (mu_s N_i) (4,): above 1 the wheel's friction disc cannot hold its force."""
+    wheel_slipping: tuple[bool, bool, bool, bool]
+    """Whether each wheel slides (coulomb contact)."""
+    slip_velocity: np.ndarray
+    """v_i (4, 2): each wheel's contact-point velocity on the wall in body axes (m/s)."""
 
     @property
     def detached_wheel(self) -> int | None:
@@ -133,6 +148,14 @@ class StepTable(NamedTuple):
     """Friction use of the channels (left, right, lateral) (T, 3)."""
     slipping: np.ndarray
     """(T, 3) bool, never set with ideal contact."""
+    wheel_forces: np.ndarray
+    """(T, 4, 2), as ``ContactOutputs.wheel_forces``."""
+    wheel_use: np.ndarray
+    """(T, 4)."""
+    wheel_slipping: np.ndarray
+    """(T, 4) bool, never set with ideal contact."""
+    slip_velocity: np.ndarray
+    """(T, 4, 2)."""
     reference_position: np.ndarray | None
     """The reference point (T, 2), None without a reference."""
 

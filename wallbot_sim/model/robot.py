@@ -72,7 +72,7 @@ class Robot:
                             + 4.0 * params.wheel_yaw_inertia
                             + params.wheel_mass * float(np.sum(self.wheel_offsets ** 2)))
         """J_t about the geometric centre."""
-        self._resistance_gain = params.rolling_resistance * self.adsorption.normal_force_per_wheel
+        self._resistance_gains = [params.rolling_resistance * self.adsorption.normal_force_per_wheel] * 4
         self._perpendicular_offsets = [(-dy, dx) for dx, dy in self.wheel_offsets.tolist()]
         self._first_moment_xy = tuple(self.first_moment.tolist())
         self._weight = self.total_mass * params.gravity
@@ -129,11 +129,41 @@ class Robot:
         factor[:3, :3] = [[l00, 0.0, 0.0], [l10, l11, 0.0], [l20, l21, math.sqrt(c[2, 2] - l20 * l20 - l21 * l21)]]
         return factor
 
-    def applied_force(self, q: np.ndarray, qd: np.ndarray,
-                      motor_torque: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
-        """Q: offset-CoM centripetal term, gravity, rolling resistance and motor torques."""
+    def applied_force(self, q: np.ndarray, qd: np.ndarray, motor_torque: tuple[float, float] = (0.0, 0.0),
+                      loads: np.ndarray | None = None) -> np.ndarray:
+        """Q: offset-CoM centripetal term, gravity, rolling resistance and motor torques.
+
+        Rolling resistance f_r N at each wheel with N = F_ad / 4 (section 4), or with each wheel's own
+        load where ``loads`` are given (coulomb contact: f_r max(N_i, 0), a lifted wheel has none).
+        """
+        gains = (self._resistance_gains if loads is None
+                 else (self.params.rolling_resistance * np.maximum(loads, 0.0)).tolist())
+        return self._applied_force(q, qd, motor_torque, gains)
+
+    def rolling_resistance_per_load(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """dQ/dN (7 x 4): each wheel's rolling resistance per newton of its load, -f_r v_i / sqrt(|v_i|^2 + eps^2)."""
+        per_load = np.zeros((DOF, 4))
+        eps2 = self.params.velocity_epsilon ** 2
+        for wheel, (arm_x, arm_y, vx, vy) in enumerate(self._axle_velocities(q, qd)):
+            scale = -self.params.rolling_resistance / math.sqrt(vx * vx + vy * vy + eps2)
+            per_load[:3, wheel] = scale * vx, scale * vy, scale * (arm_x * vx + arm_y * vy)
+        return per_load
+
+    def _axle_velocities(self, q: np.ndarray, qd: np.ndarray) -> list[tuple[float, float, float, float]]:
+        """(R S d_i, v_i) of each wheel: its moment arm and its axle's velocity (wall frame)."""
         theta = float(q[2])
-        xd, yd, thd = qd[:3].tolist()  # Python floats: scalar arithmetic on numpy floats is slower
+        xd, yd, thd = qd[:3].tolist()
+        cos_t, sin_t = math.cos(theta), math.sin(theta)
+        axles = []
+        for px, py in self._perpendicular_offsets:
+            arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py  # R S d_i
+            axles.append((arm_x, arm_y, xd + thd * arm_x, yd + thd * arm_y))
+        return axles
+
+    def _applied_force(self, q: np.ndarray, qd: np.ndarray, motor_torque: tuple[float, float],
+                       gains: list[float]) -> np.ndarray:
+        theta = float(q[2])
+        thd = float(qd[2])
         cos_t, sin_t = math.cos(theta), math.sin(theta)
         sx, sy = self._first_moment_xy
         uy = -sin_t * sy + cos_t * sx  # y component of u(th) = R(th) S s
@@ -141,10 +171,8 @@ class Robot:
         fx = thd2 * (cos_t * sx - sin_t * sy)
         fy = thd2 * (sin_t * sx + cos_t * sy) - self._weight
         mz = -self.params.gravity * uy
-        gain, eps2 = self._resistance_gain, self.params.velocity_epsilon ** 2
-        for px, py in self._perpendicular_offsets:
-            arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py  # R S d_i
-            vx, vy = xd + thd * arm_x, yd + thd * arm_y
+        eps2 = self.params.velocity_epsilon ** 2
+        for gain, (arm_x, arm_y, vx, vy) in zip(gains, self._axle_velocities(q, qd)):
             scale = -gain / math.sqrt(vx * vx + vy * vy + eps2)
             fx += scale * vx
             fy += scale * vy

@@ -8,16 +8,20 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
-from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, ContactConstraint, VelocityConstraint
-from wallbot_sim.model.contact import IDEAL, CoulombContact, DetachedError, check_contact_model, slip_flags
+from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
+from wallbot_sim.model.contact import (
+    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, channel_slipping, check_contact_model)
+from wallbot_sim.model.contact_kinematics import contact_velocities
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces
+from wallbot_sim.model.outputs import (
+    ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces, wheel_force_sums)
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
+from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
 from wallbot_sim.model.trajectories import LastSample, Reference
 
 if TYPE_CHECKING:
@@ -53,14 +57,14 @@ class SwitchReport:
 class Simulation:
     """A robot, a reference and a set of active constraints, advanced by RK4 at a fixed step.
 
-    With ``contact`` 'coulomb' (docs/model.md 11.3) and no trajectory task, the friction channels stick
-    or slip: the transitions of a step boundary are made when its outputs are computed (``step``
+    With ``contact`` 'coulomb' (docs/model.md 11.3) and no trajectory task, each wheel sticks or
+    slides: the transitions of a step boundary are made when its outputs are computed (``step``
     computes them), and a wheel lifting off raises DetachedError from ``step`` after the outputs
     of that instant were available.
 
     ``engine`` 'numba' computes the motion and the RK4 step by the batch's compiled kernel
-    (``model.compiled``), with coulomb contact's stick/slip settled in the kernel too, while no
-    ``extra_modules`` are active; modules of your own stay on the Python path.
+    (``model.compiled``) with ideal contact, while no ``extra_modules`` are active; coulomb contact and
+    modules of your own stay on the Python path.
     """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
@@ -81,9 +85,11 @@ class Simulation:
         self._modules = self._build(selection, reference, self.gains)
         self._coulomb: CoulombContact | None = None
         self._active: list[ConstraintModule] = self._modules
-        """The modules the solver sees: those of the sticking channels."""
-        self._friction: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
-        """Q_f of the slipping channels over this step, or None."""
+        """The modules the solver sees: with coulomb contact, the contact rows of the sticking wheels."""
+        self._friction: HeldFriction | None = None
+        """Q_f of the sliding wheels over this step, or None."""
+        self._held_loads: np.ndarray | None = None
+        """The loads coulomb contact's rolling resistance holds over this step; None: section 4's F_ad / 4."""
         self.set_contact_model(contact)
         self._initial = (t0, _state_vector(q0, qd0))
         self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
@@ -133,7 +139,7 @@ class Simulation:
         self._cached: StepOutputs | None = None
         if self._coulomb is not None:
             self._coulomb.reset(self.robot.adsorption.applied_force)
-        self._active, self._friction = self._modules, None
+        self._active, self._friction, self._held_loads = self._modules, None, None
 
     @property
     def contact_model(self) -> str:
@@ -167,27 +173,24 @@ class Simulation:
     def set_contact_model(self, name: str) -> None:
         """'ideal' or 'coulomb' from this step boundary on.
 
-        Going ideal imposes the rows of the channels that slipped (by the switch projection);
-        going coulomb starts with every channel sticking.
+        Going ideal imposes the ideal rows (by the switch projection); going coulomb starts with every
+        wheel sticking.
         """
         if check_contact_model(name) == IDEAL:
             self._coulomb = None
             if self._active is not self._modules:
                 self._y = np.concatenate((self._y[:DOF], self._project(self._modules, self._y[DOF:])))
-            self._active, self._friction = self._modules, None
+            self._active, self._friction, self._held_loads = self._modules, None, None
         elif self._coulomb is None:
-            self._coulomb = CoulombContact(self.robot.params, self.robot.adsorption.applied_force)
+            self._coulomb = CoulombContact(self.robot, self.gains)
         self._cached = None
 
     def set_adhesion_force(self, force: float | None) -> None:
         """F_ad (N; None = k_ad F_min) from this step boundary on: loads, friction limits, rolling resistance.
 
-        Slipping channels keep slipping; the loads their friction holds scale with the force.
+        Sliding wheels keep sliding; the loads their friction holds are found again at the next boundary.
         """
-        previous = self.robot.adsorption.applied_force
         self.robot = Robot(self.robot.params.replace(adhesion_force=force))
-        if self._coulomb is not None:
-            self._coulomb.loads = self._coulomb.loads * (self.robot.adsorption.applied_force / previous)
         self._cached = None
 
     def set_reference(self, reference: Reference | None) -> None:
@@ -195,7 +198,7 @@ class Simulation:
         self._reference = reference
         self._modules = self._build(self._selection, reference, self.gains)
         self._active = self._coulomb.active_modules(self._modules) if self.coulomb_applies else self._modules
-        self._friction = None  # rebuilt on the new modules by the next outputs()
+        self._friction = self._held_loads = None  # rebuilt on the new modules by the next outputs()
         self._cached = None
 
     def set_constraints(self, selection: ConstraintSelection, gains: BaumgarteGains | None = None) -> SwitchReport:
@@ -203,8 +206,8 @@ class Simulation:
 
         Velocity constraints that become active are imposed on the velocities at once by the
         impulsive, mass-weighted projection qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd.
-        With coulomb contact a channel that has been sliding faster than v_st keeps slipping
-        instead: its rows are not imposed.
+        With coulomb contact a wheel that has been moving at v_st or faster in a direction that gets
+        friction slides instead: its rows are not imposed.
         """
         previous, was_constrained = self._selection, _constrained_rows(self._active)
         new_modules = self._build(selection, self._reference, gains or self.gains)
@@ -213,17 +216,15 @@ class Simulation:
         self._selection, self._modules = selection, new_modules
         q, qd = self._y[:DOF], self._y[DOF:]
         if self.coulomb_applies:
-            sliding = {channel for module in new_modules if isinstance(module, ContactConstraint)
-                       for channel in module.channels
-                       if (module.name, channel) not in was_constrained
-                       and self._coulomb.slip_speed([module], channel, q, qd) >= self._coulomb.stick_velocity}
-            self._coulomb.slipping = (self._coulomb.slipping | sliding)
+            self._coulomb.gains = self.gains
+            held = {key for name, key in was_constrained if name == WheelContact.name}
+            self._coulomb.slide_where_fast(new_modules, held, q, qd, self.robot.params.stick_velocity)
             self._active = self._coulomb.active_modules(new_modules)
         else:
             if self._coulomb is not None:
                 self._coulomb.reset(self.robot.adsorption.applied_force)
             self._active = new_modules
-        self._friction = None
+        self._friction = self._held_loads = None
         velocity_rows = [row for module in self._active if isinstance(module, VelocityConstraint)
                          for row, key in zip(module.velocity_rows(q), _row_keys(module)) if key not in was_constrained]
         before = after = 0.0
@@ -254,13 +255,13 @@ class Simulation:
     # --- dynamics ------------------------------------------------------------------------
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
         """The constrained motion at (t, q, qd) with the held motor torques (and contact state)."""
-        if self._friction is None:
+        if self._friction is None and self._held_loads is None:
             return constrained_motion(self.robot, self._active, t, q, qd, self.motor_torque)
         force, rows, rhs = self._problem(t, q, qd)
         return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
 
     def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        force, rows, rhs = stack_problem(self.robot, self._active, t, q, qd, self.motor_torque)
+        force, rows, rhs = stack_problem(self.robot, self._active, t, q, qd, self.motor_torque, self._held_loads)
         if self._friction is not None:
             force = force + self._friction(q, qd)
         return force, rows, rhs
@@ -277,59 +278,59 @@ class Simulation:
         """
         if self._cached is None:
             q = self._y[:DOF]
-            friction = None
-            compiled = self._compiled_now()
-            if compiled is not None and self.coulomb_applies:
-                measured = compiled.contact_measured(self._y, self.steps, self.motor_torque, self._coulomb)
-                self._y = measured.state
-                q, qd = self._y[:DOF], self._y[DOF:]
-                motion, friction, loads, use, drive = (measured.motion, measured.friction, measured.loads,
-                                                       measured.use, measured.drive)
-                self._active = self._coulomb.active_modules(self._modules)
-                slipping = measured.slipping
-            elif self.coulomb_applies:
+            if self.coulomb_applies:
                 velocities = self._y[DOF:]
-                qd, solution = self._coulomb.settle(
-                    self._modules, self.robot, q, velocities, self.dt,
-                    lambda modules, qd: stack_problem(self.robot, modules, self._t, q, qd, self.motor_torque),
-                    self._project, self._measure)
-                if qd is not velocities:  # a channel stuck again: its slip was projected away
+                qd, solution = self._coulomb.settle(self.robot, self._modules, self._t, q, velocities, self.dt,
+                                                    self.motor_torque, self._project)
+                if qd is not velocities:  # a wheel stopped or stuck again: its slip was projected away
                     self._y = np.concatenate((q, qd))
                     q = self._y[:DOF]
-                motion, friction, loads, use, drive = (solution.motion, solution.friction, solution.loads,
-                                                       solution.use, solution.drive)
-                self._active, self._friction = solution.active, solution.function
-                slipping = slip_flags(self._coulomb.slipping)
+                self._active, self._friction, self._held_loads = solution.active, solution.friction, solution.loads
+                motion, drive = solution.motion, wheel_force_sums(solution.wheel_forces)
+                contact = self._coulomb_contact(q, qd, solution, drive)
             else:
                 qd = self._y[DOF:]
+                compiled = self._compiled_now()
                 if compiled is not None:
-                    motion, loads, use, drive = compiled.measured(self._y, self.steps, self.motor_torque)
+                    motion, loads, use, drive, wheels = compiled.measured(self._y, self.steps, self.motor_torque)
                 else:
                     motion = self.solve(self._t, q, qd)
-                    loads, use, drive = self._measure(motion, None, qd)
-                slipping = (False, False, False)
+                    loads, use, drive = self._measure(motion, qd)
+                    wheels = ideal_wheel_outputs(self.robot, q[None], qd[None], motion.constraint_force[None, :3],
+                                                 loads[None])
+                contact = self._ideal_contact(loads, use, wheels)
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
-                self.motor_torque, drive, reference,
-                ContactOutputs(loads, use, self._limits(loads), slipping, friction))
+                self.motor_torque, drive, reference, contact)
         return self._cached
 
-    def _channel_forces(self, q: np.ndarray, constraint_force: np.ndarray,
-                        friction: np.ndarray | None) -> DriveForces:
-        wrench = constraint_force[:3] if friction is None else constraint_force[:3] + friction[:3]
-        return drive_forces(q[2], wrench, self.robot.params.half_track)
+    def _ideal_contact(self, loads: np.ndarray, use: FrictionUse, wheels: WheelOutputs) -> ContactOutputs:
+        """Ideal contact's outputs: nothing slides; each wheel's share of the chassis wrench (``wheels``, one row)."""
+        return ContactOutputs(loads, use, self._limits(loads), (False, False, False), None, wheels.forces[0],
+                              wheels.use[0], (False, False, False, False), wheels.velocities[0])
 
-    def _measure(self, motion: ConstrainedMotion, friction: np.ndarray | None,
-                 qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
-        """Normal loads (9.1), friction use (9.2) and the drive forces they come from, of a motion
-        at the current q and velocities ``qd``."""
+    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray, solution: ContactSolution,
+                         drive: DriveForces) -> ContactOutputs:
+        """Coulomb contact's outputs at a settled boundary: the channels as sums of the wheels' forces."""
+        loads, static = solution.loads, self.robot.params.wall_friction
+        layout = self._coulomb.layout(self._modules)
+        return ContactOutputs(
+            loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.adsorption.applied_force,
+                                static),
+            self._limits(loads), channel_slipping(solution.sliding, layout.directions), solution.friction_force,
+            solution.wheel_forces, wheel_use(solution.wheel_forces[None], loads[None], static)[0],
+            tuple(wheel in solution.sliding for wheel in range(4)),  # type: ignore[arg-type]
+            contact_velocities(q[None, 2], qd[None], self.robot.wheel_offsets, self.robot.params.wheel_radius)[0])
+
+    def _measure(self, motion: ConstrainedMotion, qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
+        """Normal loads (11.1), channel friction use and the drive forces they come from, of an ideal motion at
+        the current q and velocities ``qd``."""
         q = self._y[:DOF]
         loads = normal_loads(self.robot, q, qd, motion.acceleration)
-        drive = self._channel_forces(q, motion.constraint_force, friction)
-        adsorption = self.robot.adsorption
-        return loads, friction_use((drive.left, drive.right, drive.lateral), loads, adsorption.applied_force,
-                                   self.robot.params.wall_friction), drive
+        drive = drive_forces(q[2], motion.constraint_force[:3], self.robot.params.half_track)
+        return loads, friction_use((drive.left, drive.right, drive.lateral), loads,
+                                   self.robot.adsorption.applied_force, self.robot.params.wall_friction), drive
 
     def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
         static = self.robot.params.wall_friction
@@ -345,7 +346,7 @@ class Simulation:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
         compiled = self._compiled_now()
         if compiled is not None:
-            y = compiled.step(self._y, self.steps, self.motor_torque, self._coulomb if self.coulomb_applies else None)
+            y = compiled.step(self._y, self.steps, self.motor_torque)
         else:
             cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
             with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
@@ -360,8 +361,9 @@ class Simulation:
         self._cached = None
 
     def _compiled_now(self) -> CompiledDynamics | None:
-        """The compiled dynamics configured for what is active, when they cover it (no modules of your own)."""
-        if self._compiled is None or self._extra_modules:
+        """The compiled dynamics configured for what is active, when they cover it (ideal contact, no modules of
+        your own)."""
+        if self._compiled is None or self._extra_modules or self.coulomb_applies:
             return None
         return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
 
@@ -379,7 +381,7 @@ class Simulation:
     @property
     def tabulates(self) -> bool:
         """Whether ``run_table`` can run now: the compiled engine computes the steps, with ideal contact."""
-        return self._compiled_now() is not None and not self.coulomb_applies
+        return self._compiled_now() is not None
 
     def run_table(self, duration: float, on_table: Callable[[StepTable], None],
                   chunk: int = TABLE_CHUNK) -> StepOutputs:
@@ -446,7 +448,7 @@ class Simulation:
 
     def _tabulating(self, what: str) -> CompiledDynamics:
         compiled = self._compiled_now()
-        if compiled is None or self.coulomb_applies:
+        if compiled is None:
             raise ModelError(f'{what} needs the numba engine with ideal contact (Simulation.tabulates)')
         return compiled
 
@@ -465,14 +467,16 @@ class Simulation:
         return StepOutputs(self._t, table.q[-1].copy(), table.qd[-1].copy(), table.acceleration[-1],
                            table.constraint_force[-1], float(table.residual[-1]), self.motor_torque,
                            DriveForces(*table.drive[-1].tolist()), reference,
-                           ContactOutputs(loads, FrictionUse(*table.use[-1].tolist()), self._limits(loads),
-                                          (False, False, False), None))
+                           self._ideal_contact(loads, FrictionUse(*table.use[-1].tolist()),
+                                               WheelOutputs(table.wheel_forces[-1:], table.wheel_use[-1:],
+                                                            table.slip_velocity[-1:])))
 
 
 def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,
-                  motor_torque: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Q and the rows A, b of ``modules`` stacked in order, at (t, q, qd)."""
-    force = robot.applied_force(q, qd, motor_torque)
+                  motor_torque: tuple[float, float] = (0.0, 0.0),
+                  loads: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Q and the rows A, b of ``modules`` stacked in order, at (t, q, qd) (``loads``: ``Robot.applied_force``'s)."""
+    force = robot.applied_force(q, qd, motor_torque, loads)
     if not modules:
         return force, np.empty((0, DOF)), np.empty(0)
     parts = [module.rows(t, q, qd) for module in modules]
@@ -492,15 +496,17 @@ def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
     return CompiledDynamics(initial_time, dt)
 
 
-def _row_keys(module: ConstraintModule) -> list[tuple[str, str | None]]:
-    channels = module.channels if isinstance(module, ContactConstraint) else None
-    if channels is None:
-        return [(module.name, None)] * len(module.velocity_rows(np.zeros(DOF)))
-    return [(module.name, channel) for channel in channels]
+RowKey = tuple[str, tuple[int, int] | None]
 
 
-def _constrained_rows(modules: Sequence[ConstraintModule]) -> set[tuple[str, str | None]]:
-    """(module name, friction channel or None) of every velocity-constraint row ``modules`` impose."""
+def _row_keys(module: ConstraintModule) -> list[RowKey]:
+    if isinstance(module, WheelContact):
+        return [(module.name, (wheel, row)) for wheel in module.wheels for row in module.directions]
+    return [(module.name, None)] * len(module.velocity_rows(np.zeros(DOF)))
+
+
+def _constrained_rows(modules: Sequence[ConstraintModule]) -> set[RowKey]:
+    """(module name, (wheel, contact row) or None) of every velocity-constraint row ``modules`` impose."""
     return {key for module in modules if isinstance(module, VelocityConstraint) for key in _row_keys(module)}
 
 

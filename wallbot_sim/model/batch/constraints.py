@@ -12,7 +12,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
-from wallbot_sim.model.constraints import NonLateral, Nonslip
+from wallbot_sim.model.constraints import LATERAL, LEFT, RIGHT
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import stacked_product
@@ -42,8 +42,8 @@ class BatchGains:
 class BatchConstraint(Protocol):
     """One constraint of every robot of the batch.
 
-    A wheel-wall contact module also has ``channels`` and ``row_wheels`` as its single-robot
-    module (``ContactConstraint``): the friction channel of each row and the wheels bounding it.
+    A wheel-wall contact module also has ``channels`` and ``row_wheels``: the friction channel of each row
+    and the wheels bounding it (the batch's coulomb contact limits friction per channel).
     """
 
     name: str
@@ -51,6 +51,13 @@ class BatchConstraint(Protocol):
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A_k (N, k, 7) and b_k (N, k) at time t and states (q, qd), each (N, 7)."""
         ...
+
+
+_ALL_WHEELS = np.ones((1, 4))
+"""Lateral friction is bounded by the whole adhesion force, the sum of the four loads."""
+_OWN_WHEEL = np.eye(4)
+"""Each nonslip row's friction is bounded by its own wheel's load."""
+_ALL_WHEELS.flags.writeable = _OWN_WHEEL.flags.writeable = False
 
 
 def _unit_rows(size: int, columns: tuple[int, ...]) -> np.ndarray:
@@ -78,8 +85,8 @@ class BatchNonLateral:
     """Row [-sin th, cos th, 0, ...], b = thd v_long - gam v_lat."""
 
     name = 'non_lateral'
-    channels = NonLateral.channels
-    row_wheels = NonLateral.row_wheels
+    channels = (LATERAL,)
+    row_wheels = _ALL_WHEELS
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains
@@ -98,8 +105,8 @@ class BatchNonslip:
     """One row per wheel: [-cos th, -sin th, s_i, r at column 3+i], b = thd v_lat - gam h_i."""
 
     name = 'nonslip'
-    channels = Nonslip.channels
-    row_wheels = Nonslip.row_wheels
+    channels = (LEFT, LEFT, RIGHT, RIGHT)
+    row_wheels = _OWN_WHEEL
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains

@@ -15,22 +15,21 @@ engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` r
 what the fused step does not cover: the outputs step hooks see with ideal contact.
 
 ``batch_contact_settle`` and ``batch_contact_step`` are a batch's coulomb boundary and step, robot by
-robot over the cores with ``robot_contact_run``'s functions (below).
+robot over the cores with the coulomb functions (below).
 
 ``robot_run`` takes one robot's RK4 steps a chunk at a time, with the motion (qdd, Q, Q_c, residual) at
 each state, for ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``): the same
 derivative and RK4 step as the batch's fused loop.
 
-``robot_contact_run`` is ``robot_run`` with ``CoulombContact``'s rules (docs/model.md 11.3) at every
-boundary, for that simulation with coulomb contact: the motion under the slipping set with the loads
-the kinetic friction holds (their fixed point solved at once while they move, as
-``_consistent_loads``), slipping channels that stop sticking again when the solve with their rows
+The coulomb functions (``_settle`` and what it calls) are the batch's contact model, per channel: the
+motion under the slipping set with the loads the kinetic friction holds (their fixed point solved at
+once while they move), slipping channels that stop sticking again when the solve with their rows
 restored keeps them within the limit (their slip projected away), sticking channels over the limit
-slipping, then the RK4 step with the slipping rows' kinetic friction in its stages (``_problem``). It
-knows the kernel's modules: the non-lateral row is the lateral channel's, the nonslip rows of wheels
-1-2 and 3-4 the left and right traction's. It agrees with the Python model within round-off
-(``test/test_compiled_contact.py``). It lives in this file because numba's cache of a function is
-invalidated by changes to its own file only, and it calls this file's functions.
+slipping, then the RK4 step with the slipping rows' kinetic friction in its stages (``_problem``). They
+know the kernel's modules: the non-lateral row is the lateral channel's, the nonslip rows of wheels 1-2
+and 3-4 the left and right traction's. They agree with the batch's NumPy engine within round-off
+(``test/test_batch_contact.py``). They live in this file because numba's cache of a function is
+invalidated by changes to its own file only, and they call this file's functions.
 
 numba is optional: ``available()`` says whether it imported.
 """
@@ -1047,45 +1046,6 @@ def _contact_workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
             np.zeros((SOLUTION_ROWS, DOF)))
 
 
-def robot_contact_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                      contact: np.ndarray, torque: np.ndarray, dt: float, steps: int, slipping: np.ndarray,
-                      held: np.ndarray, moving: np.ndarray, solutions: np.ndarray) -> int:
-    """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
-    RK4 step from it; the number of steps taken (``kernel.robot_run``'s, with ``contact_constants``).
-
-    ``slipping`` (T + 1, 3), ``held`` (T + 1, 4), ``moving`` (T + 1,): row 0 the contact state before the
-    first boundary, row k + 1 the state boundary k settled to (held over step k). ``states`` row k is
-    projected in place where a channel sticks again. ``solutions`` (T, 7, 7): each instant's solution
-    (``SOLUTION_ROWS``). The run stops at an instant where a wheel's load is negative (detached) or the
-    loads have no consistent value (the solution's singular flag), without stepping from it.
-    """
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    slopes = np.zeros((4, 2 * DOF))
-    work, zero_rhs, bounds, present, trial_solution = _contact_workspace()
-    step_bounds = np.zeros(5)
-    for k in range(solutions.shape[0]):
-        for channel in range(3):
-            slipping[k + 1, channel] = slipping[k, channel]
-        for wheel in range(4):
-            held[k + 1, wheel] = held[k, wheel]
-        moving[k + 1] = moving[k]
-        _settle(states[k], references[k, 0], flags, constants, contact, torque, dt, slipping[k + 1], held[k + 1],
-                moving[k + 1:k + 2], rows, rhs, factor, matrix, gram, lower, vectors, scratch, work, zero_rhs, bounds,
-                present, solutions[k], trial_solution)
-        loads = solutions[k, LOADS_ROW]
-        if (solutions[k, STATUS_ROW, 1] != 0.0 or min(min(loads[0], loads[1]), min(loads[2], loads[3])) < 0.0
-                or k == steps):
-            return k
-        for i in range(DOF):
-            slopes[0, DOF + i] = solutions[k, 0, i]
-        _bounds(held[k + 1], contact[KINETIC], step_bounds)
-        if not _rk4(states[k], references[k], flags, constants, torque, slipping[k + 1], step_bounds, dt, True, rows,
-                    rhs, factor, matrix, gram, lower, vectors, scratch, states[k + 1], slopes):
-            return k
-    return steps
-
-
 def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                   contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
                   moving: np.ndarray, live: np.ndarray, solutions: np.ndarray, chunk: int) -> None:
@@ -1170,7 +1130,6 @@ _project = _compile(_project)
 _stopping = _compile(_stopping)
 _settle = _compile(_settle)
 _contact_workspace = _compile(_contact_workspace, inline="always")
-robot_contact_run = _compile(robot_contact_run)
 _batch_settle = _compile(_batch_settle, parallel=True)
 _batch_step = _compile(_batch_step, parallel=True)
 

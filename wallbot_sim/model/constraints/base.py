@@ -1,8 +1,8 @@
 """What a constraint module is: rows A_k(q, qd, t) qdd = b_k(q, qd, t).
 
-A wheel-wall contact constraint also says which friction channel each of its rows belongs to
-(docs/model.md 11.3: ``left`` and ``right`` traction, ``lateral``), and which wheels' normal loads bound
-that row's friction, so a contact model can drop a slipping channel's rows without knowing modules.
+A wheel-wall contact constraint also says which direction of the wheels' contact velocity its
+friction holds (docs/model.md 11.3: ``longitudinal`` for nonslip, ``lateral`` for non-lateral motion),
+so that coulomb contact can put each wheel's own contact rows in its place without knowing modules.
 """
 
 from __future__ import annotations
@@ -43,9 +43,12 @@ class ConstraintModule(Protocol):
         ...
 
 
-LEFT, RIGHT, LATERAL = 'left', 'right', 'lateral'
+LONGITUDINAL, LATERAL = 'longitudinal', 'lateral'
+WHEEL_DIRECTIONS = (LONGITUDINAL, LATERAL)
+"""The directions of a wheel's contact velocity, along the body axes x_p and y_p, in the order of its rows."""
+LEFT, RIGHT = 'left', 'right'
 CHANNELS = (LEFT, RIGHT, LATERAL)
-"""The friction channels of the wheel-wall contact, in output order."""
+"""The paper's force channels (docs/model.md 8: left and right traction, lateral force), in output order."""
 
 
 @runtime_checkable
@@ -65,9 +68,7 @@ class VelocityConstraint(Protocol):
 
 @runtime_checkable
 class ContactConstraint(VelocityConstraint, Protocol):
-    """A velocity constraint held by wheel-wall friction: one channel per row."""
+    """A velocity constraint held by wheel-wall friction in one direction of the wheels' contact velocity."""
 
-    channels: tuple[str, ...]
-    """The friction channel (one of CHANNELS) of each row."""
-    row_wheels: np.ndarray
-    """(rows x 4) 0/1 weights: the normal load bounding a row's friction is row_wheels @ N."""
+    direction: str
+    """LONGITUDINAL or LATERAL: with coulomb contact the constraint is every wheel's contact row in that direction."""

@@ -8,17 +8,13 @@ import numpy as np
 
 from wallbot_sim.model.constraints.base import LATERAL, BaumgarteGains
 
-_ALL_WHEELS = np.ones((1, 4))
-_ALL_WHEELS.flags.writeable = False
-
 
 class NonLateral:
     """Row [-sin th, cos th, 0, ...], b = thd v_long - gam v_lat."""
 
     name = 'non_lateral'
-    channels = (LATERAL,)
-    row_wheels = _ALL_WHEELS
-    """Lateral friction is bounded by the whole adhesion force, the sum of the four loads."""
+    direction = LATERAL
+    """Held by lateral friction: with coulomb contact, every wheel's lateral contact row (docs/model.md 11.3)."""
 
     def __init__(self, gains: BaumgarteGains) -> None:
         self.gains = gains

@@ -7,18 +7,15 @@ from typing import Sequence
 
 import numpy as np
 
-from wallbot_sim.model.constraints.base import LEFT, RIGHT, BaumgarteGains
-
-_OWN_WHEEL = np.eye(4)
-_OWN_WHEEL.flags.writeable = False
+from wallbot_sim.model.constraints.base import LONGITUDINAL, BaumgarteGains
 
 
 class Nonslip:
     """One row per wheel: [-cos th, -sin th, s_i, r at column 3+i], b = thd v_lat - gam h_i."""
 
     name = 'nonslip'
-    channels = (LEFT, LEFT, RIGHT, RIGHT)
-    row_wheels = _OWN_WHEEL
+    direction = LONGITUDINAL
+    """Held by longitudinal friction: with coulomb contact, every wheel's longitudinal contact row."""
 
     def __init__(self, wheel_radius: float, lateral_offsets: Sequence[float], gains: BaumgarteGains) -> None:
         self.gains = gains
