@@ -72,3 +72,37 @@ def is_consistent(rows: np.ndarray, rhs: np.ndarray) -> bool:
     """Whether A x = b has a solution (rank test)."""
     rank = np.linalg.matrix_rank(rows, tol=1e-9)
     return rank == np.linalg.matrix_rank(np.column_stack((rows, rhs)), tol=1e-9)
+
+
+def least_norm_loads(p: RobotParameters, adhesion: float, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                     moment_less: np.ndarray = np.zeros(2)) -> np.ndarray:
+    """11.1 solved as stated: the CoM acceleration, the inertial-gravity force in the body frame, then the
+    minimum-norm solution of the 3 x 4 balance by numpy's lstsq; ``moment_less`` (2,) is taken from the two moment
+    rows h F_bx, h F_by (the wheels' spin momentum rate)."""
+    m_t = p.body_mass + 4 * p.wheel_mass
+    perp = np.array([[0.0, -1.0], [1.0, 0.0]])
+    c = np.asarray(p.com_offset) * p.body_mass / m_t  # whole-robot CoM from the centre
+    rot = rotation(q[2])
+    com_acceleration = qdd[:2] + qdd[2] * rot @ perp @ c - qd[2] ** 2 * rot @ c
+    body_force = rot.T @ (m_t * (np.array([0.0, -p.gravity]) - com_acceleration))
+    d = wheel_offsets(p)
+    system = np.vstack((np.ones(4), d[:, 0], d[:, 1]))
+    rhs = np.array([adhesion, p.com_height * body_force[0] - moment_less[0],
+                    p.com_height * body_force[1] - moment_less[1]])
+    return np.linalg.lstsq(system, rhs, rcond=None)[0]
+
+
+def contact_velocity(p: RobotParameters, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """(4, 2): each wheel's contact point on the wall, body axes: the chassis point d_i moving with the centre and
+    the yaw, less the wheel's rolling r pd_i along x_p (a wheel spinning forward at pd pushes its contact point back)."""
+    rot = rotation(q[2])
+    velocities = np.zeros((4, 2))
+    for i, d in enumerate(wheel_offsets(p)):
+        point = qd[:2] + qd[2] * rot @ np.array([-d[1], d[0]])  # wall frame
+        velocities[i] = rot.T @ point - np.array([p.wheel_radius * qd[3 + i], 0.0])
+    return velocities
+
+
+def contact_jacobian(p: RobotParameters, q: np.ndarray) -> np.ndarray:
+    """(4, 2, 7): contact_velocity's derivative by qd, column by column."""
+    return np.stack([contact_velocity(p, q, unit) for unit in np.eye(7)], axis=-1)

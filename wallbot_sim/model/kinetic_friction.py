@@ -73,7 +73,9 @@ def consistent_friction(response: BoundaryResponse, kinetic_friction: float, eps
     size = _norm(residual)
     for _ in range(_ITERATIONS):
         if size <= _TOLERANCE * adhesion_force:
-            return KineticSolution(state[:count].copy(), state[count:].copy(), predicted)
+            friction, loads = state[:count], state[count:]
+            # a lifted wheel (N_i <= 0) has no friction at all, not a remainder within the tolerance
+            return KineticSolution(np.where(loads[response.wheel_of] > 0.0, friction, 0.0), loads.copy(), predicted)
         step = np.linalg.solve(jacobian, -residual)
         scale = 1.0
         while True:

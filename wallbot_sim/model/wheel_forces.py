@@ -35,6 +35,11 @@ def split_chassis_wrench(theta: np.ndarray, wrench: np.ndarray, loads: np.ndarra
     l_y = (F_by - Sa l_m) / S0 (S0 = sum n_i, Sa = sum n_i a_i, Ss = sum n_i s_i, Sr = sum n_i |d_i|^2).
     With one loaded wheel no moment can be made (l_m = 0); with none, every force is 0.
     """
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):  # a diverged state gives non-finite forces
+        return _split(theta, wrench, loads, offsets)
+
+
+def _split(theta: np.ndarray, wrench: np.ndarray, loads: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     cos_t, sin_t = np.cos(theta), np.sin(theta)
     force_x = cos_t * wrench[:, 0] + sin_t * wrench[:, 1]
     force_y = -sin_t * wrench[:, 0] + cos_t * wrench[:, 1]
@@ -51,10 +56,9 @@ def split_chassis_wrench(theta: np.ndarray, wrench: np.ndarray, loads: np.ndarra
     spread = total * sum_r - sum_s * sum_s - sum_a * sum_a
     loaded = total > 0.0
     turning = loaded & (spread > _SINGULAR * total * sum_r)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        turn = np.where(turning, (total * moment + sum_s * force_x - sum_a * force_y) / spread, 0.0)
-        lam_x = np.where(loaded, (force_x + sum_s * turn) / total, 0.0)
-        lam_y = np.where(loaded, (force_y - sum_a * turn) / total, 0.0)
+    turn = np.where(turning, (total * moment + sum_s * force_x - sum_a * force_y) / spread, 0.0)
+    lam_x = np.where(loaded, (force_x + sum_s * turn) / total, 0.0)
+    lam_y = np.where(loaded, (force_y - sum_a * turn) / total, 0.0)
     return np.stack((weights * (lam_x[:, None] - across * turn[:, None]),
                      weights * (lam_y[:, None] + along * turn[:, None])), axis=2)
 
