@@ -74,10 +74,13 @@ def compare_contact(batch: BatchSimulation, singles: list[Simulation], steps: in
     return {'slipped': slipped, 't_detached': t_detached}
 
 
-@pytest.mark.parametrize('engine', ENGINES)
-def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment(engine):
-    """Driven robots at rest under random torques: some stick, some slip, some peel off; each as alone.
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_the_coulomb_batch_engines_agree_robot_by_robot_through_slip_and_detachment():
+    """Driven robots at rest under random torques, on the batch's NumPy engine and its kernel: some stick, some slip,
+    some peel off; every output alike until each detaches, at the same instant.
 
+    The batch's coulomb contact limits friction per channel; a single ``Simulation`` limits it per wheel
+    (test_model_contact.py), so here the batch's two engines are held to each other.
     0.4 s: a robot whose channels all slip with one wheel's slip velocity near zero is integrated
     unstably by the fixed-step RK4 (alone, it amplifies its own round-off), so no longer horizon
     can ask two computations of it to agree to 1e-9.
@@ -87,16 +90,36 @@ def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment(engine)
     q0, qd0 = np.zeros((12, DOF)), np.zeros((12, DOF))
     q0[:, 2] = rng.uniform(-np.pi, np.pi, 12)
     torques = rng.uniform(-1.5, 1.5, (12, 2))
-    batch = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine=engine)
-    batch.set_motor_torque(torques)
-    singles = [Simulation(robot, None, DRIVEN, q0[i], qd0[i], contact='coulomb') for i, robot in enumerate(robots)]
-    for single, torque in zip(singles, torques):
-        single.set_motor_torque(*torque)
-    found = compare_contact(batch, singles, 400)
-    detached = ~np.isnan(found['t_detached'])
-    assert detached.any() and found['slipped'].any() and np.any(~detached & ~found['slipped']), \
+    batches = [BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine=engine)
+               for engine in ('numpy', 'numba')]
+    keys = ('q', 'qd', 'acceleration', 'constraint_force', 'friction_force', 'drive', 'loads', 'use')
+    histories = [{key: [] for key in keys} for _ in batches]
+    live = np.ones(12, dtype=bool)
+    slipped = np.zeros(12, dtype=bool)
+    for batch in batches:
+        batch.set_motor_torque(torques)
+    for _ in range(400):
+        numpy_out, numba_out = (batch.outputs() for batch in batches)
+        assert np.array_equal(numpy_out.slipping[live], numba_out.slipping[live]), f't = {numpy_out.t:.3f} s'
+        slipped |= numpy_out.slipping.any(axis=1) & live
+        for history, out in zip(histories, (numpy_out, numba_out)):
+            for key in keys:
+                history[key].append(np.where(live.reshape((-1,) + (1,) * (getattr(out, key).ndim - 1)),
+                                             getattr(out, key), 0.0))
+        for batch in batches:
+            batch.step()
+        assert np.array_equal(batches[0].detached, batches[1].detached)
+        live = ~batches[0].detached
+    for key in keys:
+        expected, got = np.array(histories[0][key]), np.array(histories[1][key])
+        for i in range(12):
+            assert_agree(f'robot {i} {key}', got[:, i], expected[:, i])
+    assert np.array_equal(batches[0].t_detached, batches[1].t_detached, equal_nan=True)
+    assert np.array_equal(batches[0].detached_wheel, batches[1].detached_wheel)
+    detached = batches[0].detached
+    assert detached.any() and slipped.any() and np.any(~detached & ~slipped), \
         'the batch should mix robots that detach, slip, and do neither'
-    assert np.all(found['t_detached'][detached] > 0.0), 'a robot should detach mid-run, not at the start'
+    assert np.all(batches[0].t_detached[detached] > 0.0), 'a robot should detach mid-run, not at the start'
 
 
 def test_a_detached_robot_stops_and_the_others_go_on():
@@ -121,7 +144,8 @@ def test_a_detached_robot_stops_and_the_others_go_on():
 @pytest.mark.parametrize('engine', ENGINES)
 @pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
 def test_loads_and_friction_use_of_a_tracking_batch_agree(contact, engine):
-    """With the trajectory task the contact is ideal either way; the loads and use are still reported."""
+    """With the trajectory task the contact is ideal either way (batch and single robot alike); the loads and use are
+    still reported."""
     rng = np.random.default_rng(21)
     robots = random_robots(rng, 5)
     scenario = load_scenario('circle')

@@ -1,4 +1,6 @@
-"""``wallbot-sim simulate --scenario rest --contact coulomb``: docs/model.md 11.4's analytic cases through the CLI."""
+"""``wallbot-sim simulate --scenario rest --contact coulomb``: docs/model.md 11.4's analytic cases through the CLI.
+
+The channel flags slip_L, slip_R, slip_lat say that a wheel of the side (any wheel, for lateral) slides."""
 
 from __future__ import annotations
 
@@ -38,7 +40,7 @@ def test_hold(tmp_path):
 def test_slide(tmp_path):
     result, run = rest_run(tmp_path, '--adhesion-force', '100')
     assert result.returncode == 0, result.stderr
-    assert all(run['slip_lat']) and not any(run['slip_L'] + run['slip_R'])
+    assert all(run['slip_lat']) and all(run['slip_L']) and all(run['slip_R'])  # every wheel slides down
     ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
     assert ydd == pytest.approx(-2.81, abs=1e-4)
     assert run['y'][-1] == pytest.approx(-1.405, abs=3e-3)
@@ -49,9 +51,53 @@ def test_spinning_climb(tmp_path):
     result, run = rest_run(tmp_path, '--heading', str(math.pi / 2), '--torque', '3,3')
     assert result.returncode == 0, result.stderr
     assert run['slip_L'][0] == run['slip_R'][0] == 1 and all(run['slip_L']) and all(run['slip_R'])
-    assert not any(run['slip_lat'])
+    assert max(abs(v) for v in run['vx']) < 1e-9  # sliding along x_p only: straight up
     ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
     assert ydd == pytest.approx(2.172, abs=5e-4)
+
+
+def flat_robot(tmp_path) -> Path:
+    """The default robot with in-plane gravity negligible (every wheel carries F_ad / 4)."""
+    robot = yaml.safe_load(robot_yaml().read_text())
+    robot['gravity'] = 0.01
+    robot_file = tmp_path / 'flat.yaml'
+    robot_file.write_text(yaml.safe_dump(robot))
+    return robot_file
+
+
+def wheel_slip_speeds(run: dict[str, list[float]]) -> np.ndarray:
+    """(T, 4): each wheel's contact speed on the wall from the CSV's state (docs/model.md 11.3), written out here."""
+    theta, vx, vy, omega = (np.array(run[name]) for name in ('theta', 'vx', 'vy', 'omega'))
+    v_long, v_lat = np.cos(theta) * vx + np.sin(theta) * vy, -np.sin(theta) * vx + np.cos(theta) * vy
+    speeds = []
+    for i, (a, s) in enumerate(((0.10, 0.12), (-0.10, 0.12), (0.10, -0.12), (-0.10, -0.12))):
+        along = v_long - s * omega - 0.04 * np.array(run[f'dphi{i + 1}'])
+        speeds.append(np.hypot(along, v_lat + a * omega))
+    return np.array(speeds).T
+
+
+@pytest.mark.parametrize('torque', [1.54, 1.85])
+def test_turning_in_place_with_gravity_negligible(tmp_path, torque):
+    """-T, +T facing +X: at 1.54 N m (91 % of the threshold 1.696 N m) nothing moves; at 1.85 N m the robot turns,
+    all four wheels sliding."""
+    result, run = rest_run(tmp_path, '--heading', '0', f'--torque=-{torque},{torque}', '--adhesion-force', '189.19',
+                           '--robot', str(flat_robot(tmp_path)))
+    assert result.returncode == 0, result.stderr
+    slides = wheel_slip_speeds(run)[1:] > 1e-3  # v_st
+    if torque < 1.696:
+        assert max(abs(v) for v in run['theta'] + run['x'] + run['y']) < 1e-9
+        assert not slides.any() and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    else:
+        assert run['theta'][-1] > 0.5 and run['omega'][-1] > 1.0
+        assert slides.all()
+
+
+def test_spinning_wheels_facing_x_slide_down(tmp_path):
+    """3 N m per side facing +X: the wheels spin, lose their lateral grip, and the robot slides down more than 3 m
+    within 1 s (where it peels off, the run ends with status 3 and the rows up to there)."""
+    result, run = rest_run(tmp_path, '--heading', '0', '--torque', '3,3')
+    assert result.returncode in (0, 3), result.stderr
+    assert run['t'][-1] <= 1.0 and min(run['y']) < -3.0
 
 
 def test_detachment_ends_the_run_with_status_3(tmp_path):
@@ -157,7 +203,7 @@ def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
     result, _ = rest_run(tmp_path, '--adhesion-force', '100', '--duration', '0.3', '--bag', str(tmp_path / 'bag'))
     assert result.returncode == 0, result.stderr
     text = format_summary(summarize(tmp_path / 'rest.csv'))
-    assert 'first slip at t = 0.000 s (lateral)' in text and 'lifts off' not in text
+    assert 'first slip at t = 0.000 s (left, right, lateral)' in text and 'lifts off' not in text
     csv_run, bag_run = load_run(tmp_path / 'rest.csv'), load_run(tmp_path / 'bag')
     assert np.array_equal(csv_run.loads, bag_run.loads) and np.array_equal(csv_run.use, bag_run.use)
     assert np.array_equal(csv_run.slip, bag_run.slip) and bag_run.slip[:, 2].all()

@@ -90,7 +90,7 @@ rclpy.init(context=context)
 contact = sys.argv[1]
 node = started_node(context=context, parameter_overrides=[Parameter('engine', value='numba'),
                                                           Parameter('contact_model', value=contact)])
-run = kernel.robot_run if contact == 'ideal' else kernel.robot_contact_run
+run = kernel.robot_run
 loaded = list(run.overloads.values())
 tracked = {id(o) for o in gc.get_objects()}
 print(len(loaded), sum(id(o) in tracked for o in loaded), node.loop.stepped)

@@ -29,7 +29,7 @@ from wallbot_sim.model.parameters import RobotParameters
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
-from wallbot_sim.model.trajectories import Reference
+from wallbot_sim.model.trajectories import Circle, Reference
 from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 
 AHEAD_FIRST, AHEAD_MOST = 4, 64
@@ -50,10 +50,11 @@ def compile_kernel() -> None:
 
 
 def compile_run(contact: str) -> None:
-    """Compile what a numba ``Simulation`` under ``contact`` steps by (the kernel's run with ideal contact) or
-    load it from numba's cache."""
+    """Compile what a numba ``Simulation`` under ``contact`` steps by, or load it from numba's cache: the kernel's
+    run, which takes the steps under the trajectory task whatever the contact model (a driven robot's coulomb
+    contact runs on the Python model)."""
     still = np.zeros(DOF)
-    simulation = Simulation(Robot(RobotParameters()), None, ConstraintSelection.parse('belt', trajectory=False),
+    simulation = Simulation(Robot(RobotParameters()), Circle(1.0, 20.0), ConstraintSelection.parse('belt'),
                             still, still, contact=contact, engine=NUMBA)
     simulation.step()
 
