@@ -66,8 +66,9 @@ setup(
     extras_require={
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'foxglove': ['foxglove-sdk'],
+        # mujoco: the independent engine the contact model is checked against (test/test_peer_mujoco.py)
         'test': ['pytest', 'pytest-xdist', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy', 'foxglove-sdk',
-                 'websockets'],
+                 'websockets', 'mujoco'],
     },
     # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
     tests_require=['pytest'],

@@ -69,8 +69,9 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
     and in their bags the same wheel_torque_cmd (type, offered QoS, the command of each control
     instant in order).
 
-    With coulomb contact the circle's start (0.2 m off the path, at rest) slips both tractions
-    in the first 0.36 s: the slip transitions are part of what must agree. On the numba engine the
+    With coulomb contact (at 250 N of adhesion: the default's wheels spin up until one lifts off) the
+    circle's start (0.2 m off the path, at rest) slides every wheel from the first instant: the
+    transitions are part of what must agree. On the numba engine the
     dynamics and the controller's law are the compiled kernel's in both; composed (the recorder in the
     dynamics' process, ``run``'s default) it takes blocks of steps between the controller's answers,
     at factor 0 published at once, paced one state at a time.
@@ -81,14 +82,15 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
         from wallbot_sim.model.compiled import compile_kernel
         compile_kernel()  # so that the nodes load it from numba's cache instead of compiling it for up to a minute
     duration = 1.0
-    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, *pacing,
+    adhesion = ['--adhesion-force', '250'] if contact == 'coulomb' else []
+    graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, *pacing, *adhesion,
                     '--duration', str(duration), '--out', str(tmp_path / 'run'), '--no-plots', timeout=180)
     assert graph.returncode == 0, graph.stderr + graph.stdout
     assert f'tracking controller at {CONTROL_RATE_HZ} Hz of simulation time, {engine} engine' in (
         tmp_path / 'run' / 'logs' / 'controller.log').read_text()
     recorded = load_run(tmp_path / 'run' / 'bag')
     headless_bag = tmp_path / 'headless'
-    computed = headless(tmp_path / 'headless.csv', '--contact', contact, '--engine', engine,
+    computed = headless(tmp_path / 'headless.csv', '--contact', contact, '--engine', engine, *adhesion,
                         '--duration', str(duration), '--bag', str(headless_bag))
 
     check_complete(recorded, duration)  # every 1 ms state from 0 to the end, each once
@@ -101,7 +103,7 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
         assert np.max(np.abs(getattr(recorded, name) - expected)) < 1e-9 * max(1.0, np.max(np.abs(expected))), name
     assert np.array_equal(recorded.slip, computed.slip)
     slipped = computed.slip.any(axis=0)
-    assert slipped.tolist() == ([True, True, False] if contact == 'coulomb' else [False, False, False])
+    assert slipped.tolist() == ([True, True, True] if contact == 'coulomb' else [False, False, False])
 
     name = topics.WHEEL_TORQUE_CMD.resolve()
     graph_topic, headless_topic = info(tmp_path / 'run' / 'bag').topic(name), info(headless_bag).topic(name)
@@ -118,32 +120,22 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
 
 
 # --- slip under the controller ------------------------------------------------------------------
-def cone_forces(run) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Kinetic friction of each channel as docs/model.md 11.3 states it, from the run's own columns.
-
-    A side's wheels slide at the contact with c_i = v_long - s_i omega - r dphi_i (s_i = +b left,
-    -b right) and friction pushes the robot against it with mu_k N_i c_i / sqrt(c_i^2 + eps^2);
-    the lateral channel slides with v_lat and takes mu_k F_ad, F_ad = N_1 + ... + N_4 (11.1).
-    Returns F_L, F_R, F_lat and the slowest contact speed of each side (for where |F| = mu_k N).
-    """
+def wheel_speeds(run) -> np.ndarray:
+    """(T, 4): each wheel's contact speed on the wall (docs/model.md 11.3) from the run's own columns."""
     cos_t, sin_t = np.cos(run.theta), np.sin(run.theta)
     v_long, v_lat = cos_t * run.vx + sin_t * run.vy, -sin_t * run.vx + cos_t * run.vy
-    mu, eps2 = PARAMS.kinetic_friction, PARAMS.velocity_epsilon ** 2
-    sides = []
-    for wheels, offset in (([0, 1], PARAMS.half_track), ([2, 3], -PARAMS.half_track)):
-        contact = v_long[:, None] - offset * run.omega[:, None] - PARAMS.wheel_radius * run.dphi[:, wheels]
-        force = -mu * np.sum(run.loads[:, wheels] * contact / np.sqrt(contact ** 2 + eps2), axis=1)
-        sides.append((force, np.min(np.abs(contact), axis=1)))
-    lateral = -mu * run.loads.sum(axis=1) * v_lat / np.sqrt(v_lat ** 2 + eps2)
-    (left, left_speed), (right, right_speed) = sides
-    return left, right, lateral, left_speed, right_speed
+    a, b, r = PARAMS.half_wheelbase, PARAMS.half_track, PARAMS.wheel_radius
+    return np.stack([np.hypot(v_long - s * run.omega - r * run.dphi[:, i], v_lat + x * run.omega)
+                     for i, (x, s) in enumerate(((a, b), (-a, b), (a, -b), (-a, -b)))], axis=1)
 
 
 def test_a_fast_circle_slips_and_the_csv_and_summary_say_so(tmp_path):
-    """Twice the circle's speed with the default adhesion: the controller's start demands more
-    traction than friction gives, the wheels spin up and the robot slides away from the path."""
+    """Twice the circle's speed at 200 N of adhesion: the controller's start demands more traction than
+    friction gives, the wheels spin up and the robot slides away from the path (at the default's 189 N
+    the spin-up unloads a wheel until it lifts off)."""
     out = tmp_path / 'slip.csv'
-    run = headless(out, '--scenario', str(fast_circle(tmp_path)), '--contact', 'coulomb', '--duration', '2')
+    run = headless(out, '--scenario', str(fast_circle(tmp_path)), '--contact', 'coulomb', '--adhesion-force', '200',
+                   '--duration', '2')
     slip = run.slip > 0.5
     assert slip[:, 0].sum() > 1000 and slip[:, 1].sum() > 1000, slip.sum(axis=0)
     first = int(np.flatnonzero(slip.any(axis=1))[0])
@@ -151,29 +143,16 @@ def test_a_fast_circle_slips_and_the_csv_and_summary_say_so(tmp_path):
     assert f'first slip at t = {run.t[first]:.3f} s ({names})' in format_summary(summarize(out))
     assert run.err[-1] > 0.5  # lost: the controller does nothing about slip
 
-    left, right, lateral, left_speed, right_speed = cone_forces(run)
-    for k, (recorded, expected, speed, load) in enumerate((
-            (run.F_left, left, left_speed, run.loads[:, 0] + run.loads[:, 1]),
-            (run.F_right, right, right_speed, run.loads[:, 2] + run.loads[:, 3]))):
-        rows = slip[:, k]
-        assert np.allclose(recorded[rows], expected[rows], rtol=1e-6, atol=1e-9)
-        # sliding well above eps, the force is the cone's edge: |F| = mu_k N, against the slip
-        sliding = rows & (speed > 20 * PARAMS.velocity_epsilon)
-        assert sliding.sum() > 1000
-        assert np.allclose(np.abs(recorded[sliding]), PARAMS.kinetic_friction * load[sliding], rtol=2e-3)
-        assert np.allclose(run.use[sliding, k], PARAMS.kinetic_friction / PARAMS.wall_friction, rtol=2e-3)
-    rows = slip[:, 2]
-    assert np.allclose(run.F_lateral[rows], lateral[rows], rtol=1e-6, atol=1e-6)
-    # a sticking channel stays inside the cone (its force is within mu_s times its load)
+    # where every wheel slides well above eps, each side's and the lateral friction is at most mu_k times the
+    # load it presses with (each wheel's friction is mu_k N_i, along its own slip direction)
+    sliding = np.all(wheel_speeds(run) > 20 * PARAMS.velocity_epsilon, axis=1)
+    assert sliding.sum() > 1000
+    for force, load in ((run.F_left, run.loads[:, 0] + run.loads[:, 1]),
+                        (run.F_right, run.loads[:, 2] + run.loads[:, 3]),
+                        (run.F_lateral, run.loads.sum(axis=1))):
+        assert np.all(np.abs(force[sliding]) <= PARAMS.kinetic_friction * load[sliding] * (1 + 1e-9))
+    # a channel none of whose wheels slides stays inside its limit (every wheel within its friction disc)
     assert np.all(run.use[~slip] <= 1.0 + 1e-12)
-
-
-def test_with_enough_adhesion_the_coulomb_loop_is_the_ideal_loop_bit_for_bit(tmp_path):
-    scenario = str(fast_circle(tmp_path))
-    runs = [headless(tmp_path / f'{contact}.csv', '--scenario', scenario, '--contact', contact,
-                     '--adhesion-force', '500', '--duration', '2') for contact in ('ideal', 'coulomb')]
-    assert not runs[1].slip.any() and np.max(runs[1].use) > 0.5  # sticking, but not by a wide margin
-    assert (tmp_path / 'ideal.csv').read_bytes() == (tmp_path / 'coulomb.csv').read_bytes()
 
 
 @pytest.mark.parametrize('args, words', [
