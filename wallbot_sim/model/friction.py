@@ -1,8 +1,8 @@
-"""Friction use of the three contact channels (docs/model.md 11.2), friction pyramid.
+"""Friction use of the paper's three force channels (docs/model.md 11.2).
 
-The channel forces are the drive forces of the whole contact wrench on the chassis (the
-constraint wrench plus the kinetic friction of slipping channels). Each direction is limited
-on its own: left and right traction by mu_s times their side's load, lateral by mu_s F_ad.
+The channel forces are the drive forces of section 8 (with coulomb contact, the sums of the wheels'
+forces); each is set against mu_s times the load bounding it: left and right traction their side's
+load, lateral F_ad. The wheels' own use is ``wheel_forces.wheel_use``.
 """
 
 from __future__ import annotations
