@@ -85,10 +85,10 @@ def steps_per_second(simulation: Simulation, steps: int) -> float:
 
 CONTACT_CASES = (  # name, heading, side torques, adhesion force (None: the robot file's), what happens
     ('hold', 0.0, (0.0, 0.0), None, 'sticks'),
-    ('climb', math.pi / 2, (2.0, 1.95), None, 'sticks, turning'),
-    ('slide', 0.0, (0.0, 0.0), 100.0, 'lateral slip'),
-    ('spin', math.pi / 2, (3.0, 3.0), None, 'both sides slip'),
-    ('turn', math.pi / 2, (3.5, 2.0), None, 'slips, turning'),
+    ('climb', math.pi / 2, (2.0, 1.95), None, 'sticks'),
+    ('slide', 0.0, (0.0, 0.0), 100.0, 'every wheel slides'),
+    ('spin', math.pi / 2, (3.0, 3.0), None, 'every wheel spins'),
+    ('turn', math.pi / 2, (3.5, 2.0), None, 'left side spins'),
 )
 
 
