@@ -76,7 +76,10 @@ def consistent_friction(response: BoundaryResponse, kinetic_friction: float, eps
             friction, loads = state[:count], state[count:]
             # a lifted wheel (N_i <= 0) has no friction at all, not a remainder within the tolerance
             return KineticSolution(np.where(loads[response.wheel_of] > 0.0, friction, 0.0), loads.copy(), predicted)
-        step = np.linalg.solve(jacobian, -residual)
+        try:
+            step = np.linalg.solve(jacobian, -residual)
+        except np.linalg.LinAlgError as error:
+            raise ModelError('kinetic friction and normal loads have no consistent value (singular system)') from error
         scale = 1.0
         while True:
             trial = state + scale * step
