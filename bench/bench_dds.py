@@ -96,7 +96,8 @@ def publish_cost(count: int, env: dict[str, str]) -> tuple[float, float]:
         if time.monotonic() > deadline:
             raise SystemExit('the subscriber process never matched')
         time.sleep(0.01)
-    messages = [codec.odometry(k * 1e-3, 0.1 * k, 0.2, 0.3, 0.4, 0.5, 0.6) for k in range(count)]
+    encoder = codec.OdometryEncoder()
+    messages = [encoder.encode(0, k * 1_000_000, (0.1 * k, 0.2, 0.3), (0.4, 0.5, 0.6)) for k in range(count)]
     started, next_step = cpu_now(), time.monotonic()
     for first in range(0, count, MESSAGES_PER_STEP):  # as the graph does: five per 1 ms step
         for data in messages[first:first + MESSAGES_PER_STEP]:

@@ -61,7 +61,7 @@ import numpy as np
 from bench_core import StraightforwardSimulation
 from bench_wakeup import sleep_loop
 from report import Report, add_write_docs_option
-from wallbot_msgs_py import bagio, codec, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.domain import claim_domain_id
@@ -186,10 +186,9 @@ def graph_run(launcher: ChildProcesses, out: Path, factor: float, duration: floa
     (start, first), (end, last) = steady[0], steady[-1]
     result.cpu, result.window = {node: last[node] - first[node] for node in pids}, (start, end)
     for raw in messages(out / 'bag', ['/diagnostics']):
-        status = bagio.deserialize(raw.data, raw.type).status
-        for report in status:
+        for report in codec.decode_diagnostics(raw.data).statuses:
             if 'simulation' in report.name:  # the dynamics' report
-                result.diagnostics.append((raw.timestamp * 1e-9, {kv.key: kv.value for kv in report.values}))
+                result.diagnostics.append((raw.timestamp * 1e-9, report.value_map()))
     if len(result.diagnostics) < 2:
         raise SystemExit(f'{name}: fewer than two /diagnostics of the dynamics in the bag')
     return result

@@ -35,16 +35,11 @@ from wallbot_sim.graph import ChildProcesses, cpu_seconds
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from wallbot_msgs_py import bagio, codec  # noqa: E402
+from wallbot_msgs_py import codec  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 
 STEP_TOPICS = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces')
 """The topics with a message at every step (/clock goes out at clock_rate_hz)."""
-
-
-def stamp_ns(msg) -> int:
-    stamp = msg.clock if hasattr(msg, 'clock') else msg.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def analyse(bag: Path, duration: float) -> dict:
@@ -55,16 +50,16 @@ def analyse(bag: Path, duration: float) -> dict:
     windows = []
     for raw in messages(bag, list(wanted)):
         leaf = wanted[raw.topic]
-        msg = bagio.deserialize(raw.data, raw.type)
         if leaf == 'diagnostics':
-            values = codec.diagnostic_values(msg)
+            values = {key: value for status in codec.decode_diagnostics(raw.data).statuses
+                      for key, value in status.values}
             if 'achieved rate (Hz)' in values:
                 windows.append(values)
             continue
         if leaf == 'wheel_torque_cmd':
             stamps[leaf].append(raw.timestamp)
             continue
-        stamps[leaf].append(stamp_ns(msg))
+        stamps[leaf].append(codec.leading_stamp_ns(raw.data))
         if leaf == 'odom':
             receive_ns.append(raw.timestamp)
     expected = round(duration * 1000) + 1

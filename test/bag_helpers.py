@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from wallbot_msgs_py import bagio, codec
+import message_fields
+from wallbot_msgs_py import bagio
 from wallbot_sim.bag.reader import messages
 
 WALL_CLOCK_KEYS = ('achieved rate (Hz)', 'real-time factor', 'step time mean (ms)', 'step time max (ms)',
@@ -40,7 +41,7 @@ def fields(msg: Any) -> Any:
 
 
 def stamp_ns(msg: Any) -> int:
-    return codec.stamp_nanoseconds(msg.header.stamp if hasattr(msg, 'header') else msg.clock)
+    return message_fields.stamp_ns(msg.header.stamp if hasattr(msg, 'header') else msg.clock)
 
 
 def diagnostics_without_wall_clock(msg: Any, same_moments: bool) -> Any:

@@ -24,6 +24,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
+from message_fields import stamp_ns
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 
@@ -41,7 +42,7 @@ the machine (a passing test never waits it out)."""
 
 
 def ns(msg) -> int:
-    return codec.stamp_nanoseconds(msg.header.stamp)
+    return stamp_ns(msg.header.stamp)
 
 
 class Graph:

@@ -17,6 +17,7 @@ import rclpy  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
+from message_fields import seconds
 from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
@@ -41,7 +42,7 @@ def main() -> int:
     node = rclpy.create_node('odom_probe')
     node.create_subscription(Odometry, topics.ODOM.resolve(), received.append, qos_profile(topics.ODOM))
     spin_until(node, received)
-    print(f'odom {codec.seconds(received[0].header.stamp):.3f}', flush=True)
+    print(f'odom {seconds(received[0].header.stamp):.3f}', flush=True)
     return 0
 
 

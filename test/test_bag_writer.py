@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
+from message_fields import odometry_cdr, planar_state, wrench_values
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_sim.bag import BagError
 from wallbot_sim.bag.reader import info
@@ -61,10 +62,10 @@ def test_headless_bag_reads_back_with_an_independent_mcap_reader(tmp_path):
     assert np.all(np.diff(stamps) == 1_000_000)
     with open(table, newline='') as stream:
         rows = list(csv.DictReader(stream))
-    got = np.array([codec.planar_state(m)[1:4] for m in odom])
+    got = np.array([planar_state(m)[1:4] for m in odom])
     want = np.array([[float(r['x']), float(r['y']), float(r['theta'])] for r in rows])
     assert np.max(np.abs(got - want)) < 1e-12
-    wrench = [codec.wrench_values(m) for _, m in _mcap_messages(bag, '/wallbot/constraint_wrench')]
+    wrench = [wrench_values(m) for _, m in _mcap_messages(bag, '/wallbot/constraint_wrench')]
     assert np.max(np.abs(np.array(wrench) - np.array([[float(r['Fx']), float(r['Fy']), float(r['Mz'])]
                                                       for r in rows]))) < 1e-12
 
@@ -111,7 +112,7 @@ def test_reindex_recovers_a_recording_cut_mid_chunk(tmp_path):
     writer = BagWriter(bag, flush_period=1e9)
     odom = writer.add_graph_topic(topics.ODOM)
     for i in range(3000):
-        writer.write(odom, i * 1_000_000, codec.odometry(i * 1e-3, float(i), 0.0, 0.0, 0.0, 0.0, 0.0))
+        writer.write(odom, i * 1_000_000, odometry_cdr(i * 1e-3, float(i), 0.0, 0.0, 0.0, 0.0, 0.0))
         if i in (999, 1999):
             writer.flush()
     writer._writer.storage.bio.flush()
@@ -213,7 +214,7 @@ def test_a_closed_loop_bag_holds_every_command_the_controller_sent(tmp_path):
     again = SampledController(TrackingController(controller_robot(params, 1.0), scenario.reference))
     answers = []
     for _, state in _mcap_messages(bag, odom_name):
-        planar = codec.planar_state(state)
+        planar = planar_state(state)
         again.observe(planar.stamp_ns)
         if again.due(planar.stamp_ns):
             command = again.command(planar)

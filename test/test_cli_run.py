@@ -15,6 +15,7 @@ import pytest
 import yaml
 
 from cli_helpers import WALLBOT, wait_for_output
+from message_fields import planar_state
 from wallbot_msgs_py import bagio, codec
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.rundata import summarize
@@ -30,7 +31,7 @@ def odometry(bag: Path) -> np.ndarray:
     with open(next(bag.glob('*.mcap')), 'rb') as stream:
         for schema, _channel, message in mcap_reader.make_reader(stream).iter_messages(topics=['/wallbot/odom']):
             msg = bagio.deserialize(message.data, schema.name)
-            rows.append((*codec.planar_state(msg),))
+            rows.append((*planar_state(msg),))
     return np.array(rows)
 
 

@@ -78,12 +78,11 @@ def test_missing_metadata_points_at_reindex_and_reindex_repairs(runs, tmp_path):
 
 def test_info_rates_each_topic_over_its_own_span(tmp_path):
     """A topic recorded over part of the bag is rated over its own span, not the bag's."""
-    from wallbot_msgs_py import bagio, codec, topics
+    from wallbot_msgs_py import cdr, codec, topics
     from wallbot_sim.bag.writer import BagWriter
 
     def clock(ns: int) -> bytes:
-        types = bagio.typestore().types
-        return bagio.serialize(types['rosgraph_msgs/msg/Clock'](clock=codec.stamp(ns * 1e-9)), topics.CLOCK.type)
+        return codec.ClockEncoder().encode(*cdr.split_stamp(ns))
 
     bag = tmp_path / 'spans'
     writer = BagWriter(bag)

@@ -19,6 +19,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
+from message_fields import planar_state
 from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim.graph_description import CMD_VEL_STEPS, CONTROL_STEPS  # noqa: E402
@@ -73,7 +74,7 @@ class Driver:
     def pose(self) -> codec.PlanarState:
         # the newest odometry alone: decoding the whole 1 kHz backlog on every poll starves this
         # process on a loaded machine
-        return codec.planar_state(self.graph.wait_for(lambda: self.graph.newest(topics.ODOM.name), 60, 'odometry'))
+        return planar_state(self.graph.wait_for(lambda: self.graph.newest(topics.ODOM.name), 60, 'odometry'))
 
 
 def wrap(angle: float) -> float:
@@ -170,7 +171,7 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
     # the order of the names is the message's: the right side gets 0.6 + 0.4, the left 0.3 + 0.2
     lf, lr, rf, rr = topics.WHEEL_JOINTS
     good = JointState(name=[rr, lf, rf, lr], effort=[0.4, 0.3, 0.6, 0.2])
-    start_x = codec.planar_state(graph.newest(topics.ODOM.name)).x
+    start_x = planar_state(graph.newest(topics.ODOM.name)).x
 
     def applied() -> bool:
         publisher.publish(good)  # as a controller_manager writes every update
@@ -182,7 +183,7 @@ def test_joint_states_and_joint_commands_follow_the_ros2_control_topic_conventio
     def moved() -> bool:
         publisher.publish(good)
         odom = graph.newest(topics.ODOM.name)
-        return codec.planar_state(odom).x > start_x + 0.01 and odom.twist.twist.angular.z > 0
+        return planar_state(odom).x > start_x + 0.01 and odom.twist.twist.angular.z > 0
     graph.wait_for(moved, 30, 'the robot driving forward, turning left (more torque on the right)')
 
 
@@ -224,7 +225,7 @@ def test_the_drives_and_the_trajectory_node_follow_the_clock_through_a_reset(gra
                                             if abs(ns(m) - state.stamp_ns) <= 10_000_000],
                                    30, f'{segment}: the reference pose of the clock (100 Hz)')
         if drive == 'controller':
-            ref = codec.planar_state(min(reference, key=lambda m: abs(ns(m) - state.stamp_ns)))
+            ref = planar_state(min(reference, key=lambda m: abs(ns(m) - state.stamp_ns)))
             error = math.hypot(state.x - ref.x, state.y - ref.y)
             assert error < 0.1, (segment, error)  # from 0.2 m at t = 0
 

@@ -37,6 +37,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from closed_loop import model_loop_states  # noqa: E402
 from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
+from message_fields import planar_state, stamp_ns
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
@@ -177,9 +178,9 @@ def bag_figures(bag, events: dict, t_killed: int) -> dict:
         leaf = wanted[raw.topic]
         received[leaf].append(raw.timestamp)
         if leaf == 'odom':
-            odom.append((raw.timestamp, codec.planar_state(bagio.deserialize(raw.data, raw.type))))
+            odom.append((raw.timestamp, planar_state(bagio.deserialize(raw.data, raw.type))))
         elif leaf == 'clock':
-            clock.append((raw.timestamp, codec.stamp_nanoseconds(bagio.deserialize(raw.data, raw.type).clock)))
+            clock.append((raw.timestamp, stamp_ns(bagio.deserialize(raw.data, raw.type).clock)))
         elif leaf in step_stamped:
             other_steps.append((raw.timestamp, ns(bagio.deserialize(raw.data, raw.type))))
     odom.sort(key=lambda pair: pair[0])
@@ -325,7 +326,7 @@ def test_reset_and_a_kill_in_a_closed_loop_every_node_carries_on(process_runner,
     for raw in messages(bag):
         leaf = raw.topic.rsplit('/', 1)[-1]
         if leaf == 'odom':
-            odom.append((raw.timestamp, codec.planar_state(bagio.deserialize(raw.data, raw.type))))
+            odom.append((raw.timestamp, planar_state(bagio.deserialize(raw.data, raw.type))))
         elif leaf == 'wheel_torque_cmd':
             commands.append(raw.timestamp)
     odom.sort(key=lambda pair: pair[0])

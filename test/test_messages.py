@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from bag_helpers import fields
-from wallbot_msgs_py import bagio, codec, topics
+from message_fields import planar_state, quaternion_yaw, seconds, stamp_ns, typestore_header
+from wallbot_msgs_py import bagio, cdr, codec, topics
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import (
@@ -28,10 +29,12 @@ def robot() -> Robot:
 
 
 def test_stamps_are_exact_integer_nanoseconds():
+    encoder = codec.ClockEncoder()
     for k in (0, 1, 999, 1000, 1001, 123456789):
-        msg = codec.stamp(k * 1e-3)
-        assert codec.stamp_nanoseconds(msg) == k * 1_000_000
-    assert codec.seconds(codec.stamp(12.5)) == 12.5
+        data = encoder.encode(*cdr.split_stamp(cdr.to_nanoseconds(k * 1e-3)))
+        assert stamp_ns(decode(data, topics.CLOCK).clock) == k * 1_000_000  # rosbags reads it
+        assert codec.decode_clock(data) == codec.leading_stamp_ns(data) == k * 1_000_000
+    assert seconds(decode(encoder.encode(*cdr.split_stamp(cdr.to_nanoseconds(12.5))), topics.CLOCK).clock) == 12.5
 
 
 @pytest.mark.parametrize('reference', [Circle(1.0, 20.0), FigureEight(1.0, 30.0, (0.5, -0.2)),
@@ -40,7 +43,7 @@ def test_plan_round_trip_interpolates_the_reference(reference):
     plan = sample_plan(reference, 0.0, 6.0, 0.01)
     msg = decode(messages.trajectory_message(plan), topics.REFERENCE_TRAJECTORY)
     assert msg.header.frame_id == topics.WALL_FRAME and len(msg.points) == len(plan.times) == 601
-    parsed = SampledReference(*messages.plan_from_message(msg))
+    parsed = SampledReference(*messages.plan_from_cdr(messages.trajectory_message(plan)))
     direct = messages.sampled_reference(plan)
     worst = 0.0
     for t in np.arange(0.0, 6.0, 0.0013):
@@ -105,30 +108,35 @@ def test_serialized_plan_decodes_to_the_plan():
         (plan.positions, plan.velocities, plan.accelerations)
 
 
-def from_message(msg):
-    return SampledReference(*messages.plan_from_message(msg))
-
-
-def from_bytes(msg):
+def plan_of(msg):
     return SampledReference(*messages.plan_from_cdr(bagio.serialize(msg, topics.REFERENCE_TRAJECTORY.type)))
 
 
-@pytest.mark.parametrize('decode_plan', [from_message, from_bytes], ids=['message', 'cdr'])
 @pytest.mark.parametrize('build, reason', [
     (lambda msg: msg.points.__setitem__(slice(None), msg.points[:1]), '>= 2 points'),
     (lambda msg: msg.points[3].velocities.clear(), 'point 3'),
     (lambda msg: setattr(msg.points[2], 'time_from_start', msg.points[1].time_from_start), 'increase'),
 ])
-def test_bad_plans_are_refused_with_a_reason(decode_plan, build, reason):
+def test_bad_plans_are_refused_with_a_reason(build, reason):
     msg = decode(messages.trajectory_message(sample_plan(Circle(), 0.0, 0.1, 0.01)), topics.REFERENCE_TRAJECTORY)
     build(msg)
     with pytest.raises(ValueError, match=reason):
-        decode_plan(msg)
+        plan_of(msg)
 
 
-def test_the_plan_read_from_the_bytes_is_the_converted_message_s_in_any_layout():
-    """plan_from_cdr reads the bytes; plan_from_message takes the message rosbags converted: the same plan,
-    whatever shifts the alignment (frame and joint names of any length) or adds elements after the first."""
+def plan_in_message(msg) -> tuple:
+    """The plan a rosbags-decoded reference_trajectory holds, read from its fields."""
+    start = stamp_ns(msg.header.stamp)
+    return ([(start + stamp_ns(point.time_from_start)) * 1e-9 for point in msg.points],
+            [(p.transforms[0].translation.x, p.transforms[0].translation.y) for p in msg.points],
+            [(p.velocities[0].linear.x, p.velocities[0].linear.y) for p in msg.points],
+            [(p.accelerations[0].linear.x, p.accelerations[0].linear.y) for p in msg.points])
+
+
+@pytest.mark.parametrize('little_endian', [True, False])
+def test_the_plan_read_from_the_bytes_is_the_converted_message_s_in_any_layout(little_endian):
+    """plan_from_cdr reads the bytes; rosbags converts them: the same plan, whatever shifts the alignment
+    (frame and joint names of any length) or adds elements after the first, in either byte order."""
     msg = decode(messages.trajectory_message(sample_plan(FigureEight(), 1.0, 3.0, 0.05)), topics.REFERENCE_TRAJECTORY)
     for frame, joints, extra in (('wall', ['base_link'], 0), ('w', [], 1), ('odom_', ['a', 'bc', 'def'], 2)):
         msg.header.frame_id, msg.joint_names = frame, joints
@@ -136,8 +144,8 @@ def test_the_plan_read_from_the_bytes_is_the_converted_message_s_in_any_layout()
             point.transforms[1:] = [point.transforms[0]] * extra
             point.velocities[1:] = [point.accelerations[0]] * extra
             point.accelerations[1:] = [point.velocities[0]] * (2 * extra)
-        data = bagio.serialize(msg, topics.REFERENCE_TRAJECTORY.type)
-        assert messages.plan_from_cdr(data) == messages.plan_from_message(msg)
+        data = bytes(bagio.typestore().serialize_cdr(msg, topics.REFERENCE_TRAJECTORY.type, little_endian=little_endian))
+        assert tuple(messages.plan_from_cdr(data)) == plan_in_message(msg)
 
 
 def test_a_serialized_plan_cut_anywhere_is_refused_as_malformed():
@@ -161,14 +169,14 @@ def test_path_and_reference_odometry():
     assert path.poses[-1].pose.position.x == plan.positions[-1][0]
     headings = messages.plan_headings(plan)
     for pose in path.poses:  # along the tangent
-        yaw, _rate = headings[round(codec.seconds(pose.header.stamp) / 0.01)]
-        assert codec.quaternion_yaw(pose.pose.orientation) == pytest.approx(math.remainder(yaw, 2 * math.pi), abs=1e-12)
+        yaw, _rate = headings[round(seconds(pose.header.stamp) / 0.01)]
+        assert quaternion_yaw(pose.pose.orientation) == pytest.approx(math.remainder(yaw, 2 * math.pi), abs=1e-12)
     sample = Circle().sample(2.0)
     data, yaw = messages.reference_message(sample, 2.0)
     msg = decode(data, topics.REFERENCE)
     assert msg.child_frame_id == topics.REFERENCE_FRAME
     assert yaw == pytest.approx(2 * math.pi * 2.0 / 20.0 + math.pi / 2, abs=1e-12)
-    state = codec.planar_state(msg)
+    state = planar_state(msg)
     assert (state.x, state.y, state.xd, state.yd) == pytest.approx((*sample.position, *sample.velocity), abs=1e-12)
     speed = 2 * math.pi / 20.0
     assert msg.twist.twist.linear.x == pytest.approx(speed, abs=1e-12)
@@ -180,23 +188,25 @@ def test_path_and_reference_odometry():
                                           ('abc', 'abcdefg')])
 @pytest.mark.parametrize('little_endian', [True, False])
 def test_odometry_read_from_its_bytes_is_the_decoded_one(frame, child, little_endian):
-    """planar_state_from_cdr and body_twist_from_cdr against the typestore's decoding, across string
-    lengths (the alignment of the pose after them) and both byte orders; a truncated message is
-    refused, not misread."""
-    msg = decode(codec.odometry(12.345, 0.3, -0.2, 2.5, 0.11, -0.07, 0.9, child=child, frame=frame), topics.ODOM)
+    """decode_odometry against the typestore's decoding, across string lengths (the alignment of the
+    pose after them) and both byte orders; a truncated message is refused, not misread."""
+    encoder = codec.OdometryEncoder(frame, child)
+    msg = decode(encoder.encode(12, 345_000_000, (0.3, -0.2, 2.5), (0.11, -0.07, 0.9)), topics.ODOM)
     msg.pose.covariance = np.arange(36.0)  # values that must be skipped, not read
     msg.twist.covariance = -np.arange(36.0)
     data = bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type, little_endian=little_endian))
-    assert codec.planar_state_from_cdr(data) == codec.planar_state(msg)
-    twist = msg.twist.twist
-    assert codec.body_twist_from_cdr(data) == (twist.linear.x, twist.linear.y, twist.angular.z)
+    odom = codec.decode_odometry(data)
+    assert odom.planar_state() == planar_state(msg)
+    twist, pose = msg.twist.twist, msg.pose.pose
+    assert (odom.stamp_ns, odom.frame, odom.child) == (12_345_000_000, frame, child)
+    assert (odom.x, odom.y, odom.yaw) == (pose.position.x, pose.position.y, quaternion_yaw(pose.orientation))
+    assert (odom.forward, odom.sideways, odom.turn) == (twist.linear.x, twist.linear.y, twist.angular.z)
     for cut in (1, 13, len(data) - 1):
-        for read in (codec.planar_state_from_cdr, codec.body_twist_from_cdr):
-            with pytest.raises(ValueError, match=f'malformed odometry \\({cut} bytes\\)'):
-                read(data[:cut])
+        with pytest.raises(ValueError, match=f'malformed odometry \\({cut} bytes\\)'):
+            codec.decode_odometry(data[:cut])
     msg.twist.twist.angular.z = math.inf
     with pytest.raises(ValueError, match='not finite'):
-        codec.planar_state_from_cdr(bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type)))
+        codec.decode_odometry(bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type))).planar_state()
 
 
 def test_constraints_message_round_trip():
@@ -207,11 +217,11 @@ def test_constraints_message_round_trip():
     values = {kv.key: kv.value for kv in msg.values}
     assert values['nonslip'] == 'false' and values['baumgarte_beta'] == '6.0'
     assert values['active'] == 'trajectory,tangent_heading,belt,non_lateral'
-    selection, gains = messages.constraints_from_message(msg)
+    selection, gains = messages.constraints_from_cdr(messages.constraints_message(switches, BaumgarteGains(4.0, 6.0)))
     assert selection == ConstraintSelection(True, True, True, False, None)
     assert gains == BaumgarteGains(4.0, 6.0)
-    off = decode(messages.constraints_message({**switches, 'tangent_heading': False}, BaumgarteGains()), topics.CONSTRAINTS)
-    assert messages.constraints_from_message(off)[0].heading is False
+    off = messages.constraints_message({**switches, 'tangent_heading': False}, BaumgarteGains())
+    assert messages.constraints_from_cdr(off)[0].heading is False
 
 
 @pytest.mark.parametrize('selection', [ConstraintSelection(), ConstraintSelection(True, True, True, True),
@@ -219,9 +229,8 @@ def test_constraints_message_round_trip():
                                        ConstraintSelection(False, True, True, True)], ids=lambda s: s.label())
 def test_a_selection_survives_its_switches(selection):
     """What simulate --bag writes for its selection decodes to that selection in the dynamics node."""
-    msg = decode(messages.constraints_message(messages.switches_from_selection(selection), BaumgarteGains()),
-                 topics.CONSTRAINTS)
-    decoded, _gains = messages.constraints_from_message(msg)
+    data = messages.constraints_message(messages.switches_from_selection(selection), BaumgarteGains())
+    decoded, _gains = messages.constraints_from_cdr(data)
     assert decoded.active_names() == selection.active_names()
 
 
@@ -244,20 +253,20 @@ def test_bad_constraints_message(key, value, reason):
         if kv.key == key:
             kv.value = value
     with pytest.raises(ValueError, match=reason):
-        messages.constraints_from_message(msg)
+        messages.constraints_from_cdr(bagio.serialize(msg, topics.CONSTRAINTS.type))
 
 
 def test_torque_command_validation():
     def command(data):
-        return bagio.typestore().types['std_msgs/msg/Float64MultiArray'](
+        return bagio.serialize(bagio.typestore().types['std_msgs/msg/Float64MultiArray'](
             layout=bagio.typestore().types['std_msgs/msg/MultiArrayLayout'](dim=[], data_offset=0),
-            data=np.array(data, dtype=np.float64))
+            data=np.array(data, dtype=np.float64)), topics.WHEEL_TORQUE_CMD.type)
 
-    assert codec.torque_command(command([0.5, -1.0]), 2.0) == (0.5, -1.0)
+    assert codec.decode_wheel_torque_cmd(command([0.5, -1.0]), 2.0) == (0.5, -1.0)
     for data, reason in [([1.0], 'got 1 values'), ([1.0, 2.0, 3.0], 'got 3'), ([math.nan, 0.0], 'tau_L is not finite'),
                          ([0.0, math.inf], 'tau_R is not finite'), ([0.0, -2.5], 'beyond max_wheel_torque')]:
         with pytest.raises(ValueError, match=reason):
-            codec.torque_command(command(data), 2.0)
+            codec.decode_wheel_torque_cmd(command(data), 2.0)
 
 
 def test_the_torque_command_encoder_writes_what_rclpy_serializes():
@@ -272,7 +281,7 @@ def test_the_torque_command_encoder_writes_what_rclpy_serializes():
     padding = slice(16, 20)  # after the encapsulation header (4) and three counts (12): float64 data is 8-aligned
     assert len(ours) == len(theirs) == 36
     assert ours[:padding.start] + ours[padding.stop:] == theirs[:padding.start] + theirs[padding.stop:]
-    assert codec.torque_command(decode(ours, topics.WHEEL_TORQUE_CMD), 5.0) == (0.1234567, -4.5)
+    assert codec.decode_wheel_torque_cmd(theirs, 5.0) == (0.1234567, -4.5)
 
 
 @pytest.mark.parametrize('torques', [(0.1234567, -4.5), (-0.0, 5.0), (1e-300, -math.pi)])
@@ -288,34 +297,47 @@ def test_initial_pose_validation():
     types = bagio.typestore().types
 
     def pose(frame='wall', x=0.3, y=-0.4, q=(0.0, 0.0, math.sin(-1.2), math.cos(-1.2))):
-        return types['geometry_msgs/msg/PoseWithCovarianceStamped'](
-            header=codec.header(0.0, frame),
+        return bagio.serialize(types['geometry_msgs/msg/PoseWithCovarianceStamped'](
+            header=typestore_header(0.0, frame),
             pose=types['geometry_msgs/msg/PoseWithCovariance'](
                 pose=types['geometry_msgs/msg/Pose'](position=types['geometry_msgs/msg/Point'](x=x, y=y, z=0.0),
                                                      orientation=types['geometry_msgs/msg/Quaternion'](*q)),
-                covariance=np.zeros(36)))
+                covariance=np.zeros(36))), topics.INITIALPOSE.type)
 
-    x, y, heading = codec.initial_pose(pose())
+    x, y, heading = codec.decode_initial_pose(pose())
     assert (x, y) == (0.3, -0.4) and heading == pytest.approx(-2.4, abs=1e-12)
-    assert codec.initial_pose(pose(q=(0.0, 0.0, 3.0, 0.0)))[2] == pytest.approx(math.pi)  # any norm
+    assert codec.decode_initial_pose(pose(q=(0.0, 0.0, 3.0, 0.0)))[2] == pytest.approx(math.pi)  # any norm
     for bad, reason in [(pose(frame='map'), "frame 'map', not 'wall'"), (pose(frame=''), "frame '', not 'wall'"),
                         (pose(x=math.nan), 'not finite'), (pose(q=(0.0, 0.0, 0.0, 0.0)), 'not a turn about Z'),
                         (pose(q=(0.1, 0.0, 0.0, 0.995)), 'not a turn about Z')]:
         with pytest.raises(ValueError, match=reason):
-            codec.initial_pose(bad)
+            codec.decode_initial_pose(bad)
     # a graph whose odom_frame_id is 'map' takes poses in 'map' and refuses 'wall'
-    assert codec.initial_pose(pose(frame='map'), 'map')[:2] == (0.3, -0.4)
+    assert codec.decode_initial_pose(pose(frame='map'), 'map')[:2] == (0.3, -0.4)
     with pytest.raises(ValueError, match="frame 'wall', not 'map'"):
-        codec.initial_pose(pose(), 'map')
+        codec.decode_initial_pose(pose(), 'map')
 
 
 def test_diagnostics_builder():
     status = codec.Status('x', 'error', 'diverged', [('rate', 999.123456), ('set', 'belt')])
-    array = decode(codec.diagnostics(1.5, [status]), topics.DIAGNOSTICS)
-    assert codec.seconds(array.header.stamp) == 1.5
+    data = codec.diagnostics(1.5, [status])
+    array = decode(data, topics.DIAGNOSTICS)
+    assert seconds(array.header.stamp) == 1.5
     assert array.status[0].level == codec.LEVELS['error'] and array.status[0].hardware_id == codec.HARDWARE_ID
     assert [(kv.key, kv.value) for kv in array.status[0].values] == [('rate', '999.123'), ('set', 'belt')]
-    assert codec.diagnostic_values(array) == {'rate': '999.123', 'set': 'belt'}
+    assert codec.decode_diagnostics(data) == (1_500_000_000, [('x', 'error', 'diverged', [('rate', '999.123'),
+                                                                                         ('set', 'belt')])])
+
+
+def test_the_status_of_a_robot_s_dynamics_is_told_from_another_robot_s():
+    """/diagnostics is one topic for every robot of a domain: a reader picks the status of the dynamics in
+    its own namespace by the status's name, the node's fully qualified name."""
+    statuses = [codec.Status(codec.simulation_status_name(node), 'ok', node, []) for node in
+                ('/robot2/dynamics', '/wallbot/sub/dynamics', '/wallbot/dynamics')]
+    assert codec.simulation_status(statuses, '/wallbot').message == '/wallbot/dynamics'
+    assert codec.simulation_status(statuses, '/robot2/').message == '/robot2/dynamics'
+    assert codec.simulation_status(statuses, '/robot3') is None
+    assert codec.simulation_status([codec.Status('/dynamics: simulation', 'ok', 'root', [])], '/').message == 'root'
 
 
 def test_rclpy_decodes_the_codec_bytes_to_the_same_fields():

@@ -26,6 +26,7 @@ from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
 from scheduling_helpers import may_use_fifo  # noqa: E402
+from message_fields import quaternion_yaw
 from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim import messages  # noqa: E402
@@ -231,7 +232,7 @@ def test_step_and_place_a_paused_robot(graph):
     placed = graph.wait_for(lambda: [m for m in graph.messages(topics.ODOM.name)
                                      if ns(m) == held and m.pose.pose.position.x == 0.3], STALL, 'the placed state')[0]
     assert placed.pose.pose.position.y == -0.4
-    assert codec.quaternion_yaw(placed.pose.pose.orientation) == pytest.approx(1.0, abs=1e-12)
+    assert quaternion_yaw(placed.pose.pose.orientation) == pytest.approx(1.0, abs=1e-12)
     twist = placed.twist.twist
     assert (twist.linear.x, twist.linear.y, twist.angular.z) == (0.0, 0.0, 0.0)
 

@@ -218,6 +218,15 @@ class _Writer:
         self.log_times.append(log_ns)
 
 
+def recorder(stop, writer, recorded, tappable=()):
+    """The recorder node recording ``recorded`` (its ``topics`` parameter) into ``writer``."""
+    from rclpy.parameter import Parameter
+
+    from wallbot_sim.nodes.recorder import Recorder
+    return Recorder(stop, tappable, writer, parameter_overrides=[
+        Parameter('topics', Parameter.Type.STRING_ARRAY, [topic.name for topic in recorded])])
+
+
 class _HandlerRunsAtTheCheck:
     """A stop whose signal handler runs right after a callback read ``requested`` (a Python
     handler runs between any two bytecodes): the callback saw no stop, yet it came."""
@@ -237,12 +246,11 @@ def test_a_message_written_around_the_signal_is_not_logged_after_it(ros_domain):
     import rclpy
 
     from wallbot_msgs_py import topics
-    from wallbot_sim.nodes.recorder import make_recorder
     rclpy.init()
     node = None
     try:
         writer, stop = _Writer(), _HandlerRunsAtTheCheck()
-        node = make_recorder(writer, [topics.REFERENCE], stop)
+        node = recorder(stop, writer, [topics.REFERENCE])
         name = node.resolve_topic_name(topics.REFERENCE.name)
         node._on_message(topics.REFERENCE, name, b'')  # the handler runs inside its check
         node._on_message(topics.REFERENCE, name, b'')  # the stop was there before it
@@ -294,13 +302,11 @@ def test_a_composed_recorder_writes_the_tapped_steps_before_a_dds_message_and_no
     import rclpy
 
     from wallbot_msgs_py import topics
-    from wallbot_sim.nodes.recorder import make_recorder
     rclpy.init()
     node = None
     try:
         writer, stop = _KeptWriter(), _Stop()
-        node = make_recorder(writer, [topics.ODOM, topics.CLOCK, topics.REFERENCE], stop,
-                             tapped=[topics.ODOM, topics.CLOCK])
+        node = recorder(stop, writer, [topics.ODOM, topics.CLOCK, topics.REFERENCE], tappable=[topics.ODOM, topics.CLOCK])
         assert node.count_subscribers('/wallbot/odom') == 0 and node.count_subscribers('/wallbot/reference') == 1
         node.tap.put([(topics.ODOM, b'odom 0'), (topics.CLOCK, b'clock 0')], clock=True)
         node.tap.put([(topics.ODOM, b'odom 1'), (topics.CLOCK, b'clock 1')], clock=False)

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from wallbot_msgs_py.snapshot import LENGTH, DynamicsSnapshot, SnapshotKeeper
+from wallbot_msgs_py import bagio, topics
+from wallbot_msgs_py.snapshot import LENGTH, DynamicsSnapshot, SnapshotKeeper, decode_snapshot, encode_snapshot
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.nodes.resume import KEEPER_ANSWER, ResumeGate
@@ -49,42 +50,39 @@ def test_malformed_snapshots_are_refused_with_the_reason(edit, reason):
 
 
 def test_snapshot_message_carries_the_label_and_an_empty_one_means_nothing_held():
-    pytest.importorskip('std_msgs')
-    from wallbot_msgs_py.snapshot import snapshot_from_message, snapshot_message
+    """The bytes are what rosbags serializes for the Float64MultiArray they hold; the label tells a snapshot."""
     kept = snapshot()
-    assert snapshot_from_message(snapshot_message(kept.to_values())) == kept
-    assert snapshot_from_message(snapshot_message([])) is None
-    foreign = snapshot_message(kept.to_values())
-    foreign.layout.dim[0].label = 'something else'
+    data = encode_snapshot(kept)
+    msg = bagio.deserialize(data, topics.STATE_SNAPSHOT.type)
+    assert [dim.label for dim in msg.layout.dim] == ['wallbot_dynamics_snapshot_v1']
+    assert list(msg.data) == kept.to_values() and bagio.serialize(msg, topics.STATE_SNAPSHOT.type) == data
+    assert decode_snapshot(data) == kept
+    assert decode_snapshot(encode_snapshot(None)) is None
+    msg.layout.dim[0].label = 'something else'
     with pytest.raises(ValueError, match='not a dynamics snapshot'):
-        snapshot_from_message(foreign)
+        decode_snapshot(bagio.serialize(msg, topics.STATE_SNAPSHOT.type))
+    msg.layout.dim[0].label, msg.data = 'wallbot_dynamics_snapshot_v1', msg.data[:5]
+    with pytest.raises(ValueError, match='has 33 values, got 5'):
+        decode_snapshot(bagio.serialize(msg, topics.STATE_SNAPSHOT.type))
 
 
 def test_keeper_announces_nothing_then_holds_the_newest_snapshot_seen_until_the_newest_stamp():
     keeper = SnapshotKeeper()
-    assert keeper.due() == [] and keeper.due() is None  # "nothing held", announced once
-    keeper.snapshot(snapshot(steps=10).to_values())  # t = 0.26 s
-    assert DynamicsSnapshot.from_values(keeper.due()).seen_until_ns == 260 * MS  # no step message yet: its own
+    assert decode_snapshot(keeper.due()) is None and keeper.due() is None  # "nothing held", announced once
+    keeper.snapshot(snapshot(steps=10))  # t = 0.26 s
+    assert decode_snapshot(keeper.due()).seen_until_ns == 260 * MS  # no step message yet: its own
     for stamp in (261, 262, 263):
         keeper.stamp('/wallbot/odom', stamp * MS)
     keeper.stamp('/wallbot/wheel_states', 262 * MS)  # another stream, one message behind
-    held = DynamicsSnapshot.from_values(keeper.due())
+    held = decode_snapshot(keeper.due())
     assert held.seen_until_ns == 263 * MS and held.steps == 10, 'the snapshot, seen until the newest stamp'
     assert keeper.due() is None, 'unchanged: nothing to republish'
     # a reset: every stream goes back to 0 and the dynamics sends a snapshot at t = 0
-    keeper.snapshot(snapshot(steps=0, anchor=0.0).to_values())
+    keeper.snapshot(snapshot(steps=0, anchor=0.0))
     keeper.stamp('/wallbot/odom', 0)
     keeper.stamp('/wallbot/wheel_states', 0)
-    held = DynamicsSnapshot.from_values(keeper.due())
+    held = decode_snapshot(keeper.due())
     assert (held.t, held.seen_until_ns) == (0.0, 0)
-
-
-def test_keeper_refuses_a_malformed_snapshot_and_keeps_the_last_good_one():
-    keeper = SnapshotKeeper()
-    keeper.snapshot(snapshot(steps=10).to_values())
-    with pytest.raises(ValueError):
-        keeper.snapshot([1.0, 2.0])
-    assert DynamicsSnapshot.from_values(keeper.held()).steps == 10
 
 
 def test_gate_waits_for_a_keeper_from_its_first_question_until_a_deadline():

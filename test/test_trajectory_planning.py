@@ -8,6 +8,7 @@ import threading
 
 import pytest
 
+from message_fields import stamp_ns
 from wallbot_sim.nodes.background import LatestRequestWorker
 
 WAIT = 10.0
@@ -173,34 +174,32 @@ def test_poses_the_clock_passed_while_planning_go_out_with_the_plan(held_planner
     to the newest clock are published, each stamped on its grid and sampled from the plan."""
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message
-    from rosgraph_msgs.msg import Clock
 
-    from wallbot_msgs_py import codec
     from wallbot_sim import messages
 
     node = held_planner.node
     published = []
     monkeypatch.setattr(node.reference_pub, 'publish', published.append)
     for t_ms in (0, 100, 200, 300):  # the run's clock passes without a plan to sample
-        clock = Clock()
-        clock.clock.sec, clock.clock.nanosec = divmod(t_ms * 1_000_000, 1_000_000_000)
-        node._on_clock(clock)
+        node._on_clock(clock_message(t_ms * 1_000_000))
     assert not published
     held_planner.release.set()
     assert node.planner.wait_idle(WAIT)
     poses = [deserialize_message(data, Odometry) for data in published]
-    stamps = [codec.stamp_nanoseconds(m.header.stamp) for m in poses]
+    stamps = [stamp_ns(m.header.stamp) for m in poses]
     period = round(1e9 / messages.PUBLISH_RATE_HZ)
     assert stamps == list(range(0, 300_000_001, period))
     x = [m.pose.pose.position.x for m in poses]
     assert x == [node.reference.sample(s * 1e-9).position[0] for s in stamps]
 
 
-def clock_message(t_ns: int):
+def clock_message(t_ns: int) -> bytes:
+    """A serialized rosgraph_msgs/Clock of ``t_ns``, as the node's raw subscription hands it over."""
+    from rclpy.serialization import serialize_message
     from rosgraph_msgs.msg import Clock
     clock = Clock()
     clock.clock.sec, clock.clock.nanosec = divmod(t_ns, 1_000_000_000)
-    return clock
+    return serialize_message(clock)
 
 
 def test_a_clock_that_came_while_a_plan_was_built_is_checked_once_the_planner_is_idle(held_planner):

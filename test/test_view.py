@@ -17,6 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from cli_helpers import simulate
+from message_fields import odometry_cdr, typestore_header
 from wallbot_msgs_py import bagio, codec, topics, view_cdr
 from wallbot_sim.bag.reader import messages
 from wallbot_sim.config import load_robot_parameters
@@ -88,9 +89,10 @@ def test_the_tf_of_a_robot_names_the_links_of_its_robot_description(params, fram
     the dynamics' parameters give it and the viewer's frame_prefix, names exactly the frames of
     the robot_description built with the same parameters: the URDF's root, its chassis and its
     wheel links, each transform between the two links its joint joins."""
-    odom = codec.odometry(0.25, 0.3, -0.4, 0.7, 0.0, 0.0, 0.0, child=frames.base_link, frame=frames.odom)
+    odom = codec.decode_odometry(odometry_cdr(0.25, 0.3, -0.4, 0.7, 0.0, 0.0, 0.0, child=frames.base_link,
+                                              frame=frames.odom))
     scene = Scene(params, frame_prefix=frames.prefix)
-    scene.update_pose(Pose(*view_cdr.odometry_pose(odom)))  # as viewer_node reads odom
+    scene.update_pose(Pose(*odom[:6]))  # as viewer_node reads odom
     scene.update_wheels([0.1, -2.0, 3.5, 7.0])
     msg = bagio.deserialize(view_cdr.tf_message(250_000_000, scene.transforms()), TF_MESSAGE)
 
@@ -104,29 +106,29 @@ def test_the_tf_of_a_robot_names_the_links_of_its_robot_description(params, fram
 @pytest.mark.parametrize('little_endian', [True, False])
 def test_the_per_step_messages_are_read_as_rosbags_wrote_them(little_endian):
     types = bagio.typestore().types
-    odom = bagio.deserialize(codec.odometry(12.345, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3), topics.ODOM.type)
-    data = bagio.typestore().serialize_cdr(odom, topics.ODOM.type, little_endian=little_endian)
-    assert view_cdr.odometry_pose(data) == (12_345_000_000, WALL, BASE, 0.5, -0.25, pytest.approx(2.5, abs=1e-15))
+    odom = bagio.deserialize(odometry_cdr(12.345, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3), topics.ODOM.type)
+    data = bytes(bagio.typestore().serialize_cdr(odom, topics.ODOM.type, little_endian=little_endian))
+    assert codec.decode_odometry(data)[:6] == (12_345_000_000, WALL, BASE, 0.5, -0.25, pytest.approx(2.5, abs=1e-15))
 
     names = list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
     joints = types['sensor_msgs/msg/JointState'](
-        header=codec.header(0.002, ''), name=names, position=np.arange(7.0), velocity=np.array([]),
+        header=typestore_header(0.002, ''), name=names, position=np.arange(7.0), velocity=np.array([]),
         effort=np.linspace(-1.0, 1.0, 7))
-    data = bagio.typestore().serialize_cdr(joints, 'sensor_msgs/msg/JointState', little_endian=little_endian)
-    read = view_cdr.joint_arrays(data)
+    data = bytes(bagio.typestore().serialize_cdr(joints, 'sensor_msgs/msg/JointState', little_endian=little_endian))
+    read = codec.decode_joint_state(data)
     assert (read.stamp_ns, read.name, read.position, read.velocity) == (2_000_000, tuple(names), tuple(range(7)), ())
     assert read.effort == tuple(np.linspace(-1.0, 1.0, 7))
-    assert codec.joint_values(read, topics.DRIVE_JOINTS, 'effort') == tuple(np.linspace(-1.0, 1.0, 7)[4:])
+    assert read.values(topics.DRIVE_JOINTS, 'effort') == tuple(np.linspace(-1.0, 1.0, 7)[4:])
 
 
 def test_short_or_garbled_bytes_are_a_value_error():
-    data = codec.odometry(1.0, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3)
+    data = odometry_cdr(1.0, 0.5, -0.25, 2.5, 1.0, 2.0, 0.3)
     # cut short; not CDR; a frame name longer than the message
     for bad in (data[:40], b'\x07\x07' + data[2:], data[:12] + b'\xff\xff\xff\x7f' + data[16:]):
-        with pytest.raises(ValueError):
-            view_cdr.odometry_pose(bad)
-    with pytest.raises(ValueError):
-        view_cdr.joint_arrays(data[:30])
+        with pytest.raises(ValueError, match='malformed odometry'):
+            codec.decode_odometry(bad)
+    with pytest.raises(ValueError, match='malformed joint_state'):
+        codec.decode_joint_state(data[:30])
 
 
 # --- geometry ---------------------------------------------------------------------------------------

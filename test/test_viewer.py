@@ -19,6 +19,7 @@ from visualization_msgs.msg import MarkerArray
 
 from cli_helpers import WALLBOT, wait_for_output
 from graph_helpers import Graph
+from message_fields import odometry_cdr, planar_state
 from wallbot_msgs_py import bagio, codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_scenario
@@ -115,7 +116,7 @@ def test_a_run_serves_odom_to_a_foxglove_client_and_markers_to_ros(tmp_path, pro
             if isinstance(message, bytes) and message[0] == MESSAGE_DATA:
                 subscription, _receive_ns = struct.unpack_from('<IQ', message, 1)
                 assert subscription == 7
-                states.append(codec.planar_state(bagio.deserialize(message[13:], topics.ODOM.type)))
+                states.append(planar_state(bagio.deserialize(message[13:], topics.ODOM.type)))
     stamps = [state.stamp_ns for state in states]
     assert stamps == sorted(set(stamps))  # the newest odometry each frame, never the same twice
     circle = load_scenario('circle').reference
@@ -175,7 +176,7 @@ def test_malformed_odometry_is_never_drawn_and_the_viewer_goes_on(viewer, proces
     def logged() -> int:
         return process_runner.output('viewer').count('ignoring a odom message: ')
 
-    good = codec.odometry(2.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0)
+    good = odometry_cdr(2.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0)
     for bad in (good[:30], good[:12] + b'\xff\xff\xff\x7f' + good[16:]):
         count = logged()
         viewer.wait_for(published_until(bad, lambda: logged() > count), 30, 'the malformed odometry logged')

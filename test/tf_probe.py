@@ -20,6 +20,7 @@ from odom_probe import spin_until  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
+from message_fields import odometry_cdr, stamp_ns
 from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
@@ -36,7 +37,7 @@ def main() -> int:
 
     def on_tf(msg: TFMessage) -> None:
         # the first frames may come before the viewer has the wheel angles: then only wall -> base_link
-        if len(msg.transforms) == 5 and codec.stamp_nanoseconds(msg.transforms[0].header.stamp) in sent:
+        if len(msg.transforms) == 5 and stamp_ns(msg.transforms[0].header.stamp) in sent:
             answer.append(msg)
 
     def publish() -> None:
@@ -44,16 +45,16 @@ def main() -> int:
         t, pose = k * 0.02, (0.01 * k, -0.2, 0.3 + 0.01 * k)
         wheels = JointState(name=list(topics.WHEEL_JOINTS), position=list(WHEEL_ANGLES))
         wheels_pub.publish(wheels)
-        odom_pub.publish(codec.odometry(t, *pose, 0.5, 0.0, 0.5))
+        odom_pub.publish(odometry_cdr(t, *pose, 0.5, 0.0, 0.5))
         sent[codec.to_nanoseconds(t)] = pose
 
     node.create_subscription(TFMessage, topics.TF.name, on_tf, qos_profile(topics.TF))
     node.create_timer(0.02, publish)
     spin_until(node, answer)
     transforms = answer[0].transforms
-    stamp = codec.stamp_nanoseconds(transforms[0].header.stamp)
+    stamp = stamp_ns(transforms[0].header.stamp)
     print(json.dumps({'odom': sent[stamp], 'wheel_angles': WHEEL_ANGLES, 'transforms': [
-        {'parent': t.header.frame_id, 'child': t.child_frame_id, 'stamp': codec.stamp_nanoseconds(t.header.stamp),
+        {'parent': t.header.frame_id, 'child': t.child_frame_id, 'stamp': stamp_ns(t.header.stamp),
          'translation': [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
          'rotation': [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
                       t.transform.rotation.w]} for t in transforms]}), flush=True)

@@ -29,8 +29,8 @@ index      meaning
 =========  ======================================================================
 
 A keeper that holds nothing yet publishes the LABEL with empty ``data`` ("nothing to resume
-from"), so a dynamics starting fresh beside it need not wait. This module imports no ROS
-package except std_msgs for the two message functions.
+from"), so a dynamics starting fresh beside it need not wait. ``encode_snapshot`` and
+``decode_snapshot`` are the message's codec.
 """
 
 from __future__ import annotations
@@ -39,8 +39,9 @@ import math
 from dataclasses import dataclass, replace
 from typing import Sequence
 
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import cdr, topics
 
+TYPE = 'std_msgs/msg/Float64MultiArray'
 LABEL = 'wallbot_dynamics_snapshot_v1'
 LENGTH = 33
 """Values in a snapshot."""
@@ -107,6 +108,25 @@ class DynamicsSnapshot:
                    gains=(values[29], values[30]), paused=bool(values[31]), seen_until_ns=int(seen))
 
 
+@cdr.encoder('state_snapshot', TYPE)
+def encode_snapshot(snapshot: DynamicsSnapshot | None) -> bytes:
+    """``state_snapshot`` / ``resume_state``: the snapshot's values under LABEL (None: empty, nothing held)."""
+    values = snapshot.to_values() if snapshot is not None else []
+    out = cdr.Writer()
+    out.float64_multiarray([(LABEL, len(values), len(values))], values)
+    return out.bytes()
+
+
+@cdr.decoder('state_snapshot', TYPE)
+def decode_snapshot(message: cdr.Reader) -> DynamicsSnapshot | None:
+    """The snapshot in a serialized message (None: the keeper holds nothing); ValueError if it is no snapshot."""
+    dims, values = message.float64_multiarray()
+    labels = [label for label, _size, _stride in dims]
+    if labels != [LABEL]:
+        raise ValueError(f'not a dynamics snapshot: layout labels {labels}, expected [{LABEL!r}]')
+    return DynamicsSnapshot.from_values(values) if values else None
+
+
 class SnapshotKeeper:
     """What a keeper node republishes: the newest snapshot, its seen-until the newest step stamp received.
 
@@ -120,9 +140,9 @@ class SnapshotKeeper:
         self._last_ns: dict[str, int] = {}
         self._changed = True  # a keeper announces at start that it holds nothing yet
 
-    def snapshot(self, values: Sequence[float]) -> None:
-        """A snapshot from the dynamics; ValueError (and nothing kept) if it is malformed."""
-        self._snapshot = DynamicsSnapshot.from_values(values)
+    def snapshot(self, snapshot: DynamicsSnapshot) -> None:
+        """A snapshot from the dynamics."""
+        self._snapshot = snapshot
         self._changed = True
 
     def stamp(self, topic: str, stamp_ns: int) -> None:
@@ -131,34 +151,16 @@ class SnapshotKeeper:
             self._last_ns[topic] = stamp_ns
             self._changed = self._changed or self._snapshot is not None
 
-    def held(self) -> list[float]:
-        """The values to republish: the snapshot with seen-until set, or [] (nothing held yet)."""
+    def held(self) -> DynamicsSnapshot | None:
+        """The snapshot to republish, with seen-until set; None while nothing is held."""
         if self._snapshot is None:
-            return []
+            return None
         seen = max(self._last_ns.values(), default=self._snapshot.seen_until_ns)
-        return replace(self._snapshot, seen_until_ns=seen).to_values()
+        return replace(self._snapshot, seen_until_ns=seen)
 
-    def due(self) -> list[float] | None:
-        """``held()`` if it changed since the last call, else None."""
+    def due(self) -> bytes | None:
+        """The message of ``held()`` if it changed since the last call, else None."""
         if not self._changed:
             return None
         self._changed = False
-        return self.held()
-
-
-def snapshot_message(values: Sequence[float]):
-    """A std_msgs/Float64MultiArray with LABEL and ``values`` ([] = nothing held)."""
-    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
-    msg = Float64MultiArray(data=[float(v) for v in values])
-    msg.layout.dim = [MultiArrayDimension(label=LABEL, size=len(values), stride=len(values))]
-    return msg
-
-
-def snapshot_from_message(msg) -> DynamicsSnapshot | None:
-    """The snapshot in a message (None: the keeper holds nothing); ValueError if it is no snapshot."""
-    labels = [dim.label for dim in msg.layout.dim]
-    if labels != [LABEL]:
-        raise ValueError(f'not a dynamics snapshot: layout labels {labels}, expected [{LABEL!r}]')
-    if len(msg.data) == 0:
-        return None
-    return DynamicsSnapshot.from_values(msg.data)
+        return encode_snapshot(self.held())

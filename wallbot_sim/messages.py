@@ -10,9 +10,10 @@ use it, so a headless bag holds the graph's messages. No ROS import.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from functools import lru_cache
+from typing import Mapping, Sequence
 
-from wallbot_msgs_py import codec, topics
+from wallbot_msgs_py import cdr, codec, topics
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
 from wallbot_sim.model.contact import IDEAL
@@ -129,14 +130,9 @@ def path_message(plan: Plan, max_poses: int = 2000, fallback_yaw: float = 0.0,
                       frame)
 
 
-def plan_from_message(msg: Any) -> Plan:
-    """The plan of a ``reference_trajectory`` message; ValueError if it is not a usable plan."""
-    return Plan(*codec.plan_samples(msg))
-
-
 def plan_from_cdr(data: bytes) -> Plan:
-    """The plan of a serialized ``reference_trajectory``; ValueError if malformed."""
-    return Plan(*codec.plan_samples_from_cdr(data))
+    """The plan of a serialized ``reference_trajectory``; ValueError if it is not a usable plan."""
+    return Plan(*codec.decode_plan(data))
 
 
 def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0.0,
@@ -150,9 +146,14 @@ def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0
     heading = tangent_heading(sample)
     yaw = heading.angle if heading is not None else fallback_yaw
     rate = heading.rate if heading is not None else 0.0
-    data = codec.odometry(t, *sample.position, yaw, *sample.velocity, rate, child=topics.REFERENCE_FRAME,
-                          frame=frame)
+    data = _reference_encoder(frame).encode(*cdr.split_stamp(cdr.to_nanoseconds(t)), (*sample.position, yaw),
+                                            (*sample.velocity, rate))
     return data, yaw
+
+
+@lru_cache(maxsize=8)
+def _reference_encoder(frame: str) -> codec.OdometryEncoder:
+    return codec.OdometryEncoder(frame, topics.REFERENCE_FRAME)
 
 
 # --- the constraint set --------------------------------------------------------------------------
@@ -181,9 +182,9 @@ def constraints_message(switches: Mapping[str, bool], gains: BaumgarteGains) -> 
     return codec.constraints(switches, gains.alpha, gains.beta, selection.active_names(), selection.label())
 
 
-def constraints_from_message(msg: Any) -> tuple[ConstraintSelection, BaumgarteGains]:
-    """The selection and gains of a ``constraints`` message; ValueError naming what is wrong."""
-    decoded = codec.constraint_switches(msg)
+def constraints_from_cdr(data: bytes) -> tuple[ConstraintSelection, BaumgarteGains]:
+    """The selection and gains of a serialized ``constraints``; ValueError naming what is wrong."""
+    decoded = codec.decode_constraints(data)
     try:
         gains = BaumgarteGains(decoded.alpha, decoded.beta)
     except Exception as error:  # ParameterError of the model
@@ -275,5 +276,5 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
         level = 'warn'
         moving = ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in (sliding or {}).items())
         message += f'; sliding: {moving}' if sliding else '; slipping: ' + ', '.join(slipping)
-    return codec.Status(f'{node_name}: simulation', level, message, values)
+    return codec.Status(codec.simulation_status_name(node_name), level, message, values)
 

@@ -18,6 +18,7 @@ import sys
 import time
 from typing import Any
 
+from wallbot_msgs_py import cdr, codec
 from wallbot_msgs_py import topics as graph
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.options import number
@@ -112,10 +113,9 @@ def main(args: argparse.Namespace) -> int:
         clock_pubs = []
         if args.clock:
             from rclpy.qos import QoSProfile
-            from rosgraph_msgs.msg import Clock
-            clock_pubs = [node.create_publisher(Clock, clock.name, QoSProfile(depth=clock.depth))
+            clock_pubs = [node.create_publisher(message_class(clock.type), clock.name, QoSProfile(depth=clock.depth))
                           for clock in (graph.CLOCK, graph.DOMAIN_CLOCK)]
-            clock_msg = Clock()
+            clock_encoder = codec.ClockEncoder()
         deadline = time.monotonic() + args.wait_subscribers
         while args.wait_subscribers and time.monotonic() < deadline and \
                 not all(p.get_subscription_count() > 0 for p in publishers.values()):
@@ -137,9 +137,9 @@ def main(args: argparse.Namespace) -> int:
                 if delay > 0:
                     time.sleep(delay)
                 if clock_pubs and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
-                    clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(raw.timestamp, 1_000_000_000)
+                    clock = clock_encoder.encode(*cdr.split_stamp(raw.timestamp))
                     for clock_pub in clock_pubs:
-                        clock_pub.publish(clock_msg)
+                        clock_pub.publish(clock)
                     last_clock = time.monotonic()
                 publisher = publishers[raw.topic]
                 publisher.publish(raw.data)

@@ -192,25 +192,25 @@ class Monitor:
         self.reference_time = -math.inf
         self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
-                                      qos_profile(topics.RECORD_PROGRESS))
+                                      qos_profile(topics.RECORD_PROGRESS), raw=True)
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
-                                      qos_profile(topics.DIAGNOSTICS))
-        # raw: only the stamp is read, from the CDR bytes (100 poses per simulated second)
+                                      qos_profile(topics.DIAGNOSTICS), raw=True)
+        # only the stamp is read (100 poses per simulated second)
         self.node.create_subscription(Odometry, topics.REFERENCE.name, self._on_reference,
                                       qos_profile(topics.REFERENCE), raw=True)
 
-    def _on_progress(self, msg) -> None:
-        self.recorded = max(self.recorded, codec.seconds(msg.clock))
+    def _on_progress(self, data: bytes) -> None:
+        self.recorded = max(self.recorded, codec.decode_clock(data) * 1e-9)
 
     def _on_reference(self, data: bytes) -> None:
         stamp_ns = codec.leading_stamp_ns(data)
         if stamp_ns is not None:
             self.reference_time = max(self.reference_time, stamp_ns * 1e-9)
 
-    def _on_diagnostics(self, msg) -> None:
-        for status in msg.status:
+    def _on_diagnostics(self, data: bytes) -> None:
+        for status in codec.decode_diagnostics(data).statuses:
             if 'simulation' in status.name:
-                self.diagnostics = {item.key: item.value for item in status.values}
+                self.diagnostics = status.value_map()
 
     def dynamics_stopped(self) -> bool:
         """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""

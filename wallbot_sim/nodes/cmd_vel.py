@@ -115,7 +115,7 @@ class CmdVelNode(Node):
                                           qos_profile(topics.WHEEL_TORQUE_CMD))
         self.commands = HeldCommands(self, publisher, topics.ODOM.name)
         self.create_subscription(TwistStamped if self.use_stamped else Twist, topics.CMD_VEL.name, self._on_cmd_vel,
-                                 qos_profile(topics.CMD_VEL))
+                                 qos_profile(topics.CMD_VEL), raw=True)
         subscribe_odom_when_recorded(self, publisher, self._subscribe_odom)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
@@ -127,9 +127,8 @@ class CmdVelNode(Node):
         # raw: of the 1 kHz odometry only the states acted on are decoded
         self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
 
-    def _on_cmd_vel(self, msg) -> None:
-        twist = msg.twist if self.use_stamped else msg
-        self._command(twist.linear.x, twist.angular.z)
+    def _on_cmd_vel(self, data: bytes) -> None:
+        self._command(*codec.decode_cmd_vel(data, self.use_stamped))
 
     def _command(self, linear: float, angular: float) -> None:
         if self.now_ns is None:  # before the first odometry: received when simulation time is known
@@ -157,10 +156,11 @@ class CmdVelNode(Node):
             return
         self.instants.acted(stamp_ns)
         try:
-            forward, _sideways, yaw_rate = codec.body_twist_from_cdr(data)
+            odom = codec.decode_odometry(data)
         except ValueError as error:
             self.get_logger().error(f'ignoring odom: {error}', throttle_duration_sec=THROTTLE)
             return
+        forward, yaw_rate = odom.forward, odom.turn
         s = self.controller.settings
         half = 0.5 * s.wheel_separation
         measured = ((forward - half * yaw_rate) / s.wheel_radius, (forward + half * yaw_rate) / s.wheel_radius)

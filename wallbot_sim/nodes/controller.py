@@ -153,7 +153,7 @@ class ControllerNode(Node):
         self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
-                                 qos_profile(topics.REFERENCE_TRAJECTORY))
+                                 qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)
         subscribe_odom_when_recorded(self, self.command_pub, self._subscribe_odom)
         self.delivery = HeldCommands(self, self.command_pub, topics.ODOM.name)
         self.add_on_set_parameters_callback(self._on_set)
@@ -179,9 +179,9 @@ class ControllerNode(Node):
         self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
 
     # --- callbacks -----------------------------------------------------------------------------
-    def _on_plan(self, msg: MultiDOFJointTrajectory) -> None:
+    def _on_plan(self, data: bytes) -> None:
         try:
-            plan = messages.plan_from_message(msg)
+            plan = messages.plan_from_cdr(data)
             reference = messages.sampled_reference(plan)  # as the dynamics node interpolates it
         except (ValueError, ModelError) as error:
             self.get_logger().error(f'ignoring reference_trajectory: {error}')
@@ -212,7 +212,7 @@ class ControllerNode(Node):
 
     def _control(self, data: bytes) -> None:
         try:
-            command = self.loop.command(codec.planar_state_from_cdr(data))
+            command = self.loop.command(codec.decode_odometry(data).planar_state())
         except (ValueError, ModelError, np.linalg.LinAlgError) as error:
             self.get_logger().error(f'no command at t = {codec.leading_stamp_ns(data) * 1e-9:.3f} s: {error}',
                                     throttle_duration_sec=THROTTLE)

@@ -74,7 +74,7 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
-from wallbot_msgs_py.snapshot import DynamicsSnapshot, snapshot_from_message, snapshot_message
+from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_snapshot
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
@@ -297,22 +297,22 @@ class DynamicsNode(Node):
                 Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
 
         self.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, self._on_constraints,
-                                 qos_profile(topics.CONSTRAINTS))
+                                 qos_profile(topics.CONSTRAINTS), raw=True)
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)  # see plan_from_cdr
         self.command_sub = self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
-                                                    qos_profile(topics.WHEEL_TORQUE_CMD))
+                                                    qos_profile(topics.WHEEL_TORQUE_CMD), raw=True)
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
-                                 qos_profile(topics.RECORD_PROGRESS))
+                                 qos_profile(topics.RECORD_PROGRESS), raw=True)
         self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
-                                 qos_profile(topics.RESUME_STATE))
+                                 qos_profile(topics.RESUME_STATE), raw=True)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.create_service(SetBool, '~/pause', self._on_pause)
         self.pause_requested = False
         """What the last ~/pause asked (the loop applies it at its next step boundary)."""
         self.create_service(Trigger, '~/step', self._on_step)
         self.create_subscription(PoseWithCovarianceStamped, topics.INITIALPOSE.name, self._on_initialpose,
-                                 qos_profile(topics.INITIALPOSE))
+                                 qos_profile(topics.INITIALPOSE), raw=True)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         steady_timer(self, 1.0, self._publish_diagnostics)
@@ -320,9 +320,9 @@ class DynamicsNode(Node):
         self.loop_thread.start()
 
     # --- executor side: callbacks decode messages and post them to the loop ------------------
-    def _on_constraints(self, msg: DiagnosticStatus) -> None:
+    def _on_constraints(self, data: bytes) -> None:
         try:
-            self.loop.post(ConstraintSwitch(*messages.constraints_from_message(msg)))
+            self.loop.post(ConstraintSwitch(*messages.constraints_from_cdr(data)))
         except ValueError as error:
             self.get_logger().error(f'ignoring constraints message: {error}')
 
@@ -340,20 +340,20 @@ class DynamicsNode(Node):
         self.get_logger().info(f'reference plan {plan.times[0]:.3f} .. {plan.times[-1]:.3f} s'
                                f'{" (ends at rest)" if final else ""}')
 
-    def _on_command(self, msg: Float64MultiArray) -> None:
+    def _on_command(self, data: bytes) -> None:
         try:
-            self.loop.post(TorqueCommand(codec.torque_command(msg, self.params['max_wheel_torque'])))
+            self.loop.post(TorqueCommand(codec.decode_wheel_torque_cmd(data, self.params['max_wheel_torque'])))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
-    def _on_progress(self, msg: ClockMsg) -> None:
-        self.loop.post(RecordProgress(codec.stamp_nanoseconds(msg.clock)))
+    def _on_progress(self, data: bytes) -> None:
+        self.loop.post(RecordProgress(codec.decode_clock(data)))
 
-    def _on_resume_state(self, msg: Float64MultiArray) -> None:
+    def _on_resume_state(self, data: bytes) -> None:
         if self.loop.resume.settled:  # read by the executor thread: at worst one more message is decoded
             return
         try:
-            self.loop.post(ResumeSnapshot(snapshot_from_message(msg)))
+            self.loop.post(ResumeSnapshot(decode_snapshot(data)))
         except ValueError as error:
             self.get_logger().error(f'ignoring resume_state: {error}')
 
@@ -378,9 +378,9 @@ class DynamicsNode(Node):
         response.success, response.message = True, f'{count} step(s) (step_count) at the next step boundary'
         return response
 
-    def _on_initialpose(self, msg: PoseWithCovarianceStamped) -> None:
+    def _on_initialpose(self, data: bytes) -> None:
         try:
-            self.loop.post(Teleport(*codec.initial_pose(msg, self.params['odom_frame_id'])))
+            self.loop.post(Teleport(*codec.decode_initial_pose(data, self.params['odom_frame_id'])))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
@@ -479,7 +479,7 @@ class DynamicsNode(Node):
             self.tap.put(encoded, clock, stamp_ns, ahead)
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
-        self.snapshot_pub.publish(snapshot_message(snapshot.to_values()))
+        self.snapshot_pub.publish(encode_snapshot(snapshot))
 
     def recorder_present(self) -> bool:
         return self.count_publishers(self.progress_topic) > 0

@@ -31,7 +31,7 @@ from rclpy.parameter import Parameter
 
 from wallbot_sim.nodes.common import StopSignals, run_nodes
 from wallbot_sim.nodes.dynamics import STEP_TOPICS, SWITCH_INTERVAL, started_node
-from wallbot_sim.nodes.recorder import make_recorder, open_bag, recording_options
+from wallbot_sim.nodes.recorder import Recorder
 
 PROGRAM = 'dynamics_recorder_node'
 NO_KEEPER = [Parameter('resume_wait', value=0.0), Parameter('snapshot_period', value=0.0)]
@@ -41,16 +41,12 @@ NO_KEEPER = [Parameter('resume_wait', value=0.0), Parameter('snapshot_period', v
 def composed_nodes(stop: StopSignals) -> list[Node]:
     """The dynamics node and the recorder taking its steps in process: the dynamics first, so that
     its loop has stopped when the recorder ends the recording (``common.run_nodes`` closes them in order)."""
-    output, recorded = recording_options()
-    writer = open_bag(output, PROGRAM)
-    recorder = None
+    recorder = Recorder(stop, tappable=STEP_TOPICS, program=PROGRAM)
     try:
-        recorder = make_recorder(writer, recorded, stop, tapped=[t for t in recorded if t in STEP_TOPICS])
         dynamics = started_node(tap=recorder.tap, parameter_overrides=NO_KEEPER)
     except BaseException:
-        if recorder is not None:
-            recorder.destroy_node()
-        writer.close()
+        recorder.writer.close()
+        recorder.destroy_node()
         raise
     return [dynamics, recorder]
 

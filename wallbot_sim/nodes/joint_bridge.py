@@ -28,7 +28,6 @@ from __future__ import annotations
 import sys
 
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
@@ -76,7 +75,7 @@ class JointBridgeNode(Node):
         self.create_subscription(JointState, topics.WHEEL_STATES.name, self._on_wheel_states,
                                  qos_profile(topics.WHEEL_STATES), raw=True)
         self.create_subscription(JointState, topics.JOINT_COMMANDS.name, self._on_joint_commands,
-                                 qos_profile(topics.JOINT_COMMANDS))
+                                 qos_profile(topics.JOINT_COMMANDS), raw=True)
 
     def _on_wheel_states(self, data: bytes) -> None:
         stamp_ns = codec.leading_stamp_ns(data)
@@ -87,15 +86,16 @@ class JointBridgeNode(Node):
         if not self.instants.due(stamp_ns):
             return
         self.instants.acted(stamp_ns)
-        self.state_pub.publish(deserialize_message(data, JointState))
+        self.state_pub.publish(data)  # the same message: wheel_states has the wheel joints, as joint_states
 
-    def _on_joint_commands(self, msg: JointState) -> None:
+    def _on_joint_commands(self, data: bytes) -> None:
         try:
-            left, right = side_torques(list(msg.name), list(msg.effort), self.max_torque)
+            commands = codec.decode_joint_state(data)
+            left, right = side_torques(list(commands.name), list(commands.effort), self.max_torque)
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
             return
-        self.command_pub.publish(Float64MultiArray(data=[left, right]))
+        self.command_pub.publish(codec.wheel_torque_cmd(left, right))
 
     def _on_set(self, parameters):
         changes = param_dict(parameters, ('max_wheel_torque',))

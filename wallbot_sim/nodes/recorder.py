@@ -1,6 +1,6 @@
 """``recorder_node`` (node ``/wallbot/recorder``): the graph's topics into a rosbag2 MCAP bag.
 
-Parameters
+Parameters (read-only, ``ros2 param get /wallbot/recorder output`` shows them)
   output (string, required): bag directory to create (must not exist, or be empty).
   topics (string[], default: topics.RECORDED): topic names, relative ones resolve in the namespace.
 
@@ -42,9 +42,16 @@ import time
 from pathlib import Path
 from typing import Any, Sequence
 
-from wallbot_msgs_py import bagio, codec, topics
-from wallbot_msgs_py.snapshot import SnapshotKeeper, snapshot_message
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
+
+from wallbot_msgs_py import bagio, cdr, codec, topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.snapshot import SnapshotKeeper, decode_snapshot
 from wallbot_sim.bag.writer import FLUSH_PERIOD
+from wallbot_sim.nodes.common import declare
 from wallbot_sim.nodes.step_tap import StepTap
 
 NODE_NAME = topics.NODE_RECORDER
@@ -52,11 +59,15 @@ PROGRESS_STEP_NS = 20_000_000
 """Publish record_progress whenever it has advanced this much simulation time (20 steps at 1 kHz,
 well inside the dynamics' backpressure_window whatever its /clock rate), or gone back (a reset);
 and from a 50 ms timer."""
+PROGRESS_PERIOD = 0.05
+"""Wall seconds between republications of record_progress (when it changed)."""
 KEEP_PERIOD = 0.05
 """Wall seconds between republications of the kept snapshot (when it changed)."""
 TAP_PERIOD = 0.01
 """Wall seconds between drains of the in-process tap (``StepTap``) of a composed recorder: the
 bytes of at most this much simulation wait in memory, and record_progress follows at this pace."""
+STAMPED = (*topics.STEP_STAMPED, topics.CLOCK)
+"""The topics whose stamps record_progress follows."""
 
 
 class RecorderOptionError(ValueError):
@@ -69,9 +80,8 @@ def message_class(type_name: str) -> Any:
     return getattr(importlib.import_module(f'{package}.{kind}'), name)
 
 
-def subscription_qos(topic: topics.Topic) -> Any:
+def subscription_qos(topic: topics.Topic) -> QoSProfile:
     """RELIABLE, KEEP_ALL (lossless, with back-pressure), the topic's durability."""
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     durability = (DurabilityPolicy.TRANSIENT_LOCAL if topic.durability is topics.Durability.TRANSIENT_LOCAL
                   else DurabilityPolicy.VOLATILE)
     return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=topic.depth,
@@ -79,33 +89,15 @@ def subscription_qos(topic: topics.Topic) -> Any:
 
 
 def graph_topics(names: Sequence[str]) -> list[topics.Topic]:
-    """The graph topics called ``names``; ValueError naming an unknown one."""
+    """The graph topics called ``names``; RecorderOptionError naming an unknown one."""
     found = []
     for name in names:
         try:
             found.append(topics.by_name(name))
         except KeyError:
             known = ', '.join(t.name for t in topics.RECORDED)
-            raise ValueError(f'unknown topic {name!r} (recordable: {known})') from None
+            raise RecorderOptionError(f'unknown topic {name!r} (recordable: {known})') from None
     return found
-
-
-def recording_options() -> tuple[Path, list[topics.Topic]]:
-    """The bag directory and the topics the process's ``output`` and ``topics`` parameters ask for
-    (after rclpy.init); RecorderOptionError in words for the command line."""
-    from rclpy.node import Node
-    params = Node('_recorder_params', namespace=topics.NAMESPACE, start_parameter_services=False,
-                  automatically_declare_parameters_from_overrides=True)
-    output = params.get_parameter('output').value if params.has_parameter('output') else None
-    names = (list(params.get_parameter('topics').value) if params.has_parameter('topics')
-             else [t.name for t in topics.RECORDED])
-    params.destroy_node()
-    if not output:
-        raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
-    try:
-        return Path(output), graph_topics(names)
-    except ValueError as error:
-        raise RecorderOptionError(str(error)) from None
 
 
 def open_bag(output: Path, program: str) -> Any:
@@ -120,220 +112,224 @@ def open_bag(output: Path, program: str) -> Any:
     return writer
 
 
-def make_recorder(writer: Any, recorded: list[topics.Topic], stop: Any, tapped: Sequence[topics.Topic] = ()) -> Any:
-    """The recorder node writing ``recorded`` into ``writer`` until ``stop`` (a StopSignals).
+class Recorder(Node):
+    """Raw subscriptions (and, composed with the dynamics, its tap) writing the recorded topics into a bag
+    until ``stop`` (a ``common.StopSignals``).
 
-    ``tapped``: topics among ``recorded`` that a dynamics in the same process hands over in process
-    (its ``tap`` attribute, a StepTap) instead of over DDS; with them the node keeps no snapshots.
+    ``tappable``: topics that a dynamics in the same process hands over in process (the ``tap``
+    attribute, a StepTap) instead of over DDS, where recorded; with a tap the node keeps no snapshots.
+    ``writer``: where to write (a BagWriter; by default one creating the ``output`` parameter's directory).
     """
-    from rclpy.node import Node
 
-    class Recorder(Node):
-        """Raw subscriptions (and the tap) writing into ``writer``."""
-
-        def __init__(self) -> None:
-            # its use_sim_time (log times) follows the robot's clock, as nodes.common.ROBOT_CLOCK_ARGS
-            super().__init__(NODE_NAME, namespace=topics.NAMESPACE,
-                             cli_args=['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP])
-            self.writer = writer
-            self.stop = stop
-            self.received = 0
-            self.refused = 0
-            self.last_log_ns = 0
-            self._subscriptions_by_name = {}
-            self._topics_by_name = {}
-            self.tap: StepTap | None = None
-            self._tapped_stamped = [self.resolve_topic_name(t.name) for t in tapped
-                                    if t in (*topics.STEP_STAMPED, topics.CLOCK)]
-            if tapped:
-                self.tap = StepTap({t: self.resolve_topic_name(t.name) for t in tapped}, self._tap_time)
-                self.create_timer(TAP_PERIOD, self._drain_tap)
-            for topic in recorded:
-                if topic in tapped:
-                    continue
-                name = self.resolve_topic_name(topic.name)
-                self._topics_by_name[name] = topic
-                self._subscriptions_by_name[name] = self.create_subscription(
-                    message_class(topic.type), name,
-                    lambda data, topic=topic, name=name: self._on_message(topic, name, data),
-                    subscription_qos(topic), raw=True)
-            self.create_timer(FLUSH_PERIOD, writer.flush_if_due)
-            # back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock
-            # stamp up to which every message has been written. The per-step topics arrive on
-            # readers of their own and may lag /clock (seen: odometry 0.48 s behind under load), so
-            # it is the oldest of the newest stamps of /clock and each per-step topic
-            self.progress_ns: int | None = None
-            self._newest_stamps: dict[str, int] = {}
-            self._stamped = {self.resolve_topic_name(t.name) for t in (*topics.STEP_STAMPED, topics.CLOCK)
-                             if t in recorded}
-            self._progress_sent: int | None = None
-            self._progress_pub = None
-            if any(t.name == topics.CLOCK.name for t in recorded):
-                from rosgraph_msgs.msg import Clock
-
-                from wallbot_msgs_py.qos import qos_profile
-                self._clock_msg = Clock()
-                self._progress_pub = self.create_publisher(Clock, topics.RECORD_PROGRESS.name,
-                                                           qos_profile(topics.RECORD_PROGRESS))
-                self.create_timer(0.05, self._publish_progress)
-            self._keeper_stamped: set[str] = set()
-            if not tapped:
-                self._keep_dynamics_state(recorded)
-            via_tap = f' ({len(tapped)} of them in process)' if tapped else ''
-            self.get_logger().info(f'recording {len(recorded)} topics{via_tap} to {writer.path}')
-
-        def _keep_dynamics_state(self, recorded: list[topics.Topic]) -> None:
-            from std_msgs.msg import Float64MultiArray
-
-            from wallbot_msgs_py.qos import qos_profile
-            self.keeper = SnapshotKeeper()
-            self._keeper_stamped = {self.resolve_topic_name(t.name) for t in topics.STEP_STAMPED if t in recorded}
-            self.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
-                                     qos_profile(topics.STATE_SNAPSHOT))
-            self._resume_pub = self.create_publisher(Float64MultiArray, topics.RESUME_STATE.name,
-                                                     qos_profile(topics.RESUME_STATE))
-            self.create_timer(KEEP_PERIOD, self._publish_kept)
-
-        def _on_snapshot(self, msg: Any) -> None:
-            try:
-                self.keeper.snapshot(msg.data)
-            except ValueError as error:
-                self.get_logger().error(f'ignoring state_snapshot: {error}')
-
-        def _publish_kept(self) -> None:
-            values = self.keeper.due()
-            if values is not None:
-                self._resume_pub.publish(snapshot_message(values))
-
-        def _on_message(self, topic: topics.Topic, name: str, data: bytes, received_ns: int | None = None) -> None:
-            if received_ns is None:  # from the executor
-                # The time is read before the stop is checked: the handler may run between any two
-                # bytecodes, and a time read after the check could follow a stop it did not see.
-                # A callback that finds the stop requested is the one the signal handler ran in
-                # front of (one callback per spin_once, and the loop ends after it): its message
-                # was taken, so received, before the handler noted the stop
-                received_ns = self.get_clock().now().nanoseconds
-                if self.stop.requested:
-                    received_ns = min(received_ns, self._log_time(self.stop.at_ns))
-                if self.tap is not None:  # the steps logged before it go first
-                    self._drain_tap()
-                    received_ns = max(received_ns, self.last_log_ns)
-            self._write(topic, name, data, received_ns)
-            stamp = codec.leading_stamp_ns(data) if name in self._stamped else None
-            if stamp is not None:  # one parse feeds the keeper and the progress
-                self._note_stamp((name,), stamp)
-
-        def _write(self, topic: topics.Topic, name: str, data: bytes, log_ns: int) -> None:
-            connection = self.writer.connection(name)
-            if connection is None:
-                connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
-            self.writer.write(connection, log_ns, data)
-            self.last_log_ns = log_ns
-            self.received += 1
-
-        def _note_stamp(self, names: Sequence[str], stamp: int) -> None:
-            """Messages of ``names`` with header stamp ``stamp`` were written: the keeper and the progress."""
-            for name in names:
-                if name in self._keeper_stamped:
-                    self.keeper.stamp(name, stamp)
-                self._newest_stamps[name] = stamp
-            if self._progress_pub is not None:
-                self.progress_ns = progress = min(self._newest_stamps.values())
-                sent = self._progress_sent
-                if sent is None or progress < sent or progress - sent >= PROGRESS_STEP_NS:
-                    self._publish_progress()
-
-        def finish(self) -> None:
-            """After the stop: write what DDS received up to the stop and nobody took yet.
-
-            Taken directly from each subscription, oldest first, with its DDS receive time, until
-            one received after the stop (the rest of that queue is later still). The tap first: the
-            dynamics' loop has stopped, so it holds every step logged up to the stop.
-            """
-            if self.tap is not None:
-                self._drain_tap()
-            for name, subscription in self._subscriptions_by_name.items():
-                topic = self._topics_by_name[name]
-                while True:
-                    with subscription.handle:
-                        taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
-                    if taken is None:
-                        break
-                    data, info = taken
-                    if info['received_timestamp'] > self.stop.at_ns:
-                        self.refused += 1  # the queue behind it is later still: left there
-                        break
-                    self._on_message(topic, name, data, self._log_time(info['received_timestamp']))
-
-        def _tap_time(self) -> int:
-            """The log time of a step put on the tap now (dynamics' loop thread): what a DDS
-            callback would read, the node clock, wall time unless it follows simulation time."""
-            clock = self.get_clock()
-            return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
-
-        def _drain_tap(self) -> None:
-            # a step's messages share the step's stamp, which the tap carries: no parse per message
-            stamped = self.tap.newest_stamp_ns
-            self.refused += self.tap.drain(self._write, self.last_log_ns, lambda: self.stop.at_ns)
-            if self.tap.newest_stamp_ns != stamped:
-                self._note_stamp(self._tapped_stamped, self.tap.newest_stamp_ns)
-
-        def close(self) -> None:
-            """End the recording: after a stop signal what was received up to it (``finish``) and
-            the stop in the metadata; then close the bag."""
-            if self.stop.requested:
-                self.finish()
-                writer.set_custom_data('wallbot.recorder.stop_signal', self.stop.name)
-                writer.set_custom_data('wallbot.recorder.stop_time_ns', str(self.stop.at_ns))
-            self.get_logger().info(f'stopped by {self.stop.name or "shutdown"}: {self.received} messages recorded '
-                                   f'to {writer.path}, {self.refused} received after the signal left out')
+    def __init__(self, stop: Any, tappable: Sequence[topics.Topic] = (), writer: Any = None,
+                 program: str = 'recorder_node', **kwargs: Any) -> None:
+        # its use_sim_time (log times) follows the robot's clock, as nodes.common.ROBOT_CLOCK_ARGS
+        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP],
+                         **kwargs)
+        output = declare(self, 'output', '', 'bag directory to create (it must not exist, or be empty)',
+                         read_only=True)
+        recorded = graph_topics(declare(self, 'topics', [t.name for t in topics.RECORDED],
+                                        'topics to record (relative names resolve in the namespace)', read_only=True))
+        if writer is None:
+            if not output:
+                raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
+            writer = open_bag(Path(output), program)
+        self.writer, self.stop = writer, stop
+        try:
+            self._start(recorded, [t for t in recorded if t in tappable])
+        except BaseException:
             writer.close()
+            raise
 
-        def _log_time(self, received_ns: int) -> int:
-            """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
-            before the last log time written: a message written by its callback carries the later
-            callback time, and readers take a bag in log-time order (a step back would read as a
-            second life of the dynamics)."""
-            clock = self.get_clock()
-            return max(clock.now().nanoseconds if clock.ros_time_is_active else received_ns, self.last_log_ns)
+    def _start(self, recorded: list[topics.Topic], tapped: list[topics.Topic]) -> None:
+        self.received = self.refused = 0
+        self.last_log_ns = 0
+        self._subscriptions_by_name: dict[str, Any] = {}
+        self._topics_by_name: dict[str, topics.Topic] = {}
+        self.tap: StepTap | None = None
+        self._tapped_stamped = [self.resolve_topic_name(t.name) for t in tapped if t in STAMPED]
+        if tapped:
+            self.tap = StepTap({t: self.resolve_topic_name(t.name) for t in tapped}, self._tap_time)
+            self.create_timer(TAP_PERIOD, self._drain_tap)
+        for topic in recorded:
+            if topic not in tapped:
+                self._subscribe(topic)
+        self.create_timer(FLUSH_PERIOD, self.writer.flush_if_due)
+        self._start_progress(recorded)
+        self.keeper: SnapshotKeeper | None = None
+        self._keeper_stamped: set[str] = set()
+        if not tapped:
+            self._keep_dynamics_state(recorded)
+        via_tap = f' ({len(tapped)} of them in process)' if tapped else ''
+        self.get_logger().info(f'recording {len(recorded)} topics{via_tap} to {self.writer.path}')
 
-        def _publish_progress(self) -> None:
-            if self.progress_ns is None or self.progress_ns == self._progress_sent:
-                return
-            self._clock_msg.clock.sec, self._clock_msg.clock.nanosec = divmod(self.progress_ns, 1_000_000_000)
-            self._progress_pub.publish(self._clock_msg)
-            self._progress_sent = self.progress_ns
+    def _subscribe(self, topic: topics.Topic) -> None:
+        name = self.resolve_topic_name(topic.name)
+        self._topics_by_name[name] = topic
+        self._subscriptions_by_name[name] = self.create_subscription(
+            message_class(topic.type), name, lambda data: self._on_message(topic, name, data),
+            subscription_qos(topic), raw=True)
 
-        def _offered_qos(self, topic: topics.Topic, name: str) -> list[Any]:
-            from rosbags.interfaces import QosHistory
-            try:
-                profiles = [bagio.qos_from_rclpy(info.qos_profile)
-                            for info in self.get_publishers_info_by_topic(name)]
-            except Exception:  # graph query failed: fall back to the interface layer's profile
-                profiles = []
-            # discovery does not carry history/depth: take them from the interface layer
-            return [p._replace(history=QosHistory.KEEP_LAST, depth=topic.depth)
-                    if p.history in (QosHistory.UNKNOWN, QosHistory.SYSTEM_DEFAULT) else p
-                    for p in profiles] or bagio.offered_qos(topic)
+    def _start_progress(self, recorded: list[topics.Topic]) -> None:
+        """Back-pressure for the dynamics node (topics.RECORD_PROGRESS): the newest /clock stamp up to
+        which every message has been written. The per-step topics arrive on readers of their own and
+        may lag /clock (seen: odometry 0.48 s behind under load), so it is the oldest of the newest
+        stamps of /clock and each per-step topic."""
+        self.progress_ns: int | None = None
+        self._newest_stamps: dict[str, int] = {}
+        self._stamped = {self.resolve_topic_name(t.name) for t in STAMPED if t in recorded}
+        self._progress_sent: int | None = None
+        self._progress_pub = None
+        if topics.CLOCK in recorded:
+            self._progress_encoder = codec.ClockEncoder()
+            self._progress_pub = self.create_publisher(Clock, topics.RECORD_PROGRESS.name,
+                                                       qos_profile(topics.RECORD_PROGRESS))
+            self.create_timer(PROGRESS_PERIOD, self._publish_progress)
 
-    return Recorder()
+    def _keep_dynamics_state(self, recorded: list[topics.Topic]) -> None:
+        self.keeper = SnapshotKeeper()
+        self._keeper_stamped = {self.resolve_topic_name(t.name) for t in topics.STEP_STAMPED if t in recorded}
+        self.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
+                                 qos_profile(topics.STATE_SNAPSHOT), raw=True)
+        self._resume_pub = self.create_publisher(Float64MultiArray, topics.RESUME_STATE.name,
+                                                 qos_profile(topics.RESUME_STATE))
+        self.create_timer(KEEP_PERIOD, self._publish_kept)
 
+    def _on_snapshot(self, data: bytes) -> None:
+        try:
+            snapshot = decode_snapshot(data)
+        except ValueError as error:
+            self.get_logger().error(f'ignoring state_snapshot: {error}')
+            return
+        if snapshot is not None:
+            self.keeper.snapshot(snapshot)
 
-def recorder_nodes(stop: Any) -> list[Any]:
-    """The recorder of this process's parameters, for ``common.run_nodes`` (which closes it, and so the bag)."""
-    output, recorded = recording_options()
-    writer = open_bag(output, 'recorder_node')
-    try:
-        return [make_recorder(writer, recorded, stop)]
-    except BaseException:
-        writer.close()
-        raise
+    def _publish_kept(self) -> None:
+        message = self.keeper.due()
+        if message is not None:
+            self._resume_pub.publish(message)
+
+    def _on_message(self, topic: topics.Topic, name: str, data: bytes, received_ns: int | None = None) -> None:
+        if received_ns is None:  # from the executor
+            received_ns = self._callback_time()
+        self._write(topic, name, data, received_ns)
+        stamp = codec.leading_stamp_ns(data) if name in self._stamped else None
+        if stamp is not None:  # one parse feeds the keeper and the progress
+            self._note_stamp((name,), stamp)
+
+    def _callback_time(self) -> int:
+        """The log time of a message an executor callback is handed.
+
+        The time is read before the stop is checked: the handler may run between any two bytecodes,
+        and a time read after the check could follow a stop it did not see. A callback that finds
+        the stop requested is the one the signal handler ran in front of (one callback per
+        spin_once, and the loop ends after it): its message was taken, so received, before the
+        handler noted the stop."""
+        received_ns = self.get_clock().now().nanoseconds
+        if self.stop.requested:
+            received_ns = min(received_ns, self._log_time(self.stop.at_ns))
+        if self.tap is not None:  # the steps logged before it go first
+            self._drain_tap()
+            received_ns = max(received_ns, self.last_log_ns)
+        return received_ns
+
+    def _write(self, topic: topics.Topic, name: str, data: bytes, log_ns: int) -> None:
+        connection = self.writer.connection(name)
+        if connection is None:
+            connection = self.writer.add_topic(name, topic.type, self._offered_qos(topic, name))
+        self.writer.write(connection, log_ns, data)
+        self.last_log_ns = log_ns
+        self.received += 1
+
+    def _note_stamp(self, names: Sequence[str], stamp: int) -> None:
+        """Messages of ``names`` with header stamp ``stamp`` were written: the keeper and the progress."""
+        for name in names:
+            if name in self._keeper_stamped:
+                self.keeper.stamp(name, stamp)
+            self._newest_stamps[name] = stamp
+        if self._progress_pub is not None:
+            self.progress_ns = progress = min(self._newest_stamps.values())
+            sent = self._progress_sent
+            if sent is None or progress < sent or progress - sent >= PROGRESS_STEP_NS:
+                self._publish_progress()
+
+    def finish(self) -> None:
+        """After the stop: write what DDS received up to the stop and nobody took yet.
+
+        Taken directly from each subscription, oldest first, with its DDS receive time, until
+        one received after the stop (the rest of that queue is later still). The tap first: the
+        dynamics' loop has stopped, so it holds every step logged up to the stop.
+        """
+        if self.tap is not None:
+            self._drain_tap()
+        for name, subscription in self._subscriptions_by_name.items():
+            topic = self._topics_by_name[name]
+            while True:
+                with subscription.handle:
+                    taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+                if taken is None:
+                    break
+                data, info = taken
+                if info['received_timestamp'] > self.stop.at_ns:
+                    self.refused += 1  # the queue behind it is later still: left there
+                    break
+                self._on_message(topic, name, data, self._log_time(info['received_timestamp']))
+
+    def _tap_time(self) -> int:
+        """The log time of a step put on the tap now (dynamics' loop thread): what a DDS
+        callback would read, the node clock, wall time unless it follows simulation time."""
+        clock = self.get_clock()
+        return clock.now().nanoseconds if clock.ros_time_is_active else time.time_ns()
+
+    def _drain_tap(self) -> None:
+        # a step's messages share the step's stamp, which the tap carries: no parse per message
+        stamped = self.tap.newest_stamp_ns
+        self.refused += self.tap.drain(self._write, self.last_log_ns, lambda: self.stop.at_ns)
+        if self.tap.newest_stamp_ns != stamped:
+            self._note_stamp(self._tapped_stamped, self.tap.newest_stamp_ns)
+
+    def close(self) -> None:
+        """End the recording: after a stop signal what was received up to it (``finish``) and
+        the stop in the metadata; then close the bag."""
+        if self.stop.requested:
+            self.finish()
+            self.writer.set_custom_data('wallbot.recorder.stop_signal', self.stop.name)
+            self.writer.set_custom_data('wallbot.recorder.stop_time_ns', str(self.stop.at_ns))
+        self.get_logger().info(f'stopped by {self.stop.name or "shutdown"}: {self.received} messages recorded '
+                               f'to {self.writer.path}, {self.refused} received after the signal left out')
+        self.writer.close()
+
+    def _log_time(self, received_ns: int) -> int:
+        """The DDS receive time (wall clock; the node clock's now under use_sim_time), but not
+        before the last log time written: a message written by its callback carries the later
+        callback time, and readers take a bag in log-time order (a step back would read as a
+        second life of the dynamics)."""
+        clock = self.get_clock()
+        return max(clock.now().nanoseconds if clock.ros_time_is_active else received_ns, self.last_log_ns)
+
+    def _publish_progress(self) -> None:
+        if self.progress_ns is None or self.progress_ns == self._progress_sent:
+            return
+        self._progress_pub.publish(self._progress_encoder.encode(*cdr.split_stamp(self.progress_ns)))
+        self._progress_sent = self.progress_ns
+
+    def _offered_qos(self, topic: topics.Topic, name: str) -> list[Any]:
+        from rosbags.interfaces import QosHistory
+        try:
+            profiles = [bagio.qos_from_rclpy(info.qos_profile)
+                        for info in self.get_publishers_info_by_topic(name)]
+        except Exception:  # graph query failed: fall back to the interface layer's profile
+            profiles = []
+        # discovery does not carry history/depth: take them from the interface layer
+        return [p._replace(history=QosHistory.KEEP_LAST, depth=topic.depth)
+                if p.history in (QosHistory.UNKNOWN, QosHistory.SYSTEM_DEFAULT) else p
+                for p in profiles] or bagio.offered_qos(topic)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``recorder_node``: 0 after SIGINT/SIGTERM, 1 (one line on stderr) if it cannot record as asked."""
     from wallbot_sim.nodes.common import run_nodes
-    return run_nodes(recorder_nodes, None if argv is None else list(argv), events=True)
+    return run_nodes(lambda stop: [Recorder(stop)], None if argv is None else list(argv), events=True)
 
 
 if __name__ == '__main__':

@@ -193,13 +193,13 @@ class TrajectoryNode(Node):
             self.replan(self._now())
         self.recheck = steady_timer(self, RECHECK_PERIOD, self._recheck)
         self.recheck.cancel()
-        self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK))
+        self.create_subscription(Clock, topics.CLOCK.name, self._on_clock, qos_profile(topics.CLOCK), raw=True)
 
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _on_clock(self, msg: Clock) -> None:
-        now_ns = codec.stamp_nanoseconds(msg.clock)
+    def _on_clock(self, data: bytes) -> None:
+        now_ns = codec.decode_clock(data)
         self.clock_ns = now_ns
         self._check_plan(now_ns * 1e-9)
         self._publish_reference(now_ns)

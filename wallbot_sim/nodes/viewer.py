@@ -25,7 +25,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from visualization_msgs.msg import MarkerArray
 
-from wallbot_msgs_py import bagio, codec, topics, view_cdr
+from wallbot_msgs_py import codec, topics, view_cdr
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
@@ -185,27 +185,21 @@ class ViewerNode(Node):
     def _draw(self, topic: topics.Topic, data: bytes) -> None:
         scene = self.scene
         if topic is topics.ODOM:
-            odom = view_cdr.odometry_pose(data)
+            odom = codec.decode_odometry(data)
             _finite(topic, (odom.x, odom.y, odom.yaw))
             scene.update_pose(Pose(odom.stamp_ns, odom.frame, odom.child, odom.x, odom.y, odom.yaw))
         elif topic is topics.REFERENCE_PATH:
-            try:
-                msg = bagio.deserialize(data, topic.type)
-            except Exception as error:  # noqa: BLE001 - any decoding failure is a malformed message
-                raise ValueError(f'malformed message ({type(error).__name__}: {error})') from None
-            scene.set_reference_path([(p.pose.position.x, p.pose.position.y) for p in msg.poses])
+            scene.set_reference_path([(x, y) for _stamp, x, y, _yaw in codec.decode_path(data).poses])
+        elif topic is topics.WHEEL_CONTACT:
+            contact = codec.decode_wheel_contact(data)
+            scene.update_contact(_finite(topic, contact.loads), _finite(topic, contact.use),
+                                 [flag > 0.5 for flag in _finite(topic, contact.slipping)])
         else:
-            joints = view_cdr.joint_arrays(data)
+            joints = codec.decode_joint_state(data)
             if topic is topics.WHEEL_STATES:
-                scene.update_wheels(_finite(topic, codec.joint_values(joints, topics.WHEEL_JOINTS, 'position')))
-            elif topic is topics.DRIVE_FORCES:
-                scene.update_drive(_finite(topic, codec.joint_values(joints, topics.DRIVE_JOINTS, 'effort')))
+                scene.update_wheels(_finite(topic, joints.values(topics.WHEEL_JOINTS, 'position')))
             else:
-                channels = topics.DRIVE_JOINTS
-                scene.update_contact(_finite(topic, codec.joint_values(joints, topics.WHEEL_JOINTS, 'effort')),
-                                     _finite(topic, codec.joint_values(joints, channels, 'position')),
-                                     [flag > 0.5 for flag in _finite(topic, codec.joint_values(joints, channels,
-                                                                                                'velocity'))])
+                scene.update_drive(_finite(topic, joints.values(topics.DRIVE_JOINTS, 'effort')))
 
     # --- parameters ------------------------------------------------------------------------------
     def _on_set(self, parameters):

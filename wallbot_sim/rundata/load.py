@@ -17,10 +17,11 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
-from wallbot_msgs_py import bagio, codec, topics
+from wallbot_msgs_py import codec, topics
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS
 from wallbot_sim.rundata.errors import RunDataError
 
@@ -128,6 +129,105 @@ class _LastRun(dict):
         self[stamp] = value
 
 
+LEAVES = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'wheel_contact', 'reference', 'reference_path',
+          'reference_trajectory', 'diagnostics')
+"""The topics a run is read from, by their last name component; ``ground_truth`` is ground_truth/odom."""
+
+
+def bag_topics(bag: Any) -> dict[str, str]:
+    """The bag topic of each leaf of LEAVES (and ``ground_truth`` when it has messages); RunDataError
+    without odometry."""
+    truth_suffix = f'/{topics.GROUND_TRUTH_ODOM.name}'
+    by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics if not t.name.endswith(truth_suffix)}
+    found = {leaf: by_leaf[leaf] for leaf in LEAVES if leaf in by_leaf}
+    truth = next((t.name for t in bag.topics if t.name.endswith(truth_suffix) and t.count), None)
+    if truth is not None:
+        found['ground_truth'] = truth
+    if 'odom' not in found:
+        raise RunDataError(f'{bag.path} has no odom topic: not a wallbot run')
+    return found
+
+
+def namespace_of(topic: str) -> str:
+    """The namespace of a bag topic, e.g. /wallbot of /wallbot/odom."""
+    return topic.rsplit('/', 1)[0] or '/'
+
+
+def residual_max(data: bytes, namespace: str) -> tuple[int, float] | None:
+    """(stamp, residual max) of a ``/diagnostics`` message, or None."""
+    diagnostics = codec.decode_diagnostics(data)
+    values = {key: value for status in diagnostics.statuses for key, value in status.values}
+    value = values.get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+    try:
+        return None if value is None else (diagnostics.stamp_ns, float(value))
+    except ValueError:
+        return None
+
+
+def _state(data: bytes) -> tuple[int, tuple[float, ...]]:
+    state = codec.decode_odometry(data).planar_state()
+    return state.stamp_ns, (state.t, *state[1:])
+
+
+def _wheels(data: bytes) -> tuple[int, tuple[float, ...]]:
+    joints = codec.decode_joint_state(data)
+    return joints.stamp_ns, sum((joints.values(topics.WHEEL_JOINTS, field) for field in codec.JOINT_FIELDS), ())
+
+
+def _wrench(data: bytes) -> tuple[int, tuple[float, ...]]:
+    wrench = codec.decode_wrench(data)
+    return wrench.stamp_ns, (wrench.fx, wrench.fy, wrench.mz)
+
+
+def _drive(data: bytes) -> tuple[int, tuple[float, ...]]:
+    joints = codec.decode_joint_state(data)
+    return joints.stamp_ns, joints.values(topics.DRIVE_JOINTS, 'effort')
+
+
+def _contact(data: bytes) -> tuple[int, tuple[float, ...]]:
+    contact = codec.decode_wheel_contact(data)
+    return contact.stamp_ns, (*contact.loads, *contact.use, *contact.slipping)
+
+
+def _reference(data: bytes) -> tuple[int, tuple[float, ...]]:
+    pose = codec.decode_odometry(data)
+    return pose.stamp_ns, (pose.x, pose.y)
+
+
+STAMPED_SERIES: dict[str, tuple[Callable[[bytes], tuple[int, tuple[float, ...]]], int]] = {
+    'odom': (_state, 7), 'ground_truth': (_state, 7), 'wheel_states': (_wheels, 12), 'constraint_wrench': (_wrench, 3),
+    'drive_forces': (_drive, 3), 'wheel_contact': (_contact, 10), 'reference': (_reference, 2)}
+"""How each per-stamp topic is read: its decoder to (stamp, values), and how many values."""
+
+
+class _BagSeries:
+    """Everything a bag says about its last run, message by message."""
+
+    def __init__(self, namespace: str) -> None:
+        self.namespace = namespace
+        self.tables = {leaf: _LastRun() for leaf in (*STAMPED_SERIES, 'diagnostics')}
+        self.plan: dict[int, tuple] = {}
+        self.path_xy: tuple[list[float], list[float]] = ([], [])
+
+    def put(self, leaf: str, data: bytes) -> None:
+        if leaf in STAMPED_SERIES:
+            self.tables[leaf].put(*STAMPED_SERIES[leaf][0](data))
+        elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
+            try:
+                samples = codec.decode_plan(data)
+            except ValueError:
+                return
+            for sample in zip(*samples):
+                self.plan[codec.to_nanoseconds(sample[0])] = sample[1:]
+        elif leaf == 'reference_path':
+            poses = codec.decode_path(data).poses
+            self.path_xy = ([x for _t, x, _y, _yaw in poses], [y for _t, _x, y, _yaw in poses])
+        elif leaf == 'diagnostics':
+            residual = residual_max(data, self.namespace)
+            if residual is not None:
+                self.tables['diagnostics'].put(residual[0], (residual[1],))
+
+
 def _plan_reference(plan: dict):
     """The SampledReference of the recorded plan samples, or None."""
     if len(plan) < 2:
@@ -144,92 +244,55 @@ def _plan_reference(plan: dict):
 def _load_bag(path: Path, label: str) -> RunData:
     from wallbot_sim.bag.reader import info, messages
 
-    bag = info(path)
-    truth_suffix = f'/{topics.GROUND_TRUTH_ODOM.name}'
-    by_leaf = {t.name.rsplit('/', 1)[-1]: t.name for t in bag.topics if not t.name.endswith(truth_suffix)}
-    want = {leaf: by_leaf.get(leaf) for leaf in ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces',
-                                                 'wheel_contact', 'reference', 'reference_path',
-                                                 'reference_trajectory', 'diagnostics')}
-    want['ground_truth'] = next((t.name for t in bag.topics if t.name.endswith(truth_suffix) and t.count), None)
-    if want['odom'] is None:
-        raise RunDataError(f'{path} has no odom topic: not a wallbot run')
-    names = {v: k for k, v in want.items() if v is not None}
-    odom, wheels, wrench, drive, contact, ref, diag, truth = (_LastRun() for _ in range(8))
-    plan: dict = {}
-    path_xy: tuple[list[float], list[float]] = ([], [])
+    names = {topic: leaf for leaf, topic in bag_topics(info(path)).items()}
+    series = _BagSeries(namespace_of(next(topic for topic, leaf in names.items() if leaf == 'odom')))
     for raw in messages(path, list(names)):
-        leaf = names[raw.topic]
-        msg = bagio.deserialize(raw.data, raw.type)
-        stamp = codec.stamp_nanoseconds(msg.header.stamp)
-        if leaf in ('odom', 'ground_truth'):
-            try:
-                state = codec.planar_state(msg)
-            except ValueError as error:
-                raise RunDataError(f'{path}: {error}') from None
-            (odom if leaf == 'odom' else truth).put(stamp, (state.t, *state[1:]))
-        elif leaf == 'wheel_states':
-            wheels.put(stamp, sum((codec.joint_values(msg, topics.WHEEL_JOINTS, field)
-                                   for field in ('position', 'velocity', 'effort')), ()))
-        elif leaf == 'constraint_wrench':
-            wrench.put(stamp, codec.wrench_values(msg))
-        elif leaf == 'drive_forces':
-            drive.put(stamp, codec.joint_values(msg, topics.DRIVE_JOINTS, 'effort'))
-        elif leaf == 'wheel_contact':  # topics.WHEEL_CONTACT: loads as effort, use as position, slip as velocity
-            joints = topics.WHEEL_JOINTS + topics.DRIVE_JOINTS
-            contact.put(stamp, codec.joint_values(msg, joints, 'effort')[:4]
-                        + codec.joint_values(msg, joints, 'position')[4:] + codec.joint_values(msg, joints, 'velocity')[4:])
-        elif leaf == 'reference':
-            ref.put(stamp, (msg.pose.pose.position.x, msg.pose.pose.position.y))
-        elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
-            try:
-                samples = codec.plan_samples(msg)
-            except ValueError:
-                continue
-            for sample in zip(*samples):
-                plan[codec.to_nanoseconds(sample[0])] = sample[1:]
-        elif leaf == 'reference_path':
-            path_xy = ([p.pose.position.x for p in msg.poses], [p.pose.position.y for p in msg.poses])
-        elif leaf == 'diagnostics':
-            value = codec.diagnostic_values(msg).get(topics.DIAGNOSTIC_RESIDUAL_MAX)
-            if value is not None:
-                try:
-                    diag.put(stamp, float(value))
-                except ValueError:
-                    pass
-    sensed = odom if truth else None
-    if truth:
-        odom = truth
+        try:
+            series.put(names[raw.topic], raw.data)
+        except ValueError as error:
+            raise RunDataError(f'{path}: {raw.topic}: {error}') from None
+    return _run_data(series, label, path)
+
+
+def _run_data(series: _BagSeries, label: str, path: Path) -> RunData:
+    tables = series.tables
+    odom, sensed = tables['odom'], None
+    if tables['ground_truth']:
+        odom, sensed = tables['ground_truth'], odom
     if not odom:
         raise RunDataError(f'{path} has no odometry messages')
     stamps = sorted(odom)
     o = np.array([odom[s] for s in stamps], dtype=float)
     t = o[:, 0]
 
-    def matched(table: dict, width: int) -> np.ndarray:
+    def matched(leaf: str | _LastRun, width: int) -> np.ndarray:
+        table = tables[leaf] if isinstance(leaf, str) else leaf
         nan = (math.nan,) * width
         return np.array([table.get(s, nan) for s in stamps], dtype=float).reshape(len(stamps), width)
 
-    w = matched(wheels, 12)
-    c = matched(wrench, 3)
-    d = matched(drive, 3)
-    k = matched(contact, 10)
-    plan_reference = _plan_reference(plan)
-    if plan_reference is not None:  # what the dynamics node followed: the plan, quintic Hermite
-        samples = [plan_reference.sample(ti).position for ti in t]
-        ref_x, ref_y = (np.array(c, dtype=float) for c in zip(*samples))
-    elif ref:
-        rs = sorted(ref)
-        rt = np.array(rs, dtype=float) * 1e-9
-        rxy = np.array([ref[s] for s in rs], dtype=float)
-        exact = matched(ref, 2)
-        ref_x = np.where(np.isnan(exact[:, 0]), np.interp(t, rt, rxy[:, 0]), exact[:, 0])
-        ref_y = np.where(np.isnan(exact[:, 1]), np.interp(t, rt, rxy[:, 1]), exact[:, 1])
-    else:
-        ref_x = ref_y = np.full(len(t), math.nan)
-    err = np.hypot(o[:, 1] - ref_x, o[:, 2] - ref_y)
-    residual = matched({k: (v,) for k, v in diag.items()}, 1)[:, 0]
+    w, c, d, k = (matched(leaf, width) for leaf, width in (('wheel_states', 12), ('constraint_wrench', 3),
+                                                          ('drive_forces', 3), ('wheel_contact', 10)))
+    ref_x, ref_y = _reference_at(t, series.plan, tables['reference'], matched('reference', 2))
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
-                   w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, err, c[:, 0], c[:, 1], c[:, 2],
-                   d[:, 0], d[:, 1], d[:, 2], residual, np.array(path_xy[0]), np.array(path_xy[1]), odom.restarts,
+                   w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, np.hypot(o[:, 1] - ref_x, o[:, 2] - ref_y),
+                   c[:, 0], c[:, 1], c[:, 2], d[:, 0], d[:, 1], d[:, 2], matched('diagnostics', 1)[:, 0],
+                   np.array(series.path_xy[0]), np.array(series.path_xy[1]), odom.restarts,
                    loads=k[:, 0:4], use=k[:, 4:7], slip=k[:, 7:10],
                    sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)))
+
+
+def _reference_at(t: np.ndarray, plan: dict, ref: _LastRun, exact: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference position at times ``t``: the recorded plan's (quintic Hermite, as the dynamics node
+    followed it), else the reference poses' (exact stamps, linear in between), else NaN."""
+    plan_reference = _plan_reference(plan)
+    if plan_reference is not None:
+        samples = [plan_reference.sample(ti).position for ti in t]
+        ref_x, ref_y = (np.array(c, dtype=float) for c in zip(*samples))
+        return ref_x, ref_y
+    if not ref:
+        return np.full(len(t), math.nan), np.full(len(t), math.nan)
+    rs = sorted(ref)
+    rt = np.array(rs, dtype=float) * 1e-9
+    rxy = np.array([ref[s] for s in rs], dtype=float)
+    return (np.where(np.isnan(exact[:, 0]), np.interp(t, rt, rxy[:, 0]), exact[:, 0]),
+            np.where(np.isnan(exact[:, 1]), np.interp(t, rt, rxy[:, 1]), exact[:, 1]))
