@@ -202,6 +202,24 @@ def test_an_unwatched_viewer_reads_only_the_odometry_and_the_reference_path(view
     assert viewer_reads(topics.ODOM)
 
 
+def test_a_viewer_renamed_on_its_command_line_is_the_only_node_of_its_name(process_runner):
+    """``ros2 launch`` starts a node with ``-r __node:=NAME`` (and ``-r __ns:=NS``): the name is the viewer's
+    alone, so the graph has one node of it, and the viewer's hidden input node reads the viewer's topics."""
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.viewer', '--ros-args', '-r', '__node:=viewer',
+                          '-r', '__ns:=/robot2'], 'viewer')
+    graph = Graph(process_runner, namespace='/robot2')
+    try:
+        graph.wait_for(lambda: any(info.node_namespace == '/robot2'
+                                   for info in graph.node.get_subscriptions_info_by_topic('/robot2/odom')), 30,
+                       'the viewer reading /robot2/odom')
+        names = graph.node.get_node_names_and_namespaces()
+        assert sorted(name for name, namespace in names if namespace == '/robot2') == ['_viewer_inputs', 'viewer']
+        assert [info.node_name for info in graph.node.get_subscriptions_info_by_topic('/robot2/odom')
+                if info.node_namespace == '/robot2'] == ['_viewer_inputs']
+    finally:
+        graph.close()
+
+
 def test_a_port_in_use_is_one_line_and_exit_status_1(process_runner):
     with socket.socket() as taken:
         taken.bind(('127.0.0.1', 0))

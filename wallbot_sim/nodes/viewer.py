@@ -8,7 +8,8 @@ With ``foxglove_port`` > 0 it also serves the graph's topics over the Foxglove W
 (``wallbot_sim.live_view``), ``/tf`` among them.
 
 It never runs at the dynamics' 1 kHz: the per-step topics are read through a second node that no
-executor spins (``_viewer_inputs``), with subscriptions that keep only the newest message
+executor spins (``_viewer_inputs``, hidden; the command line's remapping rules apply to the viewer's own
+name and topics, not to it, so ``-r __node:=...`` renames the viewer alone), with subscriptions that keep only the newest message
 (best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
 ``rate_hz`` times a second whatever the step rate, and never slows the dynamics down (a best-effort
 reader is never waited for). While nothing subscribes ``markers`` or ``/tf`` it reads only the
@@ -98,8 +99,8 @@ class ViewerNode(Node):
         if self.tf_pub is None:
             self.get_logger().info('tf2_msgs is not installed: no /tf (the markers need none)')
 
-        self.inputs = Node('_viewer_inputs', namespace=topics.NAMESPACE, context=self.context,
-                           start_parameter_services=False)
+        self.inputs = Node(f'_{self.get_name()}_inputs', namespace=self.get_namespace(), context=self.context,
+                           start_parameter_services=False, use_global_arguments=False)
         self.subscriptions_ = {}
         for topic in ALWAYS_READ + ((READ_WHILE_WATCHED + RELAYED_ONLY) if self.relay is not None else ()):
             self._subscribe(topic)
@@ -113,8 +114,8 @@ class ViewerNode(Node):
     def _subscribe(self, topic: topics.Topic) -> None:
         newest_only = topic.durability is topics.Durability.VOLATILE and topic not in EVERY_MESSAGE
         self.subscriptions_[topic] = self.inputs.create_subscription(
-            message_class(topic.type), topic.name, lambda _data: None, NEWEST if newest_only else qos_profile(topic),
-            raw=True)
+            message_class(topic.type), self.resolve_topic_name(topic.name), lambda _data: None,
+            NEWEST if newest_only else qos_profile(topic), raw=True)
 
     def _watched(self) -> bool:
         """Whether anything takes what the viewer publishes (and so, whether to read every input)."""
