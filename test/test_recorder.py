@@ -178,6 +178,22 @@ def test_sigkill_then_reindex_keeps_everything_flushed_before_the_kill(process_r
     assert xs == [float(i) for i in range(len(xs))]  # nothing missing before the cut
 
 
+def test_the_bag_and_topics_are_parameters_of_the_recorder_node(process_runner, tmp_path):
+    """``ros2 param get /wallbot/recorder output`` (the GetParameters service) answers what the recorder
+    records, and ``ros2 param set`` cannot change it while it records."""
+    from graph_helpers import Graph
+    bag = tmp_path / 'bag'
+    process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args', '-p', f'output:={bag}',
+                          '-p', 'topics:=[odom, /wallbot/clock]'], 'recorder')
+    graph = Graph(process_runner)
+    try:
+        assert graph.get_parameters('recorder', 'output', 'topics') == [str(bag), ['odom', '/wallbot/clock']]
+        refused, = graph.set_parameters('recorder', output=str(tmp_path / 'other'))
+        assert not refused.successful and 'read-only' in refused.reason
+    finally:
+        graph.close()
+
+
 def test_unknown_topic_parameter_is_refused(process_runner, tmp_path):
     proc = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args',
                                  '-p', f'output:={tmp_path / "bag"}', '-p', 'topics:=[odom, nope]'], 'rec')
