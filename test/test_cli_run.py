@@ -417,3 +417,51 @@ def test_a_composed_run_stopped_by_ctrl_c_logs_nothing_after_the_signal(tmp_path
     assert len(odom) > 500 and odom == list(range(0, odom[-1] + 1, 1_000_000))
     for name in STEP_TOPICS[1:-1]:
         assert sorted(by_topic[name]) == odom, name
+
+
+def test_the_monitor_follows_its_robot_through_a_reset_and_reads_only_its_diagnostics(ros_domain):
+    """run's view of the graph: the recorder's progress as it is now (after a ~/reset of the dynamics it is
+    back near 0, and the progress line follows), and the status of its own robot's dynamics among every
+    robot's on /diagnostics."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from rosgraph_msgs.msg import Clock
+
+    from wallbot_msgs_py import topics
+    from wallbot_msgs_py.qos import qos_profile
+    from wallbot_sim.cli.run import Monitor
+
+    monitor = Monitor()
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node('robots', context=context)
+        progress = node.create_publisher(Clock, topics.RECORD_PROGRESS.resolve(), qos_profile(topics.RECORD_PROGRESS))
+        diagnostics = node.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name, qos_profile(topics.DIAGNOSTICS))
+
+        def spin_until(condition, what: str) -> None:
+            deadline = time.monotonic() + 30
+            while not condition():
+                assert time.monotonic() < deadline, what
+                monitor.spin(0.05)
+
+        spin_until(lambda: progress.get_subscription_count() and diagnostics.get_subscription_count(), 'matched')
+        for seconds in (5.0, 0.25):  # the run, then its reset
+            message = Clock()
+            message.clock.sec, message.clock.nanosec = int(seconds), round(seconds % 1 * 1e9)
+            progress.publish(message)
+            spin_until(lambda: monitor.recorded == seconds, f'recorded {seconds} s')
+
+        def status(node_name: str, state: str) -> DiagnosticStatus:
+            return DiagnosticStatus(name=f'{node_name}: simulation', values=[KeyValue(key='status', value=state)])
+        diagnostics.publish(DiagnosticArray(status=[status('/wallbot/dynamics', 'running'),
+                                                    status('/robot2/dynamics', 'stopped at t = 3.000 s (stop_at)')]))
+        spin_until(lambda: monitor.diagnostics, 'diagnostics')
+        assert monitor.diagnostics['status'] == 'running' and not monitor.dynamics_stopped()
+        diagnostics.publish(DiagnosticArray(status=[status('/robot2/dynamics', 'stopped at t = 3.000 s (stop_at)')]))
+        diagnostics.publish(DiagnosticArray(status=[status('/wallbot/dynamics', 'paused')]))
+        spin_until(lambda: monitor.diagnostics['status'] == 'paused', 'the next status of /wallbot/dynamics')
+        node.destroy_node()
+    finally:
+        monitor.close()
+        rclpy.try_shutdown(context=context)

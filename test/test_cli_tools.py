@@ -145,3 +145,18 @@ def test_progress_of_a_run_until_stopped_shows_no_end(monkeypatch):
     lines = _drive(io.StringIO(), monkeypatch, duration=0.0).splitlines()
     assert lines[-1].startswith('  t =  10.000 s (until stopped)   real-time factor   1.00')
     assert not any(' / ' in line for line in lines)
+
+
+def test_progress_after_a_reset_measures_the_factor_from_it(monkeypatch):
+    """``~/reset`` sends simulation time back to 0: the line follows it, and the factor is that of the
+    run since then, not a negative one over the whole."""
+    from wallbot_sim.cli import progress as progress_module
+    clock = _FakeClock()
+    monkeypatch.setattr(progress_module.time, 'monotonic', clock)
+    stream = io.StringIO()
+    progress = progress_module.Progress(0.0, stream)
+    for step in range(400):  # 4 s at factor 1, then a reset, then 2 s at factor 0.5
+        clock.now += 0.01
+        progress.update(step * 0.01 if step < 200 else (step - 200) * 0.005)
+    progress.update(1.0, force=True)
+    assert stream.getvalue().splitlines()[-1] == '  t =   1.000 s (until stopped)   real-time factor   0.50'

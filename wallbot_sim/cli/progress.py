@@ -17,31 +17,37 @@ class Progress:
     In a terminal one line is redrawn in place a few times a second; anywhere else (a log
     file, a pipe) a plain line is printed every LOG_PERIOD seconds, so a log never holds one
     line thousands of characters long. The factor is measured from the first time simulation
-    time moved, so start-up is not in it. ``duration`` 0: a run until stopped, shown without an end.
+    time moved, so start-up is not in it, and again from a time that went back (a reset of the
+    dynamics). ``duration`` 0: a run until stopped, shown without an end. ``label`` and ``rate``
+    name what is shown (reading a bag: how far, and bag seconds read per wall second).
     """
 
-    def __init__(self, duration: float, stream: TextIO | None) -> None:
+    def __init__(self, duration: float, stream: TextIO | None, label: str = '',
+                 rate: str = 'real-time factor') -> None:
         self.duration, self.stream = duration, stream
+        self.label, self.rate = label, rate
         self.terminal = stream is not None and stream.isatty()
         self.period = TERMINAL_PERIOD if self.terminal else LOG_PERIOD
         self.last = time.monotonic()
         self.anchor: tuple[float, float] | None = None
         self.latest: float | None = None
         """The newest simulation time given to :meth:`update` (None before the first)."""
+        self.shown = False
+        """Whether a line has been written."""
 
     def update(self, t: float, force: bool = False) -> None:
         """Show simulation time ``t`` if the period is up; ``force`` shows it now (and ends the line)."""
         now = time.monotonic()
-        self.latest = t
-        if self.anchor is None:
+        if self.anchor is None or (self.latest is not None and t < self.latest):
             self.anchor = (t, now)
+        self.latest = t
         if self.stream is None or not (force or now - self.last >= self.period):
             return
-        self.last = now
+        self.last, self.shown = now, True
         start_t, start_wall = self.anchor
         factor = (t - start_t) / max(now - start_wall, 1e-9)
         end = f' / {self.duration:.3f} s' if self.duration > 0 else ' s (until stopped)'
-        text = f'  t = {t:7.3f}{end}   real-time factor {factor:6.2f}'
+        text = f'  {self.label}t = {t:7.3f}{end}   {self.rate} {factor:6.2f}'
         if self.terminal:  # redraw in place; a forced (final) line ends it
             text = '\r' + text + ('\n' if force else '')
         else:

@@ -188,7 +188,10 @@ class Monitor:
         self.executor = events_executor(self.context)  # a callback per message, no wait set per wake-up
         self.executor.add_node(self.node)
         self.recorded = -math.inf
+        """Simulation time up to which the recorder has written the run: its newest record_progress (which
+        goes back with the run at a ``~/reset`` of the dynamics)."""
         self.diagnostics: dict[str, str] = {}
+        """The values of the newest status of the dynamics in ``namespace``."""
         self.reference_time = -math.inf
         self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
@@ -200,17 +203,20 @@ class Monitor:
                                       qos_profile(topics.REFERENCE), raw=True)
 
     def _on_progress(self, data: bytes) -> None:
-        self.recorded = max(self.recorded, codec.decode_clock(data) * 1e-9)
+        self.recorded = codec.decode_clock(data) * 1e-9
 
     def _on_reference(self, data: bytes) -> None:
         stamp_ns = codec.leading_stamp_ns(data)
         if stamp_ns is not None:
-            self.reference_time = max(self.reference_time, stamp_ns * 1e-9)
+            self.reference_time = stamp_ns * 1e-9
 
     def _on_diagnostics(self, data: bytes) -> None:
-        for status in codec.decode_diagnostics(data).statuses:
-            if 'simulation' in status.name:
-                self.diagnostics = status.value_map()
+        try:  # every robot of the domain publishes on /diagnostics: its own dynamics' status only
+            status = codec.simulation_status(codec.decode_diagnostics(data).statuses, self.node.get_namespace())
+        except ValueError:
+            return
+        if status is not None:
+            self.diagnostics = status.value_map()
 
     def dynamics_stopped(self) -> bool:
         """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
