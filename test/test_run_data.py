@@ -68,3 +68,22 @@ def test_a_run_shorter_than_five_seconds_says_so(tmp_path):
     text = format_summary(summarize(table))
     assert 'nan' not in text
     assert 'no peak after 5 s (the run is shorter than 5 s)' in text
+
+
+def test_another_robot_s_diagnostics_in_the_bag_are_not_this_run_s(tmp_path):
+    """A recorder records /diagnostics, where every robot of the domain publishes: the residual of the run
+    is its own dynamics' (the one in the odometry's namespace), never a second robot's."""
+    from wallbot_msgs_py import codec, topics
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    simulation = Simulation(robot, scenario.reference, ConstraintSelection(), *scenario.initial_state(robot))
+    bag = tmp_path / 'bag'
+    writer = HeadlessBagWriter.open(bag, simulation)
+    simulation.run(0.3, writer.write)
+    diagnostics = writer.writer.connection(topics.DIAGNOSTICS.name)
+    for t in (0.1, 0.2):  # at the stamps of the run's own diagnostics, with a residual far above its
+        other = codec.Status('/robot2/dynamics: simulation', 'ok', 'running', [(topics.DIAGNOSTIC_RESIDUAL_MAX, 99.0)])
+        writer.writer.write(diagnostics, round(t * 1e9) + 1, codec.diagnostics(t, [other]))
+    writer.close()
+    own = summarize(bag).max_residual
+    assert own < 1.0 and np.nanmax(load_run(bag).residual) == pytest.approx(own, rel=1e-5)

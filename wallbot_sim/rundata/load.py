@@ -6,7 +6,8 @@ wheel states, constraint wrench and drive forces are matched by header stamp (Na
 recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node follows it) when
 present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
 residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
-of every step since the previous diagnostics message), NaN at the other stamps. When simulation time jumps back on a topic (the
+of every step since the previous diagnostics message), NaN at the other stamps: of the dynamics in
+the odometry's namespace only (``/diagnostics`` is one topic for every robot of a domain). When simulation time jumps back on a topic (the
 dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
 several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
@@ -154,10 +155,10 @@ def namespace_of(topic: str) -> str:
 
 
 def residual_max(data: bytes, namespace: str) -> tuple[int, float] | None:
-    """(stamp, residual max) of a ``/diagnostics`` message, or None."""
+    """(stamp, residual max) of a ``/diagnostics`` message from the dynamics in ``namespace``, or None."""
     diagnostics = codec.decode_diagnostics(data)
-    values = {key: value for status in diagnostics.statuses for key, value in status.values}
-    value = values.get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+    status = codec.simulation_status(diagnostics.statuses, namespace)
+    value = None if status is None else status.value_map().get(topics.DIAGNOSTIC_RESIDUAL_MAX)
     try:
         return None if value is None else (diagnostics.stamp_ns, float(value))
     except ValueError:
