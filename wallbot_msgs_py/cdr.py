@@ -136,28 +136,26 @@ class Reader:
     """Fields read in order from CDR bytes of either byte order. Reading past the end raises
     Malformed, struct.error or IndexError, which a registered decoder turns into one ValueError."""
 
-    __slots__ = ('data', 'offset', '_structs')
+    __slots__ = ('data', 'offset', '_little', '_uint32')
 
     def __init__(self, data: bytes) -> None:
         if len(data) < 4 or data[0] != 0 or data[1] > 1:
             raise Malformed('not CDR (bad encapsulation header)')
-        self.data, self.offset = data, 4
-        self._structs = _LITTLE if data[1] else _BIG
+        self.data, self.offset, self._little = data, 4, data[1] == 1
+        self._uint32 = (_LITTLE if self._little else _BIG)['I'].unpack_from
 
     def align(self, size: int) -> None:
         self.offset += -(self.offset - 4) % size
 
     def uint32(self) -> int:
-        self.offset += -(self.offset - 4) % 4
-        value = self._structs['I'].unpack_from(self.data, self.offset)[0]
-        self.offset += 4
-        return value
+        offset = self.offset + (-(self.offset - 4) % 4)
+        self.offset = offset + 4
+        return self._uint32(self.data, offset)[0]
 
     def int32(self) -> int:
-        self.offset += -(self.offset - 4) % 4
-        value = self._structs['i'].unpack_from(self.data, self.offset)[0]
-        self.offset += 4
-        return value
+        offset = self.offset + (-(self.offset - 4) % 4)
+        self.offset = offset + 4
+        return (_LITTLE if self._little else _BIG)['i'].unpack_from(self.data, offset)[0]
 
     def octet(self) -> int:
         value = self.data[self.offset]
@@ -166,30 +164,51 @@ class Reader:
 
     def time_ns(self) -> int:
         """builtin_interfaces/Time (or Duration) as integer nanoseconds."""
-        self.offset += -(self.offset - 4) % 4
-        sec, nanosec = self._structs['iI'].unpack_from(self.data, self.offset)
-        self.offset += 8
+        offset = self.offset + (-(self.offset - 4) % 4)
+        sec, nanosec = (_LITTLE if self._little else _BIG)['iI'].unpack_from(self.data, offset)
+        self.offset = offset + 8
         return sec * NS_PER_S + nanosec
 
     def string(self) -> str:
-        size = self.uint32()
-        end = self.offset + size
-        if size == 0 or end > len(self.data):
-            raise Malformed(f'a string of {size} bytes at offset {self.offset}')
-        text = self.data[self.offset:end - 1].decode()
+        data, offset = self.data, self.offset + (-(self.offset - 4) % 4)
+        size = self._uint32(data, offset)[0]
+        start = offset + 4
+        end = start + size
+        if size == 0 or end > len(data):
+            raise Malformed(f'a string of {size} bytes at offset {offset}')
         self.offset = end
-        return text
+        return data[start:end - 1].decode()
 
     def strings(self) -> tuple[str, ...]:
-        return tuple(self.string() for _ in range(self.uint32()))
+        """A string sequence. A message type's names (joint names, say) are mostly the same bytes every
+        time: those seen before are not decoded again."""
+        self.align(4)
+        start = self.offset
+        count = self.uint32()
+        data, offset, uint32 = self.data, self.offset, self._uint32
+        for _ in range(count):
+            offset += -(offset - 4) % 4 + 4 + uint32(data, offset + (-(offset - 4) % 4))[0]
+        key = data[start:offset]
+        texts = _STRINGS.get(key)
+        if texts is None:
+            string = self.string
+            texts = tuple([string() for _ in range(count)])
+            if len(_STRINGS) >= 256:
+                _STRINGS.clear()
+            _STRINGS[key] = texts
+        self.offset = offset
+        return texts
 
     def float64s(self, count: int) -> tuple[float, ...]:
         if not count:
             return ()
-        self.offset += -(self.offset - 4) % 8
-        values = _float64s(self._structs is _LITTLE, count).unpack_from(self.data, self.offset)
-        self.offset += 8 * count
-        return values
+        offset = self.offset + (-(self.offset - 4) % 8)
+        self.offset = offset + 8 * count
+        structs = _FLOAT64S_LITTLE if self._little else _FLOAT64S_BIG
+        unpack = structs.get(count)
+        if unpack is None:
+            unpack = structs[count] = struct.Struct(('<' if self._little else '>') + f'{count}d').unpack_from
+        return unpack(self.data, offset)
 
     def float64_sequence(self) -> tuple[float, ...]:
         return self.float64s(self.uint32())
@@ -209,9 +228,11 @@ class Reader:
         return dims, self.float64_sequence()
 
 
-@functools.lru_cache(maxsize=64)
-def _float64s(little: bool, count: int) -> struct.Struct:
-    return struct.Struct(('<' if little else '>') + f'{count}d')
+_STRINGS: dict[bytes, tuple[str, ...]] = {}
+"""String sequences read, by their bytes (count, lengths and text, from a 4-aligned start)."""
+_FLOAT64S_LITTLE: dict[int, Any] = {}
+_FLOAT64S_BIG: dict[int, Any] = {}
+"""``unpack_from`` of so many float64, by count."""
 
 
 class Rows:

@@ -133,7 +133,8 @@ def decode_wheel_contact(message: cdr.Reader) -> WheelContact:
     """The contact a serialized ``wheel_contact`` carries, by name (NaN for a name it lacks)."""
     joints = _joint_arrays(message)
     wheels = len(topics.WHEEL_JOINTS)
-    if joints.name == CONTACT_NAMES and all(len(values) == len(CONTACT_NAMES) for values in joints[2:]):
+    count = len(CONTACT_NAMES)
+    if joints.name == CONTACT_NAMES and len(joints.position) == len(joints.velocity) == len(joints.effort) == count:
         return WheelContact(joints.stamp_ns, joints.effort[:wheels], joints.position[wheels:],
                             joints.velocity[wheels:], joints.effort[wheels:])
     channels = topics.DRIVE_JOINTS
