@@ -457,9 +457,13 @@ def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
     """Print the summary of the recorded run and write its figures."""
+    from wallbot_sim.bag.reader import info
     from wallbot_sim.plots.figures import write_figures
     from wallbot_sim.rundata import format_summary, load_run, summarize
-    summary = summarize(bag)
+    reading = Progress(info(bag).duration, sys.stderr, label='summary: bag read to ', rate='bag seconds per second')
+    summary = summarize(bag, lambda done, _total: reading.update(done))
+    if reading.shown:
+        reading.update(reading.duration, force=True)
     adsorption = robot.adsorption
     print(format_summary(summary))
     print(f'adsorption force:    {adsorption.applied_force:.2f} N applied, {adsorption.minimum_force:.2f} N minimum '

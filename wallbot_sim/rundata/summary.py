@@ -2,6 +2,8 @@
 
     summary = summarize(bag_dir)            # RunSummary (BagError / RunDataError if unreadable)
     print(format_summary(summary))
+
+A bag is summarized in one pass over its messages (``streaming``), a simulate CSV from its columns.
 """
 
 from __future__ import annotations
@@ -9,9 +11,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
+from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import RunData, load_run
 
 
@@ -47,9 +51,16 @@ def _peak(values: np.ndarray) -> float:
     return float(finite.max()) if finite.size else math.nan
 
 
-def summarize(path: Path | str) -> RunSummary:
-    """Summary of a bag (or simulate CSV) at ``path``."""
-    return summarize_run(load_run(Path(path)), path)
+def summarize(path: Path | str, progress: Callable[[float, float], None] | None = None) -> RunSummary:
+    """Summary of a bag (or simulate CSV) at ``path``; ``progress(done, total)``: how far the bag has
+    been read (log time, s), every few thousand messages."""
+    from wallbot_sim.rundata.streaming import summarize_bag
+    path = Path(path)
+    if not path.exists():
+        raise RunDataError(f'{path} does not exist')
+    if path.is_file() and path.suffix.lower() == '.csv':
+        return summarize_run(load_run(path), path)
+    return summarize_bag(path, progress)
 
 
 def summarize_run(run: RunData, path: Path | str) -> RunSummary:
