@@ -29,7 +29,7 @@ from std_msgs.msg import Float64MultiArray
 
 from bench_graph import model_cpu_per_simulated_second
 from report import Report, add_write_docs_option
-from wallbot_msgs_py import topics
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.domain import claim_domain_id
@@ -51,9 +51,9 @@ class Dynamics:
         self.clock = self.node.create_publisher(Clock, '/clock', 10)
         self.answers = 0
         self.node.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_answer,
-                                      qos_profile(topics.WHEEL_TORQUE_CMD))
+                                      qos_profile(topics.WHEEL_TORQUE_CMD), raw=True)
 
-    def _on_answer(self, _msg: Float64MultiArray) -> None:
+    def _on_answer(self, _data: bytes) -> None:
         self.answers += 1
 
     def wait_until_heard(self, timeout: float) -> None:
@@ -66,17 +66,15 @@ class Dynamics:
     def feed(self, seconds: float) -> int:
         """Publish control instants at the node's rate of wall time for ``seconds``; how many it answered."""
         period = 1.0 / SPEED_LOOP_RATE_HZ
-        odom, clock = Odometry(), Clock()
+        odom, clock = codec.OdometryEncoder(), codec.ClockEncoder()
         started, answers = time.perf_counter(), self.answers
         instant = 0
         while time.perf_counter() - started < seconds:
             instant += 1
-            stamp_ns = instant * round(period * 1e9)
-            odom.header.stamp.sec, odom.header.stamp.nanosec = divmod(stamp_ns, 10**9)
-            self.odom.publish(odom)
+            stamp = divmod(instant * round(period * 1e9), 10**9)
+            self.odom.publish(odom.encode(*stamp, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
             if instant % round(SPEED_LOOP_RATE_HZ / CLOCK_RATE_HZ) == 0:
-                clock.clock = odom.header.stamp
-                self.clock.publish(clock)
+                self.clock.publish(clock.encode(*stamp))
             time.sleep(max(0.0, started + instant * period - time.perf_counter()))
             for _ in range(ANSWERS_TAKEN):
                 rclpy.spin_once(self.node, timeout_sec=0.0)

@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from report import Report, add_write_docs_option
+from wallbot_msgs_py import codec
 from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import ChildProcesses, cpu_seconds
 
@@ -59,11 +60,11 @@ def main() -> int:
     node = rclpy.create_node('bench_node')
     windows: list[dict[str, str]] = []
 
-    def on_diagnostics(msg: DiagnosticArray) -> None:
-        values = {kv.key: kv.value for kv in msg.status[0].values}
+    def on_diagnostics(data: bytes) -> None:
+        values = codec.decode_diagnostics(data).statuses[0].value_map()
         values['wall'] = time.monotonic()
         windows.append(values)
-    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10, raw=True)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     spinning = True
