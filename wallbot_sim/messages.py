@@ -9,8 +9,8 @@ use it, so a headless bag holds the graph's messages. No ROS import.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Mapping, Sequence
 
 from wallbot_msgs_py import cdr, codec, topics
@@ -151,9 +151,15 @@ def reference_message(sample: ReferenceSample, t: float, fallback_yaw: float = 0
     return data, yaw
 
 
-@lru_cache(maxsize=8)
+_ENCODERS = threading.local()
+"""The reference encoders of each thread (an encoder serves one thread), by frame."""
+
+
 def _reference_encoder(frame: str) -> codec.OdometryEncoder:
-    return codec.OdometryEncoder(frame, topics.REFERENCE_FRAME)
+    encoders = _ENCODERS.__dict__.setdefault('by_frame', {})
+    if frame not in encoders:
+        encoders[frame] = codec.OdometryEncoder(frame, topics.REFERENCE_FRAME)
+    return encoders[frame]
 
 
 # --- the constraint set --------------------------------------------------------------------------

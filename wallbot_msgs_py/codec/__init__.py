@@ -31,7 +31,8 @@ markers, tf        markers, /tf                          ``view_cdr.marker_array
 ================== ===================================== =====================================================
 
 The per-step families' encoders are byte templates (a few ``struct.pack_into`` per message), which
-``step_cdr.StepEncoder`` composes for the dynamics' 1 kHz steps.
+``step_cdr.StepEncoder`` composes for the dynamics' 1 kHz steps. Each writes its messages into one buffer
+of its own before copying them out: an encoder serves one thread.
 
 Conventions (REP 103/105): poses in frame ``wall`` (X right, Y up, Z out of the wall), the robot
 frame ``base_link`` at the geometric centre; odometry twists are in the child frame, so

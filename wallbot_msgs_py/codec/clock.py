@@ -20,10 +20,11 @@ class ClockEncoder:
         clock = cdr.Writer()
         self._stamp = clock.time(0)
         self.template = clock.bytes()
+        self._buffer = bytearray(self.template)
         self._rows = cdr.Rows(self.template, cdr.stamped(self._stamp))
 
     def encode(self, sec: int, nanosec: int) -> bytes:
-        data = bytearray(self.template)
+        data = self._buffer
         _STAMP.pack_into(data, self._stamp, sec, nanosec)
         return bytes(data)
 

@@ -21,6 +21,7 @@ JOINT_FIELDS = ('position', 'velocity', 'effort')
 _STAMP = struct.Struct('<iI')
 _TWO = struct.Struct('<2d')
 _ONE = struct.Struct('<d')
+_CHANNELS = struct.Struct(f'<{len(topics.DRIVE_JOINTS)}d')
 
 
 @cdr.encoder('joint_state', JOINT_STATE)
@@ -35,17 +36,20 @@ class JointStateEncoder:
         self.offsets = {field: joints.float64_sequence((0.0,) * (len(names) if field in filled else 0))
                         for field in JOINT_FIELDS}
         self.template = joints.bytes()
+        self._buffer = bytearray(self.template)
         self._filled = tuple(field for field in JOINT_FIELDS if field in filled)
+        self._filled_offsets = tuple(self.offsets[field] for field in self._filled)
         self._values = struct.Struct(f'<{len(names)}d')
         self._rows = cdr.Rows(self.template, cdr.stamped(
             self.stamp, **{field: (self.offsets[field], cdr.doubles(len(names))) for field in self._filled}))
 
     def encode(self, sec: int, nanosec: int, *values: Sequence[float]) -> bytes:
         """The message with the values of each filled field, in the order of JOINT_FIELDS."""
-        data = bytearray(self.template)
+        data = self._buffer
         _STAMP.pack_into(data, self.stamp, sec, nanosec)
-        for field, numbers in zip(self._filled, values):
-            self._values.pack_into(data, self.offsets[field], *numbers)
+        pack = self._values.pack_into
+        for offset, numbers in zip(self._filled_offsets, values):
+            pack(data, offset, *numbers)
         return bytes(data)
 
     def encode_rows(self, sec: np.ndarray, nanosec: np.ndarray, *values: np.ndarray) -> list[bytes]:
@@ -108,18 +112,27 @@ class WheelContactEncoder:
     slipping as velocity, the limit as effort (the wheels' positions and velocities 0)."""
 
     def __init__(self) -> None:
-        self._joints = JointStateEncoder(CONTACT_NAMES)
-        position, velocity, effort = (self._joints.offsets[field] for field in JOINT_FIELDS)
+        joints = JointStateEncoder(CONTACT_NAMES)
+        position, velocity, effort = (joints.offsets[field] for field in JOINT_FIELDS)
         wheels = 8 * len(topics.WHEEL_JOINTS)
-        self._rows = cdr.Rows(self._joints.template, cdr.stamped(
-            self._joints.stamp, use=(position + wheels, cdr.doubles(3)), slipping=(velocity + wheels, cdr.doubles(3)),
-            loads=(effort, cdr.doubles(len(topics.WHEEL_JOINTS))), limits=(effort + wheels, cdr.doubles(3))))
+        self.template, self._stamp = joints.template, joints.stamp
+        self._buffer = bytearray(self.template)
+        self._use, self._slipping, self._loads, self._limits = position + wheels, velocity + wheels, effort, effort + wheels
+        self._wheel_values = struct.Struct(f'<{len(topics.WHEEL_JOINTS)}d')
+        self._rows = cdr.Rows(self.template, cdr.stamped(
+            self._stamp, use=(self._use, cdr.doubles(3)), slipping=(self._slipping, cdr.doubles(3)),
+            loads=(effort, cdr.doubles(len(topics.WHEEL_JOINTS))), limits=(self._limits, cdr.doubles(3))))
 
     def encode(self, sec: int, nanosec: int, loads: Sequence[float], use: Sequence[float],
                slipping: Sequence[bool], limits: Sequence[float]) -> bytes:
-        rest = (0.0,) * len(topics.WHEEL_JOINTS)
-        return self._joints.encode(sec, nanosec, (*rest, *use), (*rest, *(float(flag) for flag in slipping)),
-                                   (*loads, *limits))
+        data = self._buffer
+        _STAMP.pack_into(data, self._stamp, sec, nanosec)
+        _CHANNELS.pack_into(data, self._use, *use)
+        left, right, lateral = slipping
+        _CHANNELS.pack_into(data, self._slipping, float(left), float(right), float(lateral))
+        self._wheel_values.pack_into(data, self._loads, *loads)
+        _CHANNELS.pack_into(data, self._limits, *limits)
+        return bytes(data)
 
     def encode_rows(self, sec: np.ndarray, nanosec: np.ndarray, loads: np.ndarray, use: np.ndarray,
                     slipping: np.ndarray, limits: np.ndarray) -> list[bytes]:
@@ -163,11 +176,12 @@ class WrenchEncoder:
         self._force = wrench.float64s((0.0,) * 3)
         self._torque_z = wrench.float64s((0.0,) * 3) + 16
         self.template = wrench.bytes()
+        self._buffer = bytearray(self.template)
         self._rows = cdr.Rows(self.template, cdr.stamped(
             self._stamp, force=(self._force, cdr.doubles(2)), torque=(self._torque_z, '<f8')))
 
     def encode(self, sec: int, nanosec: int, fx: float, fy: float, mz: float) -> bytes:
-        data = bytearray(self.template)
+        data = self._buffer
         _STAMP.pack_into(data, self._stamp, sec, nanosec)
         _TWO.pack_into(data, self._force, fx, fy)
         _ONE.pack_into(data, self._torque_z, mz)

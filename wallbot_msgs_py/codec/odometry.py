@@ -50,13 +50,14 @@ class OdometryEncoder:
         self._twist = odom.float64s((0.0,) * 6)
         odom.float64s(_diagonal(twist_variances))
         self.template = odom.bytes()
+        self._buffer = bytearray(self.template)
         self._rows = cdr.Rows(self.template, cdr.stamped(
             self._stamp, position=(self._position, cdr.doubles(2)), orientation=(self._orientation, cdr.doubles(2)),
             twist=(self._twist, cdr.doubles(2)), turn=(self._twist + 40, '<f8')))
 
     def encode(self, sec: int, nanosec: int, q: Sequence[float], qd: Sequence[float]) -> bytes:
         """The message of the state q = (x, y, theta, ...), qd = (xd, yd, thd, ...) in the wall frame."""
-        data = bytearray(self.template)
+        data = self._buffer
         theta, xd, yd = q[2], qd[0], qd[1]
         c, s = math.cos(theta), math.sin(theta)
         _STAMP.pack_into(data, self._stamp, sec, nanosec)
