@@ -22,8 +22,8 @@ from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
-from message_fields import seconds
-from wallbot_msgs_py import codec, topics  # noqa: E402
+import message_fields  # noqa: E402
+from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
 
@@ -36,7 +36,7 @@ def main(argv: list[str]) -> int:
     executor.add_node(node)
     stamps: list[float] = []
     node.create_subscription(Odometry, topics.ODOM.resolve(),
-                             lambda msg: stamps.append(seconds(msg.header.stamp)), qos_profile(topics.ODOM))
+                             lambda msg: stamps.append(message_fields.seconds(msg.header.stamp)), qos_profile(topics.ODOM))
     try:
         if settings:
             client = node.create_client(SetParameters, f'{topics.NAMESPACE}/{topics.NODE_CMD_VEL}/set_parameters')

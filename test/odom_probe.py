@@ -17,8 +17,8 @@ import rclpy  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
-from message_fields import seconds
-from wallbot_msgs_py import codec, topics  # noqa: E402
+from message_fields import seconds  # noqa: E402
+from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
 

@@ -37,8 +37,8 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from closed_loop import model_loop_states  # noqa: E402
 from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
-from message_fields import planar_state, stamp_ns
-from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
+from message_fields import planar_state, stamp_ns  # noqa: E402
+from wallbot_msgs_py import bagio, topics  # noqa: E402
 from wallbot_sim.bag.reader import info, messages  # noqa: E402
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ  # noqa: E402
 from wallbot_sim.graph_description import CONTROL_STEPS  # noqa: E402

@@ -25,9 +25,9 @@ from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
 
 from graph_helpers import MS, STALL, Graph, ns, start_graph  # noqa: E402
+from message_fields import quaternion_yaw  # noqa: E402
 from scheduling_helpers import may_use_fifo  # noqa: E402
-from message_fields import quaternion_yaw
-from wallbot_msgs_py import bagio, codec, topics  # noqa: E402
+from wallbot_msgs_py import bagio, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 from wallbot_sim import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402

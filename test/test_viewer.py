@@ -20,7 +20,7 @@ from visualization_msgs.msg import MarkerArray
 from cli_helpers import WALLBOT, wait_for_output
 from graph_helpers import Graph
 from message_fields import odometry_cdr, planar_state
-from wallbot_msgs_py import bagio, codec, topics
+from wallbot_msgs_py import bagio, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_scenario
 from wallbot_sim.domain import claim_domain_id

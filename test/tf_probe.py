@@ -20,7 +20,7 @@ from odom_probe import spin_until  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
-from message_fields import odometry_cdr, stamp_ns
+from message_fields import odometry_cdr, stamp_ns  # noqa: E402
 from wallbot_msgs_py import codec, topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 

@@ -60,7 +60,8 @@ def _write_status(out: cdr.Writer, status: Status) -> None:
 
 def _read_status(message: cdr.Reader) -> Status:
     level = message.octet()
-    name, text, _hardware_id = message.string(), message.string(), message.string()
+    name, text = message.string(), message.string()
+    message.string()  # hardware_id
     values = [(message.string(), message.string()) for _ in range(message.uint32())]
     return Status(name, LEVEL_NAMES.get(level, f'level {level}'), text, values)
 

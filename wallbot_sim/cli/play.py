@@ -80,7 +80,7 @@ def wait_acked(publisher: Any, seconds: float) -> bool:
 
 
 def main(args: argparse.Namespace) -> int:
-    from wallbot_sim.bag.reader import info, messages, resolve_topics
+    from wallbot_sim.bag.reader import info, resolve_topics
 
     bag = info(args.bag)
     names = resolve_topics(bag, args.topics)
@@ -96,57 +96,17 @@ def main(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from wallbot_sim.nodes.recorder import message_class
-
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
         node = rclpy.create_node('player', namespace=graph.NAMESPACE, start_parameter_services=False)
-        publishers = {}
-        for name in names:
-            topic = bag.topic(name)
-            try:
-                publishers[name] = node.create_publisher(message_class(topic.type), name,
-                                                         publisher_qos(topic.offered_qos, name))
-            except (ImportError, AttributeError, ValueError):
-                raise CliError(f'{name}: message type {topic.type} is not installed') from None
-        clock_pubs = []
-        if args.clock:
-            from rclpy.qos import QoSProfile
-            clock_pubs = [node.create_publisher(message_class(clock.type), clock.name, QoSProfile(depth=clock.depth))
-                          for clock in (graph.CLOCK, graph.DOMAIN_CLOCK)]
-            clock_encoder = codec.ClockEncoder()
-        deadline = time.monotonic() + args.wait_subscribers
-        while args.wait_subscribers and time.monotonic() < deadline and \
-                not all(p.get_subscription_count() > 0 for p in publishers.values()):
-            time.sleep(0.05)
-        if args.wait_subscribers and not all(p.get_subscription_count() > 0 for p in publishers.values()):
-            missing = [n for n, p in publishers.items() if p.get_subscription_count() == 0]
-            raise CliError(f'no subscriber on {", ".join(missing)} after {args.wait_subscribers:g} s')
+        publishers = create_publishers(node, bag, names)
+        clock = BagClock(node, args.clock_rate) if args.clock else None
+        wait_for_subscribers(publishers, args.wait_subscribers)
         time.sleep(args.delay)
         total = 0
-        sent = {name: 0 for name in names}
-        windows = {name: max(1, publishers[name].qos_profile.depth // 2) for name in names}
         while True:
-            wall0, bag0, last_clock = time.monotonic(), None, -math.inf
-            for raw in messages(bag.path, names):
-                if bag0 is None:
-                    bag0 = raw.timestamp
-                due = wall0 + (raw.timestamp - bag0) * 1e-9 / args.rate
-                delay = due - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                if clock_pubs and time.monotonic() - last_clock >= 1.0 / args.clock_rate:
-                    clock = clock_encoder.encode(*cdr.split_stamp(raw.timestamp))
-                    for clock_pub in clock_pubs:
-                        clock_pub.publish(clock)
-                    last_clock = time.monotonic()
-                publisher = publishers[raw.topic]
-                publisher.publish(raw.data)
-                total += 1
-                sent[raw.topic] += 1
-                if sent[raw.topic] % windows[raw.topic] == 0:  # back-pressure: never overrun a reader
-                    wait_acked(publisher, 1.0)
+            total += replay(bag.path, publishers, clock, args.rate)
             if not args.loop:
                 break
         for publisher in publishers.values():
@@ -158,3 +118,72 @@ def main(args: argparse.Namespace) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def create_publishers(node: Any, bag: Any, names: list[str]) -> dict[str, Any]:
+    """A publisher of each bag topic in ``names``, with its recorded QoS; CliError for a type not installed."""
+    from wallbot_sim.nodes.recorder import message_class
+    publishers = {}
+    for name in names:
+        topic = bag.topic(name)
+        try:
+            publishers[name] = node.create_publisher(message_class(topic.type), name,
+                                                     publisher_qos(topic.offered_qos, name))
+        except (ImportError, AttributeError, ValueError):
+            raise CliError(f'{name}: message type {topic.type} is not installed') from None
+    return publishers
+
+
+def wait_for_subscribers(publishers: dict[str, Any], seconds: float) -> None:
+    """Wait up to ``seconds`` until every publisher has a subscriber; CliError naming those without one."""
+    deadline = time.monotonic() + seconds
+    while seconds and time.monotonic() < deadline and not all(p.get_subscription_count() > 0
+                                                              for p in publishers.values()):
+        time.sleep(0.05)
+    missing = [name for name, publisher in publishers.items() if publisher.get_subscription_count() == 0]
+    if seconds and missing:
+        raise CliError(f'no subscriber on {", ".join(missing)} after {seconds:g} s')
+
+
+class BagClock:
+    """The bag's time on the robot's clock and the domain's /clock, at most ``rate_hz`` messages a wall second."""
+
+    def __init__(self, node: Any, rate_hz: float) -> None:
+        from rclpy.qos import QoSProfile
+
+        from wallbot_sim.nodes.recorder import message_class
+        self.publishers = [node.create_publisher(message_class(clock.type), clock.name, QoSProfile(depth=clock.depth))
+                           for clock in (graph.CLOCK, graph.DOMAIN_CLOCK)]
+        self.period, self.sent = 1.0 / rate_hz, -math.inf
+        self.encoder = codec.ClockEncoder()
+
+    def at(self, stamp_ns: int) -> None:
+        """The bag is at ``stamp_ns``: published if the period since the last one is up."""
+        if time.monotonic() - self.sent >= self.period:
+            message = self.encoder.encode(*cdr.split_stamp(stamp_ns))
+            for publisher in self.publishers:
+                publisher.publish(message)
+            self.sent = time.monotonic()
+
+
+def replay(path: Any, publishers: dict[str, Any], clock: BagClock | None, rate: float) -> int:
+    """Publish the bag's messages on ``publishers`` at their recorded times divided by ``rate``; how many.
+    Every half history depth a topic's publisher waits for its readers (back-pressure: never overrun one)."""
+    from wallbot_sim.bag.reader import messages
+    sent = dict.fromkeys(publishers, 0)
+    windows = {name: max(1, publisher.qos_profile.depth // 2) for name, publisher in publishers.items()}
+    wall0, bag0 = time.monotonic(), None
+    for raw in messages(path, list(publishers)):
+        if bag0 is None:
+            bag0 = raw.timestamp
+        delay = wall0 + (raw.timestamp - bag0) * 1e-9 / rate - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        if clock is not None:
+            clock.at(raw.timestamp)
+        publisher = publishers[raw.topic]
+        publisher.publish(raw.data)
+        sent[raw.topic] += 1
+        if sent[raw.topic] % windows[raw.topic] == 0:
+            wait_acked(publisher, 1.0)
+    return sum(sent.values())
