@@ -17,9 +17,9 @@ from collections import deque
 from pathlib import Path
 from typing import Callable
 
-from wallbot_msgs_py import codec, topics
+from wallbot_msgs_py import codec
 from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.load import bag_topics, namespace_of, residual_max
+from wallbot_sim.rundata.load import STAMPED_SERIES, bag_topics, namespace_of, residual_max
 
 PENDING_STATES = 20_000
 """Most states held while the reference at their time has not been read yet (20 s at 1 kHz): a plan or a
@@ -211,16 +211,6 @@ class _PeakStream:
         self.peaks.add(values)
 
 
-def _wrench(data: bytes) -> tuple[int, tuple[float, ...]]:
-    wrench = codec.decode_wrench(data)
-    return wrench.stamp_ns, (wrench.fx, wrench.fy, wrench.mz)
-
-
-def _drive(data: bytes) -> tuple[int, tuple[float, ...]]:
-    joints = codec.decode_joint_state(data)
-    return joints.stamp_ns, joints.values(topics.DRIVE_JOINTS, 'effort')
-
-
 class _Residual(_PeakStream):
     """The largest residual the dynamics in ``namespace`` reported over its last run."""
 
@@ -246,7 +236,7 @@ def summarize_bag(path: Path, progress: Callable[[float, float], None] | None = 
               'reference' if counts.get(leaves.get('reference'), 0) else None)
     reference = {'reference_trajectory': _PlanReference, 'reference': _PoseReference}.get(source, lambda: None)()
     tracking, contact = _Tracking(reference), _Contact()
-    wrench, drive = _PeakStream(_wrench, 3), _PeakStream(_drive, 3)
+    wrench, drive = (_PeakStream(*STAMPED_SERIES[leaf]) for leaf in ('constraint_wrench', 'drive_forces'))
     residual = _Residual(namespace_of(leaves['odom']))
     readers: dict[str, Callable[[bytes], None]] = {
         'ground_truth' if 'ground_truth' in leaves else 'odom': tracking.state, 'constraint_wrench': wrench.add,
