@@ -147,6 +147,11 @@ class Reader:
     def align(self, size: int) -> None:
         self.offset += -(self.offset - 4) % size
 
+    def unpacker(self, code: str) -> Callable[[bytes, int], tuple]:
+        """``struct`` ``unpack_from`` of ``code`` (one of 'I', 'i', 'iI', 'd', '2d') in the bytes' order, for
+        a decoder whose loop over many elements reads ``data`` at offsets it aligns itself."""
+        return (_LITTLE if self._little else _BIG)[code].unpack_from
+
     def uint32(self) -> int:
         offset = self.offset + (-(self.offset - 4) % 4)
         self.offset = offset + 4

@@ -62,15 +62,25 @@ def decode_plan(message: cdr.Reader) -> PlanSamples:
     if points < 2:
         raise ValueError(f'a reference trajectory needs >= 2 points, got {points}')
     plan = PlanSamples([], [], [], [])
-    columns = (plan.positions, plan.velocities, plan.accelerations)
+    columns = ((plan.positions, 8 * _TRANSFORM), (plan.velocities, 8 * _TWIST), (plan.accelerations, 8 * _TWIST))
+    # aligned here rather than field by field: this loop is the decoder's whole cost (200 points, 0.4 ms),
+    # and it runs in the dynamics' executor, which shares the GIL with the 1 kHz loop
+    data, offset = message.data, message.offset
+    length, pair, stamp = (message.unpacker(code) for code in ('I', '2d', 'iI'))
     for i in range(points):
-        for column, size in zip(columns, (_TRANSFORM, _TWIST, _TWIST)):
-            count = message.uint32()
+        for column, size in columns:
+            offset += -(offset - 4) % 4
+            count = length(data, offset)[0]
             if not count:
                 raise ValueError(f'reference trajectory point {i} lacks a transform, velocity or acceleration')
-            column.append(message.float64s(2))
-            message.skip_float64s(count * size - 2)
-        plan.times.append((start_ns + message.time_ns()) * 1e-9)
+            offset += 4 + -offset % 8  # on to the first float64 (offsets count the 4-byte encapsulation)
+            column.append(pair(data, offset))
+            offset += count * size
+        offset += -(offset - 4) % 4
+        sec, nanosec = stamp(data, offset)
+        offset += 8
+        plan.times.append((start_ns + sec * cdr.NS_PER_S + nanosec) * 1e-9)
+    message.offset = offset
     return plan
 
 
