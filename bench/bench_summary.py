@@ -7,13 +7,12 @@ constraint_wrench, drive_forces and wheel_contact every step, /clock at 10 Hz, r
 a plan every 5 s, /diagnostics every second. Prints, for each way and length, the wall seconds per
 recorded second and the peak memory traced (tracemalloc, in a second pass), and the ratios.
 
-    python bench/bench_summary.py [--seconds 30] [--keep DIR]
+    python bench/bench_summary.py [--seconds 30] [--keep DIR] [--write-docs [FILE]]
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import sys
 import tempfile
@@ -25,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from report import Report, add_write_docs_option
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
@@ -88,10 +88,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     parser.add_argument('--seconds', type=float, default=30.0, help='simulated seconds of the short run (default 30)')
     parser.add_argument('--keep', help='write the bags here and keep them (default: a temporary directory)')
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('summary')
     out = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix='bench_summary_'))
     lengths = (args.seconds, 4 * args.seconds)
-    ways = {'one pass': summarize, 'load every series': lambda bag: summarize_run(load_run(bag), bag)}
+    ways = {'one pass (summarize)': summarize, 'every series loaded (load_run)': lambda bag: summarize_run(load_run(bag), bag)}
     try:
         results = {}
         for seconds in lengths:
@@ -103,16 +105,22 @@ def main() -> int:
     finally:
         if not args.keep:
             shutil.rmtree(out, ignore_errors=True)
-    print(f'{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at the end')
+    rows = []
     for name in ways:
         (short_wall, short_peak), (long_wall, long_peak) = (results[name, s] for s in lengths)
-        print(f'{name:18s} {lengths[0]:g} s: {short_wall / lengths[0]:.4f} s per recorded s, peak {short_peak / 2**20:6.1f} MiB;'
-              f'  {lengths[1]:g} s: {long_wall / lengths[1]:.4f} s per s, peak {long_peak / 2**20:6.1f} MiB;'
-              f'  long/short: time per s {long_wall / lengths[1] / (short_wall / lengths[0]):.2f}, '
-              f'memory {long_peak / short_peak:.2f}')
-    for seconds in lengths:
-        ratio = results['one pass', seconds][0] / results['load every series', seconds][0]
-        print(f'{seconds:g} s run: one pass takes {ratio:.2f} of the time loading every series takes')
+        rows.append((name, f'{short_wall / lengths[0]:.4f} s', f'{short_peak / 2**20:.1f} MiB',
+                     f'{long_wall / lengths[1]:.4f} s', f'{long_peak / 2**20:.1f} MiB',
+                     f'**{long_wall / lengths[1] / (short_wall / lengths[0]):.2f}**', f'**{long_peak / short_peak:.2f}**'))
+        print(' | '.join(str(cell) for cell in rows[-1]))
+    rows.append(('one pass / every series loaded', *(
+        f'**{results[next(iter(ways)), s][i] / results[list(ways)[1], s][i]:.2f}**' for s in lengths for i in (0, 1)),
+        '', ''))
+    print(' | '.join(str(cell) for cell in rows[-1]))
+    report.table(('summary of a bag', f'{lengths[0]:g} s run: wall s per recorded s', 'peak memory',
+                  f'{lengths[1]:g} s run: wall s per recorded s', 'peak memory', 'long / short: time per s', 'memory'),
+                 rows, 'A 1 kHz run recorded as the graph records it, summarized (peak memory traced by tracemalloc, '
+                       'in a second pass):')
+    report.write(args.write_docs)
     return 0
 
 
