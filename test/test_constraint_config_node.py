@@ -24,7 +24,7 @@ def test_with_wait_for_recorder_the_first_set_waits_until_a_recorder_hears_const
     rclpy.init(context=context)
     node = probe = listener = None
     executor = SingleThreadedExecutor(context=context)
-    received: list[DiagnosticStatus] = []
+    received: list[bytes] = []
     try:
         node = ConstraintConfigNode(context=context,
                                     parameter_overrides=[Parameter('wait_for_recorder', Parameter.Type.BOOL, True)])
@@ -33,7 +33,7 @@ def test_with_wait_for_recorder_the_first_set_waits_until_a_recorder_hears_const
         listener = rclpy.create_node('listener', namespace=topics.NAMESPACE, context=context)
         executor.add_node(listener)
         listener.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, received.append,
-                                     qos_profile(topics.CONSTRAINTS))
+                                     qos_profile(topics.CONSTRAINTS), raw=True)
         spin_for(executor, 1.0)  # a recorder known, a listener on constraints, the recorder not on them: nothing
         assert node.count_publishers(node.resolve_topic_name(topics.RECORD_PROGRESS.name)) == 1
         assert node.publisher.get_subscription_count() == 1 and node.held and not received
@@ -42,7 +42,7 @@ def test_with_wait_for_recorder_the_first_set_waits_until_a_recorder_hears_const
                                   qos_profile(topics.CONSTRAINTS))
         spin_until(executor, lambda: bool(received), 30.0, 'no constraint set after the recorder subscribed constraints')
         assert not node.held and len(received) == 1
-        switches, _gains = messages.constraints_from_message(received[0])
+        switches, _gains = messages.constraints_from_cdr(received[0])
         assert 'nonslip' not in switches.active_names()
     finally:
         executor.shutdown()
