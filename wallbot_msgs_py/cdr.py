@@ -24,8 +24,8 @@ ENCAPSULATION = b'\x00\x01\x00\x00'
 """CDR, little endian."""
 NS_PER_S = 1_000_000_000
 
-_LITTLE = {code: struct.Struct('<' + code) for code in ('I', 'i', 'iI', 'd', '2d')}
-_BIG = {code: struct.Struct('>' + code) for code in ('I', 'i', 'iI', 'd', '2d')}
+_LITTLE = {code: struct.Struct('<' + code) for code in ('I', 'i', 'iI', '2d')}
+_BIG = {code: struct.Struct('>' + code) for code in ('I', 'i', 'iI', '2d')}
 _STAMP = _LITTLE['iI']
 
 
@@ -148,7 +148,7 @@ class Reader:
         self.offset += -(self.offset - 4) % size
 
     def unpacker(self, code: str) -> Callable[[bytes, int], tuple]:
-        """``struct`` ``unpack_from`` of ``code`` (one of 'I', 'i', 'iI', 'd', '2d') in the bytes' order, for
+        """``struct`` ``unpack_from`` of ``code`` (one of 'I', 'i', 'iI', '2d') in the bytes' order, for
         a decoder whose loop over many elements reads ``data`` at offsets it aligns itself."""
         return (_LITTLE if self._little else _BIG)[code].unpack_from
 
@@ -156,11 +156,6 @@ class Reader:
         offset = self.offset + (-(self.offset - 4) % 4)
         self.offset = offset + 4
         return self._uint32(self.data, offset)[0]
-
-    def int32(self) -> int:
-        offset = self.offset + (-(self.offset - 4) % 4)
-        self.offset = offset + 4
-        return (_LITTLE if self._little else _BIG)['i'].unpack_from(self.data, offset)[0]
 
     def octet(self) -> int:
         value = self.data[self.offset]
