@@ -18,6 +18,9 @@ from pathlib import Path
 from typing import Callable
 
 from wallbot_msgs_py import codec
+from wallbot_sim.messages import plan_is_final
+from wallbot_sim.model import ModelError, SampledReference
+from wallbot_sim.model.trajectories import Plan
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import STAMPED_SERIES, bag_topics, namespace_of, residual_max
 
@@ -70,9 +73,6 @@ class _PlanReference:
         self.final = False
 
     def add(self, data: bytes, keep_from_ns: int) -> None:
-        from wallbot_sim.messages import plan_is_final
-        from wallbot_sim.model import ModelError, SampledReference
-        from wallbot_sim.model.trajectories import Plan
         try:
             plan = Plan(*codec.decode_plan(data))
         except ValueError:
