@@ -51,7 +51,7 @@ from wallbot_msgs_py import bagio, cdr, codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.snapshot import SnapshotKeeper, decode_snapshot
 from wallbot_sim.bag.writer import FLUSH_PERIOD
-from wallbot_sim.nodes.common import declare
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare
 from wallbot_sim.nodes.step_tap import StepTap
 
 NODE_NAME = topics.NODE_RECORDER
@@ -123,22 +123,22 @@ class Recorder(Node):
 
     def __init__(self, stop: Any, tappable: Sequence[topics.Topic] = (), writer: Any = None,
                  program: str = 'recorder_node', **kwargs: Any) -> None:
-        # its use_sim_time (log times) follows the robot's clock, as nodes.common.ROBOT_CLOCK_ARGS
-        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP],
-                         **kwargs)
-        output = declare(self, 'output', '', 'bag directory to create (it must not exist, or be empty)',
-                         read_only=True)
-        recorded = graph_topics(declare(self, 'topics', [t.name for t in topics.RECORDED],
-                                        'topics to record (relative names resolve in the namespace)', read_only=True))
-        if writer is None:
-            if not output:
-                raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
-            writer = open_bag(Path(output), program)
-        self.writer, self.stop = writer, stop
+        super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)  # log times
+        self.stop, self.writer = stop, None
         try:
+            output = declare(self, 'output', '', 'bag directory to create (it must not exist, or be empty)',
+                             read_only=True)
+            recorded = graph_topics(declare(self, 'topics', [t.name for t in topics.RECORDED],
+                                            'topics to record (relative names resolve in the namespace)',
+                                            read_only=True))
+            if writer is None and not output:
+                raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
+            self.writer = writer if writer is not None else open_bag(Path(output), program)
             self._start(recorded, [t for t in recorded if t in tappable])
         except BaseException:
-            writer.close()
+            if self.writer is not None:
+                self.writer.close()
+            self.destroy_node()
             raise
 
     def _start(self, recorded: list[topics.Topic], tapped: list[topics.Topic]) -> None:
