@@ -104,7 +104,8 @@ def main() -> int:
     report = Report('summary')
     out = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix='bench_summary_'))
     lengths = (args.seconds, 4 * args.seconds)
-    ways = {'one pass (summarize)': summarize, 'every series loaded (load_run)': lambda bag: summarize_run(load_run(bag), bag)}
+    ways = {'one pass (summarize)': summarize,
+            'every series loaded (load_run)': lambda bag: summarize_run(load_run(bag), bag)}
     try:
         results = {}
         for seconds in lengths:
@@ -121,7 +122,8 @@ def main() -> int:
         (short_wall, short_peak), (long_wall, long_peak) = (results[name, s] for s in lengths)
         rows.append((name, f'{short_wall / lengths[0]:.4f} s', f'{short_peak / 2**20:.1f} MiB',
                      f'{long_wall / lengths[1]:.4f} s', f'{long_peak / 2**20:.1f} MiB',
-                     f'**{long_wall / lengths[1] / (short_wall / lengths[0]):.2f}**', f'**{long_peak / short_peak:.2f}**'))
+                     f'**{long_wall / lengths[1] / (short_wall / lengths[0]):.2f}**',
+                     f'**{long_peak / short_peak:.2f}**'))
         print(' | '.join(str(cell) for cell in rows[-1]))
     rows.append(('one pass / every series loaded', *(
         f'**{results[next(iter(ways)), s][i] / results[list(ways)[1], s][i]:.2f}**' for s in lengths for i in (0, 1)),

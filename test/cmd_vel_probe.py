@@ -35,8 +35,8 @@ def main(argv: list[str]) -> int:
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     stamps: list[float] = []
-    node.create_subscription(Odometry, topics.ODOM.resolve(),
-                             lambda msg: stamps.append(message_fields.seconds(msg.header.stamp)), qos_profile(topics.ODOM))
+    node.create_subscription(Odometry, topics.ODOM.resolve(), lambda msg: stamps.append(
+        message_fields.seconds(msg.header.stamp)), qos_profile(topics.ODOM))
     try:
         if settings:
             client = node.create_client(SetParameters, f'{topics.NAMESPACE}/{topics.NODE_CMD_VEL}/set_parameters')

@@ -144,7 +144,8 @@ def test_the_plan_read_from_the_bytes_is_the_converted_message_s_in_any_layout(l
             point.transforms[1:] = [point.transforms[0]] * extra
             point.velocities[1:] = [point.accelerations[0]] * extra
             point.accelerations[1:] = [point.velocities[0]] * (2 * extra)
-        data = bytes(bagio.typestore().serialize_cdr(msg, topics.REFERENCE_TRAJECTORY.type, little_endian=little_endian))
+        data = bytes(bagio.typestore().serialize_cdr(msg, topics.REFERENCE_TRAJECTORY.type,
+                                                     little_endian=little_endian))
         assert tuple(messages.plan_from_cdr(data)) == plan_in_message(msg)
 
 

@@ -322,7 +322,8 @@ def test_a_composed_recorder_writes_the_tapped_steps_before_a_dds_message_and_no
     node = None
     try:
         writer, stop = _KeptWriter(), _Stop()
-        node = recorder(stop, writer, [topics.ODOM, topics.CLOCK, topics.REFERENCE], tappable=[topics.ODOM, topics.CLOCK])
+        node = recorder(stop, writer, [topics.ODOM, topics.CLOCK, topics.REFERENCE],
+                        tappable=[topics.ODOM, topics.CLOCK])
         assert node.count_subscribers('/wallbot/odom') == 0 and node.count_subscribers('/wallbot/reference') == 1
         node.tap.put([(topics.ODOM, b'odom 0'), (topics.CLOCK, b'clock 0')], clock=True)
         node.tap.put([(topics.ODOM, b'odom 1'), (topics.CLOCK, b'clock 1')], clock=False)

@@ -119,7 +119,8 @@ def synthetic_bag(path, seconds: float, source: str | None = 'plan', plan_lag: f
         t, log_ns = step * 1e-3, k * 1_000_000 + 1
         if source == 'plan' and step % 2000 == 0:
             plan = sample_plan(circle, max(t - 0.05, 0.0), t + 4.0, 0.05)
-            queued.append((log_ns + round(plan_lag * 1e9), topics.REFERENCE_TRAJECTORY, messages.trajectory_message(plan)))
+            queued.append((log_ns + round(plan_lag * 1e9), topics.REFERENCE_TRAJECTORY,
+                           messages.trajectory_message(plan)))
         if source == 'poses' and step % 10 == 0:
             queued.append((log_ns, topics.REFERENCE, messages.reference_message(circle.sample(t), t)[0]))
         (x, y), slipping = circle.sample(t).position, slip_at is not None and t >= slip_at
@@ -144,7 +145,8 @@ def synthetic_bag(path, seconds: float, source: str | None = 'plan', plan_lag: f
 
 
 @pytest.mark.parametrize('case', [
-    dict(seconds=6.0), dict(seconds=3.0, plan_lag=0.5), dict(seconds=3.0, source='poses'), dict(seconds=2.0, source=None),
+    dict(seconds=6.0), dict(seconds=3.0, plan_lag=0.5), dict(seconds=3.0, source='poses'),
+    dict(seconds=2.0, source=None),
     dict(seconds=3.0, restart_at=1.7), dict(seconds=2.0, slip_at=0.85)],
     ids=['plans', 'plans_logged_late', 'poses', 'driven', 'reset', 'slip'])
 def test_the_summary_read_in_one_pass_is_the_loaded_run_s(tmp_path, case):

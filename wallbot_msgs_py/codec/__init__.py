@@ -55,7 +55,8 @@ from wallbot_msgs_py.codec.status import (CONSTRAINTS_STATUS_NAME, GAINS, HARDWA
                                           diagnostics, simulation_status, simulation_status_name)
 
 __all__ = [
-    'CONSTRAINTS_STATUS_NAME', 'CONTACT_NAMES', 'GAINS', 'JOINT_FIELDS', 'HARDWARE_ID', 'LEVELS', 'NO_VARIANCE', 'ClockEncoder',
+    'CONSTRAINTS_STATUS_NAME', 'CONTACT_NAMES', 'GAINS', 'JOINT_FIELDS', 'HARDWARE_ID', 'LEVELS', 'NO_VARIANCE',
+    'ClockEncoder',
     'ConstraintSwitches', 'Diagnostics', 'JointArrays', 'JointStateEncoder', 'OdometryEncoder', 'OdometryMessage',
     'PathMessage', 'PlanSamples', 'PlanarState', 'Status', 'WheelContact', 'WheelContactEncoder', 'Wrench',
     'WrenchEncoder', 'constraints', 'decode_clock', 'decode_cmd_vel', 'decode_constraints',

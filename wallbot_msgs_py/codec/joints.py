@@ -117,7 +117,8 @@ class WheelContactEncoder:
         wheels = 8 * len(topics.WHEEL_JOINTS)
         self.template, self._stamp = joints.template, joints.stamp
         self._buffer = bytearray(self.template)
-        self._use, self._slipping, self._loads, self._limits = position + wheels, velocity + wheels, effort, effort + wheels
+        self._use, self._slipping = position + wheels, velocity + wheels
+        self._loads, self._limits = effort, effort + wheels
         self._wheel_values = struct.Struct(f'<{len(topics.WHEEL_JOINTS)}d')
         self._rows = cdr.Rows(self.template, cdr.stamped(
             self._stamp, use=(self._use, cdr.doubles(3)), slipping=(self._slipping, cdr.doubles(3)),
@@ -151,8 +152,9 @@ def decode_wheel_contact(message: cdr.Reader) -> WheelContact:
         return WheelContact(joints.stamp_ns, joints.effort[:wheels], joints.position[wheels:],
                             joints.velocity[wheels:], joints.effort[wheels:])
     channels = topics.DRIVE_JOINTS
-    return WheelContact(joints.stamp_ns, joints.values(topics.WHEEL_JOINTS, 'effort'), joints.values(channels, 'position'),
-                        joints.values(channels, 'velocity'), joints.values(channels, 'effort'))
+    return WheelContact(joints.stamp_ns, joints.values(topics.WHEEL_JOINTS, 'effort'),
+                        joints.values(channels, 'position'), joints.values(channels, 'velocity'),
+                        joints.values(channels, 'effort'))
 
 
 # --- constraint_wrench ---------------------------------------------------------------------------

@@ -9,8 +9,8 @@ With ``foxglove_port`` > 0 it also serves the graph's topics over the Foxglove W
 
 It never runs at the dynamics' 1 kHz: the per-step topics are read through a second node that no
 executor spins (``_viewer_inputs``, hidden; the command line's remapping rules apply to the viewer's own
-name and topics, not to it, so ``-r __node:=...`` renames the viewer alone), with subscriptions that keep only the newest message
-(best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
+name and topics, not to it, so ``-r __node:=...`` renames the viewer alone), with subscriptions that
+keep only the newest message (best effort, depth 1), and each frame takes that newest message and decodes it. So the node wakes
 ``rate_hz`` times a second whatever the step rate, and never slows the dynamics down (a best-effort
 reader is never waited for). While nothing subscribes ``markers`` or ``/tf`` it reads only the
 odometry (for the path travelled) and the reference path, and builds nothing; nor for a frame
