@@ -20,14 +20,23 @@ def read_yaml(path: str | Path) -> Any:
     except OSError as error:
         raise ParameterError(f'cannot read {path}: {error.strerror}') from None
     except yaml.YAMLError as error:
-        raise ParameterError(f'{path} is not valid YAML: {str(error).splitlines()[0]}') from None
+        raise ParameterError(yaml_error(path, error)) from None
+
+
+def yaml_error(path: str | Path, error: yaml.YAMLError) -> str:
+    """'FILE:LINE:COLUMN: what is wrong' for a YAML syntax error (the line of the problem, 1-based)."""
+    mark = getattr(error, 'problem_mark', None)
+    where = f'{path}:{mark.line + 1}:{mark.column + 1}' if mark is not None else str(path)
+    problem = getattr(error, 'problem', None) or str(error).splitlines()[0]
+    return f'{where}: not valid YAML: {problem}'
 
 
 def load_robot_parameters(path: str | Path | None = None) -> RobotParameters:
     """Robot parameters from ``path`` (default: the installed config/robot.yaml)."""
     path = path or paths.robot_yaml()
+    values = read_yaml(path)  # its errors name the file (and the line) already
     try:
-        return RobotParameters.from_mapping(read_yaml(path))
+        return RobotParameters.from_mapping(values)
     except ParameterError as error:
         raise ParameterError(f'{path}: {error}') from None
 
@@ -41,7 +50,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         path = Path(text)
     else:
         raise ParameterError(f'unknown scenario {text!r}: use {" or ".join(SHAPES)}, or a scenario YAML path')
+    values = read_yaml(path)
     try:
-        return Scenario.from_mapping(read_yaml(path))
+        return Scenario.from_mapping(values)
     except ParameterError as error:
         raise ParameterError(f'{path}: {error}') from None

@@ -6,6 +6,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any, Mapping
 
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.keys import check_keys
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 
 _POSITIVE = (
@@ -64,9 +65,7 @@ class RobotParameters:
         if not isinstance(values, Mapping):
             raise ParameterError(f'robot parameters must be a mapping of names to values, got {values!r}')
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ParameterError(f'unknown robot parameter {unknown[0]!r} (known: {", ".join(sorted(known))})')
+        check_keys(values, known, 'robot parameter')
         missing = sorted(known - set(values))
         if missing:
             raise ParameterError(f'missing robot parameter {missing[0]!r}')

@@ -8,11 +8,16 @@ from typing import Any, Mapping
 import numpy as np
 
 from wallbot_sim.model.errors import ParameterError
+from wallbot_sim.model.keys import check_keys
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.trajectories import Circle, FigureEight, Reference, tangent_heading
 
 SHAPES = ('circle', 'figure8')
+SCENARIO_KEYS = ('name', 'reference', 'duration', 'initial_state')
+INITIAL_STATE_KEYS = ('x', 'y', 'theta', 'at_rest')
+REFERENCE_KEYS = {'circle': ('shape', 'radius', 'period', 'center'),
+                  'figure8': ('shape', 'amplitude', 'period', 'center')}
 
 
 @dataclass(frozen=True)
@@ -38,12 +43,16 @@ class Scenario:
     def from_mapping(cls, values: Mapping[str, Any]) -> Scenario:
         """From a parsed scenario file (see config/circle.yaml)."""
         try:
+            check_keys(values, SCENARIO_KEYS, 'scenario key')
             name = str(values['name'])
             reference = make_reference(values['reference'])
             duration = _number(values, 'duration')
             pose = values['initial_state']
-            initial = InitialPose(_number(pose, 'x'), _number(pose, 'y'), _number(pose, 'theta'),
-                                  bool(pose.get('at_rest', True)))
+            check_keys(pose, INITIAL_STATE_KEYS, 'initial_state key')
+            at_rest = pose.get('at_rest', True)
+            if not isinstance(at_rest, bool):
+                raise ParameterError(f'initial_state at_rest must be true or false, got {at_rest!r}')
+            initial = InitialPose(_number(pose, 'x'), _number(pose, 'y'), _number(pose, 'theta'), at_rest)
         except KeyError as missing:
             raise ParameterError(f'scenario is missing {missing.args[0]!r}') from None
         except (TypeError, AttributeError):
@@ -73,15 +82,16 @@ def moving_start(robot: Robot, reference: Reference, theta: float, t: float = 0.
 def make_reference(values: Mapping[str, Any]) -> Reference:
     """A circle or figure-8 from its parameters (shape, radius or amplitude, period, center)."""
     shape = values.get('shape')
+    if shape not in SHAPES:
+        raise ParameterError(f'unknown reference shape {shape!r} (use {" or ".join(SHAPES)})')
+    check_keys(values, REFERENCE_KEYS[shape], f'{shape} reference key')
     center = values.get('center', (0.0, 0.0))
     if not (isinstance(center, (list, tuple)) and len(center) == 2):
         raise ParameterError(f'reference center must be a pair [x, y], got {center!r}')
     center = (float(center[0]), float(center[1]))
     if shape == 'circle':
         return Circle(_number(values, 'radius'), _number(values, 'period'), center)
-    if shape == 'figure8':
-        return FigureEight(_number(values, 'amplitude'), _number(values, 'period'), center)
-    raise ParameterError(f'unknown reference shape {shape!r} (use {" or ".join(SHAPES)})')
+    return FigureEight(_number(values, 'amplitude'), _number(values, 'period'), center)
 
 
 def _number(values: Mapping[str, Any], key: str) -> float:

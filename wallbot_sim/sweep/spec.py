@@ -31,6 +31,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from wallbot_sim.config import load_robot_parameters, load_scenario, read_yaml
+from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DEFAULT_STEP, TIME_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS
@@ -81,11 +82,9 @@ def load_spec(path: str | Path) -> SweepSpec:
 
 def parse_spec(values: Any, folder: Path = Path('.')) -> SweepSpec:
     """A spec from its parsed YAML mapping; relative file paths in it are relative to ``folder``."""
-    if not isinstance(values, Mapping):
-        raise SweepError(f'a sweep spec is a mapping of keys to values, got {values!r}')
-    unknown = sorted(set(values) - set(SETTINGS) - set(VARIATION))
-    if unknown:
-        raise SweepError(f'unknown key {unknown[0]!r} (known: {", ".join(SETTINGS + VARIATION)})')
+    reason = unknown_key(values, SETTINGS + VARIATION, 'sweep spec key')
+    if reason is not None:
+        raise SweepError(reason)
     settings = _settings(values, folder)
     robot = values.get('robot')
     if robot is not None and not isinstance(robot, str):
@@ -185,8 +184,9 @@ def _vary(vary: Any) -> dict[str, tuple[float, float]]:
 
 
 def _robot_key(section: str, key: Any) -> None:
-    if key not in ROBOT_KEYS:
-        raise SweepError(f'{section}: {key!r} is not a robot-file key (known: {", ".join(ROBOT_KEYS)})')
+    reason = unknown_key({key: None}, ROBOT_KEYS, f'{section}: robot-file key')
+    if reason is not None:
+        raise SweepError(reason)
     if key == 'com_offset' and section == 'vary':
         raise SweepError('vary: com_offset is a pair; give its values in grid')
 
