@@ -68,7 +68,7 @@ from wallbot_sim.domain import claim_domain_id
 from wallbot_sim.graph import ChildProcesses, child_processes, cpu_seconds
 from wallbot_sim.model import ConstraintSelection, Robot
 from wallbot_sim.model.simulation import ENGINES, NUMBA
-from wallbot_sim.nodes.dynamics_loop import LATE_LIMIT
+from wallbot_sim.loop.status import LATE_LIMIT
 
 NODES = {'dynamics': 'wallbot_sim.nodes.dynamics', 'trajectory': 'wallbot_sim.nodes.trajectory',
          'constraint_config': 'wallbot_sim.nodes.constraint_config', 'recorder': 'wallbot_sim.nodes.recorder'}

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from typing import Callable
 
 from report import Report, add_write_docs_option
@@ -28,15 +29,11 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.compiled import compile_kernel
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.trajectories import sample_plan
-from wallbot_sim.nodes.dynamics_loop import ConstraintSwitch, DynamicsLoop, NewPlan, PreparedState
-from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.loop import ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, PreparedState
+from wallbot_sim.settings.dynamics import DynamicsSettings
 
-PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
-              real_time_factor=1.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
-              wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
-              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
-              snapshot_period=1.0, resume_wait=0.0, engine='numba', command_wait_timeout=30.0)
-"""The dynamics node's defaults, on the numba engine."""
+SETTINGS = DynamicsSettings(snapshot_period=1.0, resume_wait=0.0)
+"""The dynamics node's defaults (the numba engine), a snapshot a second, resuming nothing."""
 
 
 class EncodingGraph:
@@ -85,7 +82,7 @@ def running_loop(blocks: bool, heard: bool, factor: float) -> DynamicsLoop:
     plan = sample_plan(scenario.reference, 0.0, 1e4, 0.01)
     selection = messages.selection_from_switches(dict(belt=True, non_lateral=True, nonslip=True,
                                                       tangent_heading=True, trajectory_task=True))
-    loop = DynamicsLoop({**PARAMS, 'real_time_factor': factor, 'initial_x': float(plan.positions[0][0])},
+    loop = DynamicsLoop(replace(SETTINGS, real_time_factor=factor, initial_x=float(plan.positions[0][0])),
                         load_robot_parameters(None), EncodingGraph(blocks, heard), QuietLog(), Pacer(0, print))
     loop.post(ConstraintSwitch(selection, BaumgarteGains(5.0, 5.0)))
     loop.post(NewPlan(SampledReference(*plan), plan.times[0], plan.times[-1], messages.plan_is_final(plan)))

@@ -22,19 +22,20 @@ from wallbot_sim.model import BaumgarteGains, SampledReference
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
-from wallbot_sim.nodes.dynamics_loop import (BACKPRESSURE_TIMEOUT, BLOCK_PACED, COMMAND_WAIT_WARNING,
-                                             ConstraintSwitch, Decision, DynamicsLoop, NewPlan, ParameterChange, Pause,
-                                             PreparedState, RecordProgress, Reset, ResumeSnapshot, RunState, Step,
-                                             Teleport, TorqueCommand)
-from wallbot_sim.nodes import dynamics_loop, pacing
-from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.loop import (ConstraintSwitch, Decision, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause,
+                              PreparedState, RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
+                              TorqueCommand)
+from wallbot_sim.loop import blocks as loop_blocks
+from wallbot_sim.loop import loop as loop_module
+from wallbot_sim.loop import pacing
+from wallbot_sim.loop.blocks import BLOCK_PACED
+from wallbot_sim.loop.start import COMMAND_WAIT_WARNING
+from wallbot_sim.loop.waits import BACKPRESSURE_TIMEOUT
+from wallbot_sim.settings.dynamics import DynamicsSettings
 
 DT = 1e-3
-PARAMS = dict(initial_x=0.8, initial_y=0.0, initial_theta=0.0, initial_at_rest=True, rate_hz=1000, publish_every=1,
-              real_time_factor=0.0, command_timeout=0.5, max_wheel_torque=5.0, stop_at=0.0, wait_for_recorder=False,
-              wait_for_command=False, lockstep_every=0, lockstep_timeout=2.0, realtime_priority=0,
-              contact_model='ideal', adhesion_force=0.0, backpressure_window=200, clock_rate_hz=10.0,
-              snapshot_period=0.01, resume_wait=0.0, engine='python', command_wait_timeout=30.0)
+SETTINGS = DynamicsSettings(real_time_factor=0.0, resume_wait=0.0, engine=PYTHON)
+"""The node's defaults, at factor 0 (no pacing sleeps), resuming nothing, on the Python engine."""
 GAINS = BaumgarteGains(5.0, 5.0)
 SWITCHES = dict(belt=False, non_lateral=True, nonslip=True, tangent_heading=True)
 DRIVEN = ConstraintSwitch(messages.selection_from_switches({**SWITCHES, 'trajectory_task': False}), GAINS)
@@ -83,7 +84,8 @@ def virtual_wall_clock(monkeypatch) -> VirtualTime:
     over ahead of time, follows from the loop's logic, never from how busy the machine is."""
     clock = VirtualTime()
     monkeypatch.setattr(pacing, 'time', clock)
-    monkeypatch.setattr(dynamics_loop, 'time', clock)
+    monkeypatch.setattr(loop_module, 'time', clock)
+    monkeypatch.setattr(loop_blocks, 'time', clock)
     return clock
 
 
@@ -112,9 +114,9 @@ class FakeClock:
         return self.now
 
 
-def make_loop(**params):
+def make_loop(**settings):
     graph, log, clock = FakeGraph(), FakeLog(), FakeClock()
-    loop = DynamicsLoop({**PARAMS, **params}, load_robot_parameters(None), graph, log,
+    loop = DynamicsLoop(replace(SETTINGS, **settings), load_robot_parameters(None), graph, log,
                         Pacer(0, log.warning), clock=clock)
     return loop, graph, log, clock
 
@@ -149,7 +151,7 @@ def test_lockstep_waits_for_the_command_answering_each_published_state():
     loop.post(TorqueCommand((0.2, 0.2)))
     assert ticks(loop, 3) == [Decision.STEPPED, Decision.LOCKSTEP, Decision.LOCKSTEP]
     assert loop.sim.motor_torque == (0.2, 0.2) and loop.sim.steps == 1
-    clock.now += PARAMS['lockstep_timeout'] + 0.01  # a dead controller: lockstep gives up once
+    clock.now += SETTINGS.lockstep_timeout + 0.01  # a dead controller: lockstep gives up once
     assert ticks(loop, 3) == [Decision.STEPPED] * 3
     assert len(log.said('stepping on without lockstep until commands return')) == 1
     loop.post(TorqueCommand((0.1, 0.1)))
@@ -188,7 +190,7 @@ def test_a_command_is_held_for_command_timeout_then_zero_torque():
         applied.append(loop.sim.motor_torque)
     # the command came at t = 0; the steps from t = 0 .. 0.005 use it, the later ones do not
     assert applied == [(1.0, -1.0)] * 6 + [(0.0, 0.0)] * 2
-    assert loop.command_state() == 'timed out, zero torque' and loop.command_expired
+    assert loop.command_state() == 'timed out, zero torque' and loop.commands.expired
     assert len(log.said('zero torque from t = 0.006 s')) == 1
     loop.post(TorqueCommand((0.5, 0.5)))
     loop.tick()
@@ -250,7 +252,7 @@ def test_pause_resume_and_reset_transitions():
     published = len(graph.published)
     assert loop.tick() is Decision.STEPPED  # the reset state went out, then the first step from it
     assert graph.times[published:] == pytest.approx([0.0, DT])
-    assert loop.command is None and log.said('reset to the initial state at t = 0')
+    assert loop.commands.command is None and log.said('reset to the initial state at t = 0')
     np.testing.assert_array_equal(graph.published[published][1], graph.published[0][1])
 
 
@@ -340,7 +342,7 @@ def test_a_reset_waits_for_lockstep_s_pending_answer():
     assert ticks(loop, 3) == [Decision.LOCKSTEP] * 3 and loop.sim.steps == 1  # the answer to t = 0.001 is due
     loop.post(TorqueCommand((0.2, 0.2)))  # that answer: the reset comes after it
     loop.tick()
-    assert loop.sim.t == 0.0 and graph.times[-1] == 0.0 and loop.command is None
+    assert loop.sim.t == 0.0 and graph.times[-1] == 0.0 and loop.commands.command is None
 
 
 NEEDS_NUMBA = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
@@ -397,7 +399,7 @@ def test_a_renewal_from_the_step_the_loop_stands_at_continues_the_motion_to_the_
         np.testing.assert_array_equal(q, q_single)
 
 
-def resumed_driven_loop(**params):
+def resumed_driven_loop(**settings):
     """A driven loop with wait_for_command resuming the snapshot of step 5 of a run the graph saw
     up to step 8, its controller not yet there."""
     first, first_graph, _log, _clock = make_loop(snapshot_period=0.005)
@@ -405,7 +407,7 @@ def resumed_driven_loop(**params):
     first.post(TorqueCommand((0.4, -0.2)))
     ticks(first, 12)
     kept = next(s for s in first_graph.snapshots if s.steps == 5)
-    loop, graph, log, clock = make_loop(snapshot_period=0.005, resume_wait=2.0, wait_for_command=True, **params)
+    loop, graph, log, clock = make_loop(snapshot_period=0.005, resume_wait=2.0, wait_for_command=True, **settings)
     graph.controller = False
     loop.post(DRIVEN)
     loop.post(ResumeSnapshot(replace(kept, seen_until_ns=codec.to_nanoseconds(8 * DT))))
@@ -424,7 +426,7 @@ def test_a_resumed_driven_start_waits_for_its_controller_and_its_answer_as_a_sta
     graph.controller = True
     ticks(loop, 6)  # the catch-up (steps 6-8, unpublished), steps 9 and 10 go out
     assert graph.times == pytest.approx([0.009, 0.010]) and loop.status.state is RunState.WAITING_RESUMED_COMMAND
-    clock.now += 3 * PARAMS['lockstep_timeout']
+    clock.now += 3 * SETTINGS.lockstep_timeout
     assert ticks(loop, 3) == [Decision.NOT_READY] * 3 and graph.times == pytest.approx([0.009, 0.010])
     assert str(loop.status) == ('waiting for the first wheel_torque_cmd since the resume (the answer to the '
                                 't = 0.010 s state) for 6 s (wall), giving up after 30 s (command_wait_timeout)')
@@ -635,8 +637,8 @@ def run_as_fast_as_possible(blocks: bool) -> tuple[EncodingGraph, DynamicsLoop, 
     a recorder 30 steps of window behind, plans that end moving, a reset, stop_at. Events come while the
     loop waits: at factor 0 a running loop applies them at the next boundary, which a block moves."""
     graph, log, clock = EncodingGraph(blocks), FakeLog(), FakeClock()
-    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'snapshot_period': 0.007, 'backpressure_window': 30,
-                         'stop_at': 0.2405, 'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log,
+    loop = DynamicsLoop(replace(SETTINGS, engine=NUMBA, snapshot_period=0.007, backpressure_window=30, stop_at=0.2405,
+                                clock_rate_hz=100.0), load_robot_parameters(None), graph, log,
                         Pacer(0, log.warning), clock=clock)
     graph.recorder = True
     loop.post(TRACKING)
@@ -685,8 +687,8 @@ def run_paced(blocks: bool, events: dict[int, list] = PACED_EVENTS, ticks: int =
     """A paced tracking run on the numba engine (factor 20: a short sleep a step) with ``events`` between its
     states, and a recorder's progress every 7 ticks."""
     graph, log = EncodingGraph(blocks), FakeLog()
-    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 20.0, 'snapshot_period': 0.05,
-                         'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
+    loop = DynamicsLoop(replace(SETTINGS, engine=NUMBA, real_time_factor=20.0, snapshot_period=0.05, clock_rate_hz=100.0),
+                        load_robot_parameters(None), graph, log, Pacer(0, log.warning))
     for tick in range(ticks):
         for event in events.get(tick, []):
             loop.post(event)
@@ -767,8 +769,8 @@ def run_handed_over(blocks: bool, heard_every: int, applied_at: dict[int, int]) 
     and the loop's waits for 240 states."""
     graph, log = EncodingGraph(blocks, heard_every), FakeLog()
     pacer = CountingPacer(0, log.warning)
-    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': 2.0, 'snapshot_period': 0.05,
-                         'clock_rate_hz': 40.0, 'command_timeout': 1.0}, load_robot_parameters(None), graph, log,
+    loop = DynamicsLoop(replace(SETTINGS, engine=NUMBA, real_time_factor=2.0, snapshot_period=0.05, clock_rate_hz=40.0,
+                                command_timeout=1.0), load_robot_parameters(None), graph, log,
                         pacer)
     given, pending, ticks = dict(applied_at), sorted(HANDED_OVER_EVENTS), 0
     while len(graph.published) < 240 and ticks < 1000:
@@ -819,9 +821,9 @@ def run_driven(blocks: bool, factor: float, lockstep_every: int = 0, events: dic
     with ``lockstep_every``, a controller answers each state the loop waits on at once, with a torque of its time.
     ``heard_every``: which states a subscriber outside the process takes (``EncodingGraph``)."""
     graph, log = EncodingGraph(blocks, heard_every), FakeLog()
-    loop = DynamicsLoop({**PARAMS, 'engine': NUMBA, 'real_time_factor': factor, 'snapshot_period': 0.05,
-                         'lockstep_every': lockstep_every, 'command_timeout': 0.03, 'stop_at': stop_at,
-                         'clock_rate_hz': 100.0}, load_robot_parameters(None), graph, log, Pacer(0, log.warning))
+    loop = DynamicsLoop(replace(SETTINGS, engine=NUMBA, real_time_factor=factor, snapshot_period=0.05,
+                                lockstep_every=lockstep_every, command_timeout=0.03, stop_at=stop_at, clock_rate_hz=100.0),
+                        load_robot_parameters(None), graph, log, Pacer(0, log.warning))
     for tick in range(ticks):
         for event in events.get(tick, []):
             loop.post(event)

@@ -198,9 +198,11 @@ class Fuzzer:
 def restore(fuzzer: Fuzzer) -> None:
     # plan length first (horizon >= 10 sample_dt must hold at every step), then the rest
     first = ('sample_dt', 'horizon') if fuzzer.current['trajectory']['horizon'] >= 0.5 else ('horizon', 'sample_dt')
-    trajectory = {'use_sim_time': True, **{k: TRAJECTORY_DEFAULTS[k] for k in first}, **TRAJECTORY_DEFAULTS}
+    trajectory = {**{k: TRAJECTORY_DEFAULTS[k] for k in first}, **TRAJECTORY_DEFAULTS}
     for node, defaults in (('trajectory', trajectory), ('dynamics', DYNAMICS_DEFAULTS)):
         for name, value in defaults.items():  # one by one: each must be accepted
+            if name == 'use_sim_time':  # read-only on both (each keeps its clock): the fuzz could not change it
+                continue
             result = fuzzer.set_parameters(node, [parameter_msg(name, value)])[0]
             assert result.successful, f'restoring {node} {name} = {value} refused: {result.reason}'
 

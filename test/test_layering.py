@@ -41,11 +41,13 @@ def test_every_layering_contract_is_kept(linter):
     ('wallbot_sim/cli/compare.py', 'from wallbot_sim.cli import plot', 'never imports another verb'),
     ('wallbot_sim/model/robot.py', 'import rclpy', 'wallbot_sim.model is pure NumPy'),
     ('wallbot_sim/rundata/load.py', 'from wallbot_sim.cli.errors import CliError', 'know nothing of the command line'),
-    ('wallbot_sim/nodes/dynamics_loop.py', 'import rclpy',
-     'the dynamics loop, its pacer, its resume gate, its sensor noise and its step tap know no ROS'),
+    ('wallbot_sim/loop/blocks.py', 'import rclpy',
+     'the dynamics loop (its package), its settings, its sensor noise and its step tap know no ROS'),
+    ('wallbot_sim/settings/table.py', 'import rcl_interfaces',
+     'the dynamics loop (its package), its settings, its sensor noise and its step tap know no ROS'),
     ('wallbot_sim/urdf.py', 'import std_msgs', 'the URDF generator knows no ROS'),
     ('wallbot_sim/view.py', 'import visualization_msgs', 'what the viewer draws and encodes'),
-], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'urdf', 'view'])
+], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'settings', 'urdf', 'view'])
 def test_a_broken_contract_fails(linter, tmp_path, module, line, contract):
     """The same check on a copy with one forbidden import added fails, naming the contract."""
     for package in ('wallbot_sim', 'wallbot_msgs_py'):

@@ -33,7 +33,7 @@ from wallbot_sim import messages  # noqa: E402
 from wallbot_sim.config import load_robot_parameters  # noqa: E402
 from wallbot_sim.model import ConstraintSelection, FigureEight, Robot, Simulation  # noqa: E402
 from wallbot_sim.model.trajectories import sample_plan  # noqa: E402
-from wallbot_sim.nodes.dynamics import CONTROL_ODOM_EVERY  # noqa: E402
+from wallbot_sim.settings.dynamics import CONTROL_ODOM_EVERY  # noqa: E402
 
 
 @pytest.fixture

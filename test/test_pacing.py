@@ -12,8 +12,8 @@ import threading
 import pytest
 
 from scheduling_helpers import VirtualTime, may_use_fifo
-from wallbot_sim.nodes import pacing
-from wallbot_sim.nodes.pacing import Pacer
+from wallbot_sim.loop import pacing
+from wallbot_sim.loop.pacing import Pacer
 
 
 class Scheduler:

@@ -393,7 +393,7 @@ def test_a_starved_recorder_gets_every_command_of_a_back_pressure_window(process
 
     from wallbot_msgs_py import topics
     from wallbot_msgs_py.qos import qos_profile
-    from wallbot_sim.nodes.dynamics import BACKPRESSURE_WINDOW
+    from wallbot_sim.settings.dynamics import BACKPRESSURE_WINDOW
     from wallbot_sim.nodes.recorder import message_class
 
     stepped = (*topics.STEP_STAMPED, topics.CLOCK)

@@ -12,7 +12,7 @@ from wallbot_msgs_py import bagio, topics
 from wallbot_msgs_py.snapshot import LENGTH, DynamicsSnapshot, SnapshotKeeper, decode_snapshot, encode_snapshot
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
-from wallbot_sim.nodes.resume import KEEPER_ANSWER, ResumeGate
+from wallbot_sim.loop.resume import KEEPER_ANSWER, ResumeGate
 
 MS = 1_000_000
 

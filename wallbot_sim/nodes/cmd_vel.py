@@ -38,36 +38,27 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.sampling import ControlInstants, Rewind
-from wallbot_sim.control.wheel_speed import (GAIN, POSITIVE_LIMIT, SPEED_LOOP_RATE_HZ, AxisLimits,
-                                             WheelSpeedController, WheelSpeedSettings)
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, declare, param_dict,
-                                     parameter_result, run, subscribe_odom_when_recorded)
+from wallbot_sim.control.wheel_speed import AxisLimits, WheelSpeedController, WheelSpeedSettings
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, run, subscribe_odom_when_recorded
+from wallbot_sim.nodes.parameters import declare_setting, declare_typed, param_dict, parameter_result
+from wallbot_sim.settings.drives import CMD_VEL, CmdVelSettings
+from wallbot_sim.settings.table import changed, parameters
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
-GEOMETRY = NumberRange(1e-4, 10.0)
-TIMEOUT = NumberRange(1e-3, 1e3)
-RANGES = {
-    'wheel_separation': GEOMETRY, 'wheel_radius': GEOMETRY, 'cmd_vel_timeout': TIMEOUT,
-    'linear.x.max_velocity': POSITIVE_LIMIT, 'linear.x.max_acceleration': POSITIVE_LIMIT,
-    'angular.z.max_velocity': POSITIVE_LIMIT, 'angular.z.max_acceleration': POSITIVE_LIMIT,
-    'wheel_speed_kp': GAIN, 'wheel_speed_ki': GAIN, 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
-}
+TUNED = ('wheel_separation', 'wheel_radius', 'cmd_vel_timeout', 'linear.x.max_velocity', 'linear.x.max_acceleration',
+         'angular.z.max_velocity', 'angular.z.max_acceleration', 'wheel_speed_kp', 'wheel_speed_ki',
+         'max_wheel_torque')
+"""The settings of the wheel-speed loop (changeable while the node runs)."""
 
 
-def check_values(values: dict) -> list[str]:
-    """Reasons why a full set of the node's parameters is unusable (empty if fine)."""
-    return [reason for name, allowed in RANGES.items() if (reason := allowed.reason(name, values[name]))]
-
-
-def settings(values: dict) -> WheelSpeedSettings:
+def loop_settings(settings: CmdVelSettings) -> WheelSpeedSettings:
+    """What the wheel-speed loop needs of the node's settings."""
     return WheelSpeedSettings(
-        float(values['wheel_separation']), float(values['wheel_radius']),
-        AxisLimits(float(values['linear.x.max_velocity']), float(values['linear.x.max_acceleration'])),
-        AxisLimits(float(values['angular.z.max_velocity']), float(values['angular.z.max_acceleration'])),
-        float(values['cmd_vel_timeout']), float(values['wheel_speed_kp']), float(values['wheel_speed_ki']),
-        float(values['max_wheel_torque']))
+        settings.wheel_separation, settings.wheel_radius,
+        AxisLimits(settings.linear_max_velocity, settings.linear_max_acceleration),
+        AxisLimits(settings.angular_max_velocity, settings.angular_max_acceleration),
+        settings.cmd_vel_timeout, settings.wheel_speed_kp, settings.wheel_speed_ki, settings.max_wheel_torque)
 
 
 class CmdVelNode(Node):
@@ -75,36 +66,12 @@ class CmdVelNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_CMD_VEL, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
-        robot_file = declare(self, 'robot_file', '', 'robot parameter YAML giving the default wheel_separation and '
-                             'wheel_radius; empty = installed config/robot.yaml', read_only=True)
+        robot_file, _refused = declare_setting(self, CMD_VEL['robot_file'], '')
         robot = load_robot_parameters(robot_file or None)
-        defaults = WheelSpeedSettings(2.0 * robot.half_track, robot.wheel_radius, AxisLimits(0.5, 1.0),
-                                      AxisLimits(2.0, 4.0))
-        self.use_stamped = bool(declare(self, 'use_stamped_vel', True, 'cmd_vel is geometry_msgs/TwistStamped '
-                                        '(false: geometry_msgs/Twist)', read_only=True))
-        self.rate_hz = declare(self, 'rate_hz', SPEED_LOOP_RATE_HZ, 'control rate in simulation time (Hz)', low=1, high=1000,
-                               read_only=True)
-        described = {
-            'wheel_separation': (defaults.wheel_separation, "distance between the left and right wheels (m; "
-                                 "default: the robot file's 2 half_track)"),
-            'wheel_radius': (defaults.wheel_radius, "wheel radius (m; default: the robot file's)"),
-            'cmd_vel_timeout': (defaults.cmd_vel_timeout, 'seconds of simulation time after which the last cmd_vel '
-                                'counts as zero'),
-            'linear.x.max_velocity': (defaults.linear.max_velocity, 'largest |linear.x| (m/s)'),
-            'linear.x.max_acceleration': (defaults.linear.max_acceleration, 'largest change of linear.x (m/s^2)'),
-            'angular.z.max_velocity': (defaults.angular.max_velocity, 'largest |angular.z| (rad/s)'),
-            'angular.z.max_acceleration': (defaults.angular.max_acceleration,
-                                           'largest change of angular.z (rad/s^2)'),
-            'wheel_speed_kp': (defaults.kp, 'proportional gain of the wheel-speed loop (N m per rad/s)'),
-            'wheel_speed_ki': (defaults.ki, 'integral gain of the wheel-speed loop (N m per rad)'),
-            'max_wheel_torque': (defaults.max_wheel_torque, "side torque limit (N m; the dynamics' limit)"),
-        }
-        self.values = {name: declare(self, name, float(default), description, allowed=RANGES[name])
-                       for name, (default, description) in described.items()}
-        reasons = check_values(self.values)
-        if reasons:
-            raise ValueError('; '.join(reasons))
-        self.controller = WheelSpeedController(settings(self.values))
+        self.settings: CmdVelSettings = declare_typed(self, CmdVelSettings, CMD_VEL, {
+            'wheel_separation': 2.0 * robot.half_track, 'wheel_radius': robot.wheel_radius})
+        self.use_stamped, self.rate_hz = self.settings.use_stamped_vel, self.settings.rate_hz
+        self.controller = WheelSpeedController(loop_settings(self.settings))
         self.instants = ControlInstants(int(self.rate_hz))
         self.now_ns: int | None = None
         """The newest odometry stamp: simulation time as this node knows it."""
@@ -116,12 +83,12 @@ class CmdVelNode(Node):
         self.commands = HeldCommands(self, publisher, topics.ODOM.name)
         self.create_subscription(TwistStamped if self.use_stamped else Twist, topics.CMD_VEL.name, self._on_cmd_vel,
                                  qos_profile(topics.CMD_VEL), raw=True)
-        subscribe_odom_when_recorded(self, publisher, self._subscribe_odom)
+        subscribe_odom_when_recorded(self, self.settings.wait_for_recorder, publisher, self._subscribe_odom)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
             f'cmd_vel ({"TwistStamped" if self.use_stamped else "Twist"}) -> wheel_torque_cmd at {self.rate_hz} Hz '
-            'of simulation time; ' + ', '.join(f'{name} {value:g}' for name, value in self.values.items()))
+            'of simulation time; ' + ', '.join(f'{name} {parameters(self.settings)[name]:g}' for name in TUNED))
 
     def _subscribe_odom(self) -> None:
         # raw: of the 1 kHz odometry only the states acted on are decoded
@@ -175,14 +142,14 @@ class CmdVelNode(Node):
             self.get_logger().info('holding the command until the dynamics hears wheel_torque_cmd',
                                    throttle_duration_sec=THROTTLE)
 
-    def _on_set(self, parameters):
-        return parameter_result(check_values({**self.values, **param_dict(parameters, self.values)}))
+    def _on_set(self, parameters_):
+        return parameter_result(CMD_VEL.reasons(param_dict(parameters_)))
 
-    def _after_set(self, parameters) -> None:
-        changes = param_dict(parameters, self.values)
+    def _after_set(self, parameters_) -> None:
+        changes = param_dict(parameters_, TUNED)
         if changes:
-            self.values.update(changes)
-            self.controller.configure(settings(self.values))
+            self.settings = changed(self.settings, changes)
+            self.controller.configure(loop_settings(self.settings))
             self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
 

@@ -1,23 +1,20 @@
-"""Small helpers shared by the nodes: parameter declaration with descriptors, signal handling, a clean main()."""
+"""Small helpers shared by the nodes: signal handling, a clean main(), discovery checks, held commands."""
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 import signal
 import sys
 import threading
 import time
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Sequence
 
 import rclpy
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 from rclpy.signals import SignalHandlerOptions
 from rclpy.timer import Timer
@@ -25,89 +22,12 @@ from rclpy.timer import Timer
 from wallbot_msgs_py import topics
 from wallbot_sim.heartbeat import NODE_HEARTBEAT, install_heartbeat
 from wallbot_sim.model import ModelError
-from wallbot_sim.model.numbers import NumberRange
 
-COORDINATE = NumberRange(-1e4, 1e4)
-"""A position on the wall (m) as a parameter: no wall is 10 km wide."""
 ROBOT_CLOCK_ARGS = ['--ros-args', '-r', topics.ROBOT_CLOCK_REMAP]
 """Node arguments (``Node(cli_args=...)``) of every node that follows simulation time: its
 ``use_sim_time`` time source, which rclpy subscribes on the absolute ``/clock``, follows the
 robot's own ``clock`` in the node's namespace instead (whatever ``-r __ns:=`` made it), so several
 robots in one domain each keep their own time. Node-local rules come before the command line's."""
-FRAME_PREFIX_DESCRIPTION = ("comes before the robot's own frames, base_frame_id and the wheel links (e.g. "
-                            'robot2/ for a second robot; the wall, odom_frame_id, is not prefixed), as '
-                            "robot_state_publisher's frame_prefix; set it alike on the dynamics, constraint_config "
-                            'and the viewer')
-"""The ``frame_prefix`` parameter of every node that names the robot's frames."""
-WHEEL_TORQUE_LIMIT = NumberRange(1e-3, 1e4)
-"""The largest |torque| per side a wheel_torque_cmd may carry (N m): the dynamics refuses larger
-commands, the controller clamps to it."""
-
-
-def declare(node: Node, name: str, default, description: str, *, allowed: NumberRange | None = None,
-            low: float | None = None, high: float | None = None, choices: Sequence[str] = (),
-            read_only: bool = False):
-    """Declare ``name`` with a descriptor a ROS user can discover; return its value.
-
-    A numeric parameter needs ``allowed``, a range with both ends: the descriptor carries the
-    closed interval holding every value it accepts (``ros2 param describe`` shows it), and the
-    node's own check refuses, with the same ``allowed``, every value outside it (rclpy lets values
-    within 1e-6 relative of an end through) and what an interval cannot say (a gap like "0 or
-    at least 0.001"). A start value it refuses is a ValueError in its words. An enumerated string
-    parameter lists its ``choices`` in the description and in ``additional_constraints``, as the
-    ROS tools show them. ``low`` and ``high`` are short for ``allowed=NumberRange(low, high)``.
-    """
-    if low is not None or high is not None:
-        allowed = NumberRange(low, high)
-    numeric = isinstance(default, (int, float)) and not isinstance(default, bool)
-    if numeric != (allowed is not None):
-        raise TypeError(f'parameter {name}: a range is given for a number, and only for a number')
-    descriptor = ParameterDescriptor(description=description)
-    if choices:
-        descriptor.additional_constraints = choice_words(choices)
-        descriptor.description = f'{description} ({descriptor.additional_constraints})'
-    # declared first without a range or read-only (rclpy keeps this object: a copy is declared)
-    value = node.declare_parameter(name, default, copy.copy(descriptor)).value
-    if allowed is not None:
-        # the node's own words for a refused start value, not rclpy's range exception
-        reason = allowed.reason(name, value)
-        if reason:
-            raise ValueError(reason)
-        start, end = allowed.bounds()
-        if start is None or end is None:
-            raise TypeError(f'parameter {name}: a descriptor range needs both ends')
-        if isinstance(default, int):
-            descriptor.integer_range = [IntegerRange(from_value=int(start), to_value=int(end), step=1)]
-        else:
-            descriptor.floating_point_range = [FloatingPointRange(from_value=float(start), to_value=float(end),
-                                                                  step=0.0)]
-    descriptor.read_only = read_only
-    descriptor.type = node.describe_parameter(name).type
-    node.set_descriptor(name, descriptor)
-    return value
-
-
-def choice_words(choices: Sequence[str]) -> str:
-    """How an enumerated parameter's allowed values are written: 'one of: a, b'."""
-    return 'one of: ' + ', '.join(choices)
-
-
-def choice_reason(name: str, value: object, choices: Sequence[str]) -> str | None:
-    """The one-line reason why ``value`` is not one of ``choices``, or None."""
-    return None if value in choices else f'{name} must be one of {", ".join(choices)}, got {value!r}'
-
-
-def range_reasons(values: dict, ranges: dict[str, NumberRange]) -> list[str]:
-    """The reasons why the numbers among ``values`` are refused by their ``ranges`` (names not in
-    ``values`` are not checked)."""
-    return [reason for name, allowed in ranges.items() if name in values
-            for reason in [allowed.reason(name, values[name])] if reason]
-
-
-def parameter_result(reasons: Iterable[str | None]) -> SetParametersResult:
-    """Successful unless a reason is given; the reasons are what ``ros2 param set`` prints."""
-    problems = [reason for reason in reasons if reason]
-    return SetParametersResult(successful=not problems, reason='; '.join(problems))
 
 
 class StopSignals:
@@ -304,12 +224,6 @@ def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Tim
     return node.create_timer(period, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
-def param_dict(parameters: list[Parameter], known: Iterable[str] | None = None) -> dict[str, object]:
-    """{name: value} of a parameter callback's list; only the names in ``known`` when given."""
-    names = None if known is None else set(known)
-    return {p.name: p.value for p in parameters if names is None or p.name in names}
-
-
 class WhenRecorded:
     """Runs ``action`` once, when a recorder hears every one of ``publishers`` (a node's ``wait_for_recorder``).
 
@@ -342,15 +256,15 @@ class WhenRecorded:
         self.action()
 
 
-def subscribe_odom_when_recorded(node: Node, command_pub: Publisher, subscribe_odom: Callable[[], None]) -> None:
-    """A commander's (tracking controller, cmd_vel node) read-only ``wait_for_recorder``, declared
-    here: with it, ``subscribe_odom`` runs once a recorder hears ``command_pub``; without, at once.
+def subscribe_odom_when_recorded(node: Node, wait_for_recorder: bool, command_pub: Publisher,
+                                 subscribe_odom: Callable[[], None]) -> None:
+    """A commander's (tracking controller, cmd_vel node) ``wait_for_recorder``: with it, ``subscribe_odom`` runs
+    once a recorder hears ``command_pub``; without, at once.
 
     A dynamics waiting for its commander (its wait_for_command) starts when the commander
     subscribes odom: the recorder must hear the run's first commands.
     """
-    if declare(node, 'wait_for_recorder', False, 'subscribe odom only once a recorder (record_progress) is '
-               'matched on wheel_torque_cmd, so a recording holds every command', read_only=True):
+    if wait_for_recorder:
         WhenRecorded(node, [command_pub], subscribe_odom, 'a recorder hears wheel_torque_cmd: subscribing odom')
     else:
         subscribe_odom()

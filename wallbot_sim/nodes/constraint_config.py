@@ -27,14 +27,10 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (FRAME_PREFIX_DESCRIPTION, ROBOT_CLOCK_ARGS, WhenRecorded, declare, param_dict,
-                                      parameter_result, range_reasons, run)
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run
+from wallbot_sim.nodes.parameters import declare_setting, declare_settings, param_dict, parameter_result
+from wallbot_sim.settings.config import CONSTRAINT_CONFIG, ROBOT_GAINS
 from wallbot_sim.urdf import RobotFrames, robot_urdf
-
-GAIN_RANGE = NumberRange(1e-6, 1e4)
-"""What each Baumgarte gain accepts (1/s): the model's "> 0" written as a range a descriptor can
-carry (1e-6 1/s is no stabilization in any run's time)."""
 
 
 class ConstraintConfigNode(Node):
@@ -43,30 +39,19 @@ class ConstraintConfigNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS,
                          **kwargs)
-        self.switches = {switch.parameter: bool(declare(self, switch.parameter, switch.default, switch.description))
-                         for switch in topics.CONSTRAINT_MODULES.values()}
-        robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
-                             'the default gains and the robot_description', read_only=True)
-        frames = RobotFrames(
-            declare(self, 'odom_frame_id', topics.WALL_FRAME, "the URDF's root link: the odometry's frame (the wall)",
-                    read_only=True),
-            declare(self, 'base_frame_id', topics.BASE_FRAME, "the URDF's chassis link, after frame_prefix: the "
-                    "odometry's child frame", read_only=True),
-            declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True))
+        robot_file, _refused = declare_setting(self, CONSTRAINT_CONFIG['robot_file'], '')
         params = load_robot_parameters(robot_file or None)
+        values = declare_settings(self, CONSTRAINT_CONFIG, {'baumgarte_alpha': params.baumgarte_alpha,
+                                                            'baumgarte_beta': params.baumgarte_beta})
+        self.switches = {switch.parameter: values[switch.parameter] for switch in topics.CONSTRAINT_MODULES.values()}
+        frames = RobotFrames(values['odom_frame_id'], values['base_frame_id'], values['frame_prefix'])
         urdf = robot_urdf(params, frames)  # before anything is published: unusable frames stop the node here
-        gains = BaumgarteGains(params.baumgarte_alpha, params.baumgarte_beta)
-        self.gains = {
-            name: declare(self, name, float(value), description, allowed=GAIN_RANGE)
-            for name, value, description in (('baumgarte_alpha', gains.alpha, 'Baumgarte gain alpha (1/s)'),
-                                             ('baumgarte_beta', gains.beta, 'Baumgarte gain beta (1/s)'))
-        }
+        self.gains = {name: values[name] for name in ROBOT_GAINS}
         self.publisher = self.create_publisher(DiagnosticStatus, topics.CONSTRAINTS.name,
                                                qos_profile(topics.CONSTRAINTS))
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.held = declare(self, 'wait_for_recorder', False, 'publish the first constraint set only once a '
-                            'recorder (record_progress) is matched on constraints', read_only=True)
+        self.held = values['wait_for_recorder']
         if self.held:
             WhenRecorded(self, [self.publisher], self._release, 'a recorder hears constraints: publishing the set')
         else:
@@ -78,13 +63,8 @@ class ConstraintConfigNode(Node):
                                f'{robot_file or "the installed robot file"}, links {frames.odom} -> '
                                f'{frames.base_link} -> {frames.wheel_link(topics.WHEEL_JOINTS[0])}, ...')
 
-    @staticmethod
-    def _check(values: dict) -> str | None:
-        return '; '.join(range_reasons(values, dict.fromkeys(codec.GAINS, GAIN_RANGE))) or None
-
     def _on_set(self, parameters):
-        values = param_dict(parameters)
-        return parameter_result([self._check(values)])
+        return parameter_result(CONSTRAINT_CONFIG.reasons(param_dict(parameters)))
 
     def _after_set(self, parameters) -> None:
         changed = False

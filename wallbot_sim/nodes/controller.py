@@ -47,20 +47,18 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import ControllerGains, TrackingController
-from wallbot_sim.control.sampling import (CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, Rewind, SampledController,
-                                          controller_robot)
-from wallbot_sim.control.tracking import GAIN_RANGES
+from wallbot_sim.control.sampling import Rewind, SampledController, controller_robot
 from wallbot_sim.model import ModelError, Robot, SampledReference
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
+from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.model.trajectories import STAMP_RESOLUTION
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, HeldCommands, choice_reason, declare,
-                                      param_dict, parameter_result, range_reasons, run, subscribe_odom_when_recorded)
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, run, subscribe_odom_when_recorded
+from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
+from wallbot_sim.settings.controller import CONTROLLER, GAIN_NAMES, ControllerSettings
+from wallbot_sim.settings.table import changed
 
 NODE_NAME = 'controller'
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
-GAIN_NAMES = ('alpha', 'beta', 'look_ahead', 'integral', 'integral_zone')
 KEPT_PLANS = 3
 """Plans kept: the newest one that has started is used, so a plan that starts a little after
 the state being handled (the trajectory node replans from its own view of the clock) never
@@ -89,63 +87,22 @@ class Plans:
         return self.plans[0][1].sample(t)
 
 
-RANGES = {**GAIN_RANGES, 'rate_hz': NumberRange(1, 1000), 'mass_scale': NumberRange(1e-3, 1e3),
-          'max_wheel_torque': WHEEL_TORQUE_LIMIT}
-"""What each numeric parameter accepts: its descriptor's range and the node's own check."""
-
-
-def check_values(values: dict) -> list[str]:
-    """Reasons why a full set of controller parameters is unusable (empty if fine)."""
-    return range_reasons(values, RANGES)
-
-
 class ControllerNode(Node):
     """odom + reference_trajectory -> wheel_torque_cmd at rate_hz of simulation time."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
-        defaults = ControllerGains()
-        self.values = {
-            'rate_hz': declare(self, 'rate_hz', CONTROL_RATE_HZ, 'control rate in simulation time (Hz; 1000 / rate_hz '
-                               'should be a whole number of dynamics steps)', allowed=RANGES['rate_hz']),
-            'alpha': declare(self, 'alpha', defaults.alpha, 'velocity gain 2 alpha of the look-ahead task (1/s)',
-                             allowed=RANGES['alpha']),
-            'beta': declare(self, 'beta', defaults.beta, 'position gain beta^2 of the look-ahead task (1/s)',
-                            allowed=RANGES['beta']),
-            'look_ahead': declare(self, 'look_ahead', defaults.look_ahead,
-                                  'distance of the steered point ahead of the centre (m)',
-                                  allowed=RANGES['look_ahead']),
-            'integral': declare(self, 'integral', defaults.integral, 'integral gain (1/s^3; 0 = off)',
-                                allowed=RANGES['integral']),
-            'integral_zone': declare(self, 'integral_zone', defaults.integral_zone,
-                                     'integrate the error only within this distance of the path (m)',
-                                     allowed=RANGES['integral_zone']),
-            'robot_file': declare(self, 'robot_file', '', "the controller's robot parameter YAML; "
-                                  'empty = installed config/robot.yaml', read_only=True),
-            'mass_scale': declare(self, 'mass_scale', 1.0, "body_mass of the controller's robot copy relative to "
-                                  "the file's (model mismatch)", allowed=RANGES['mass_scale']),
-            'max_wheel_torque': declare(self, 'max_wheel_torque', MAX_WHEEL_TORQUE,
-                                        "commands are clamped to +-this (N m; the dynamics' limit)",
-                                        allowed=RANGES['max_wheel_torque']),
-            'engine': declare(self, 'engine', PYTHON,
-                              'how the control law computes its inverse dynamics: python (the model), or numba (the '
-                              "batch's compiled kernel, the same torques to round-off at a fraction of the CPU; it "
-                              'compiles on first use on a machine, then loads from the cache)',
-                              choices=ENGINES, read_only=True),
-        }
-        reason = choice_reason('engine', self.values['engine'], ENGINES)
-        if reason:
-            raise ValueError(reason)
-        self.file_params = load_robot_parameters(self.values['robot_file'] or None)
+        self.settings: ControllerSettings = declare_typed(self, ControllerSettings, CONTROLLER)
+        self.file_params = load_robot_parameters(self.settings.robot_file or None)
         self.plans = Plans()
-        self.controller = TrackingController(self._robot(self.values['mass_scale']), None, self._gains(self.values),
-                                             self.values['engine'])
-        if self.values['engine'] == NUMBA:
+        self.controller = TrackingController(self._robot(self.settings.mass_scale), None, self._gains(self.settings),
+                                             self.settings.engine)
+        if self.settings.engine == NUMBA:
             # before the first state can come: a first call would compile or load the kernel, seconds to a minute
             from wallbot_sim.model.compiled import compile_inverse_dynamics
             compile_inverse_dynamics()
         self.controller.reference = self.plans
-        self.loop = SampledController(self.controller, self.values['rate_hz'], float(self.values['max_wheel_torque']))
+        self.loop = SampledController(self.controller, self.settings.rate_hz, self.settings.max_wheel_torque)
         self.pending: bytes | None = None
         self.commands = 0
         self.clamped = 0
@@ -154,23 +111,23 @@ class ControllerNode(Node):
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
                                  qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)
-        subscribe_odom_when_recorded(self, self.command_pub, self._subscribe_odom)
+        subscribe_odom_when_recorded(self, self.settings.wait_for_recorder, self.command_pub, self._subscribe_odom)
         self.delivery = HeldCommands(self, self.command_pub, topics.ODOM.name)
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         self.get_logger().info(
-            f'tracking controller at {self.values["rate_hz"]} Hz of simulation time, '
-            f'{self.values["engine"]} engine, mass_scale {self.values["mass_scale"]:g} '
+            f'tracking controller at {self.settings.rate_hz} Hz of simulation time, '
+            f'{self.settings.engine} engine, mass_scale {self.settings.mass_scale:g} '
             f'(body_mass {self.controller.robot.params.body_mass:g} kg), '
-            + ', '.join(f'{name} {self.values[name]:g}' for name in GAIN_NAMES))
+            + ', '.join(f'{name} {getattr(self.settings, name):g}' for name in GAIN_NAMES))
 
     # --- model ---------------------------------------------------------------------------------
     def _robot(self, mass_scale: float) -> Robot:
         return controller_robot(self.file_params, mass_scale)
 
     @staticmethod
-    def _gains(values: dict) -> ControllerGains:
-        return ControllerGains(**{name: float(values[name]) for name in GAIN_NAMES})
+    def _gains(settings: ControllerSettings) -> ControllerGains:
+        return ControllerGains(**{name: getattr(settings, name) for name in GAIN_NAMES})
 
     # --- start-up -----------------------------------------------------------------------------
     def _subscribe_odom(self) -> None:
@@ -228,8 +185,8 @@ class ControllerNode(Node):
 
     # --- parameters ----------------------------------------------------------------------------
     def _on_set(self, parameters):
-        changes = param_dict(parameters, self.values)
-        reasons = check_values({**self.values, **changes})
+        changes = param_dict(parameters)
+        reasons = CONTROLLER.reasons(changes)
         if not reasons and 'mass_scale' in changes:
             try:
                 self._robot(changes['mass_scale'])
@@ -238,20 +195,19 @@ class ControllerNode(Node):
         return parameter_result(reasons)
 
     def _after_set(self, parameters) -> None:
-        changes = param_dict(parameters, self.values)
+        changes = param_dict(parameters, CONTROLLER.names)
         if not changes:
             return
-        self.values.update(changes)
+        self.settings = changed(self.settings, changes)
         if set(changes) & set(GAIN_NAMES):
-            self.controller.gains = self._gains(self.values)
+            self.controller.gains = self._gains(self.settings)
         if 'mass_scale' in changes:
-            self.controller.robot = self._robot(self.values['mass_scale'])
+            self.controller.robot = self._robot(self.settings.mass_scale)
         if 'max_wheel_torque' in changes:
-            self.loop.max_wheel_torque = float(self.values['max_wheel_torque'])
+            self.loop.max_wheel_torque = self.settings.max_wheel_torque
         if 'rate_hz' in changes:
-            self.loop.set_rate(self.values['rate_hz'])
+            self.loop.set_rate(self.settings.rate_hz)
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
-
 
 def main(args: list[str] | None = None) -> None:
     sys.exit(run(ControllerNode, args, events=True))

@@ -1,51 +1,19 @@
 """dynamics_node: the constrained model integrated with RK4, owning simulation time: its robot's
 ``clock`` (and the domain's ``/clock`` with ``domain_clock``, topics.DOMAIN_CLOCK).
 
-Threads. The stepping runs in a dedicated loop thread (``dynamics_loop``, which holds the loop's
-state and decisions, free of ROS); the executor (main thread) only receives messages, service
-calls and parameter sets and hands them to the loop as typed events, which the loop applies at
-the next step boundary. No physics runs in a callback.
+Threads. The stepping runs in a dedicated loop thread (``wallbot_sim.loop``, which holds the loop's
+state and decisions, free of ROS, and explains determinism, lockstep, back-pressure, blocks of steps
+and resume); the executor (main thread) only receives messages, service calls and parameter sets and
+hands them to the loop as typed events, which the loop applies at the next step boundary. No physics
+runs in a callback.
 
-Determinism. The loop does not integrate until it has a constraint set (``constraints``)
-and, while the trajectory task is on, a plan (``reference_trajectory``) covering the next
-step; both are transient-local. It never steps past the end of a plan that ends moving
-(it waits for the next plan instead), so the state sequence does not depend on pacing,
-CPU load or message timing: the same configuration gives the same states at any
-``real_time_factor``.
+Pacing (``loop.pacing``). At factor f > 0 each state is published when due (one anchor per run segment, so
+lateness never accumulates into drift), its lateness reported in /diagnostics. With ``realtime_priority`` > 0
+the loop thread runs under SCHED_FIFO for steps it sleeps before; off by default, since the latency it saves is
+shifted onto the rest of the graph (controllers, recorders) on a small machine.
 
-Pacing. At factor f > 0 the step reaching simulation time k*dt is computed ahead and
-published when due, at wall time anchor + k*dt/f (one anchor per run segment, re-anchored
-after a pause, a wait or a factor change, so lateness never accumulates into drift);
-lateness = publish time - due time is measured and reported in /diagnostics. With
-``realtime_priority`` > 0 the loop thread runs under SCHED_FIFO for steps it sleeps before, so
-a busy machine does not delay its wake-ups (``pacing``); off by default, since the latency it
-saves is shifted onto the rest of the graph (controllers, recorders) on a small machine.
-On the compiled engine with ideal contact (under the trajectory task, or driven under one torque),
-the loop computes blocks of steps ahead and publishes each state when due (``dynamics_loop``: an
-event drops the states not yet published, so it applies as between single steps). A state no
-subscriber outside the process hears (a composed recorder takes the per-step topics from its tap)
-is handed over ahead of time, logged at its due time, under the trajectory task or with lockstep:
-the loop wakes once per block and for the states that carry /clock or are heard outside.
-
-Back-pressure (lossless recording at any factor). DDS acknowledgements are not enough: a
-reliable KEEP_LAST reader acknowledges a sample once it is in its history, not once the
-application has taken it, so a recorder slower than the simulation still loses samples
-(measured: ``wait_for_all_acked`` every 200 steps returned within 4 ms while a slow
-subscriber lost 70 % of the samples), and acknowledgements may wait for Fast DDS's
-heartbeat period (up to 3 s per wait measured). So the recorder reports its progress
-instead: it publishes on ``record_progress`` (rosgraph_msgs/Clock, relative to the
-namespace) the newest /clock stamp up to which it has taken every message. While at least
-one publisher exists on that topic, the loop never runs more than ``backpressure_window`` steps
-(default 200, well below the recorded topics' depth of 1000) ahead of the reported progress: at
-factor 0 that paces the loop to the recorder; at factor 1 it only acts when the recorder falls
-behind (a loaded machine, or the burst of a loop catching up after a stall), which then slows the
-simulation instead of losing messages. Without a recorder it runs free.
-
-Resume. Every ``snapshot_period`` of simulation time and at every event (start, reset, pause,
-constraint switch, new plan, command) the loop publishes its full state on ``state_snapshot``
-(``wallbot_msgs_py.snapshot``); the recorder keeps the newest and republishes it, transient-local,
-on ``resume_state``. A node started again after a SIGKILL takes that snapshot at start and
-continues the run bit for bit (``resume``), ``~/reset`` being the explicit way back to t = 0.
+Parameters: the table ``settings.dynamics`` (ranges, choices and read-only flags in their descriptors).
+``use_sim_time`` is fixed at false: the node owns the clock.
 
 In process. Composed with the recorder (``dynamics_recorder``) the node also hands every step's
 messages to a ``StepTap``, and the topics it taps count as heard by the recorder.
@@ -78,66 +46,24 @@ from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_s
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.control.sampling import CONTROL_RATE_HZ, steps_per_period
-from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
+from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
+                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
+from wallbot_sim.loop.commands import THROTTLE
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
-from wallbot_sim.model.contact import CONTACT_MODELS, unheld_slip
-from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
-from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
-from wallbot_sim.nodes.common import (COORDINATE, FRAME_PREFIX_DESCRIPTION, WHEEL_TORQUE_LIMIT, choice_reason, declare,
-                                      heard_by_every, param_dict, parameter_result, range_reasons, run, steady_timer)
-from wallbot_sim.nodes.dynamics_loop import (THROTTLE, ConstraintSwitch, DynamicsLoop, NewPlan, ParameterChange, Pause,
-                                             PreparedState, RecordProgress, Reset, ResumeSnapshot, Step, Teleport,
-                                             TorqueCommand)
-from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY, Pacer
+from wallbot_sim.model.simulation import NUMBA
+from wallbot_sim.nodes.common import heard_by_every, run, steady_timer
+from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
+from wallbot_sim.settings.dynamics import DYNAMICS, NOISE_PARAMETERS, DynamicsSettings
+from wallbot_sim.settings.table import SettingsTable, changed
 from wallbot_sim.urdf import RobotFrames
 
-NOISE_PARAMETERS = {
-    'odom_noise_position': 'standard deviation of the Gaussian noise on the published odometry X and Y (m); '
-                           '0 = exact',
-    'odom_noise_heading': 'standard deviation of the noise on the published odometry yaw (rad); 0 = exact',
-    'odom_noise_linear': 'standard deviation of the noise on each linear velocity of the published odometry '
-                         '(m/s); 0 = exact',
-    'odom_noise_angular': 'standard deviation of the noise on the published odometry turning rate (rad/s); 0 = exact',
-    'encoder_noise': 'standard deviation of the noise on each wheel angle in wheel_states (rad); 0 = exact',
-    'encoder_velocity_noise': 'standard deviation of the noise on each wheel speed in wheel_states (rad/s); 0 = exact',
-}
-"""The sensor noise parameters, in the order of ``NoiseLevels``' fields. Any of them above 0 also
-publishes the exact state on ground_truth/odom."""
-RANGES = {
-    'initial_x': COORDINATE, 'initial_y': COORDINATE, 'initial_theta': NumberRange(-1e4, 1e4),
-    'rate_hz': NumberRange(1, 100_000), 'publish_every': NumberRange(1, 1_000_000),
-    'clock_rate_hz': NumberRange(1e-3, 1e6), 'control_odom_every': NumberRange(0, 1_000_000),
-    'real_time_factor': REAL_TIME_FACTOR,
-    'command_timeout': NumberRange(1e-3, 3600.0), 'max_wheel_torque': WHEEL_TORQUE_LIMIT,
-    'stop_at': NumberRange(0.0, 1e9), 'lockstep_every': NumberRange(0, 1_000_000),
-    'lockstep_timeout': NumberRange(0.01, 60.0), 'realtime_priority': REALTIME_PRIORITY,
-    'adhesion_force': NumberRange(0.0, 1e6), 'backpressure_window': NumberRange(1, 1_000_000),
-    'snapshot_period': NumberRange(0.0, 1e6), 'step_count': NumberRange(1, 1_000_000),
-    'resume_wait': NumberRange(0.0, 60.0), 'command_wait_timeout': NumberRange(0.0, 3600.0),
-    'odom_noise_position': NumberRange(0.0, 10.0), 'odom_noise_heading': NumberRange(0.0, 10.0),
-    'odom_noise_linear': NumberRange(0.0, 100.0), 'odom_noise_angular': NumberRange(0.0, 100.0),
-    'encoder_noise': NumberRange(0.0, 10.0), 'encoder_velocity_noise': NumberRange(0.0, 1000.0),
-    'noise_seed': NumberRange(0, 2**31 - 1),
-}
-"""What each numeric parameter accepts: its descriptor's range and the node's own check."""
-COMMAND_WAIT_TIMEOUT = 30.0
-"""Default command_wait_timeout (wall s). A controller started with the dynamics (``wallbot-sim run``,
-the launch file) is there within seconds; ``run`` gives the whole graph 60 s to record its first
-state, so a missing controller ends the run with the dynamics' reason before ``run``'s own limit. A
-controller started by hand later wants more, or 0."""
-CONTROL_ODOM_EVERY = math.gcd(steps_per_period(CONTROL_RATE_HZ), steps_per_period(SPEED_LOOP_RATE_HZ))
-"""Default control_odom_every (steps): every state either commander acts on at its default rate
-(20: the cmd_vel node's 50 Hz at 1 kHz; the tracking controller's 25 Hz is every 40th)."""
 BURST_CONTROL_ODOM_EVERY = 10
 """Smallest control_odom_every at which the loop publishes a block's states at once (factor 0) to a DDS
 subscriber of control_odom: five of its messages at most in a burst of 50 states."""
-BACKPRESSURE_WINDOW = 200
-"""Default backpressure_window (steps): how far the loop may run ahead of a recorder's progress, so
-how many steps' messages (and, at lockstep_every 1, commands) a starved recorder may owe."""
 MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
                  topics.WHEEL_CONTACT: JointState,
@@ -148,132 +74,51 @@ STEP_TOPICS = (*MESSAGE_TYPES, topics.GROUND_TRUTH_ODOM)
 
 
 class DynamicsNode(Node):
-    """The ROS interface of the simulation loop (``dynamics_loop``): parameters, topics, services,
+    """The ROS interface of the simulation loop (``wallbot_sim.loop``): parameters, topics, services,
     diagnostics, and the loop thread. ``tap``: a recorder in the same process also gets every
-    step's messages from it (the per-step topics it taps need no DDS subscriber to count as heard)."""
+    step's messages from it (the per-step topics it taps need no DDS subscriber to count as heard).
+    ``table``: the settings it declares (the composed process fixes some)."""
 
-    def __init__(self, tap: StepTap | None = None, **kwargs) -> None:
+    def __init__(self, tap: StepTap | None = None, table: SettingsTable = DYNAMICS, **kwargs) -> None:
         super().__init__(topics.NODE_DYNAMICS, namespace=topics.NAMESPACE, **kwargs)
-        self.tap = tap
-        p = {
-            'initial_x': declare(self, 'initial_x', 0.8, 'initial X of the centre (m); applies at start and reset',
-                                 allowed=RANGES['initial_x']),
-            'initial_y': declare(self, 'initial_y', 0.0, 'initial Y of the centre (m); applies at start and reset',
-                                 allowed=RANGES['initial_y']),
-            'initial_theta': declare(self, 'initial_theta', 0.0, 'initial heading (rad); applies at start and reset',
-                                     allowed=RANGES['initial_theta']),
-            'initial_at_rest': declare(self, 'initial_at_rest', True,
-                                       'start at rest; false: with the reference velocity at t = 0, wheels rolling'),
-            'robot_file': declare(self, 'robot_file', '', 'robot parameter YAML; empty = installed config/robot.yaml',
-                                  read_only=True),
-            'rate_hz': declare(self, 'rate_hz', 1000, 'integration rate (RK4 steps per second of simulation time)',
-                               allowed=RANGES['rate_hz']),
-            'publish_every': declare(self, 'publish_every', 1, 'publish every N steps',
-                                     allowed=RANGES['publish_every']),
-            'clock_rate_hz': declare(self, 'clock_rate_hz', messages.CLOCK_RATE_HZ,
-                                     'clock messages per second of simulation time (at most one per published '
-                                     'step, and always the state before a stop); the per-step topics carry '
-                                     'every published step', allowed=RANGES['clock_rate_hz'], read_only=True),
-            'control_odom_every': declare(self, 'control_odom_every', CONTROL_ODOM_EVERY,
-                                          'publish every Nth step\'s odometry on control_odom too, for controllers '
-                                          'acting every N steps or a multiple of N; 0 = never',
-                                          allowed=RANGES['control_odom_every']),
-            'real_time_factor': declare(self, 'real_time_factor', 1.0,
-                                        'simulation seconds per wall second; 0 = as fast as possible',
-                                        allowed=RANGES['real_time_factor']),
-            'command_timeout': declare(self, 'command_timeout', 0.5,
-                                       'seconds of simulation time a wheel_torque_cmd is held',
-                                       allowed=RANGES['command_timeout']),
-            'max_wheel_torque': declare(self, 'max_wheel_torque', 5.0,
-                                        'largest accepted |torque| per side in wheel_torque_cmd (N m)',
-                                        allowed=RANGES['max_wheel_torque']),
-            'stop_at': declare(self, 'stop_at', 0.0, 'pause when simulation time reaches this (s); 0 = never',
-                               allowed=RANGES['stop_at']),
-            'wait_for_recorder': declare(self, 'wait_for_recorder', False,
-                                         'do not start until a recorder (record_progress) hears every topic',
-                                         read_only=True),
-            'wait_for_command': declare(self, 'wait_for_command', False,
-                                        'driven mode: start (or resume) once a wheel_torque_cmd publisher hears odom, '
-                                        'and take the first step only after its answer to the first state published '
-                                        '(a closed loop from t = 0, or from the resumed state)',
-                                        read_only=True),
-            'command_wait_timeout': declare(self, 'command_wait_timeout', COMMAND_WAIT_TIMEOUT,
-                                            'wall seconds a start (or resume) with wait_for_command waits for the '
-                                            'controller, and then for its first command; after that the node logs '
-                                            'what was missing and exits with status 1 (0 = wait for ever)',
-                                            allowed=RANGES['command_wait_timeout'], read_only=True),
-            'lockstep_every': declare(self, 'lockstep_every', 0,
-                                      'driven mode: after publishing every Nth step, wait for the command '
-                                      'answering that state before stepping on (at most lockstep_timeout); 0 = off',
-                                      allowed=RANGES['lockstep_every']),
-            'lockstep_timeout': declare(self, 'lockstep_timeout', 2.0,
-                                        'wall seconds lockstep waits for a command before stepping on without it '
-                                        'until commands return (a dead controller costs this once)',
-                                        allowed=RANGES['lockstep_timeout']),
-            'realtime_priority': declare(self, 'realtime_priority', 0,
-                                         'SCHED_FIFO priority of the paced loop thread for steps it sleeps before '
-                                         '(Linux; needs an rtprio limit, else a warning); 0 = normal scheduling',
-                                         allowed=RANGES['realtime_priority']),
-            'contact_model': declare(self, 'contact_model', 'ideal',
-                                     'wheel-wall contact: ideal, or coulomb (channels stick or slip, a wheel lifting '
-                                     'off pauses the run; acts while the trajectory task is off)',
-                                     choices=CONTACT_MODELS),
-            'engine': declare(self, 'engine', PYTHON,
-                              'how the steps are computed: python (the model), or numba (the batch\'s compiled '
-                              'kernel, ideal and coulomb contact, the same states to 1e-9; it compiles on first '
-                              'use on a machine, then loads from the cache)',
-                              choices=ENGINES, read_only=True),
-            'adhesion_force': declare(self, 'adhesion_force', 0.0,
-                                      "force pressing the robot to the wall (N); 0 = the robot file's",
-                                      allowed=RANGES['adhesion_force']),
-            'backpressure_window': declare(self, 'backpressure_window', BACKPRESSURE_WINDOW,
-                                           'max steps ahead of a recorder\'s record_progress (any factor)',
-                                           allowed=RANGES['backpressure_window']),
-            'snapshot_period': declare(self, 'snapshot_period', 0.01,
-                                       'simulation seconds between state snapshots (kept by the recorder for a '
-                                       'restart); 0 = only at events (start, reset, pause, switch, plan)',
-                                       allowed=RANGES['snapshot_period']),
-            'step_count': declare(self, 'step_count', 1, 'steps one ~/step call takes while paused',
-                                  allowed=RANGES['step_count']),
-            'domain_clock': declare(self, 'domain_clock', True,
-                                    "also publish the robot's clock on the domain's /clock, which ROS tools "
-                                    'with use_sim_time follow; false for every robot but one in a domain',
-                                    read_only=True),
-            'resume_wait': declare(self, 'resume_wait', 2.0,
-                                   'wall seconds from the first constraint set to wait for a keeper of snapshots '
-                                   '(resume_state) to continue from; 0 = always start from the initial state',
-                                   allowed=RANGES['resume_wait'], read_only=True),
-            'odom_frame_id': declare(self, 'odom_frame_id', topics.WALL_FRAME,
-                                     'frame of the odometry pose, the constraint wrench and initialpose (the wall)',
-                                     read_only=True),
-            'base_frame_id': declare(self, 'base_frame_id', topics.BASE_FRAME,
-                                     "the odometry's child frame (the robot's centre), in which its twist is given, "
-                                     'after frame_prefix', read_only=True),
-            'frame_prefix': declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True),
-            **{name: declare(self, name, 0.0, description, allowed=RANGES[name], read_only=True)
-               for name, description in NOISE_PARAMETERS.items()},
-            'noise_seed': declare(self, 'noise_seed', 0, 'seed of the sensor noise (the same seed, the same noise)',
-                                  allowed=RANGES['noise_seed'], read_only=True),
-        }
-        frames = RobotFrames(p['odom_frame_id'], p['base_frame_id'], p['frame_prefix'])
-        reasons = self._check(p) + frames.reasons()
-        if reasons:
-            raise ValueError('; '.join(reasons))
-        if p['engine'] == NUMBA:
-            # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
-            from wallbot_sim.model.compiled import compile_run, require_numba
-            require_numba()  # a missing package is said at start, not by a failing loop thread
-            self.get_logger().info("engine numba: loading the compiled kernel (a machine's first start compiles "
-                                   "it into numba's cache, about a minute)")
-            # loaded here, not by the first step: the objects loading makes are then frozen with the rest of
-            # the start-up's (started_node), where in the loop thread they cost a 12 ms collection seconds later
-            compile_run(p['contact_model'])
-        self.params = p
+        self.tap, self.table = tap, table
+        self.settings: DynamicsSettings = declare_typed(self, DynamicsSettings, table)
+        frames = RobotFrames(self.settings.odom_frame_id, self.settings.base_frame_id, self.settings.frame_prefix)
+        if frames.reasons():
+            raise ValueError('; '.join(frames.reasons()))
+        if self.settings.engine == NUMBA:
+            self._load_kernel()
         self._warn_lockstep_unseen()
         self.exit_status: int | None = None
         """Set once the node cannot go on (its start gave up): ``common.run_nodes`` ends the process with it."""
-        self.loop = DynamicsLoop(p, load_robot_parameters(p['robot_file'] or None), self, self.get_logger(),
-                                 Pacer(p['realtime_priority'], self.get_logger().warning))
+        self.loop = DynamicsLoop(self.settings, load_robot_parameters(self.settings.robot_file or None), self,
+                                 self.get_logger(), Pacer(self.settings.realtime_priority, self.get_logger().warning))
+        self._create_publishers(frames)
+        self._create_subscriptions()
+        self.pause_requested = False
+        """What the last ~/pause asked (the loop applies it at its next step boundary)."""
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.create_service(SetBool, '~/pause', self._on_pause)
+        self.create_service(Trigger, '~/step', self._on_step)
+        self.add_on_set_parameters_callback(self._on_set)
+        self.add_post_set_parameters_callback(self._after_set)
+        steady_timer(self, 1.0, self._publish_diagnostics)
+        self.loop_thread = threading.Thread(target=self._run_loop, name='simulation', daemon=True)
+        self.loop_thread.start()
+
+    def _load_kernel(self) -> None:
+        # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
+        from wallbot_sim.model.compiled import compile_run, require_numba
+        require_numba()  # a missing package is said at start, not by a failing loop thread
+        self.get_logger().info("engine numba: loading the compiled kernel (a machine's first start compiles "
+                               "it into numba's cache, about a minute)")
+        # loaded here, not by the first step: the objects loading makes are then frozen with the rest of
+        # the start-up's (started_node), where in the loop thread they cost a 12 ms collection seconds later
+        compile_run(self.settings.contact_model)
+
+    def _create_publishers(self, frames: RobotFrames) -> None:
+        """The per-step topics' publishers (and ground_truth/odom with sensor noise), control_odom, diagnostics,
+        snapshots and the domain's /clock (``domain_clock``), with the step encoder and the sensor noise."""
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
                             for topic, kind in MESSAGE_TYPES.items()}
         self.control_odom_pub = self.create_publisher(Odometry, topics.CONTROL_ODOM.name,
@@ -282,20 +127,21 @@ class DynamicsNode(Node):
                                                      qos_profile(topics.DIAGNOSTICS))
         self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
                                                   qos_profile(topics.STATE_SNAPSHOT))
-        self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
-        self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
-        self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
         self.domain_clock_pub = (self.create_publisher(ClockMsg, topics.DOMAIN_CLOCK.name,
                                                        qos_profile(topics.DOMAIN_CLOCK))
-                                 if p['domain_clock'] else None)
-        levels = NoiseLevels(*(float(p[name]) for name in NOISE_PARAMETERS))
-        self.noise = SensorNoise(levels, p['noise_seed']) if levels.on else None
+                                 if self.settings.domain_clock else None)
+        levels = NoiseLevels(*(getattr(self.settings, name) for name in NOISE_PARAMETERS))
+        self.noise = SensorNoise(levels, self.settings.noise_seed) if levels.on else None
         self.encoder = StepEncoder(frames.odom, frames.base_link, levels.pose_variances(),
                                    levels.twist_variances(), ground_truth=levels.on)
         if levels.on:
             self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(
                 Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
 
+    def _create_subscriptions(self) -> None:
+        self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
+        self.command_topic = self.resolve_topic_name(topics.WHEEL_TORQUE_CMD.name)
+        self.resume_topic = self.resolve_topic_name(topics.RESUME_STATE.name)
         self.create_subscription(DiagnosticStatus, topics.CONSTRAINTS.name, self._on_constraints,
                                  qos_profile(topics.CONSTRAINTS), raw=True)
         self.create_subscription(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name, self._on_plan,
@@ -306,18 +152,8 @@ class DynamicsNode(Node):
                                  qos_profile(topics.RECORD_PROGRESS), raw=True)
         self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
                                  qos_profile(topics.RESUME_STATE), raw=True)
-        self.create_service(Trigger, '~/reset', self._on_reset)
-        self.create_service(SetBool, '~/pause', self._on_pause)
-        self.pause_requested = False
-        """What the last ~/pause asked (the loop applies it at its next step boundary)."""
-        self.create_service(Trigger, '~/step', self._on_step)
         self.create_subscription(PoseWithCovarianceStamped, topics.INITIALPOSE.name, self._on_initialpose,
                                  qos_profile(topics.INITIALPOSE), raw=True)
-        self.add_on_set_parameters_callback(self._on_set)
-        self.add_post_set_parameters_callback(self._after_set)
-        steady_timer(self, 1.0, self._publish_diagnostics)
-        self.loop_thread = threading.Thread(target=self._run_loop, name='simulation', daemon=True)
-        self.loop_thread.start()
 
     # --- executor side: callbacks decode messages and post them to the loop ------------------
     def _on_constraints(self, data: bytes) -> None:
@@ -342,7 +178,7 @@ class DynamicsNode(Node):
 
     def _on_command(self, data: bytes) -> None:
         try:
-            self.loop.post(TorqueCommand(codec.decode_wheel_torque_cmd(data, self.params['max_wheel_torque'])))
+            self.loop.post(TorqueCommand(codec.decode_wheel_torque_cmd(data, self.settings.max_wheel_torque)))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
@@ -373,39 +209,30 @@ class DynamicsNode(Node):
         if not (self.pause_requested or self.loop.paused):
             response.success, response.message = False, 'running: ~/step advances a paused simulation (~/pause true)'
             return response
-        count = int(self.params['step_count'])
+        count = self.settings.step_count
         self.loop.post(Step(count))
         response.success, response.message = True, f'{count} step(s) (step_count) at the next step boundary'
         return response
 
     def _on_initialpose(self, data: bytes) -> None:
         try:
-            self.loop.post(Teleport(*codec.decode_initial_pose(data, self.params['odom_frame_id'])))
+            self.loop.post(Teleport(*codec.decode_initial_pose(data, self.settings.odom_frame_id)))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
-    @staticmethod
-    def _check(values: dict) -> list[str]:
-        reasons = range_reasons(values, RANGES)
-        if 'contact_model' in values:
-            reasons.append(choice_reason('contact_model', values['contact_model'], CONTACT_MODELS))
-        if 'engine' in values:
-            reasons.append(choice_reason('engine', values['engine'], ENGINES))
-        return [r for r in reasons if r]
-
     def _on_set(self, parameters):
-        return parameter_result(self._check(param_dict(parameters)))
+        return parameter_result(self.table.reasons(param_dict(parameters)))
 
     def _after_set(self, parameters) -> None:
-        changes = param_dict(parameters, self.params)
+        changes = param_dict(parameters, self.table.names)
         if changes:
-            self.params = {**self.params, **changes}
+            self.settings = changed(self.settings, changes)
             self.loop.post(ParameterChange(changes))
             if {'lockstep_every', 'control_odom_every'} & set(changes):
                 self._warn_lockstep_unseen()
 
     def _warn_lockstep_unseen(self) -> None:
-        lockstep, every = self.params['lockstep_every'], self.params['control_odom_every']
+        lockstep, every = self.settings.lockstep_every, self.settings.control_odom_every
         if lockstep and every and lockstep % every:
             self.get_logger().warning(f'lockstep_every {lockstep} is not a multiple of control_odom_every {every}: '
                                       'a controller on control_odom misses states the loop waits on')
@@ -428,7 +255,7 @@ class DynamicsNode(Node):
         # from the tap); paced, a block's states go out one at a time. A controller's control_odom carries
         # at most every BURST_CONTROL_ODOM_EVERY-th state, a few of a burst: no queue overflows for them
         heard = self._heard()
-        if self.params['control_odom_every'] >= BURST_CONTROL_ODOM_EVERY:
+        if self.settings.control_odom_every >= BURST_CONTROL_ODOM_EVERY:
             heard.discard(topics.CONTROL_ODOM)
         return self.noise is None and not (burst and heard)
 
@@ -456,9 +283,9 @@ class DynamicsNode(Node):
 
     def _to_controller(self, heard: set[topics.Topic], stamp_ns: int) -> bool:
         """Whether the state at ``stamp_ns`` goes out on control_odom: subscribed, and a control instant."""
-        every = self.params['control_odom_every']
+        every = self.settings.control_odom_every
         return (topics.CONTROL_ODOM in heard and every > 0
-                and round(stamp_ns * 1e-9 * self.params['rate_hz']) % every == 0)
+                and round(stamp_ns * 1e-9 * self.settings.rate_hz) % every == 0)
 
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
               heard: set[topics.Topic], controller: bool, ahead: float) -> None:
@@ -518,14 +345,14 @@ class DynamicsNode(Node):
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
     def _publish_diagnostics(self) -> None:
         loop = self.loop
-        window = loop.take_window()
+        window = loop.statistics.take()
         sim, out, status = loop.sim, loop.last_outputs, loop.status
         elapsed = max(time.perf_counter() - window.started, 1e-9)
         t = sim.t if sim is not None else 0.0
         rate = window.steps / elapsed
-        dt = sim.dt if sim is not None else 1.0 / self.params['rate_hz']
+        dt = sim.dt if sim is not None else 1.0 / self.settings.rate_hz
         figures = messages.LoopFigures(
-            rate, rate * dt, float(self.params['real_time_factor']), 1e3 * window.step_time_sum / max(window.steps, 1),
+            rate, rate * dt, self.settings.real_time_factor, 1e3 * window.step_time_sum / max(window.steps, 1),
             1e3 * window.step_time_max, 1e3 * window.lateness_max, window.late,
             loop.pacer.policy)
         report = messages.simulation_status(
@@ -533,7 +360,7 @@ class DynamicsNode(Node):
             float(out.residual) if out is not None else math.nan, window.residual_max,
             sim.selection.label() if sim is not None else 'none yet', loop.robot.adsorption,
             detached=loop.detached is not None,
-            contact=messages.contact_values(self.params['contact_model'], sim is None or sim.coulomb_applies,
+            contact=messages.contact_values(self.settings.contact_model, sim is None or sim.coulomb_applies,
                                             out.contact if out is not None else None),
             sliding=unheld_slip(loop.robot, sim.selection, out) if sim is not None and out is not None else {},
             slipping=messages.slipping_channels(out.contact) if out is not None else ())

@@ -17,8 +17,9 @@ ones are not, then the bag is closed (its metadata names the signal and its time
 exits 0.
 
 No snapshots are kept: a keeper in this process would die with the dynamics it should restart, so
-``resume_wait`` and ``snapshot_period`` are 0 here (a start never waits for a keeper, a state
-snapshot is published only at events). After a SIGKILL, ``wallbot-sim bag reindex`` recovers
+``resume_wait`` and ``snapshot_period`` are fixed at 0 here (``settings.dynamics.COMPOSED``: read-only, and a
+start value other than 0 is refused with that reason; a start never waits for a keeper, a state snapshot is
+published only at events). After a SIGKILL, ``wallbot-sim bag reindex`` recovers
 the bag up to its last flushed chunk, and a new run starts from t = 0.
 """
 
@@ -27,15 +28,13 @@ from __future__ import annotations
 import sys
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
 from wallbot_sim.nodes.common import StopSignals, run_nodes
 from wallbot_sim.nodes.dynamics import STEP_TOPICS, SWITCH_INTERVAL, started_node
 from wallbot_sim.nodes.recorder import Recorder
+from wallbot_sim.settings.dynamics import COMPOSED
 
 PROGRAM = 'dynamics_recorder_node'
-NO_KEEPER = [Parameter('resume_wait', value=0.0), Parameter('snapshot_period', value=0.0)]
-"""The dynamics' parameters fixed in this process: there is no keeper of snapshots to wait for or feed."""
 
 
 def composed_nodes(stop: StopSignals) -> list[Node]:
@@ -43,7 +42,7 @@ def composed_nodes(stop: StopSignals) -> list[Node]:
     its loop has stopped when the recorder ends the recording (``common.run_nodes`` closes them in order)."""
     recorder = Recorder(stop, tappable=STEP_TOPICS, program=PROGRAM)
     try:
-        dynamics = started_node(tap=recorder.tap, parameter_overrides=NO_KEEPER)
+        dynamics = started_node(tap=recorder.tap, table=COMPOSED)
     except BaseException:
         recorder.writer.close()
         recorder.destroy_node()

@@ -35,12 +35,12 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, WHEEL_TORQUE_LIMIT, WhenRecorded, declare, param_dict,
-                                     parameter_result, run)
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run
+from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
+from wallbot_sim.settings.drives import JOINT_BRIDGE, JointBridgeSettings
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
-STATE_RATE_HZ = 50
 
 
 class JointBridgeNode(Node):
@@ -48,19 +48,13 @@ class JointBridgeNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_JOINT_BRIDGE, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
-        rate_hz = declare(self, 'rate_hz', STATE_RATE_HZ, 'joint_states per second of simulation time',
-                          low=1, high=1000, read_only=True)
-        self.max_torque = float(declare(self, 'max_wheel_torque', 5.0, "largest accepted |side total| of the "
-                                        "efforts (N m; the dynamics' limit)", allowed=WHEEL_TORQUE_LIMIT))
-        self.robot_file = declare(self, 'robot_file', '', 'unused: accepted so that every node of a run takes the '
-                                  'same robot file', read_only=True)
+        settings: JointBridgeSettings = declare_typed(self, JointBridgeSettings, JOINT_BRIDGE)
+        rate_hz, self.max_torque = settings.rate_hz, settings.max_wheel_torque
         self.instants = ControlInstants(int(rate_hz))
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES))
         self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
-        if declare(self, 'wait_for_recorder', False, 'subscribe joint_commands and wheel_states only once a recorder '
-                   '(record_progress) is matched on wheel_torque_cmd and joint_states, so a recording holds every '
-                   'command and joint state', read_only=True):
+        if settings.wait_for_recorder:
             WhenRecorded(self, [self.command_pub, self.state_pub], self._subscribe, 'a recorder hears '
                          'wheel_torque_cmd and joint_states: subscribing joint_commands and wheel_states')
         else:
@@ -98,8 +92,7 @@ class JointBridgeNode(Node):
         self.command_pub.publish(codec.wheel_torque_cmd(left, right))
 
     def _on_set(self, parameters):
-        changes = param_dict(parameters, ('max_wheel_torque',))
-        return parameter_result(WHEEL_TORQUE_LIMIT.reason(name, value) for name, value in changes.items())
+        return parameter_result(JOINT_BRIDGE.reasons(param_dict(parameters)))
 
     def _after_set(self, parameters) -> None:
         changes = param_dict(parameters, ('max_wheel_torque',))

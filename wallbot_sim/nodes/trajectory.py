@@ -44,12 +44,11 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import (COORDINATE, ROBOT_CLOCK_ARGS, WhenRecorded, choice_reason, declare,
-                                      param_dict, parameter_result, range_reasons, run, steady_timer)
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run, steady_timer
+from wallbot_sim.nodes.parameters import declare_settings, param_dict, parameter_result
+from wallbot_sim.settings.trajectory import MAX_PLAN_SAMPLES, PLAN_SETTINGS, TRAJECTORY
 
 MAX_POSE_BURST = 100
 """Most reference poses published for one /clock message (the newest ones): a clock that jumps
@@ -59,22 +58,6 @@ RECHECK_PERIOD = 0.01
 idle; then the plan is checked against the newest clock. At factor 0 the dynamics runs to the end
 of a new plan as soon as it is published and waits there: the clocks of all those states may come
 before the planner thread has finished, and without a later check the run would wait for ever."""
-MAX_PLAN_SAMPLES = 5_000
-"""Largest plan accepted: every subscriber decodes a whole plan in one callback."""
-RANGES = {
-    'radius': NumberRange(1e-3, 1e4), 'amplitude': NumberRange(1e-3, 1e4),
-    'period': NumberRange(0.01, 1e6),  # a shorter lap is no reference a robot follows, and overflows derivatives
-    'center_x': COORDINATE, 'center_y': COORDINATE,
-    'duration': NumberRange(0.0, 1e9), 'stop_time': NumberRange(1e-3, 1e6),
-    'publish_rate_hz': NumberRange(1e-3, 1e4),  # below it 1 / rate is no usable timer period
-    'sample_dt': NumberRange(2e-3, 0.1),  # up to 0.1 s the interpolation is accurate
-    'horizon': NumberRange(0.5, 250.0),
-}
-"""What each numeric parameter accepts (its descriptor's range, and the node's check). With every
-other parameter at its default, each end is a usable plan: 10 samples of 0.05 s fill 0.5 s, 250 s
-at 0.05 s and 10 s at 0.002 s are MAX_PLAN_SAMPLES."""
-
-
 def make_reference(values: dict):
     """The reference the parameters describe (a SmoothStop around the path if duration > 0)."""
     center = (float(values['center_x']), float(values['center_y']))
@@ -88,9 +71,8 @@ def make_reference(values: dict):
 
 
 def check_values(values: dict) -> list[str]:
-    """Reasons why a full set of trajectory parameters is unusable (empty if fine)."""
-    reasons = range_reasons(values, RANGES) + [choice_reason('shape', values['shape'], SHAPES)]
-    reasons = [r for r in reasons if r]
+    """Reasons why a full set of the plan's settings (``PLAN_SETTINGS``) is unusable (empty if fine)."""
+    reasons = TRAJECTORY.reasons(values)
     if reasons:
         return reasons
     if values['horizon'] < 10 * values['sample_dt']:
@@ -141,35 +123,12 @@ class TrajectoryNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_TRAJECTORY, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         self.set_parameters([Parameter('use_sim_time', Parameter.Type.BOOL, True)])
-        self.values = {
-            'shape': declare(self, 'shape', 'circle', 'reference shape', choices=SHAPES),
-            'radius': declare(self, 'radius', 1.0, 'circle radius (m)', allowed=RANGES['radius']),
-            'amplitude': declare(self, 'amplitude', 1.0, 'figure-8 amplitude A (m)', allowed=RANGES['amplitude']),
-            'period': declare(self, 'period', 20.0, 'period of one lap (s)', allowed=RANGES['period']),
-            'center_x': declare(self, 'center_x', 0.0, 'centre of the shape, wall X (m)', allowed=RANGES['center_x']),
-            'center_y': declare(self, 'center_y', 0.0, 'centre of the shape, wall Y (m)', allowed=RANGES['center_y']),
-            'duration': declare(self, 'duration', 0.0,
-                                'seconds of simulation time to follow the shape, then stop smoothly; 0 = forever',
-                                allowed=RANGES['duration']),
-            'stop_time': declare(self, 'stop_time', 2.0, 'duration of the smooth stop (s)',
-                                 allowed=RANGES['stop_time']),
-            'publish_rate_hz': declare(self, 'publish_rate_hz', messages.PUBLISH_RATE_HZ,
-                                       'rate of the reference pose in simulation time (Hz)',
-                                       allowed=RANGES['publish_rate_hz']),
-            'sample_dt': declare(self, 'sample_dt', messages.SAMPLE_DT, 'plan sample spacing (s)',
-                                 allowed=RANGES['sample_dt']),
-            'horizon': declare(self, 'horizon', messages.HORIZON,
-                               'seconds a plan covers when duration is 0 (renewed at half-way); at least 10 and '
-                               f'at most {MAX_PLAN_SAMPLES} samples of sample_dt', allowed=RANGES['horizon']),
-        }
-        self.frame = declare(self, 'odom_frame_id', topics.WALL_FRAME,
-                             'frame of the reference poses, path and plan (the wall)', read_only=True)
+        declared = declare_settings(self, TRAJECTORY)
+        self.values = {name: declared[name] for name in PLAN_SETTINGS}
+        self.frame = declared['odom_frame_id']
         reasons = check_values(self.values)
         if reasons:
             raise ValueError('; '.join(reasons))
-        wait_for_recorder = declare(self, 'wait_for_recorder', False,
-                                    'plan only once a recorder (record_progress) is matched on reference, so a '
-                                    'recording holds every reference pose', read_only=True)
         self.trajectory_pub = self.create_publisher(MultiDOFJointTrajectory, topics.REFERENCE_TRAJECTORY.name,
                                                     qos_profile(topics.REFERENCE_TRAJECTORY))
         self.path_pub = self.create_publisher(Path, topics.REFERENCE_PATH.name, qos_profile(topics.REFERENCE_PATH))
@@ -186,7 +145,7 @@ class TrajectoryNode(Node):
         self.clock_ns: int | None = None
         self.pose_lock = threading.Lock()  # poses go out from the executor and, for a new plan, the planner
         self.recorder_wait = None
-        if wait_for_recorder:
+        if declared['wait_for_recorder']:
             self.recorder_wait = WhenRecorded(self, [self.reference_pub], lambda: self.replan(self._now()),
                                               'a recorder hears reference: planning')
         else:
@@ -274,8 +233,9 @@ class TrajectoryNode(Node):
 
     # --- parameters --------------------------------------------------------------------------
     def _on_set(self, parameters):
+        reasons = TRAJECTORY.reasons(param_dict(parameters))
         merged = {**self.values, **param_dict(parameters, self.values)}
-        reasons = check_values(merged)
+        reasons = reasons or check_values(merged)
         if not reasons:
             try:
                 make_reference(merged)

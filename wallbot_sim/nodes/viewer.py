@@ -29,19 +29,16 @@ from visualization_msgs.msg import MarkerArray
 from wallbot_msgs_py import codec, topics, view_cdr
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.live_view import DEFAULT_HOST, FoxgloveRelay
-from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.nodes.common import (FRAME_PREFIX_DESCRIPTION, ROBOT_CLOCK_ARGS, declare, param_dict,
-                                      parameter_result, run, steady_timer)
+from wallbot_sim.live_view import FoxgloveRelay
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, run, steady_timer
+from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.recorder import message_class
+from wallbot_sim.settings.config import VIEWER, ViewerSettings
 from wallbot_sim.urdf import RobotFrames
 from wallbot_sim.view import Pose, Scene
 
 THROTTLE = 5.0
 """Seconds between repeated log lines of one kind."""
-RATE_HZ = NumberRange(1.0, 100.0)
-"""Frames per wall second."""
-TRAIL_POINTS = NumberRange(2, 1_000_000)
 NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
                     durability=DurabilityPolicy.VOLATILE)
 """The per-step topics: only the newest message matters, and the dynamics never waits for this reader."""
@@ -73,20 +70,13 @@ class ViewerNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_VIEWER, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
-        self.rate_hz = float(declare(self, 'rate_hz', 30.0, 'frames per wall second', allowed=RATE_HZ))
-        trail_points = declare(self, 'trail_points', 3000, 'points kept of the path travelled (one every '
-                               '2 mm or more)', allowed=TRAIL_POINTS)
-        robot_file = declare(self, 'robot_file', '', 'robot parameter YAML ("" = the installed config/robot.yaml): '
-                             'the sizes drawn', read_only=True)
-        frame_prefix = declare(self, 'frame_prefix', '', FRAME_PREFIX_DESCRIPTION, read_only=True)
-        port = declare(self, 'foxglove_port', 0, 'serve the topics over the Foxglove WebSocket protocol on this '
-                       'port (0 = off)', low=0, high=65535, read_only=True)
-        host = declare(self, 'foxglove_host', DEFAULT_HOST, 'address the Foxglove server binds to', read_only=True)
-        reasons = [RATE_HZ.reason('rate_hz', self.rate_hz), TRAIL_POINTS.reason('trail_points', trail_points),
-                   *RobotFrames(prefix=frame_prefix).reasons()]
-        if any(reasons):
-            raise ValueError('; '.join(r for r in reasons if r))
-        self.scene = Scene(load_robot_parameters(robot_file or None), trail_points, frame_prefix)
+        settings: ViewerSettings = declare_typed(self, ViewerSettings, VIEWER)
+        self.rate_hz = settings.rate_hz
+        frame_prefix, port, host = settings.frame_prefix, settings.foxglove_port, settings.foxglove_host
+        reasons = RobotFrames(prefix=frame_prefix).reasons()
+        if reasons:
+            raise ValueError('; '.join(reasons))
+        self.scene = Scene(load_robot_parameters(settings.robot_file or None), settings.trail_points, frame_prefix)
         self.relay = None
         if port:
             self.relay = FoxgloveRelay(host, port, self.get_namespace(),
@@ -204,9 +194,7 @@ class ViewerNode(Node):
 
     # --- parameters ------------------------------------------------------------------------------
     def _on_set(self, parameters):
-        changes = param_dict(parameters, ('rate_hz', 'trail_points'))
-        return parameter_result([RATE_HZ.reason(name, value) if name == 'rate_hz' else TRAIL_POINTS.reason(name, value)
-                                 for name, value in changes.items()])
+        return parameter_result(VIEWER.reasons(param_dict(parameters)))
 
     def _after_set(self, parameters) -> None:
         changes = param_dict(parameters, ('rate_hz', 'trail_points'))

@@ -22,13 +22,6 @@ import threading
 import time
 from typing import Callable
 
-from wallbot_sim.model.numbers import NumberRange
-
-REAL_TIME_FACTOR = NumberRange(1e-3, 1e6, zero='as fast as possible')
-"""The real-time factors the dynamics accepts (its parameter and ``wallbot-sim run``'s option): at the
-slowest a step waits dt / 1e-3 (1 s at 1 kHz)."""
-REALTIME_PRIORITY = NumberRange(0, 99)
-"""The loop thread's SCHED_FIFO priorities (Linux's 1-99), 0 = normal scheduling."""
 LONGEST_SLEEP = 0.05
 """A wait sleeps in slices of at most this (s), to notice factor changes and shutdown."""
 

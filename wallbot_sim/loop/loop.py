@@ -1,0 +1,398 @@
+"""The dynamics loop: its run state and decisions, a tick at a time (see the package's docstring)."""
+
+from __future__ import annotations
+
+import math
+import queue
+import threading
+import time
+from typing import Callable, Mapping
+
+import numpy as np
+
+from wallbot_msgs_py import codec
+from wallbot_sim import messages
+from wallbot_sim.loop.blocks import Blocks
+from wallbot_sim.loop.commands import Commands
+from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
+                                     ResumeSnapshot, Step, Teleport, TorqueCommand)
+from wallbot_sim.loop.graph import Graph, Log
+from wallbot_sim.loop.pacing import Pacer
+from wallbot_sim.loop.resume import ResumeGate
+from wallbot_sim.loop.snapshots import snapshot_every, snapshot_of
+from wallbot_sim.loop.start import StartGate
+from wallbot_sim.loop.status import WAIT_AFTER, Decision, RunState, Statistics, Status, count_step
+from wallbot_sim.loop.waits import BackPressure, Lockstep
+from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
+                               Simulation, StepOutputs)
+from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.scenario import moving_start
+from wallbot_sim.model.trajectories import STAMP_RESOLUTION
+from wallbot_sim.settings.dynamics import DynamicsSettings
+from wallbot_sim.settings.table import changed
+
+
+def robot_with(params: RobotParameters, adhesion_force: float) -> Robot:
+    """The robot of the robot file's ``params``, with the adhesion_force setting (N) unless it is 0."""
+    return Robot(params.replace(adhesion_force=adhesion_force) if adhesion_force else params)
+
+
+class DynamicsLoop:
+    """The simulation and the state around it, written by the loop thread only (its rooms: ``start``, ``commands``,
+    ``lockstep``, ``backpressure``, ``resume``, ``pacer``, ``blocks``, ``statistics``). ``settings``: the node's
+    parameter values, which a :class:`ParameterChange` updates at the next step boundary."""
+
+    def __init__(self, settings: DynamicsSettings, robot_file: RobotParameters, graph: Graph, log: Log,
+                 pacer: Pacer, clock: Callable[[], float] = time.monotonic) -> None:
+        self.settings = settings
+        self._robot_file = robot_file
+        self.robot = robot_with(robot_file, settings.adhesion_force)
+        self.graph, self.log, self.pacer, self.clock = graph, log, pacer, clock
+        self._events: queue.SimpleQueue[Event] = queue.SimpleQueue()
+        self._wake = threading.Event()
+        self.stopping = threading.Event()
+        self.factor = settings.real_time_factor
+        """The real-time factor, read by the pacer while it sleeps (:meth:`post` sets it at once)."""
+        self.sim: Simulation | None = None
+        self.plan: NewPlan | None = None
+        self.selection: ConstraintSelection | None = None
+        self.gains: BaumgarteGains | None = None
+        self.pending_constraints: ConstraintSwitch | None = None
+        self.paused = self.diverged = False
+        self.steps_to_take = 0
+        """Steps a Step event still allows while paused."""
+        self.detached: str | None = None
+        """Why the robot left the wall (coulomb contact), until a reset."""
+        self.status = Status(RunState.WAITING_CONSTRAINTS)
+        self.stepped = False
+        """Whether a step was taken: only a start's wait for the controller gives up (a resumed
+        start's wait for its first answer comes after the steps of its catch-up)."""
+        self.reset_requested: float | None = None  # clock time of a reset not yet applied
+        self.last_outputs: StepOutputs | None = None
+        self.commands, self.lockstep, self.backpressure = Commands(), Lockstep(), BackPressure()
+        self.start = StartGate(self)
+        self.resume = ResumeGate(settings.resume_wait)
+        self.clock_schedule = messages.ClockSchedule(settings.clock_rate_hz)
+        self.statistics = Statistics()
+        self.blocks = Blocks(self)
+
+    # --- any thread ---------------------------------------------------------------------------------
+    def post(self, event: Event) -> None:
+        """Queue an event for the next step boundary and end the loop's wait."""
+        if isinstance(event, ParameterChange) and 'real_time_factor' in event.changes:
+            self.factor = float(event.changes['real_time_factor'])  # a sleeping step sees it at once
+        self._events.put(event)
+        self._wake.set()
+
+    def stop(self) -> None:
+        self.stopping.set()
+        self._wake.set()
+
+    def command_state(self) -> str:
+        """The 'command' value of /diagnostics."""
+        return 'no simulation yet' if self.sim is None else self.commands.state(self.sim.selection.trajectory)
+
+    @property
+    def gave_up(self) -> str | None:
+        """Why the loop stopped without starting (then the node exits), or None."""
+        return self.start.command_wait.gave_up
+
+    @property
+    def in_error(self) -> bool:
+        """Whether the diagnostics' level is ERROR: diverged, crashed or given up."""
+        return self.diverged or self.gave_up is not None
+
+    # --- loop thread --------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Tick until :meth:`stop`."""
+        while not self.stopping.is_set():
+            wait = WAIT_AFTER.get(self.tick())
+            if wait is not None:
+                self._wake.wait(wait)
+                self._wake.clear()
+
+    def fail(self) -> None:
+        """The loop crashed (the caller logged why)."""
+        self.status, self.diverged = Status(RunState.FAILED), True
+
+    def tick(self) -> Decision:
+        """Apply the queued events, then take one step if nothing holds it back.
+
+        A state of a block computed ahead is published instead while no event came but a recorder's progress
+        and plans that give the states computed ahead (``Blocks.keep_through``); any other event drops the rest
+        of the block first (``Blocks.drop``), so it applies at the boundary after the last state published, as
+        it does between single steps.
+        """
+        events = self._take_events()
+        if self.blocks.keep_through(events):
+            for event in events:
+                self._apply(event)
+            self.blocks.publish_ahead()
+            return Decision.STEPPED
+        self.blocks.drop(events)
+        for event in events:
+            self._apply(event)
+        if self.reset_requested is not None:
+            self._reset_when_answered()
+        if not self._ready():
+            self.pacer.reanchor()
+            return Decision.NOT_READY
+        if self._lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
+            return Decision.LOCKSTEP
+        if self._held_back():
+            return Decision.HELD_BACK
+        size = self.blocks.size()
+        if size > 1 and self.blocks.start(size):
+            return Decision.STEPPED
+        self._step()
+        if self.paused:  # a step that a Step event allowed
+            self.steps_to_take -= 1
+        return Decision.STEPPED
+
+    def _take_events(self) -> list[Event]:
+        events = []
+        while True:
+            try:
+                events.append(self._events.get_nowait())
+            except queue.Empty:
+                return events
+
+    def _apply(self, event: Event) -> None:
+        match event:
+            case ConstraintSwitch():
+                self.pending_constraints = event
+            case NewPlan():
+                self.plan = event
+                if self.sim is not None:
+                    self.sim.set_reference(event.reference)
+                    self.snapshot()
+            case TorqueCommand():
+                self.commands.receive(event.torque, self.sim.t if self.sim is not None else 0.0)
+                if self.lockstep.command_came():
+                    self.log.info(f'wheel_torque_cmd again at t = {self.sim.t:.3f} s: lockstep resumed')
+                self.snapshot()  # so a resume recomputes the steps after it with the commands they had
+            case Reset():
+                self.reset_requested = self.clock()
+            case Pause():
+                self.paused, self.steps_to_take = event.paused, 0
+                self.log.info('paused' if event.paused else 'running again')
+                self.snapshot()
+            case Step():
+                if self.paused:
+                    self.steps_to_take += event.count
+                else:
+                    self.log.warning('~/step ignored: the simulation is running (it steps while paused)')
+            case Teleport():
+                self._teleport(event)
+            case ResumeSnapshot():
+                self.resume.offer(event.snapshot)
+            case ParameterChange():
+                self._apply_settings(event.changes)
+            case RecordProgress():
+                self.backpressure.progress_ns = event.stamp_ns
+
+    def _apply_settings(self, changes: Mapping[str, object]) -> None:
+        self.settings = changed(self.settings, changes)
+        if 'realtime_priority' in changes:
+            self.pacer.priority = changes['realtime_priority']
+        if 'rate_hz' in changes and self.sim is not None:
+            self.sim = self.simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+            self.snapshot()
+        if 'adhesion_force' in changes:
+            self.robot = robot_with(self._robot_file, changes['adhesion_force'])
+            if self.sim is not None:
+                self.sim.set_adhesion_force(self.robot.params.adhesion_force)
+        if 'contact_model' in changes and self.sim is not None:
+            self.sim.set_contact_model(changes['contact_model'])
+        self.pacer.reanchor()
+        self.log.info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+
+    def simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
+        reference = self.plan.reference if self.plan is not None else None
+        settings = self.settings
+        sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / settings.rate_hz, t0=t0,
+                         gains=self.gains, contact=settings.contact_model, engine=settings.engine)
+        sim.set_motor_torque(*torque)
+        return sim
+
+    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
+        s = self.settings
+        q0 = np.array([s.initial_x, s.initial_y, s.initial_theta, 0, 0, 0, 0], dtype=float)
+        if s.initial_at_rest or self.plan is None:
+            return q0, np.zeros(DOF)
+        return q0, moving_start(self.robot, self.plan.reference, s.initial_theta)
+
+    def _reset_when_answered(self) -> None:
+        """Reset once lockstep's answer to the last published state came (at most lockstep_timeout): arriving after
+        the reset, that answer to a state of the old run would be taken for the answer to the reset state."""
+        if (self.sim is None or not self.answer_awaited()
+                or self.clock() - self.reset_requested > self.settings.lockstep_timeout):
+            self.reset_requested = None
+            self._reset()
+
+    def _reset(self) -> None:
+        self.commands.command, self.diverged, self.detached = None, False, None
+        self.resume.stop_catch_up()
+        if self.sim is not None:
+            self.sim = self.simulation(*self.initial_state(), 0.0)
+            self.log.info('reset to the initial state at t = 0')
+            self.publish(self.sim.outputs())
+            self.snapshot()
+        self.pacer.reanchor()
+
+    def _teleport(self, pose: Teleport) -> None:
+        """A new run segment from the current time, at rest at ``pose``; published at once, so a
+        paused robot is seen where it was put."""
+        sim = self.sim
+        if sim is None:
+            self.log.warning('initialpose ignored: the simulation starts with the first constraint set')
+            return
+        self.diverged, self.detached = False, None
+        q = np.array([pose.x, pose.y, pose.theta, *sim.q[3:]])
+        self.sim = self.simulation(q, np.zeros(DOF), sim.t, sim.motor_torque)
+        self.log.info(f'placed at rest at x = {pose.x:.3f} m, y = {pose.y:.3f} m, heading {pose.theta:.3f} rad '
+                       f'at t = {sim.t:.3f} s')
+        self.publish(self.sim.outputs())
+        self.snapshot()
+        self.pacer.reanchor()
+
+    def switch(self, switch: ConstraintSwitch) -> None:
+        """Run with the constraint set ``switch`` from now on (the first one starts the run: ``StartGate.begin``)."""
+        if self.sim is None:
+            self.start.begin(switch)
+            return
+        selection, gains = switch.selection, switch.gains
+        report = self.sim.set_constraints(selection, gains)
+        self.selection, self.gains = selection, gains
+        self.log.info(
+            f'constraints {report.previous.label()} -> {selection.label()} at t = {self.sim.t:.3f} s: '
+            f'velocity violation {report.violation_before:.3e} before, {report.violation_after:.3e} after projection')
+        self.snapshot()
+
+    def _ready(self) -> bool:
+        """Apply a pending constraint set if possible; say whether the next step may run."""
+        if not self.start.started():
+            return False
+        sim = self.sim
+        if (self.paused and self.steps_to_take <= 0) or self.diverged or self.detached:
+            self.status = (Status(RunState.DIVERGED) if self.diverged else Status(RunState.DETACHED, reason=self.detached)
+                           if self.detached else Status(RunState.PAUSED))
+            return False
+        if self.settings.stop_at > 0.0 and sim.t >= self.settings.stop_at - 0.5 * sim.dt:
+            self.status = Status(RunState.STOPPED, t=sim.t)
+            return False
+        if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
+            if self.resume.catching_up and self.plan.start > sim.t + STAMP_RESOLUTION:
+                # the plan of the kept state was replaced before the kill: publishing this earlier
+                # state makes the trajectory node replan from it (its clock went back)
+                self.log.warning(f'the newest plan starts at {self.plan.start:.3f} s, after the kept '
+                                  f'state at {sim.t:.3f} s: publishing from there')
+                self.resume.stop_catch_up()
+                self.publish(sim.outputs())
+            self.status = Status(RunState.WAITING_COVERING_PLAN, t=sim.t)
+            return False
+        if self.settings.wait_for_command and not sim.selection.trajectory:
+            if sim.steps == 0 and self.commands.command is None:
+                self.start.wait_for_command(RunState.WAITING_FIRST_COMMAND)
+                return False
+            if self.start.resumed_unanswered():
+                self.start.wait_for_command(RunState.WAITING_RESUMED_COMMAND)
+                return False
+        self.start.command_wait.end()
+        self.status = Status(RunState.RUNNING)
+        return True
+
+    def answer_awaited(self) -> bool:
+        """Lockstep: whether the last published state was a sync state whose answer is still to come
+        (``Lockstep.awaited``)."""
+        sim = self.sim
+        return self.lockstep.awaited(self.settings.lockstep_every, sim.steps, sim.selection.trajectory,
+                                     self.resume.catching_up)
+
+    def _lockstep_blocked(self) -> bool:
+        """Lockstep: whether to wait for the controller (``Lockstep``); giving up re-anchors the pace."""
+        if not self.answer_awaited():
+            self.lockstep.since = None
+            return False
+        if self.lockstep.holds(self.clock(), self.settings.lockstep_timeout):
+            return True
+        self.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
+        self.log.warning(f'no wheel_torque_cmd within {self.settings.lockstep_timeout:g} s (wall) of the state '
+                         f'at t = {self.sim.t:.3f} s: stepping on without lockstep until commands return')
+        return False
+
+    def _held_back(self) -> bool:
+        """Whether a recorder's progress is more than the window behind (``BackPressure``)."""
+        now = self.clock()
+        self.backpressure.look(now, self.graph.recorder_present)
+        return self.backpressure.held_back(now, self.sim.t, self.settings.backpressure_window * self.sim.dt,
+                                           self.log)
+
+    def torque_at(self, t: float) -> tuple[float, float]:
+        """The motor torque of a step from time ``t`` (``Commands.torque_at``)."""
+        return self.commands.torque_at(t, self.sim.selection.trajectory, self.settings.command_timeout)
+
+    def _step(self) -> None:
+        self.stepped = True
+        sim = self.sim
+        self.commands.note_expiry(sim.t, sim.selection.trajectory, self.settings.command_timeout, self.log)
+        torque = self.torque_at(sim.t)
+        if torque != sim.motor_torque:
+            sim.set_motor_torque(*torque)
+        began = time.perf_counter()
+        try:
+            sim.step()
+            out = sim.outputs()
+            if not (math.isfinite(float(np.sum(out.constraint_force))) and math.isfinite(out.residual)):
+                raise DivergedError(f'constraint force is no longer finite at t = {sim.t:.3f} s')
+        except DivergedError as error:
+            self.diverged = True
+            self._halt(Status(RunState.DIVERGED), error)
+            return
+        except DetachedError as error:
+            self.detached = str(error)
+            self._halt(Status(RunState.DETACHED, reason=self.detached), error)
+            return
+        step_time = time.perf_counter() - began
+        if self.resume.catching_up and not self.resume.publishes(codec.to_nanoseconds(sim.t)):
+            self.last_outputs = out  # the graph has this state: recomputed, not published nor paced
+            return
+        window = self.statistics.window
+        publish = sim.steps % self.settings.publish_every == 0
+        if publish:
+            clock = self.clock_schedule.due(codec.to_nanoseconds(out.t), final=self.waits_next())
+            send = self.graph.prepare(out, clock)
+        count_step(window, step_time, self.pacer.wait(sim.steps, sim.dt, lambda: self.factor, self.stopping))
+        if publish:
+            send()
+            self.lockstep.mark_sync()
+            every = snapshot_every(self.settings.snapshot_period, sim.dt)
+            if every > 0 and sim.steps % every == 0:
+                self.snapshot()
+        self.statistics.note_residual(out.residual)
+        self.last_outputs = out
+
+    def _halt(self, status: Status, error: Exception) -> None:
+        """The step failed (diverged, detached): the simulation holds until a reset."""
+        self.status = status
+        self.log.error(f'{error}: simulation paused (reset with ~/reset)')
+
+    def waits_next(self) -> bool:
+        """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready
+        decides: then /clock goes with it, so every node's simulation time is the newest state's."""
+        sim, stop_at = self.sim, self.settings.stop_at
+        return ((stop_at > 0.0 and sim.t >= stop_at - 0.5 * sim.dt)
+                or (sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt)))
+
+    def snapshot(self) -> None:
+        """Publish the loop's state on state_snapshot (a keeper holds it for a restarted node)."""
+        if self.sim is not None:
+            self.graph.publish_snapshot(snapshot_of(self.sim, self.blocks.published_state(), self.commands,
+                                                    self.paused))
+
+    def publish(self, out: StepOutputs) -> None:
+        """Publish the messages of the current state (start, reset)."""
+        self.last_outputs = out
+        self.statistics.note_residual(out.residual)
+        self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
+        self.lockstep.mark_sync()

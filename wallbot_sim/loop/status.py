@@ -1,0 +1,117 @@
+"""What the dynamics loop reports: its run state (the diagnostics' status), how a tick ended, and the
+statistics of the steps since the last diagnostics message."""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from enum import Enum, auto
+
+from wallbot_sim import messages
+
+LATE_LIMIT = 2e-3
+"""A step published more than this after its due time counts as late (s)."""
+
+
+class RunState(Enum):
+    """The loop's run state; the value is the diagnostics' ``status`` text ({t}: simulation time,
+    {reason}: why the robot left the wall)."""
+
+    WAITING_CONSTRAINTS = 'waiting for constraints'
+    WAITING_RECORDER = 'waiting for a recorder'
+    WAITING_KEEPER = 'waiting for a kept snapshot to resume from (resume_state)'
+    WAITING_START_PLAN = 'waiting for reference_trajectory (the moving start takes its velocity)'
+    WAITING_CONTROLLER = 'waiting for a controller (a wheel_torque_cmd publisher that hears odom)'
+    WAITING_PLAN = 'waiting for reference_trajectory'
+    WAITING_COVERING_PLAN = 'waiting for a reference_trajectory covering t = {t:.3f} s'
+    WAITING_FIRST_COMMAND = 'waiting for the first wheel_torque_cmd (the answer to the t = 0 state)'
+    WAITING_RESUMED_COMMAND = ('waiting for the first wheel_torque_cmd since the resume '
+                               '(the answer to the t = {t:.3f} s state)')
+    GAVE_UP = 'gave up: {reason}'
+    RUNNING = 'running'
+    PAUSED = 'paused'
+    STOPPED = messages.STOPPED
+    DIVERGED = 'diverged'
+    DETACHED = 'detached: {reason}'
+    FAILED = 'internal error'
+
+
+@dataclass(frozen=True)
+class Status:
+    """A run state with what its text names (set once, read by the diagnostics thread): ``waited``
+    wall seconds of a wait for the controller, which gives up after ``limit`` (0: never)."""
+
+    state: RunState
+    t: float = 0.0
+    reason: str = ''
+    waited: float | None = None
+    limit: float = 0.0
+
+    def __str__(self) -> str:
+        text = self.state.value.format(t=self.t, reason=self.reason)
+        if self.waited is not None:
+            text += f' for {self.waited:.0f} s (wall)'
+            if self.limit > 0:
+                text += f', giving up after {self.limit:g} s (command_wait_timeout)'
+        return text
+
+
+class Decision(Enum):
+    """How a tick ended."""
+
+    STEPPED = auto()
+    NOT_READY = auto()
+    """Nothing to step yet or now: see the status."""
+    LOCKSTEP = auto()
+    """Waiting for the controller's answer to the last published state."""
+    HELD_BACK = auto()
+    """Waiting for a recorder's progress (back-pressure)."""
+
+
+WAIT_AFTER = {Decision.NOT_READY: 0.005, Decision.LOCKSTEP: 0.0005, Decision.HELD_BACK: 0.0005}
+"""Longest wall wait (s) before the next tick; any posted event ends it early."""
+
+
+@dataclass
+class Window:
+    """Loop statistics since the last diagnostics message."""
+
+    started: float = field(default_factory=time.perf_counter)
+    steps: int = 0
+    step_time_sum: float = 0.0
+    step_time_max: float = 0.0
+    lateness_max: float = 0.0
+    late: int = 0
+    residual_max: float = 0.0
+    """Largest constraint residual of every state of the window (not a sample of one)."""
+
+
+class Statistics:
+    """The :class:`Window` the loop thread fills and the diagnostics (executor thread) take once a second."""
+
+    def __init__(self) -> None:
+        self.window = Window()
+        """The window being filled: the loop thread captures it before counting a step's figures into it."""
+        self._lock = threading.Lock()
+
+    def take(self) -> Window:
+        """The statistics since the last call; a new window starts."""
+        with self._lock:
+            window, self.window = self.window, Window()
+        return window
+
+    def note_residual(self, residual: float) -> None:
+        with self._lock:  # the diagnostics swap windows on the executor thread: lose no step
+            self.window.residual_max = max(self.window.residual_max, residual)
+
+
+def count_step(window: Window, step_time: float, lateness: float) -> None:
+    """A step computed in ``step_time`` seconds and published ``lateness`` seconds after it was due, into
+    ``window``."""
+    window.steps += 1
+    window.step_time_sum += step_time
+    window.step_time_max = max(window.step_time_max, step_time)
+    window.lateness_max = max(window.lateness_max, lateness)
+    if lateness > LATE_LIMIT:
+        window.late += 1
