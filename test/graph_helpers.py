@@ -39,6 +39,8 @@ published, however loaded the machine. A depth is not part of QoS compatibility.
 STALL = 30.0
 """Wall seconds a wait gives an event before it fails the test: only a stall takes this long, however loaded
 the machine (a passing test never waits it out)."""
+ENGINE_PARAMS = {'dynamics': ('engine:=python',), 'controller': ('engine:=python',)}
+"""The test graphs' engine (``Graph.start``)."""
 
 
 def ns(msg) -> int:
@@ -105,9 +107,15 @@ class Graph:
                 return
 
     def start(self, name: str, *params: str, remap: str | None = None, log: str | None = None):
-        """Start node ``name`` with ``params`` ('key:=value'); its output in LOG.log (default NAME.log)."""
+        """Start node ``name`` with ``params`` ('key:=value'); its output in LOG.log (default NAME.log).
+
+        The dynamics and the tracking controller compute on the model as written (``engine:=python``) unless
+        ``params`` say ``engine:=numba`` (a later value wins): these graphs compare with the Python model to the
+        bit, and run a few simulated seconds, for which loading the compiled kernel (numba's import and first
+        use, 0.7-0.8 s more CPU than the python engine's start per process, measured on the project's VM) costs
+        more than it saves."""
         args = [sys.executable, '-m', NODES[name], '--ros-args']
-        for param in params:
+        for param in (*ENGINE_PARAMS.get(name, ()), *params):
             args += ['-p', param]
         if remap:
             args += ['-r', remap]

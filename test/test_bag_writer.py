@@ -182,7 +182,7 @@ def test_a_closed_loop_bag_holds_every_command_the_controller_sent(tmp_path):
     from wallbot_sim.model import Robot, Simulation
 
     bag = tmp_path / 'loop'
-    assert cli(['simulate', '--controller', '--duration', '0.3', '--bag', str(bag), '--quiet']) == 0
+    assert cli(['simulate', '--controller', '--duration', '0.3', '--engine', 'python', '--bag', str(bag), '--quiet']) == 0
 
     params, scenario = load_robot_parameters(), load_scenario('circle')
     plant = Robot(params)

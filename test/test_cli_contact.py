@@ -128,10 +128,11 @@ def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
 
 @pytest.mark.parametrize('args, words', [
     (('--scenario', 'circle', '--contact', 'coulomb'), '--contact coulomb with the trajectory task'),
-    (('--scenario', 'rest', '--adhesion-force', '-5'), 'argument --adhesion-force: must be > 0, got -5.0'),
+    (('--scenario', 'rest', '--adhesion-force', '-5'), "argument --adhesion-force: must be 0 (the robot file's) or in (0, "
+                                                       "1e+06], got -5.0"),
     (('--scenario', 'rest', '--torque', '3'), '--torque must be two numbers'),
     (('--scenario', 'circle', '--torque', '1,1'), '--heading and --torque set up --scenario rest'),
-    (('--scenario', 'rest', '--contact', 'sticky'), "invalid choice: 'sticky'"),
+    (('--scenario', 'rest', '--contact', 'sticky'), "argument --contact: must be one of ideal, coulomb, got 'sticky'"),
 ])
 def test_bad_values_are_one_line_errors(tmp_path, args, words):
     result = simulate(*args, '--csv', str(tmp_path / 'x.csv'))

@@ -20,9 +20,9 @@ from wallbot_sim.graph_description import (CMD_VEL_STEPS, CONTROL_STEPS, EXECUTA
 from wallbot_sim.model import ConstraintSelection
 
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / 'launch' / 'wallbot.launch.py'
-RUN_DEFAULTS = {'engine': 'numba', 'compose': True}
+RUN_DEFAULTS = {'compose': True}
 """What ``wallbot-sim run`` and the launch file start by default beside the graph description's own defaults
-(the nodes' parameters' defaults: python, two processes)."""
+(two processes; the engine is numba in all of them)."""
 
 
 def circle_graph(**options):

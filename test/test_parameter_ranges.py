@@ -8,10 +8,12 @@ import sys
 
 import pytest
 
+from settings_helpers import boundary_values, cli_text
 from wallbot_sim.cli.main import build_parser
+from wallbot_sim.graph_options import OPTIONS
 from wallbot_sim.model import ParameterError, RobotParameters
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE, NumberRange
-from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR
+from wallbot_sim.settings.dynamics import REAL_TIME_FACTOR
 
 
 @pytest.mark.parametrize('allowed, accepted, refused', [
@@ -47,40 +49,86 @@ def test_the_robot_file_uses_the_same_rule():
         RobotParameters(gravity=math.inf)
 
 
-FACTORS = [0.0, 5e-4, 9.99e-4, 1e-3, 0.5, 1.0, 1e6, 1e6 + 1.0, 2e6, -1.0, math.nan, math.inf]
-
-
 @pytest.fixture(scope='module')
-def dynamics_node():
+def in_process():
+    """The dynamics and the tracking controller as objects in this process (no constraints, no odometry: they never
+    step); their parameters are set as ``ros2 param set`` sets them, through rclpy and their callbacks."""
     rclpy = pytest.importorskip('rclpy')
+    from wallbot_sim.nodes.controller import ControllerNode
     from wallbot_sim.nodes.dynamics import DynamicsNode
     context = rclpy.Context()
     rclpy.init(context=context)
-    node = None
+    nodes = {}
     try:
-        node = DynamicsNode(context=context)  # no constraints arrive: it never steps
-        yield node
+        nodes['dynamics'] = DynamicsNode(context=context)
+        nodes['controller'] = ControllerNode(context=context)
+        yield nodes
     finally:
-        if node is not None:
-            node.close()
+        for node in nodes.values():
+            close = getattr(node, 'close', None)
+            if close is not None:
+                close()
             node.destroy_node()
         rclpy.shutdown(context=context)
 
 
-@pytest.mark.parametrize('factor', FACTORS, ids=repr)
-def test_run_refuses_exactly_the_real_time_factors_the_dynamics_node_refuses(dynamics_node, factor, capsys):
+SETTABLE = [option for option in OPTIONS if option.flag and option.node in ('dynamics', 'controller')
+            and not option.setting.locked]
+"""run's options that set a parameter a running node takes (the read-only ones: test_settings, at start)."""
+
+
+@pytest.mark.parametrize('option', SETTABLE, ids=lambda option: option.flag)
+def test_run_refuses_exactly_the_values_the_running_node_refuses(in_process, option, capsys):
+    """Each value near the ends of the node's range, NaN, infinities, other types: ``run`` refuses it exactly when
+    the node, given it as ``ros2 param set`` gives it, refuses it (and the node keeps running either way)."""
     from rclpy.parameter import Parameter
-    result, = dynamics_node.set_parameters([Parameter('real_time_factor', Parameter.Type.DOUBLE, factor)])
+    node = in_process[option.node]
+    default = node.get_parameter(option.parameter).value
+    for value in boundary_values(option.setting):
+        result, = node.set_parameters([Parameter(option.parameter, value=value)])
+        node.set_parameters([Parameter(option.parameter, value=default)])
+        try:
+            build_parser().parse_args(['run', 'circle', f'{option.flag}={cli_text(value)}'])
+        except SystemExit as refused:
+            assert refused.code == 2
+            lines = capsys.readouterr().err.strip().splitlines()
+            assert len(lines) == 1 and lines[0].startswith(f'wallbot-sim run: error: argument {option.flag}: ')
+            assert not result.successful, f'the node accepts {value!r}, the command line refuses it: {lines[0]}'
+        else:
+            assert result.successful, f'the command line accepts {value!r}, the node refuses it: {result.reason}'
+
+
+def test_the_dynamics_owns_its_clock_and_the_composed_one_keeps_no_snapshots(in_process):
+    """use_sim_time is read-only on the dynamics (refused at start with the reason); in the composed process
+    snapshot_period and resume_wait are fixed at 0: read-only, a start value other than 0 refused with the
+    reason. Both as ``ros2 param describe`` shows them."""
+    from rclpy.parameter import Parameter
+    from wallbot_sim.nodes.dynamics import DynamicsNode
+    from wallbot_sim.settings.dynamics import COMPOSED
+    dynamics = in_process['dynamics']
+    clock, = dynamics.describe_parameters(['use_sim_time'])
+    assert clock.read_only and 'the dynamics owns the simulation clock' in clock.description
+    result, = dynamics.set_parameters([Parameter('use_sim_time', value=True)])
+    assert not result.successful and dynamics.get_parameter('use_sim_time').value is False
+    context = dynamics.context
+    with pytest.raises(ValueError, match=r'^use_sim_time is fixed at false here \(the dynamics owns the simulation '
+                                         r'clock: it publishes clock, it follows none\), got True$'):
+        DynamicsNode(context=context, parameter_overrides=[Parameter('use_sim_time', value=True),
+                                                           Parameter('engine', value='python')])
+    with pytest.raises(ValueError, match=r'^snapshot_period is fixed at 0.0 here \(no keeper of snapshots in this '
+                                         r'process\), got 0.5$'):
+        DynamicsNode(context=context, table=COMPOSED, parameter_overrides=[Parameter('snapshot_period', value=0.5),
+                                                                           Parameter('engine', value='python')])
+    composed = DynamicsNode(context=context, table=COMPOSED, parameter_overrides=[Parameter('engine', value='python')])
     try:
-        build_parser().parse_args(['run', 'circle', '--real-time-factor', repr(factor)])
-    except SystemExit as refused:
-        assert refused.code == 2
-        lines = capsys.readouterr().err.strip().splitlines()
-        assert len(lines) == 1 and lines[0].startswith('wallbot-sim run: error: argument --real-time-factor: must be ')
-        assert not result.successful, f'the node accepts {factor!r}, the command line refuses it: {lines[0]}'
-        assert 'real_time_factor' in result.reason
-    else:
-        assert result.successful, f'the command line accepts {factor!r}, the node refuses it: {result.reason}'
+        period, wait = composed.describe_parameters(['snapshot_period', 'resume_wait'])
+        assert period.read_only and wait.read_only and 'no keeper of snapshots in this process' in period.description
+        assert (period.floating_point_range[0].from_value, period.floating_point_range[0].to_value) == (0.0, 0.0)
+        result, = composed.set_parameters([Parameter('snapshot_period', value=0.2)])
+        assert not result.successful and composed.settings.snapshot_period == 0.0 == composed.loop.settings.resume_wait
+    finally:
+        composed.close()
+        composed.destroy_node()
 
 
 # --- every node's parameters, as a ROS user discovers them ----------------------------------------
@@ -139,12 +187,48 @@ def _range_of(descriptor):
     return None
 
 
+def node_table(module: str, node: str):
+    """The settings table the node ``node`` of ``module`` declares (None: the recorder's are its own)."""
+    from wallbot_sim.settings.config import CONSTRAINT_CONFIG, VIEWER
+    from wallbot_sim.settings.controller import CONTROLLER
+    from wallbot_sim.settings.drives import CMD_VEL, JOINT_BRIDGE
+    from wallbot_sim.settings.dynamics import COMPOSED, DYNAMICS
+    from wallbot_sim.settings.trajectory import TRAJECTORY
+    if node == 'recorder':
+        return None
+    tables = {'constraint_config': CONSTRAINT_CONFIG, 'trajectory': TRAJECTORY, 'controller': CONTROLLER,
+              'cmd_vel': CMD_VEL, 'joint_bridge': JOINT_BRIDGE, 'viewer': VIEWER, 'dynamics': DYNAMICS,
+              'dynamics_recorder': COMPOSED}
+    return tables[module.rsplit('.', 1)[-1]]
+
+
+def described_as_in_table(module: str, table, descriptors) -> list[str]:
+    """Where the descriptors ``ros2 param describe`` shows differ from the node's settings table: a setting not
+    declared, another description, read-only flag or range."""
+    by_name = {descriptor.name: descriptor for descriptor in descriptors}
+    problems = []
+    for setting in table:
+        descriptor = by_name.get(setting.name)
+        if descriptor is None:
+            problems.append(f'{module} {setting.name}: not declared')
+            continue
+        span = _range_of(descriptor)
+        expected = None if setting.allowed is None else (
+            (setting.default, setting.default) if setting.fixed is not None else setting.allowed.bounds())
+        if (descriptor.description != setting.description() or descriptor.read_only != setting.locked
+                or (span[:2] if span else None) != expected):
+            problems.append(f'{module} {setting.name}: described {descriptor.description!r}, read-only '
+                            f'{descriptor.read_only}, range {span}; its setting: {setting}')
+    return problems
+
+
 def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(process_runner, tmp_path):
     """Each node of the graph (graph_description.EXECUTABLES) alone in a namespace of its own, so
-    none of them runs; through its parameter services: every integer and double parameter has a
-    range, each end is accepted and the nearest number outside is refused (rclpy lets numbers
-    within 1e-6 of an end through: the node's own check must refuse them); every enumerated
-    parameter lists its values and accepts exactly those."""
+    none of them runs; through its parameter services (as ``ros2 param describe`` and ``set`` call
+    them): every setting of its table is described as the table says (description, read-only,
+    range); every integer and double parameter has a range, each end is accepted and the nearest
+    number outside is refused (rclpy lets numbers within 1e-6 of an end through: the node's own
+    check must refuse them); every enumerated parameter lists its values and accepts exactly those."""
     from rcl_interfaces.msg import ParameterType
     from rcl_interfaces.srv import GetParameters
     from rclpy.parameter import parameter_value_to_python
@@ -174,6 +258,9 @@ def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(p
             names = [d.name for d in descriptors]
             values = dict(zip(names, graph.call(GetParameters, f'{namespace}/{name}/get_parameters',
                                                 GetParameters.Request(names=names)).values))
+            table = node_table(namespaces[namespace], name)
+            if table is not None:
+                problems += described_as_in_table(namespaces[namespace], table, descriptors)
             for descriptor in descriptors:
                 where = f'{namespaces[namespace]} {descriptor.name}'
                 default = parameter_value_to_python(values[descriptor.name])

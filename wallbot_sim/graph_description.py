@@ -1,8 +1,10 @@
 """The node graph of a simulated run, described once: which nodes, in which order, with which parameters.
 
 ``wallbot-sim run`` starts these as child processes (``graph.Graph``); ``launch/wallbot.launch.py``
-turns the same list into launch_ros ``Node`` actions, so ``ros2 launch`` and ``run`` start the same
-graph for the same scenario. ROS-free.
+turns the same list into launch_ros ``Node`` actions (``graph_options``), so ``ros2 launch`` and ``run``
+start the same graph for the same scenario. Every node's parameters are checked by its settings table
+(``wallbot_sim.settings``): a description names no parameter a node lacks, nor a value it refuses.
+ROS-free.
 """
 
 from __future__ import annotations
@@ -18,7 +20,13 @@ from wallbot_sim.live_view import DEFAULT_HOST
 from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
 from wallbot_sim.model.scenario import InitialPose
-from wallbot_sim.model.simulation import PYTHON
+from wallbot_sim.settings.config import CONSTRAINT_CONFIG
+from wallbot_sim.settings.config import VIEWER as VIEWER_SETTINGS
+from wallbot_sim.settings.controller import CONTROLLER as CONTROLLER_SETTINGS
+from wallbot_sim.settings.drives import CMD_VEL, JOINT_BRIDGE
+from wallbot_sim.settings.dynamics import DYNAMICS
+from wallbot_sim.settings.table import SettingError, SettingsTable
+from wallbot_sim.settings.trajectory import TRAJECTORY
 
 RECORDER = 'recorder'
 DYNAMICS_RECORDER = 'dynamics_recorder'
@@ -46,9 +54,11 @@ CMD_VEL_STEPS = steps_per_period(SPEED_LOOP_RATE_HZ)
 CONTROLLER_REMAPS = (topics.CONTROL_ODOM_REMAP,)
 """A commander (the tracking controller, cmd_vel_node) reads control_odom, published at its lockstep
 instants (the dynamics' ``control_odom_every``), instead of every step's odom: one wake per control period."""
-DRIVES = {'cmd_vel': (topics.NODE_CMD_VEL, 'wallbot_sim.nodes.cmd_vel'),
-          'joint_commands': (topics.NODE_JOINT_BRIDGE, 'wallbot_sim.nodes.joint_bridge')}
-"""``run rest --drive NAME``: the node that turns the user's commands into wheel_torque_cmd."""
+DRIVES = {'cmd_vel': (topics.NODE_CMD_VEL, 'wallbot_sim.nodes.cmd_vel', CMD_VEL),
+          'joint_commands': (topics.NODE_JOINT_BRIDGE, 'wallbot_sim.nodes.joint_bridge', JOINT_BRIDGE)}
+"""``run rest --drive NAME``: the node that turns the user's commands into wheel_torque_cmd (name, module, settings)."""
+ENGINE = DYNAMICS['engine'].default
+"""The engine of a run: the dynamics' (and the controller's) default."""
 DRIVE_TOPICS = {'cmd_vel': (topics.WHEEL_TORQUE_CMD, topics.CMD_VEL),
                 'joint_commands': (topics.WHEEL_TORQUE_CMD, topics.JOINT_COMMANDS, topics.JOINT_STATES)}
 """What a driven run records besides topics.RECORDED (wheel_torque_cmd: the torques applied)."""
@@ -63,12 +73,22 @@ class GraphDescriptionError(ValueError):
     """A graph that the nodes cannot run (e.g. a reference shape the trajectory node does not plan)."""
 
 
+def node(name: str, module: str, table: SettingsTable, parameters: dict[str, object],
+         remaps: tuple[str, ...] = ()) -> NodeSpec:
+    """The node ``name`` of ``module`` with ``parameters`` its settings ``table`` accepts (GraphDescriptionError
+    naming the node if it does not)."""
+    try:
+        return NodeSpec(name, module, table.values(**parameters), remaps)
+    except SettingError as error:
+        raise GraphDescriptionError(f'node {name}: {error}') from None
+
+
 def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, duration: float = 0.0,
                    real_time_factor: float = 1.0, bag: Path | None = None,
                    controller_mass_scale: float | None = None, realtime_priority: int = 0,
                    robot_file: Path | None = None, contact_model: str = 'ideal',
-                   adhesion_force: float | None = None, viewer: bool = False, foxglove_port: int = 0,
-                   foxglove_host: str = DEFAULT_HOST, engine: str = PYTHON, compose: bool = False,
+                   adhesion_force: float = 0.0, viewer: bool = False, foxglove_port: int = 0,
+                   foxglove_host: str = DEFAULT_HOST, engine: str = ENGINE, compose: bool = False,
                    frame_prefix: str = '', domain_clock: bool = True) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
@@ -77,10 +97,10 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     set (no trajectory task); the controller starts before the dynamics, which waits for it
     (``wait_for_command``) so the loop is closed from t = 0. ``robot_file`` (the dynamics' model,
     constraint_config's gains and robot_description) None: the installed robot file;
-    ``adhesion_force`` None: the robot file's. ``viewer``: the viewer node (markers, tf), started
+    ``adhesion_force`` 0: the robot file's. ``viewer``: the viewer node (markers, tf), started
     before the dynamics so it draws the whole path; ``foxglove_port`` > 0 (implies the viewer):
     it serves the topics over the Foxglove WebSocket protocol on ``foxglove_host``. ``engine``: the
-    dynamics' and the controller's (python or numba). ``compose`` (with ``bag``): the dynamics and the recorder in one
+    dynamics' and the controller's (numba, the default, or python). ``compose`` (with ``bag``): the dynamics and the recorder in one
     process (``nodes.dynamics_recorder``), started first in the recorder's place. ``frame_prefix``
     (e.g. ``robot2/``): the robot's frames' prefix, given to every node that names them (the
     dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
@@ -105,17 +125,16 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     frames = _frames(frame_prefix)
     specs += [
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
-                 {**switches, **robot, **frames, 'wait_for_recorder': bag is not None, **SIM_TIME}),
-        NodeSpec('trajectory', 'wallbot_sim.nodes.trajectory', {
+        node('constraint_config', 'wallbot_sim.nodes.constraint_config', CONSTRAINT_CONFIG,
+             {**switches, **robot, **frames, 'wait_for_recorder': bag is not None, **SIM_TIME}),
+        node('trajectory', 'wallbot_sim.nodes.trajectory', TRAJECTORY, {
             **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
             'wait_for_recorder': bag is not None, **SIM_TIME}),
     ]
     if closed_loop:
-        specs.append(NodeSpec(CONTROLLER, 'wallbot_sim.nodes.controller', {
+        specs.append(node(CONTROLLER, 'wallbot_sim.nodes.controller', CONTROLLER_SETTINGS, {
             'mass_scale': float(controller_mass_scale), 'engine': engine, 'wait_for_recorder': bag is not None,
-            **SIM_TIME},
-            CONTROLLER_REMAPS))
+            **SIM_TIME}, CONTROLLER_REMAPS))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
                          adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames, domain_clock)
@@ -124,9 +143,9 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
 
 def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor: float = 1.0,
                           bag: Path | None = None, realtime_priority: int = 0, robot_file: Path | None = None,
-                          contact_model: str = 'ideal', adhesion_force: float | None = None, viewer: bool = False,
+                          contact_model: str = 'ideal', adhesion_force: float = 0.0, viewer: bool = False,
                           foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
-                          engine: str = PYTHON, compose: bool = False, frame_prefix: str = '',
+                          engine: str = ENGINE, compose: bool = False, frame_prefix: str = '',
                           domain_clock: bool = True) -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
@@ -139,19 +158,19 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
-    name, module = DRIVES[drive]
+    name, module, table = DRIVES[drive]
     recorder = ({'output': str(bag), 'topics': [t.name for t in (*topics.RECORDED, *DRIVE_TOPICS[drive])]}
                 if bag is not None else {})
     robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
     frames = _frames(frame_prefix)
     specs = [
-        NodeSpec('constraint_config', 'wallbot_sim.nodes.constraint_config',
-                 {**switches_from_selection(DRIVEN), **robot, **frames, 'wait_for_recorder': bag is not None,
-                  **SIM_TIME}),
+        node('constraint_config', 'wallbot_sim.nodes.constraint_config', CONSTRAINT_CONFIG,
+             {**switches_from_selection(DRIVEN), **robot, **frames, 'wait_for_recorder': bag is not None,
+              **SIM_TIME}),
         # the drive node must not forward commands before the recorder hears them (the cmd_vel node is
         # also the run's commander: the dynamics waits for it)
-        NodeSpec(name, module, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})},
-                 CONTROLLER_REMAPS if drive == 'cmd_vel' else ()),
+        node(name, module, table, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})},
+             CONTROLLER_REMAPS if drive == 'cmd_vel' else ()),
         *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
@@ -188,19 +207,19 @@ def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[st
     if not (viewer or foxglove_port):
         return []
     foxglove = {'foxglove_port': int(foxglove_port), 'foxglove_host': foxglove_host} if foxglove_port else {}
-    return [NodeSpec(VIEWER, 'wallbot_sim.nodes.viewer', {**robot, **frames, **foxglove, **SIM_TIME})]
+    return [node(VIEWER, 'wallbot_sim.nodes.viewer', VIEWER_SETTINGS, {**robot, **frames, **foxglove, **SIM_TIME})]
 
 
 def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,
-              robot: dict[str, str], contact_model: str, adhesion_force: float | None,
+              robot: dict[str, str], contact_model: str, adhesion_force: float,
               lockstep_every: int | None, engine: str, frames: dict[str, str], domain_clock: bool) -> NodeSpec:
     """The dynamics node; ``lockstep_every`` set: it waits for its controller and runs in lockstep."""
-    return NodeSpec('dynamics', 'wallbot_sim.nodes.dynamics', {
+    return node('dynamics', 'wallbot_sim.nodes.dynamics', DYNAMICS, {
         'initial_x': pose.x, 'initial_y': pose.y, 'initial_theta': pose.theta,
         'initial_at_rest': pose.at_rest, 'real_time_factor': float(real_time_factor), 'stop_at': float(duration),
         'wait_for_recorder': recorded, 'realtime_priority': int(realtime_priority),
         **robot, **frames, **({} if domain_clock else {'domain_clock': False}),
         'contact_model': contact_model, 'engine': engine,
-        **({'adhesion_force': float(adhesion_force)} if adhesion_force is not None else {}),
+        **({'adhesion_force': float(adhesion_force)} if adhesion_force else {}),
         **({'wait_for_command': True, 'lockstep_every': lockstep_every, 'control_odom_every': lockstep_every}
            if lockstep_every else {})})

@@ -15,15 +15,15 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import threading
 import time
 from datetime import datetime
 from pathlib import Path
 from typing import Callable
 
 from wallbot_sim.cli.errors import CliError
+from wallbot_sim.cli.engine import load_compiled_kernel, require_compiled_engine
 from wallbot_sim.cli.monitor import Monitor
-from wallbot_sim.cli.options import number
+from wallbot_sim.cli.options import add_graph_option
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -32,13 +32,10 @@ from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable,
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER, RECORDER, VIEWER,
                                            GraphDescriptionError, describe_driven_graph, describe_graph)
+from wallbot_sim.graph_options import option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
-from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, Robot
-from wallbot_sim.model.contact import CONTACT_MODELS
-from wallbot_sim.model.errors import ParameterError
-from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.simulation import ENGINES, NUMBA
-from wallbot_sim.nodes.pacing import REAL_TIME_FACTOR, REALTIME_PRIORITY
+from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot
+from wallbot_sim.model.simulation import NUMBA
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
@@ -55,10 +52,6 @@ FINAL_WAIT = 10.0
 """Wall seconds to wait, after the last step is recorded, for the other nodes' last messages: the
 dynamics' diagnostics of the stop (published once a second) and the trajectory node's reference
 pose at the end (it follows /clock, and lags it on a loaded machine)."""
-DURATION = NumberRange(0.0, 1e9, low_open=True, zero='until Ctrl-C')
-"""Simulated seconds of a run: the dynamics' stop_at, whose 0 means never."""
-COMPILE_NOTICE = 2.0
-"""Seconds the compiled kernel may take to load from numba's cache before the run says it is compiling."""
 
 
 def domain_id(text: str) -> int:
@@ -74,83 +67,37 @@ def domain_id(text: str) -> int:
     return value
 
 
-def port(text: str) -> int:
-    """An argparse ``type``: a TCP port, 1..65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = None
-    if value is None or not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f'must be a TCP port, 1..65535, got {text!r}')
-    return value
-
-
-def priority(text: str) -> int:
-    """An argparse ``type``: a SCHED_FIFO priority, 0..99 (0 = normal scheduling)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = None
-    if value is None or REALTIME_PRIORITY.problem(value) is not None:
-        raise argparse.ArgumentTypeError(f'must be an integer priority, 0..99 (0 = normal scheduling), got {text!r}')
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options; those setting a node's parameter (and their help) are the launch file's
+    (``graph_options.OPTIONS``), checked by the node's own rule."""
     parser.add_argument('scenario', help=f'circle, figure8, a scenario YAML path, or {REST} (with --drive: at rest '
                                          'at the origin, driven by your commands)')
-    parser.add_argument('--constraints', default=ALL_STRUCTURAL,
-                        help=f'{SELECTION_SYNTAX} (default: all of them)')
+    add_graph_option(parser, 'constraints', help_suffix=' (default: all of them)')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
-    parser.add_argument('--duration', type=number(DURATION),
-                        help="simulated seconds, 0 = until Ctrl-C (default: the scenario's)")
+    add_graph_option(parser, 'duration', default=None, help_suffix=" (default: the scenario's)")
     parser.add_argument('--domain-id', type=domain_id, metavar='N',
                         help=f'ROS_DOMAIN_ID of the run, {MIN_DOMAIN_ID}..{MAX_DOMAIN_ID}, refused if another run '
                              'holds it (default: a free one); the first line printed is the export that '
                              'attaches another terminal')
-    parser.add_argument('--real-time-factor', type=number(REAL_TIME_FACTOR), default=1.0,
-                        help=f'simulated seconds per wall second, {REAL_TIME_FACTOR.describe()} (default 1)')
-    parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
-    parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
-                        help='wheel-wall contact: ideal, or coulomb (friction-limited; needs --controller)')
-    parser.add_argument('--engine', choices=ENGINES, default=NUMBA,
-                        help="how the dynamics computes the steps and the controller its law: numba (the default: the "
-                             "batch's compiled kernel, the same states as the model to 1e-9; compiled by a machine's "
-                             'first run, about a minute, then loaded from the cache), or python (the model as written, '
-                             'what simulate computes by default, to the bit)')
-    parser.add_argument('--adhesion-force', type=number(POSITIVE),
-                        help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
+    add_graph_option(parser, 'real_time_factor')
+    add_graph_option(parser, 'robot', default=None)
+    add_graph_option(parser, 'contact')
+    add_graph_option(parser, 'engine')
+    add_graph_option(parser, 'adhesion_force')
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
-    parser.add_argument('--controller', action='store_true',
-                        help='closed loop: driven mode (no trajectory task; '
-                             f'{", ".join(DRIVEN.active_names())}) with '
-                             'tracking_controller_node commanding the wheel torques; wheel_torque_cmd is recorded')
+    parser.add_argument('--controller', action='store_true', help=option('controller').setting.help)
     parser.add_argument('--markers', action=argparse.BooleanOptionalAction, default=False,
-                        help='start viewer_node: markers (and /tf where tf2_msgs is installed) for RViz or Foxglove, '
-                             'at 30 frames per second (default: off)')
-    parser.add_argument('--foxglove', type=port, nargs='?', const=DEFAULT_PORT, metavar='PORT',
-                        help=f'serve the live topics over the Foxglove WebSocket protocol on PORT (default '
-                             f'{DEFAULT_PORT}; needs the foxglove-sdk package; implies --markers)')
-    parser.add_argument('--foxglove-host',
-                        help=f'with --foxglove: the address its server binds to (default {DEFAULT_HOST}: this machine '
-                             'only)')
-    parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
-                        help="with --controller: the controller's robot mass relative to the simulator's "
-                             '(model mismatch; default 1.0)')
-    parser.add_argument('--drive', choices=tuple(DRIVES),
-                        help=f'with scenario {REST}: drive the robot yourself, cmd_vel (cmd_vel_node, a wheel-speed '
-                             'PI loop; teleop_twist_keyboard) or joint_commands (joint_bridge_node: ros2_control '
-                             'topics joint_states, joint_commands); the command topics are recorded')
-    parser.add_argument('--realtime-priority', type=priority, default=0, metavar='N',
-                        help="SCHED_FIFO priority of the dynamics' paced loop thread (its realtime_priority; needs "
-                             'an rtprio limit, else a warning and normal scheduling; default 0: normal)')
+                        help=option('viewer').setting.help + ' (default: off)')
+    add_graph_option(parser, 'foxglove_port', nargs='?', const=DEFAULT_PORT, metavar='PORT',
+                     help_suffix=f' (PORT default {DEFAULT_PORT})')
+    add_graph_option(parser, 'foxglove_host', default=None, help_suffix=' (with --foxglove)')
+    add_graph_option(parser, 'controller_mass_scale')
+    parser.add_argument('--drive', choices=tuple(DRIVES), help=f'with scenario {REST}: ' + option('drive').setting.help)
+    add_graph_option(parser, 'realtime_priority', metavar='N')
     parser.add_argument('--compose', action=argparse.BooleanOptionalAction, default=True,
-                        help='run the dynamics and the recorder in one process (dynamics_recorder_node; the default): '
-                             'the per-step topics reach the bag in process instead of over DDS; --no-compose: two '
-                             'processes, all over DDS, a restarted dynamics resuming from the snapshot the recorder '
-                             'keeps')
+                        help=option('compose').setting.help + ' (default: on)')
 
 
 def output_directory(requested: str | None, scenario: str) -> Path:
@@ -236,7 +183,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.foxglove_host is not None and args.foxglove is None:
+    if args.foxglove_host is not None and not args.foxglove:
         raise CliError('--foxglove-host needs --foxglove')
     if (args.scenario == REST) != (args.drive is not None):
         raise CliError(f'--drive and scenario {REST} go together: {REST} has no trajectory to track, a drive '
@@ -298,7 +245,7 @@ def main_driven(args: argparse.Namespace) -> int:
 
 def viewer_options(args: argparse.Namespace) -> dict[str, object]:
     """The graph description's viewer arguments for --markers, --foxglove and --foxglove-host."""
-    return {'viewer': args.markers, 'foxglove_port': args.foxglove or 0,
+    return {'viewer': args.markers, 'foxglove_port': args.foxglove,
             'foxglove_host': args.foxglove_host or DEFAULT_HOST}
 
 
@@ -309,7 +256,7 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
     params = load_robot_parameters(robot_file)
     if args.engine == NUMBA:
         require_compiled_engine()
-    robot = Robot(params if args.adhesion_force is None else params.replace(adhesion_force=args.adhesion_force))
+    robot = Robot(params.replace(adhesion_force=args.adhesion_force) if args.adhesion_force else params)
     try:
         claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
     except DomainUnavailable as error:
@@ -325,7 +272,8 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
         print(f'wallbot-sim run: {title}, {length} at real-time factor {factor:g}, '
               f'ROS_DOMAIN_ID {claim.domain_id}; logs in {graph.log_dir}', file=sys.stderr)
         if args.foxglove:
-            print(f'wallbot-sim run: live view for Foxglove on ws://{args.foxglove_host or DEFAULT_HOST}:{args.foxglove}',
+            print(f'wallbot-sim run: live view for Foxglove on ws://{args.foxglove_host or DEFAULT_HOST}:'
+                  f'{args.foxglove}',
                   file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
@@ -357,32 +305,6 @@ def repair_unclosed(bag: Path) -> str:
     except BagError as error:
         return f' (its recorder did not close it, and reindexing failed: {error})'
     return f' (its recorder did not close it; reindexed: {repaired.messages} messages, {repaired.duration:.3f} s)'
-
-
-def require_compiled_engine() -> None:
-    """CliError unless numba imports, naming the package and the other engine."""
-    from wallbot_sim.model.compiled import require_numba
-    try:
-        require_numba()
-    except ParameterError as error:
-        raise CliError(f'{error}, or --engine python') from None
-
-
-def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
-    """Load the compiled kernel the nodes step by (under ``contact``; and the controller's law) from numba's
-    cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
-    then load it in a second, well within the graph's start timeouts."""
-    from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run
-    notice = threading.Timer(COMPILE_NOTICE, print, ['wallbot-sim run: compiling the numba kernel into its cache '
-                                                     "(a machine's first run: about a minute)..."],
-                             {'file': sys.stderr, 'flush': True})
-    notice.start()
-    try:
-        compile_run(contact)
-        if inverse_dynamics:
-            compile_inverse_dynamics()
-    finally:
-        notice.cancel()
 
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:

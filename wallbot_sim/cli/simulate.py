@@ -12,18 +12,20 @@ import numpy as np
 
 from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.options import number
+from wallbot_sim.cli.engine import require_compiled_engine
+from wallbot_sim.cli.options import add_graph_option, add_setting, number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, TorqueCommand, close_loop, controller_robot
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
-from wallbot_sim.model.contact import CONTACT_MODELS, DetachedError
+from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.outputs import StepTable
-from wallbot_sim.model.simulation import ENGINES, PYTHON
+from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_line, csv_lines, fill_rows
+from wallbot_sim.settings.dynamics import DYNAMICS
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 
@@ -38,32 +40,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--scenario', default='circle',
                         help='circle, figure8, a scenario YAML path, or rest (no trajectory task: at rest at the '
                              'origin under constant motor torques)')
-    parser.add_argument('--heading', type=number(FINITE),
-                        help='with --scenario rest: initial heading in rad (default 0)')
+    add_setting(parser, '--heading', DYNAMICS['initial_theta'], default=None,
+                help_suffix=' (with --scenario rest; default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
     parser.add_argument('--constraints',
                         help=f'{SELECTION_SYNTAX} (default: none, the trajectory '
                              f'task only; {DRIVEN_CONSTRAINTS} for rest)')
-    parser.add_argument('--contact', choices=CONTACT_MODELS, default='ideal',
-                        help='wheel-wall contact: ideal, or coulomb (friction-limited, slip and detachment; '
-                             'needs a run without the trajectory task: rest, or --controller)')
+    add_graph_option(parser, 'contact', help_suffix=' (coulomb needs a run without the trajectory task: rest, or '
+                                                    '--controller; default ideal)')
     parser.add_argument('--controller', action='store_true',
                         help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with the '
                              'example tracking controller commanding the wheel torques at 25 Hz of simulation '
                              'time, as run --controller does over DDS')
-    parser.add_argument('--controller-mass-scale', type=number(POSITIVE), default=1.0,
-                        help="with --controller: the controller's robot mass relative to the simulator's "
-                             '(model mismatch; default 1.0)')
-    parser.add_argument('--adhesion-force', type=number(POSITIVE),
-                        help="adhesion force in N pressing the robot to the wall (default: the robot file's)")
+    add_graph_option(parser, 'controller_mass_scale')
+    add_graph_option(parser, 'adhesion_force')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
                         help='heading task along the path (default: on when non_lateral is active)')
     parser.add_argument('--duration', type=number(POSITIVE), help='seconds to simulate (default: the scenario\'s)')
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
-    parser.add_argument('--engine', choices=ENGINES, default=PYTHON,
-                        help='how the steps (and the --controller\'s law) are computed: python (the model), or '
-                             'numba (the batch\'s compiled kernel, ideal and coulomb contact)')
+    add_graph_option(parser, 'engine')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -72,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     """The simulation and duration the arguments ask for (the closed loop's plant with --controller)."""
     params = load_robot_parameters(args.robot)
-    if args.adhesion_force is not None:
+    if args.adhesion_force:  # 0: the robot file's
         params = params.replace(adhesion_force=args.adhesion_force)
     robot = Robot(params)
     rest = args.scenario == REST
@@ -139,6 +135,8 @@ def parse_torque(text: str | None) -> tuple[float, float]:
 def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
+    if args.engine == NUMBA:
+        require_compiled_engine()
     simulation, duration = build_simulation(args)
     # the controller is built before the bag is created (a refused controller leaves no bag behind);
     # its commands go to the bag once it is open
