@@ -13,10 +13,12 @@ the robot model (``robot_description``, the URDF constraint_config publishes, on
 a plan when it is made; a controller's ``wheel_torque_cmd`` (``write_command``) at the stamp of the
 state it answers, after that state's messages, as a recorder receives it.
 
-Differences, by design: ``reference`` is written at every step (the node samples the same plan at
-its own rate); ``/clock`` at ``messages.CLOCK_RATE_HZ`` and at the last state, as the
-dynamics node publishes it by default; ``/diagnostics`` is written every DIAGNOSTICS_PERIOD of simulation time and once
-at the end, with this process's wall-clock figures.
+Rates: as the graph publishes them with the nodes' defaults. ``reference`` at ``messages.PUBLISH_RATE_HZ`` of
+simulation time, on the trajectory node's grid (every multiple of its period from the plan's start up to the
+last state), sampled from the plan as that node samples it; ``/clock`` at ``messages.CLOCK_RATE_HZ`` and at the
+last state, as the dynamics node publishes it. One difference, by design: ``/diagnostics``, which the dynamics
+publishes once a wall second, is written every DIAGNOSTICS_PERIOD of simulation time (a run at factor 1's rate)
+and once at the end, with this process's wall-clock figures.
 """
 
 from __future__ import annotations
@@ -32,8 +34,10 @@ from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.urdf import robot_urdf
 
-DIAGNOSTICS_PERIOD = 0.1
+DIAGNOSTICS_PERIOD = 1.0
 """Simulation seconds between /diagnostics messages."""
+REFERENCE_PERIOD_NS = round(1e9 / messages.PUBLISH_RATE_HZ)
+"""The trajectory node's reference pose period (ns of simulation time) at its default publish_rate_hz."""
 
 
 class HeadlessBagWriter:
@@ -51,6 +55,8 @@ class HeadlessBagWriter:
         """The reference the trajectory node samples (the simulation follows its plans)."""
         self._yaw = 0.0
         self._plan = None
+        self._last_pose: int | None = None
+        """Grid index (stamp / REFERENCE_PERIOD_NS) of the newest reference pose written."""
         self._window_start = time.perf_counter()
         self._window_steps = 0
         self._step_time_max = 0.0
@@ -99,14 +105,25 @@ class HeadlessBagWriter:
                 self._unwritten_clock = None
             else:
                 self._unwritten_clock = (t, data)
-        reference = self.simulation.reference
-        if reference is not None:  # sampled at the stamp's time, as the trajectory node samples it
-            stamp_t = codec.to_nanoseconds(t) * 1e-9
-            data, self._yaw = messages.reference_message(reference.sample(stamp_t), stamp_t, self._yaw)
-            self._put(topics.REFERENCE, t, data)
+        if self._plan is not None:
+            self._write_poses(codec.to_nanoseconds(t))
         if self._plan is not None and messages.replan_due(self._plan, t):
             self._replan(t)
         self._note(out)
+
+    def _write_poses(self, stamp_ns: int) -> None:
+        """The reference poses of the grid points up to ``stamp_ns`` not written yet (from the plan's start), each
+        sampled at its grid time from the plan, as the trajectory node publishes them."""
+        newest = stamp_ns // REFERENCE_PERIOD_NS
+        last = self._last_pose
+        if last is None:
+            last = -(-codec.to_nanoseconds(self._plan.times[0]) // REFERENCE_PERIOD_NS) - 1
+        reference = self.simulation.reference
+        for k in range(last + 1, newest + 1):
+            t = k * REFERENCE_PERIOD_NS * 1e-9
+            data, self._yaw = messages.reference_message(reference.sample(t), t, self._yaw)
+            self._put(topics.REFERENCE, t, data)
+        self._last_pose = max(last, newest)
 
     def write_command(self, t: float, tau_left: float, tau_right: float) -> None:
         """A controller's ``wheel_torque_cmd`` answering the state of time ``t`` (call it after that
