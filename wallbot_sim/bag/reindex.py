@@ -158,17 +158,81 @@ def mcap_files(directory: Path) -> list[Path]:
     return sorted(directory.glob('*.mcap'))
 
 
-def reindex(path: Path | str) -> ReindexReport:
-    """Rebuild ``path`` (a bag directory, or its .mcap) in place from its MCAP data; a report."""
-    from rosbags.rosbag2.metadata import parse_qos
+class _Copy:
+    """MCAP records copied into a bag writer: each message under a connection made from its channel and schema
+    records (as they came before it), its log time and bytes unchanged."""
 
-    from wallbot_sim.bag.writer import BagWriter
+    def __init__(self, writer: object) -> None:
+        self.writer = writer
+        self.store = bagio.typestore()
+        self.schemas: dict[int, tuple[str, str]] = {}
+        self.channels: dict[int, tuple[str, str, str, str, str]] = {}
+        self.connections: dict[int, object] = {}
+        self.first: int | None = None
+        self.last: int | None = None
 
+    def record(self, opcode: int, body: memoryview) -> None:
+        cursor = _Cursor(body)
+        if opcode == OP_SCHEMA:
+            sid = cursor.u16()
+            name = cursor.string()
+            cursor.string()  # the schema's encoding: ros2msg, which the writer always uses
+            self.schemas[sid] = (name, bytes(cursor.bytes(cursor.u32())).decode('utf-8'))
+        elif opcode == OP_CHANNEL:
+            cid, sid = cursor.u16(), cursor.u16()
+            topic, encoding = cursor.string(), cursor.string()
+            metadata = cursor.string_map()
+            msgtype, msgdef = self.schemas.get(sid, ('', ''))
+            self.channels[cid] = (topic, msgtype, msgdef, metadata.get('offered_qos_profiles', ''), encoding)
+        elif opcode == OP_MESSAGE:
+            self._message(cursor)
+
+    def _message(self, cursor: _Cursor) -> None:
+        cid = cursor.u16()
+        cursor.u32()
+        log_time = cursor.u64()
+        cursor.u64()
+        connection = self._connection(cid)
+        if connection is None:
+            return  # its channel record was lost with a cut chunk
+        self.writer._writer.write(connection, log_time, cursor.data[cursor.pos:])
+        self.writer.count += 1
+        self.first = log_time if self.first is None else min(self.first, log_time)
+        self.last = log_time if self.last is None else max(self.last, log_time)
+
+    def _connection(self, cid: int) -> object | None:
+        from rosbags.rosbag2.metadata import parse_qos
+        if cid not in self.connections:
+            if cid not in self.channels:
+                return None
+            topic, msgtype, msgdef, qos_text, encoding = self.channels[cid]
+            try:
+                qos = parse_qos(qos_text) if qos_text else []
+            except Exception:
+                qos = []
+            known = msgtype in self.store.fielddefs
+            self.connections[cid] = self.writer._writer.add_connection(
+                topic, msgtype, typestore=self.store if known else None, msgdef=None if known else msgdef,
+                rihs01=None if known else UNKNOWN_HASH, serialization_format=encoding or 'cdr',
+                offered_qos_profiles=qos)
+        return self.connections[cid]
+
+
+def _bag_directory(path: Path | str) -> Path:
+    """The bag directory ``path`` is or holds the .mcap of; NotABagError if there is none."""
     directory = Path(path)
     if directory.is_file() and directory.suffix == '.mcap':
         directory = directory.parent
     if not directory.is_dir():
         raise NotABagError(f'{path} does not exist' if not directory.exists() else f'{path} is not a bag directory')
+    return directory
+
+
+def reindex(path: Path | str) -> ReindexReport:
+    """Rebuild ``path`` (a bag directory, or its .mcap) in place from its MCAP data; a report."""
+    from wallbot_sim.bag.writer import BagWriter
+
+    directory = _bag_directory(path)
     sources = mcap_files(directory)
     if not sources:
         raise NotABagError(f'{directory} holds no .mcap file to reindex')
@@ -177,51 +241,15 @@ def reindex(path: Path | str) -> ReindexReport:
         shutil.rmtree(work)
     work.mkdir()
     target = work / directory.name
-    truncated, chunks, first, last = False, 0, None, None
+    truncated, chunks = False, 0
     try:
         writer = BagWriter(target, flush_period=3600.0)
-        store = bagio.typestore()
-        schemas: dict[int, tuple[str, str]] = {}
-        channels: dict[int, tuple[str, str, str, str, str]] = {}
-        connections: dict[int, object] = {}
+        copy = _Copy(writer)
         for source in sources:
             with open(source, 'rb') as stream:
                 scan = _Scan(stream, str(source))
                 for opcode, body in scan:
-                    cursor = _Cursor(body)
-                    if opcode == OP_SCHEMA:
-                        sid = cursor.u16()
-                        name = cursor.string()
-                        cursor.string()  # the schema's encoding: ros2msg, which the writer always uses
-                        schemas[sid] = (name, bytes(cursor.bytes(cursor.u32())).decode('utf-8'))
-                    elif opcode == OP_CHANNEL:
-                        cid, sid = cursor.u16(), cursor.u16()
-                        topic, encoding = cursor.string(), cursor.string()
-                        metadata = cursor.string_map()
-                        msgtype, msgdef = schemas.get(sid, ('', ''))
-                        channels[cid] = (topic, msgtype, msgdef, metadata.get('offered_qos_profiles', ''), encoding)
-                    elif opcode == OP_MESSAGE:
-                        cid = cursor.u16()
-                        cursor.u32()
-                        log_time = cursor.u64()
-                        cursor.u64()
-                        if cid not in connections:
-                            if cid not in channels:
-                                continue  # channel record lost with a cut chunk
-                            topic, msgtype, msgdef, qos_text, encoding = channels[cid]
-                            try:
-                                qos = parse_qos(qos_text) if qos_text else []
-                            except Exception:
-                                qos = []
-                            known = msgtype in store.fielddefs
-                            connections[cid] = writer._writer.add_connection(
-                                topic, msgtype, typestore=store if known else None,
-                                msgdef=None if known else msgdef, rihs01=None if known else UNKNOWN_HASH,
-                                serialization_format=encoding or 'cdr', offered_qos_profiles=qos)
-                        writer._writer.write(connections[cid], log_time, cursor.data[cursor.pos:])
-                        writer.count += 1
-                        first = log_time if first is None else min(first, log_time)
-                        last = log_time if last is None else max(last, log_time)
+                    copy.record(opcode, body)
                 truncated = truncated or scan.truncated
                 chunks += scan.chunks
         writer.set_custom_data('wallbot.reindexed', 'true' + (' (truncated input)' if truncated else ''))
@@ -237,5 +265,5 @@ def reindex(path: Path | str) -> ReindexReport:
         raise BagError(f'cannot reindex {directory}: {type(error).__name__}: {error}') from None
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    duration = (last - first) * 1e-9 if first is not None else 0.0
+    duration = (copy.last - copy.first) * 1e-9 if copy.first is not None else 0.0
     return ReindexReport(directory, writer.count, chunks, truncated, duration)
