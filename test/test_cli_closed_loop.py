@@ -158,7 +158,7 @@ def test_a_fast_circle_slips_and_the_csv_and_summary_say_so(tmp_path):
 @pytest.mark.parametrize('args, words', [
     (['--controller', '--scenario', 'rest'], 'rest has none'),
     (['--controller', '--constraints', 'belt'], 'drop --constraints'),
-    (['--controller', '--controller-mass-scale', '0'], 'argument --controller-mass-scale: must be > 0'),
+    (['--controller', '--controller-mass-scale', '0'], 'argument --controller-mass-scale: must be in [0.001, 1000], got 0.0'),
     (['--controller-mass-scale', '1.2'], '--controller-mass-scale needs --controller'),
 ])
 def test_bad_closed_loop_arguments_are_one_line_errors(tmp_path, args, words):

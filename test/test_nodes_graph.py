@@ -355,8 +355,8 @@ def test_a_headless_bag_played_into_a_live_dynamics_node_drives_it(graph, tmp_pa
 
     bag = tmp_path / 'headless'
     result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', '--scenario', 'circle',
-                             '--constraints', 'belt,non_lateral,nonslip', '--duration', '0.5', '--bag', str(bag),
-                             '--quiet'], capture_output=True, text=True, timeout=120)
+                             '--constraints', 'belt,non_lateral,nonslip', '--duration', '0.5', '--engine', 'python',
+                             '--bag', str(bag), '--quiet'], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     graph.start('dynamics', 'initial_x:=0.8')
     odom = topics.ODOM.resolve(graph.namespace)

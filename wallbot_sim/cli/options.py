@@ -45,10 +45,10 @@ SETTING_DEFAULT = object()
 def add_setting(parser: argparse.ArgumentParser, flag: str, setting: Setting, *, default: Any = SETTING_DEFAULT,
                 help_suffix: str = '', **kwargs: Any) -> None:
     """``flag`` for ``setting``: its type and check, its help (with ``help_suffix``, else the default), its
-    choices as the metavar, ``default`` (by default the setting's)."""
+    choices, ``default`` (by default the setting's)."""
     words = setting.help
-    if setting.choices:
-        kwargs.setdefault('metavar', '{' + ','.join(setting.choices) + '}')
+    if setting.choices:  # checked by the type first (the node's words); argparse lists them
+        kwargs.setdefault('choices', setting.choices)
     if setting.allowed is not None:
         words += f' ({setting.allowed.describe()})'
     if default is SETTING_DEFAULT:
