@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -59,140 +59,166 @@ def _prepare_out(out_dir: Path) -> Path:
 def write_figures(runs: Sequence[RunData], out_dir: Path | str, half_wheelbase: float | None = None,
                   half_track: float | None = None) -> list[Path]:
     """Write the figure set for ``runs`` (overlaid when several) into ``out_dir``; return the files."""
-    import matplotlib
-    matplotlib.use('Agg', force=True)
-    import matplotlib.pyplot as plt
-
     if half_wheelbase is None or half_track is None:
         from wallbot_sim.config import load_robot_parameters
         params = load_robot_parameters()
         half_wheelbase = params.half_wheelbase if half_wheelbase is None else half_wheelbase
         half_track = params.half_track if half_track is None else half_track
-    out = _prepare_out(Path(out_dir))
-    many = len(runs) > 1
-    title_suffix = '' if many else f' ({runs[0].label})'
-    written: list[Path] = []
+    figures = _Figures(runs, _prepare_out(Path(out_dir)))
+    figures.path()
+    figures.position()
+    figures.tracking_error()
+    figures.attitude()
+    figures.wheel_tracks(half_wheelbase, half_track)
+    figures.constraint_forces()
+    figures.drive_forces()
+    figures.normal_loads()
+    figures.friction_use()
+    return figures.written
 
-    def label(run: RunData, what: str = '') -> str:
-        return f'{run.label}{": " + what if what else ""}' if many else (what or run.label)
 
-    def save(fig, name: str) -> None:
+class _Figures:
+    """The figures of ``runs`` (overlaid when several), each written into ``out`` by one method, in FIGURES' order."""
+
+    def __init__(self, runs: Sequence[RunData], out: Path) -> None:
+        import matplotlib
+        matplotlib.use('Agg', force=True)
+        import matplotlib.pyplot as plt
+        self.plt, self.runs, self.out = plt, runs, out
+        self.first, self.many = runs[0], len(runs) > 1
+        self.title_suffix = '' if self.many else f' ({runs[0].label})'
+        self.written: list[Path] = []
+
+    def label(self, run: RunData, what: str = '') -> str:
+        return f'{run.label}{": " + what if what else ""}' if self.many else (what or run.label)
+
+    def save(self, fig, name: str) -> None:
         fig.tight_layout()
-        target = out / f'{name}.png'
+        target = self.out / f'{name}.png'
         try:
             fig.savefig(target, dpi=110)
         except OSError as error:
             raise PlotError(f'cannot write {target}: {error.strerror}') from None
         finally:
-            plt.close(fig)
-        written.append(target)
+            self.plt.close(fig)
+        self.written.append(target)
 
-    first = runs[0]
-    # path
-    fig, ax = plt.subplots(figsize=(6.4, 6.0))
-    if len(first.path_x):
-        ax.plot(first.path_x, first.path_y, 'k--', lw=1.2, label='reference path')
-    else:
-        ax.plot(first.ref_x, first.ref_y, 'k--', lw=1.2, label='reference path')
-    for run in runs:
-        ax.plot(run.x, run.y, lw=1.4, label=label(run, 'actual path'))
-    ax.plot(first.x[:1], first.y[:1], 'o', color='tab:green', label='start')
-    ax.set(xlabel='x (m)', ylabel='y (m)', title='Path of the centre: reference vs actual' + title_suffix)
-    ax.set_aspect('equal', adjustable='datalim')
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize='small')
-    save(fig, 'path')
-    # position
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
-    for ax, coord, refc, name in ((axes[0], 'x', 'ref_x', 'x'), (axes[1], 'y', 'ref_y', 'y')):
-        ax.plot(first.t, getattr(first, refc), 'k--', lw=1.2, label=f'reference {name}_d(t)')
-        for run in runs:
-            ax.plot(run.t, getattr(run, coord), lw=1.3, label=label(run, f'actual {name}(t)'))
-        ax.set(ylabel=f'{name} (m)')
+    def _over_time(self, name: str, values: Callable[[RunData], np.ndarray], ylabel: str, title: str,
+                   what: str) -> None:
+        """One quantity of every run (``values`` of it) against time."""
+        fig, ax = self.plt.subplots(figsize=(7.5, 4.5))
+        for run in self.runs:
+            ax.plot(run.t, values(run), lw=1.3, label=self.label(run, what))
+        ax.set(xlabel='time (s)', ylabel=ylabel, title=title + self.title_suffix)
         ax.grid(True, alpha=0.3)
         ax.legend(loc='best', fontsize='small')
-    axes[0].set_title('Position of the centre against the reference' + title_suffix)
-    axes[1].set_xlabel('time (s)')
-    save(fig, 'position')
-    # tracking error
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    for run in runs:
-        ax.plot(run.t, run.err, lw=1.3, label=label(run, 'tracking error'))
-    ax.set(xlabel='time (s)', ylabel='tracking error |p - p_d| (m)', title='Tracking error' + title_suffix)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize='small')
-    save(fig, 'tracking_error')
-    # attitude
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    for run in runs:
-        ax.plot(run.t, np.unwrap(run.theta), lw=1.3, label=label(run, 'attitude angle theta'))
-    ax.set(xlabel='time (s)', ylabel='attitude angle theta (rad)', title='Attitude angle' + title_suffix)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize='small')
-    save(fig, 'attitude')
-    # wheel tracks
-    fig, ax = plt.subplots(figsize=(6.4, 6.0))
-    styles = ('-', '--', '-.', ':')
-    for k, run in enumerate(runs):
-        for name, (wx, wy) in wheel_tracks(run, half_wheelbase, half_track).items():
-            pretty = name.replace('wheel_', '').replace('_', ' ')
-            ax.plot(wx, wy, styles[k % len(styles)], lw=1.0, label=label(run, f'{pretty} wheel'))
-    ax.set(xlabel='x (m)', ylabel='y (m)', title='Tracks of the four wheels' + title_suffix)
-    ax.set_aspect('equal', adjustable='datalim')
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='best', fontsize='x-small', ncol=2 if many else 1)
-    save(fig, 'wheel_tracks')
-    # constraint forces and torque
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
-    for run in runs:
-        axes[0].plot(run.t, run.Fx, lw=1.2, label=label(run, 'F_X'))
-        axes[0].plot(run.t, run.Fy, lw=1.2, label=label(run, 'F_Y'))
-        axes[1].plot(run.t, run.Mz, lw=1.2, label=label(run, 'M_Z'))
-    axes[0].set(ylabel='constraint force (N)', title='Constraint forces and torque on the chassis' + title_suffix)
-    axes[1].set(xlabel='time (s)', ylabel='constraint torque M_Z (N m)')
-    for ax in axes:
+        self.save(fig, name)
+
+    def path(self) -> None:
+        first = self.first
+        fig, ax = self.plt.subplots(figsize=(6.4, 6.0))
+        if len(first.path_x):
+            ax.plot(first.path_x, first.path_y, 'k--', lw=1.2, label='reference path')
+        else:
+            ax.plot(first.ref_x, first.ref_y, 'k--', lw=1.2, label='reference path')
+        for run in self.runs:
+            ax.plot(run.x, run.y, lw=1.4, label=self.label(run, 'actual path'))
+        ax.plot(first.x[:1], first.y[:1], 'o', color='tab:green', label='start')
+        ax.set(xlabel='x (m)', ylabel='y (m)', title='Path of the centre: reference vs actual' + self.title_suffix)
+        ax.set_aspect('equal', adjustable='datalim')
         ax.grid(True, alpha=0.3)
         ax.legend(loc='best', fontsize='small')
-    save(fig, 'constraint_forces')
-    # drive forces
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
-    for run in runs:
-        axes[0].plot(run.t, run.F_left, lw=1.2, label=label(run, 'left drive force F_L'))
-        axes[1].plot(run.t, run.F_right, lw=1.2, label=label(run, 'right drive force F_R'))
-        axes[2].plot(run.t, run.F_lateral, lw=1.2, label=label(run, 'lateral force F_lat'))
-    axes[0].set(ylabel='F_L (N)', title='Drive forces' + title_suffix)
-    axes[1].set(ylabel='F_R (N)')
-    axes[2].set(xlabel='time (s)', ylabel='F_lat (N)')
-    for ax in axes:
+        self.save(fig, 'path')
+
+    def position(self) -> None:
+        fig, axes = self.plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
+        for ax, coord, refc, name in ((axes[0], 'x', 'ref_x', 'x'), (axes[1], 'y', 'ref_y', 'y')):
+            ax.plot(self.first.t, getattr(self.first, refc), 'k--', lw=1.2, label=f'reference {name}_d(t)')
+            for run in self.runs:
+                ax.plot(run.t, getattr(run, coord), lw=1.3, label=self.label(run, f'actual {name}(t)'))
+            ax.set(ylabel=f'{name} (m)')
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc='best', fontsize='small')
+        axes[0].set_title('Position of the centre against the reference' + self.title_suffix)
+        axes[1].set_xlabel('time (s)')
+        self.save(fig, 'position')
+
+    def tracking_error(self) -> None:
+        self._over_time('tracking_error', lambda run: run.err, 'tracking error |p - p_d| (m)', 'Tracking error',
+                        'tracking error')
+
+    def attitude(self) -> None:
+        self._over_time('attitude', lambda run: np.unwrap(run.theta), 'attitude angle theta (rad)', 'Attitude angle',
+                        'attitude angle theta')
+
+    def wheel_tracks(self, half_wheelbase: float, half_track: float) -> None:
+        fig, ax = self.plt.subplots(figsize=(6.4, 6.0))
+        styles = ('-', '--', '-.', ':')
+        for k, run in enumerate(self.runs):
+            for name, (wx, wy) in wheel_tracks(run, half_wheelbase, half_track).items():
+                pretty = name.replace('wheel_', '').replace('_', ' ')
+                ax.plot(wx, wy, styles[k % len(styles)], lw=1.0, label=self.label(run, f'{pretty} wheel'))
+        ax.set(xlabel='x (m)', ylabel='y (m)', title='Tracks of the four wheels' + self.title_suffix)
+        ax.set_aspect('equal', adjustable='datalim')
         ax.grid(True, alpha=0.3)
-        ax.legend(loc='best', fontsize='small')
-    save(fig, 'drive_forces')
-    # normal loads
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    for run in runs:
-        for i, name in enumerate(topics.WHEEL_JOINTS):
-            if len(run.loads):
-                ax.plot(run.t, run.loads[:, i], lw=1.2, label=label(run, name.replace('wheel_', '').replace('_', ' ')))
-    ax.axhline(0.0, color='k', lw=0.8)
-    ax.set(xlabel='time (s)', ylabel='normal load N_i (N)',
-           title='Normal loads of the wheels (below 0: lifts off)' + title_suffix)
-    _note_missing(ax, runs)
-    save(fig, 'normal_loads')
-    # friction use
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
-    for k, (ax, channel) in enumerate(zip(axes, ('left traction', 'right traction', 'lateral'))):
-        for run in runs:
-            if len(run.use):
-                ax.plot(run.t, run.use[:, k], lw=1.2, label=label(run, f'{channel} use'))
-                ax.fill_between(run.t, 0, 1, where=run.slip[:, k] > 0.5, transform=ax.get_xaxis_transform(),
-                                alpha=0.2, color='tab:red', lw=0, label=label(run, 'slipping'))
-        ax.axhline(1.0, color='k', ls='--', lw=1.0, label='limit |F| = mu_s N')
-        ax.set(ylabel=f'{channel} use')
-        _note_missing(ax, runs)
-    axes[0].set_title('Friction use |F| / (mu_s N) per channel' + title_suffix)
-    axes[2].set_xlabel('time (s)')
-    save(fig, 'friction_use')
-    return written
+        ax.legend(loc='best', fontsize='x-small', ncol=2 if self.many else 1)
+        self.save(fig, 'wheel_tracks')
+
+    def constraint_forces(self) -> None:
+        fig, axes = self.plt.subplots(2, 1, sharex=True, figsize=(7.5, 6.0))
+        for run in self.runs:
+            axes[0].plot(run.t, run.Fx, lw=1.2, label=self.label(run, 'F_X'))
+            axes[0].plot(run.t, run.Fy, lw=1.2, label=self.label(run, 'F_Y'))
+            axes[1].plot(run.t, run.Mz, lw=1.2, label=self.label(run, 'M_Z'))
+        axes[0].set(ylabel='constraint force (N)',
+                    title='Constraint forces and torque on the chassis' + self.title_suffix)
+        axes[1].set(xlabel='time (s)', ylabel='constraint torque M_Z (N m)')
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc='best', fontsize='small')
+        self.save(fig, 'constraint_forces')
+
+    def drive_forces(self) -> None:
+        fig, axes = self.plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+        for run in self.runs:
+            axes[0].plot(run.t, run.F_left, lw=1.2, label=self.label(run, 'left drive force F_L'))
+            axes[1].plot(run.t, run.F_right, lw=1.2, label=self.label(run, 'right drive force F_R'))
+            axes[2].plot(run.t, run.F_lateral, lw=1.2, label=self.label(run, 'lateral force F_lat'))
+        axes[0].set(ylabel='F_L (N)', title='Drive forces' + self.title_suffix)
+        axes[1].set(ylabel='F_R (N)')
+        axes[2].set(xlabel='time (s)', ylabel='F_lat (N)')
+        for ax in axes:
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc='best', fontsize='small')
+        self.save(fig, 'drive_forces')
+
+    def normal_loads(self) -> None:
+        fig, ax = self.plt.subplots(figsize=(7.5, 4.5))
+        for run in self.runs:
+            for i, name in enumerate(topics.WHEEL_JOINTS):
+                if len(run.loads):
+                    ax.plot(run.t, run.loads[:, i], lw=1.2,
+                            label=self.label(run, name.replace('wheel_', '').replace('_', ' ')))
+        ax.axhline(0.0, color='k', lw=0.8)
+        ax.set(xlabel='time (s)', ylabel='normal load N_i (N)',
+               title='Normal loads of the wheels (below 0: lifts off)' + self.title_suffix)
+        _note_missing(ax, self.runs)
+        self.save(fig, 'normal_loads')
+
+    def friction_use(self) -> None:
+        fig, axes = self.plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
+        for k, (ax, channel) in enumerate(zip(axes, ('left traction', 'right traction', 'lateral'))):
+            for run in self.runs:
+                if len(run.use):
+                    ax.plot(run.t, run.use[:, k], lw=1.2, label=self.label(run, f'{channel} use'))
+                    ax.fill_between(run.t, 0, 1, where=run.slip[:, k] > 0.5, transform=ax.get_xaxis_transform(),
+                                    alpha=0.2, color='tab:red', lw=0, label=self.label(run, 'slipping'))
+            ax.axhline(1.0, color='k', ls='--', lw=1.0, label='limit |F| = mu_s N')
+            ax.set(ylabel=f'{channel} use')
+            _note_missing(ax, self.runs)
+        axes[0].set_title('Friction use |F| / (mu_s N) per channel' + self.title_suffix)
+        axes[2].set_xlabel('time (s)')
+        self.save(fig, 'friction_use')
 
 
 def _note_missing(ax, runs: Sequence[RunData]) -> None:
