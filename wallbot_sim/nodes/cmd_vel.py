@@ -66,7 +66,7 @@ class CmdVelNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_CMD_VEL, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
-        robot_file, _refused = declare_setting(self, CMD_VEL['robot_file'], '')
+        robot_file = declare_setting(self, CMD_VEL['robot_file'], '')[0]  # first: it gives defaults
         robot = load_robot_parameters(robot_file or None)
         self.settings: CmdVelSettings = declare_typed(self, CmdVelSettings, CMD_VEL, {
             'wheel_separation': 2.0 * robot.half_track, 'wheel_radius': robot.wheel_radius})

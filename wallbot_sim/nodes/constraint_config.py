@@ -39,7 +39,7 @@ class ConstraintConfigNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__(topics.NODE_CONSTRAINT_CONFIG, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS,
                          **kwargs)
-        robot_file, _refused = declare_setting(self, CONSTRAINT_CONFIG['robot_file'], '')
+        robot_file = declare_setting(self, CONSTRAINT_CONFIG['robot_file'], '')[0]  # first: it gives defaults
         params = load_robot_parameters(robot_file or None)
         values = declare_settings(self, CONSTRAINT_CONFIG, {'baumgarte_alpha': params.baumgarte_alpha,
                                                             'baumgarte_beta': params.baumgarte_beta})

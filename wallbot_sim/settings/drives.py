@@ -16,8 +16,6 @@ GEOMETRY = NumberRange(1e-4, 10.0)
 ROBOT = RobotParameters()
 LOOP = WheelSpeedSettings(2.0 * ROBOT.half_track, ROBOT.wheel_radius, AxisLimits(0.5, 1.0), AxisLimits(2.0, 4.0))
 """The wheel-speed loop's defaults (the geometry: the installed robot file's, which the node reads)."""
-ROBOT_GEOMETRY = ('wheel_separation', 'wheel_radius')
-"""cmd_vel_node's settings whose default is the robot file's (``robot_file``)."""
 
 
 @dataclass(frozen=True)

@@ -166,10 +166,6 @@ class SettingsTable:
         return [reason for name, value in values.items() if name in self._settings
                 for reason in [self._settings[name].reason(value)] if reason]
 
-    def locked_changes(self, values: Mapping[str, object]) -> list[str]:
-        """The names among ``values`` that take their value at start only."""
-        return [name for name in values if name in self._settings and self._settings[name].locked]
-
     def values(self, **values: object) -> dict[str, object]:
         """``values`` checked (a parameter dictionary of the graph description): SettingError naming the first
         unknown name or refused value."""
