@@ -124,12 +124,13 @@ class DynamicsLoop:
         it does between single steps.
         """
         events = self._take_events()
-        if self.blocks.keep_through(events):
+        if self.blocks.ahead is not None and self.blocks.keep_through(events):
             for event in events:
                 self._apply(event)
             self.blocks.publish_ahead()
             return Decision.STEPPED
-        self.blocks.drop(events)
+        if events or self.blocks.ahead is not None:
+            self.blocks.drop(events)
         for event in events:
             self._apply(event)
         if self.reset_requested is not None:
@@ -271,7 +272,7 @@ class DynamicsLoop:
 
     def _ready(self) -> bool:
         """Apply a pending constraint set if possible; say whether the next step may run."""
-        if not self.start.started():
+        if (self.sim is None or self.pending_constraints is not None) and not self.start.started():
             return False
         sim = self.sim
         if (self.paused and self.steps_to_take <= 0) or self.diverged or self.detached:
@@ -298,16 +299,19 @@ class DynamicsLoop:
             if self.start.resumed_unanswered():
                 self.start.wait_for_command(RunState.WAITING_RESUMED_COMMAND)
                 return False
-        self.start.command_wait.end()
+        if self.start.command_wait.current is not None:
+            self.start.command_wait.end()
         self.status = Status(RunState.RUNNING)
         return True
 
     def answer_awaited(self) -> bool:
         """Lockstep: whether the last published state was a sync state whose answer is still to come
         (``Lockstep.awaited``)."""
+        every = self.settings.lockstep_every
+        if every <= 0:
+            return False
         sim = self.sim
-        return self.lockstep.awaited(self.settings.lockstep_every, sim.steps, sim.selection.trajectory,
-                                     self.resume.catching_up)
+        return self.lockstep.awaited(every, sim.steps, sim.selection.trajectory, self.resume.catching_up)
 
     def _lockstep_blocked(self) -> bool:
         """Lockstep: whether to wait for the controller (``Lockstep``); giving up re-anchors the pace."""
@@ -323,10 +327,8 @@ class DynamicsLoop:
 
     def _held_back(self) -> bool:
         """Whether a recorder's progress is more than the window behind (``BackPressure``)."""
-        now = self.clock()
-        self.backpressure.look(now, self.graph.recorder_present)
-        return self.backpressure.held_back(now, self.sim.t, self.settings.backpressure_window * self.sim.dt,
-                                           self.log)
+        return self.backpressure.held_back(self.clock(), self.graph.recorder_present, self.sim.t,
+                                           self.settings.backpressure_window * self.sim.dt, self.log)
 
     def torque_at(self, t: float) -> tuple[float, float]:
         """The motor torque of a step from time ``t`` (``Commands.torque_at``)."""
@@ -334,9 +336,10 @@ class DynamicsLoop:
 
     def _step(self) -> None:
         self.stepped = True
-        sim = self.sim
-        self.commands.note_expiry(sim.t, sim.selection.trajectory, self.settings.command_timeout, self.log)
-        torque = self.torque_at(sim.t)
+        sim, commands, timeout = self.sim, self.commands, self.settings.command_timeout
+        if commands.command is not None and not commands.expired:
+            commands.note_expiry(sim.t, sim.selection.trajectory, timeout, self.log)
+        torque = commands.torque_at(sim.t, sim.selection.trajectory, timeout)
         if torque != sim.motor_torque:
             sim.set_motor_torque(*torque)
         began = time.perf_counter()
@@ -345,13 +348,12 @@ class DynamicsLoop:
             out = sim.outputs()
             if not (math.isfinite(float(np.sum(out.constraint_force))) and math.isfinite(out.residual)):
                 raise DivergedError(f'constraint force is no longer finite at t = {sim.t:.3f} s')
-        except DivergedError as error:
-            self.diverged = True
-            self._halt(Status(RunState.DIVERGED), error)
-            return
-        except DetachedError as error:
-            self.detached = str(error)
-            self._halt(Status(RunState.DETACHED, reason=self.detached), error)
+        except (DivergedError, DetachedError) as error:  # the simulation holds until a reset
+            if isinstance(error, DetachedError):
+                self.detached, self.status = str(error), Status(RunState.DETACHED, reason=str(error))
+            else:
+                self.diverged, self.status = True, Status(RunState.DIVERGED)
+            self.log.error(f'{error}: simulation paused (reset with ~/reset)')
             return
         step_time = time.perf_counter() - began
         if self.resume.catching_up and not self.resume.publishes(codec.to_nanoseconds(sim.t)):
@@ -371,11 +373,6 @@ class DynamicsLoop:
                 self.snapshot()
         self.statistics.note_residual(out.residual)
         self.last_outputs = out
-
-    def _halt(self, status: Status, error: Exception) -> None:
-        """The step failed (diverged, detached): the simulation holds until a reset."""
-        self.status = status
-        self.log.error(f'{error}: simulation paused (reset with ~/reset)')
 
     def waits_next(self) -> bool:
         """Whether the loop will wait after this state (stop_at, or the end of its plan), as _ready

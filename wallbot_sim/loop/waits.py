@@ -93,21 +93,20 @@ class BackPressure:
         self._held_since: tuple[float, int | None] | None = None
         """Clock time a wait began, and the progress then."""
 
-    def look(self, now: float, recorder_present: Callable[[], bool]) -> None:
-        """Ask the graph whether a recorder is there, at most every RECORDER_CHECK."""
-        if now - self._checked > RECORDER_CHECK:
-            self._checked = now
-            self.present = recorder_present()
-
     def allows(self, t: float, window: float) -> bool:
         """Whether a step from simulation time ``t`` is within ``window`` seconds of the progress (or no
         recorder is there)."""
         return not self.present or (self.progress_ns is not None and t - self.progress_ns * 1e-9 <= window)
 
-    def held_back(self, now: float, t: float, window: float, log: Log) -> bool:
+    def held_back(self, now: float, recorder_present: Callable[[], bool], t: float, window: float,
+                  log: Log) -> bool:
         """Whether a recorder's progress is more than ``window`` seconds behind the step from ``t`` (at any
         factor: a recorder that falls behind on a loaded machine slows the simulation down instead of losing
-        messages), until it has not moved for BACKPRESSURE_TIMEOUT."""
+        messages), until it has not moved for BACKPRESSURE_TIMEOUT. Whether a recorder is there the graph is
+        asked (``recorder_present``) at most every RECORDER_CHECK."""
+        if now - self._checked > RECORDER_CHECK:
+            self._checked = now
+            self.present = recorder_present()
         if not self.present:
             return False
         progress = -math.inf if self.progress_ns is None else self.progress_ns * 1e-9
