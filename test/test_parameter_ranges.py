@@ -188,14 +188,14 @@ def _range_of(descriptor):
 
 
 def node_table(module: str, node: str):
-    """The settings table the node ``node`` of ``module`` declares (None: the recorder's are its own)."""
-    from wallbot_sim.settings.config import CONSTRAINT_CONFIG, VIEWER
+    """The settings table the node ``node`` of ``module`` declares."""
+    from wallbot_sim.settings.config import CONSTRAINT_CONFIG, RECORDER, VIEWER
     from wallbot_sim.settings.controller import CONTROLLER
     from wallbot_sim.settings.drives import CMD_VEL, JOINT_BRIDGE
     from wallbot_sim.settings.dynamics import COMPOSED, DYNAMICS
     from wallbot_sim.settings.trajectory import TRAJECTORY
     if node == 'recorder':
-        return None
+        return RECORDER
     tables = {'constraint_config': CONSTRAINT_CONFIG, 'trajectory': TRAJECTORY, 'controller': CONTROLLER,
               'cmd_vel': CMD_VEL, 'joint_bridge': JOINT_BRIDGE, 'viewer': VIEWER, 'dynamics': DYNAMICS,
               'dynamics_recorder': COMPOSED}
@@ -258,9 +258,8 @@ def test_every_numeric_parameter_of_every_node_has_a_range_that_its_node_keeps(p
             names = [d.name for d in descriptors]
             values = dict(zip(names, graph.call(GetParameters, f'{namespace}/{name}/get_parameters',
                                                 GetParameters.Request(names=names)).values))
-            table = node_table(namespaces[namespace], name)
-            if table is not None:
-                problems += described_as_in_table(namespaces[namespace], table, descriptors)
+            problems += described_as_in_table(namespaces[namespace], node_table(namespaces[namespace], name),
+                                              descriptors)
             for descriptor in descriptors:
                 where = f'{namespaces[namespace]} {descriptor.name}'
                 default = parameter_value_to_python(values[descriptor.name])

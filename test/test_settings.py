@@ -12,7 +12,7 @@ from wallbot_sim.cli.main import build_parser
 from wallbot_sim.graph_description import GraphDescriptionError, describe_graph
 from wallbot_sim.graph_options import OPTIONS, launched_graph
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.settings.config import CONSTRAINT_CONFIG, VIEWER
+from wallbot_sim.settings.config import CONSTRAINT_CONFIG, RECORDER, VIEWER
 from wallbot_sim.settings.controller import CONTROLLER
 from wallbot_sim.settings.drives import CMD_VEL, JOINT_BRIDGE
 from wallbot_sim.settings.dynamics import COMPOSED, DYNAMICS, DynamicsSettings
@@ -20,7 +20,8 @@ from wallbot_sim.settings.table import Setting, SettingError, changed, parameter
 from wallbot_sim.settings.trajectory import TRAJECTORY
 
 TABLES = {'dynamics': DYNAMICS, 'controller': CONTROLLER, 'viewer': VIEWER, 'trajectory': TRAJECTORY,
-          'cmd_vel': CMD_VEL, 'joint_bridge': JOINT_BRIDGE, 'constraint_config': CONSTRAINT_CONFIG}
+          'cmd_vel': CMD_VEL, 'joint_bridge': JOINT_BRIDGE, 'constraint_config': CONSTRAINT_CONFIG,
+          'recorder': RECORDER}
 SIMULATE_OPTIONS = {'--heading': ('dynamics', 'initial_theta'), '--contact': ('dynamics', 'contact_model'),
                     '--engine': ('dynamics', 'engine'), '--adhesion-force': ('dynamics', 'adhesion_force'),
                     '--controller-mass-scale': ('controller', 'mass_scale')}
@@ -125,9 +126,10 @@ def test_every_setting_is_typed_ranged_described_and_keeps_its_default(table):
 
 
 @pytest.mark.parametrize('kind, text, value', [(bool, 'TRUE', True), (bool, 'false', False), (int, '-3', -3),
-                                                (float, '2', 2.0), (float, '1e-3', 1e-3), (str, ' a b ', ' a b ')])
+                                                (float, '2', 2.0), (float, '1e-3', 1e-3), (str, ' a b ', ' a b '),
+                                                (tuple, '[odom, clock]', ('odom', 'clock')), (tuple, '[]', ())])
 def test_a_setting_reads_its_text(kind, text, value):
-    examples = {bool: False, int: 0, float: 0.0, str: ''}
+    examples = {bool: False, int: 0, float: 0.0, str: '', tuple: ()}
     allowed = NumberRange(-10, 10) if kind in (int, float) else None
     setting = Setting('x', examples[kind], 'help', allowed)
     assert setting.parse(text) == value and type(setting.parse(text)) is kind
@@ -141,6 +143,7 @@ def test_a_setting_reads_its_text(kind, text, value):
     (Setting('b', False, 'h'), 1, 'b must be true or false, got 1'),
     (Setting('s', 'a', 'h', choices=('a', 'b')), 'c', "s must be one of a, b, got 'c'"),
     (Setting('s', 'a', 'h'), 3, 's must be a string, got 3'),
+    (Setting('t', ('a',), 'h'), ['a', 1], "t must be a list of strings, got ['a', 1]"),
 ])
 def test_a_setting_refuses_other_types_in_one_line(setting, value, reason):
     assert setting.reason(value) == reason

@@ -21,6 +21,7 @@ from wallbot_sim.messages import switches_from_selection
 from wallbot_sim.model import Circle, ConstraintSelection, FigureEight, Scenario
 from wallbot_sim.model.scenario import InitialPose
 from wallbot_sim.settings.config import CONSTRAINT_CONFIG
+from wallbot_sim.settings.config import RECORDER as RECORDER_SETTINGS
 from wallbot_sim.settings.config import VIEWER as VIEWER_SETTINGS
 from wallbot_sim.settings.controller import CONTROLLER as CONTROLLER_SETTINGS
 from wallbot_sim.settings.drives import CMD_VEL, JOINT_BRIDGE
@@ -185,9 +186,11 @@ def _with_recorder(specs: list[NodeSpec], dynamics: NodeSpec, recorder: dict[str
     recorder) first, or, with ``compose``, the two as one process first."""
     if not recorder:
         return [*specs, dynamics]
+    recorder_spec = node(RECORDER, 'wallbot_sim.nodes.recorder', RECORDER_SETTINGS, recorder)
     if compose:
-        return [NodeSpec(DYNAMICS_RECORDER, COMPOSED_MODULE, {**dynamics.parameters, **recorder}), *specs]
-    return [NodeSpec(RECORDER, 'wallbot_sim.nodes.recorder', recorder), *specs, dynamics]
+        return [NodeSpec(DYNAMICS_RECORDER, COMPOSED_MODULE, {**dynamics.parameters, **recorder_spec.parameters}),
+                *specs]
+    return [recorder_spec, *specs, dynamics]
 
 
 def launch_name(spec: NodeSpec) -> dict[str, str]:

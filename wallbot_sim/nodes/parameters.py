@@ -14,7 +14,7 @@ from rclpy.parameter import Parameter
 from wallbot_sim.settings.table import Setting, SettingsTable, Value, choice_words, typed
 
 TYPE_WORDS = {bool: 'true or false', int: 'an integer', float: 'a double (a number written with a point, e.g. 2.0)',
-              str: 'a string'}
+              str: 'a string', tuple: 'a list of strings'}
 """A parameter's ROS type in words, for a start value of another type (rclpy refuses an integer for a double)."""
 
 
@@ -56,7 +56,8 @@ def declare_setting(node: Node, entry: Setting, default: Value) -> tuple[Value, 
             if node.describe_parameter(entry.name).read_only:  # declared here already (robot_file, read first)
                 return value, entry.reason(value)
         else:  # declared first without a range or read-only (rclpy keeps this object: a copy is declared)
-            value = node.declare_parameter(entry.name, default, copy.copy(descriptor)).value
+            value = node.declare_parameter(entry.name, list(default) if isinstance(default, tuple) else default,
+                                           copy.copy(descriptor)).value
     except InvalidParameterTypeException as error:  # a start value of another type: the parameter is not declared
         given = error.args[0].split("' to '", 1)[-1].split("' of type", 1)[0]
         return default, f'{entry.name} must be {TYPE_WORDS[entry.kind]}, got {given}'

@@ -51,8 +51,10 @@ from wallbot_msgs_py import bagio, cdr, codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.snapshot import SnapshotKeeper, decode_snapshot
 from wallbot_sim.bag.writer import FLUSH_PERIOD
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, declare
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS
+from wallbot_sim.nodes.parameters import declare_typed
 from wallbot_sim.nodes.step_tap import StepTap
+from wallbot_sim.settings.config import RECORDER, RecorderSettings
 
 NODE_NAME = topics.NODE_RECORDER
 PROGRESS_STEP_NS = 20_000_000
@@ -126,11 +128,8 @@ class Recorder(Node):
         super().__init__(NODE_NAME, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)  # log times
         self.stop, self.writer = stop, None
         try:
-            output = declare(self, 'output', '', 'bag directory to create (it must not exist, or be empty)',
-                             read_only=True)
-            recorded = graph_topics(declare(self, 'topics', [t.name for t in topics.RECORDED],
-                                            'topics to record (relative names resolve in the namespace)',
-                                            read_only=True))
+            settings: RecorderSettings = declare_typed(self, RecorderSettings, RECORDER)
+            output, recorded = settings.output, graph_topics(list(settings.topics))
             if writer is None and not output:
                 raise RecorderOptionError('parameter output (bag directory) is required: --ros-args -p output:=DIR')
             self.writer = writer if writer is not None else open_bag(Path(output), program)

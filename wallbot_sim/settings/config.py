@@ -1,5 +1,5 @@
-"""The settings of the nodes that describe the robot: constraint_config_node (``nodes.constraint_config``) and
-viewer_node (``nodes.viewer``)."""
+"""The settings of the nodes that describe or record the robot: constraint_config_node (``nodes.constraint_config``),
+viewer_node (``nodes.viewer``) and recorder_node (``nodes.recorder``)."""
 
 from __future__ import annotations
 
@@ -62,3 +62,15 @@ class ViewerSettings:
 
 
 VIEWER = table_of(ViewerSettings)
+
+
+@dataclass(frozen=True)
+class RecorderSettings:
+    """recorder_node's parameters (and, composed with the dynamics, dynamics_recorder_node's beside the dynamics')."""
+
+    output: str = setting('', 'bag directory to create (it must not exist, or be empty)', read_only=True)
+    topics: tuple = setting(tuple(topic.name for topic in topics.RECORDED),
+                            'topics to record (relative names resolve in the namespace)', read_only=True)
+
+
+RECORDER = table_of(RecorderSettings)

@@ -15,15 +15,16 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Iterator, Mapping, Union
+from typing import Any, Callable, Iterable, Iterator, Mapping, Union
 
 from wallbot_sim.model.numbers import NumberRange
 
-Value = Union[bool, int, float, str]
-"""What a setting holds: a ROS parameter's bool, integer, double or string."""
+Value = Union[bool, int, float, str, tuple]
+"""What a setting holds: a ROS parameter's bool, integer, double, string or string array (a tuple of strings)."""
 SETTING = 'wallbot.setting'
 """The key of a settings dataclass field's metadata."""
-WORDS = {bool: 'true or false', int: 'an integer', float: 'a finite number', str: 'a string'}
+WORDS = {bool: 'true or false', int: 'an integer', float: 'a finite number', str: 'a string',
+         tuple: 'a list of strings'}
 
 
 class SettingError(ValueError):
@@ -81,6 +82,9 @@ class Setting:
             return None if value == self.default and type(value) is self.kind else (
                 f'is fixed at {text_of(self.default)} here ({self.fixed}), got {value!r}')
         kind = self.kind
+        if kind is tuple:
+            strings = isinstance(value, (list, tuple)) and all(isinstance(item, str) for item in value)
+            return None if strings else f'must be {WORDS[kind]}, got {value!r}'
         if isinstance(value, bool) != (kind is bool) or not isinstance(value, (int, float) if kind is float else kind):
             return f'must be {WORDS[kind]}, got {value!r}'
         if self.allowed is not None:
@@ -113,8 +117,11 @@ class Setting:
 
 
 def value_of(kind: type, text: str) -> Value:
-    """``text`` read as a ``kind`` (true/false, an integer, a number), or the text itself where it is not one
-    (the setting then refuses it by type)."""
+    """``text`` read as a ``kind`` (true/false, an integer, a number, a list ``[a,b]``), or the text itself where
+    it is not one (the setting then refuses it by type)."""
+    if kind is tuple:
+        inner = text.strip().removeprefix('[').removesuffix(']')
+        return tuple(item.strip() for item in inner.split(',') if item.strip())
     if kind is bool:
         words = {'true': True, 'false': False}
         return words.get(text.strip().lower(), text)
@@ -130,6 +137,8 @@ def text_of(value: Value) -> str:
     """A value as a launch argument or ``--ros-args -p`` writes it (true/false for a bool)."""
     if isinstance(value, bool):
         return 'true' if value else 'false'
+    if isinstance(value, tuple):
+        return '[' + ','.join(value) + ']'
     return str(value)
 
 
@@ -197,7 +206,7 @@ def table_of(settings: type) -> SettingsTable:
     for item in dataclasses.fields(settings):
         described = dict(item.metadata[SETTING])
         entry = Setting(described.pop('name') or item.name, item.default, **described)
-        if item.type not in (entry.kind.__name__, entry.kind):
+        if str(item.type).split('[')[0] not in (entry.kind.__name__, str(entry.kind)):
             raise TypeError(f'{settings.__name__}.{item.name}: annotated {item.type}, its default is a '
                             f'{entry.kind.__name__}')
         table.append(entry)
@@ -208,15 +217,21 @@ def typed(settings: type, values: Mapping[str, object]) -> Any:
     """An instance of the settings dataclass ``settings`` from ``values`` (a node's parameters by name, every one
     of the table's; other names are left out), doubles as floats."""
     fields = {item.metadata[SETTING]['name'] or item.name: item for item in dataclasses.fields(settings)}
-    return settings(**{item.name: float(values[name]) if type(item.default) is float else values[name]
-                       for name, item in fields.items()})
+    return settings(**{item.name: kind_of(item.default)(values[name]) for name, item in fields.items()})
+
+
+def kind_of(default: Value) -> Callable[[object], Value]:
+    """How a settings dataclass field holds a parameter's value: a number of a double setting as a float, a
+    string array (a list from ROS) as a tuple, the rest as it is."""
+    kind = type(default)
+    return kind if kind in (float, tuple) else (lambda value: value)
 
 
 def changed(current: Any, values: Mapping[str, object]) -> Any:
     """The settings dataclass instance ``current`` with the parameters among ``values`` (by name) changed."""
     fields = {item.metadata[SETTING]['name'] or item.name: item for item in dataclasses.fields(current)}
-    return dataclasses.replace(current, **{fields[name].name: float(value) if type(fields[name].default) is float
-                                           else value for name, value in values.items() if name in fields})
+    return dataclasses.replace(current, **{fields[name].name: kind_of(fields[name].default)(value)
+                                           for name, value in values.items() if name in fields})
 
 
 def parameters(current: Any) -> dict[str, Value]:
