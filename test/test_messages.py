@@ -210,6 +210,45 @@ def test_odometry_read_from_its_bytes_is_the_decoded_one(frame, child, little_en
         codec.decode_odometry(bytes(bagio.typestore().serialize_cdr(msg, topics.ODOM.type))).planar_state()
 
 
+def joint_state_cdr(names, position, velocity, effort, t: float = 2.5) -> bytes:
+    """A JointState's CDR bytes serialized by rosbags' typestore (not the codec's encoder)."""
+    kind = bagio.typestore().types[topics.WHEEL_CONTACT.type]
+    return bagio.serialize(kind(header=typestore_header(t, ''), name=list(names), position=np.array(position, float),
+                                velocity=np.array(velocity, float), effort=np.array(effort, float)),
+                           topics.WHEEL_CONTACT.type)
+
+
+def test_wheel_contact_round_trip_per_wheel():
+    """The encoder's bytes as rosbags reads them carry the documented layout; decode_wheel_contact reads back
+    every wheel's load, use, slip flag, force and contact velocity, from the encoder's bytes and from a message
+    rosbags serialized with the names in another order; a message naming the wheels but not their directions
+    gives their loads and NaN for the rest."""
+    rng = np.random.default_rng(7)
+    loads, use, forces, velocities = rng.uniform(20, 60, 4), rng.uniform(0, 1.2, 4), rng.normal(size=(4, 2)), \
+        rng.normal(size=(4, 2))
+    slipping = (True, False, False, True)
+    data = codec.WheelContactEncoder().encode(2, 500_000_000, loads.tolist(), use.tolist(), slipping, forces,
+                                              velocities)
+    msg = decode(data, topics.WHEEL_CONTACT)
+    wheels = list(topics.WHEEL_JOINTS)
+    assert list(msg.name) == wheels + [f'{w}/x' for w in wheels] + [f'{w}/y' for w in wheels]
+    assert list(msg.position) == [*use, *[0.0] * 8]
+    assert list(msg.velocity) == [1.0, 0.0, 0.0, 1.0, *velocities[:, 0], *velocities[:, 1]]
+    assert list(msg.effort) == [*loads, *forces[:, 0], *forces[:, 1]]
+    expected = codec.WheelContact(2_500_000_000, tuple(loads), tuple(use), (1.0, 0.0, 0.0, 1.0),
+                                  tuple(forces[:, 0]), tuple(forces[:, 1]), tuple(velocities[:, 0]),
+                                  tuple(velocities[:, 1]))
+    assert codec.decode_wheel_contact(data) == expected
+    order = rng.permutation(12)
+    shuffled = joint_state_cdr(np.array(msg.name)[order], msg.position[order], msg.velocity[order],
+                               msg.effort[order])
+    assert codec.decode_wheel_contact(shuffled) == expected
+    loads_only = codec.decode_wheel_contact(joint_state_cdr(wheels + ['drive_left'], [0.0] * 5, [0.0] * 5,
+                                                            [*loads, 70.0]))
+    assert loads_only.loads == tuple(loads)
+    assert all(math.isnan(value) for field in loads_only[2:] for value in field)
+
+
 def test_constraints_message_round_trip():
     switches = {'trajectory_task': True, 'belt': True, 'non_lateral': True, 'nonslip': False,
                 'tangent_heading': True}

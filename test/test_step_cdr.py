@@ -89,13 +89,14 @@ def test_wheels_wrench_drive_forces_and_clock(decode):
     assert list(drive.effort) == [out.drive.left, out.drive.right, out.drive.lateral]
     assert len(drive.position) == len(drive.velocity) == 0
     contact = messages[topics.WHEEL_CONTACT]
-    assert list(contact.name) == list(topics.WHEEL_JOINTS + topics.DRIVE_JOINTS)
+    wheels = list(topics.WHEEL_JOINTS)
+    assert list(contact.name) == wheels + [f'{w}/x' for w in wheels] + [f'{w}/y' for w in wheels]
     state = out.contact
-    loads = state.loads
-    limits = [0.7 * (loads[0] + loads[1]), 0.7 * (loads[2] + loads[3]), 0.7 * 189.19285714285715]
-    assert list(contact.effort) == pytest.approx([*state.loads, *limits], rel=1e-12, abs=1e-12)
-    assert list(contact.position) == [0.0] * 4 + list(state.use)
-    assert list(contact.velocity) == [0.0] * 4 + [float(flag) for flag in state.slipping]
+    forces, velocities = state.wheel_forces, state.slip_velocity
+    assert list(contact.effort) == [*state.loads, *forces[:, 0], *forces[:, 1]]
+    assert list(contact.position) == [*state.wheel_use, *[0.0] * 8]
+    assert list(contact.velocity) == [*map(float, state.wheel_slipping), *velocities[:, 0], *velocities[:, 1]]
+    assert velocities[0, 0] != 0.0 and forces[0, 1] != 0.0  # the moving robot's wheels slip and are pushed
     stamps = [nanoseconds(msg.clock if topic is topics.CLOCK else msg.header.stamp) for topic, msg in messages.items()]
     assert stamps == [12_503_000_000] * 6
 
@@ -122,14 +123,17 @@ def test_steps_encoded_as_rows_are_the_steps_encoded_one_by_one(ground_truth):
     q[:, 2] = np.linspace(-7.0, 7.0, count)
     rows = SimpleNamespace(t=t, q=q, qd=qd, wheel_torques=rng.normal(size=(count, 4)),
                            chassis_wrench=rng.normal(size=(count, 3)), drive=rng.normal(size=(count, 3)),
-                           use=rng.uniform(size=(count, 3)), slipping=rng.uniform(size=(count, 3)) < 0.5,
-                           loads=rng.normal(size=(count, 4)), limits=rng.uniform(size=(count, 3)))
+                           loads=rng.normal(size=(count, 4)), wheel_use=rng.uniform(size=(count, 4)),
+                           wheel_slipping=rng.uniform(size=(count, 4)) < 0.5,
+                           wheel_forces=rng.normal(size=(count, 4, 2)), slip_velocity=rng.normal(size=(count, 4, 2)))
     steps = [SimpleNamespace(t=float(t[k]), q=q[k], qd=qd[k], wheel_torques=rows.wheel_torques[k],
                              chassis_wrench=rows.chassis_wrench[k],
                              drive=SimpleNamespace(left=rows.drive[k, 0], right=rows.drive[k, 1],
                                                    lateral=rows.drive[k, 2]),
-                             contact=SimpleNamespace(use=tuple(rows.use[k]), slipping=tuple(rows.slipping[k]),
-                                                     loads=rows.loads[k], limits=tuple(rows.limits[k])))
+                             contact=SimpleNamespace(loads=rows.loads[k], wheel_use=rows.wheel_use[k],
+                                                     wheel_slipping=tuple(rows.wheel_slipping[k]),
+                                                     wheel_forces=rows.wheel_forces[k],
+                                                     slip_velocity=rows.slip_velocity[k]))
              for k in range(count)]
     one_by_one = StepEncoder(odom_frame='map', base_frame='robot2/base_link', ground_truth=ground_truth)
     as_rows = StepEncoder(odom_frame='map', base_frame='robot2/base_link', ground_truth=ground_truth)

@@ -31,7 +31,9 @@ from wallbot_msgs_py.codec import clock, joints, odometry
 
 class StepState(Protocol):
     """What a step's messages carry (``wallbot_sim.model.StepOutputs`` is one): numpy arrays
-    q, qd (7), wheel_torques (4), chassis_wrench (3), drive forces left, right, lateral."""
+    q, qd (7), wheel_torques (4), chassis_wrench (3), drive forces left, right, lateral, and the contact per
+    wheel: contact.loads, contact.wheel_use (4), contact.wheel_slipping (4 flags), contact.wheel_forces and
+    contact.slip_velocity (4, 2)."""
 
     t: float
     q: Any
@@ -39,13 +41,14 @@ class StepState(Protocol):
     wheel_torques: Any
     chassis_wrench: Any
     drive: Any
+    contact: Any
 
 
 class StepRows(Protocol):
     """What the messages of consecutive steps carry, as arrays, row k the k-th step
     (``wallbot_sim.model.outputs.StepBlock`` is one): t (T,), q and qd (T, 7), wheel_torques (T, 4),
-    chassis_wrench (T, 3), drive (T, 3: left, right, lateral), use (T, 3), slipping (T, 3), loads (T, 4),
-    limits (T, 3)."""
+    chassis_wrench (T, 3), drive (T, 3: left, right, lateral), and per wheel loads, wheel_use, wheel_slipping
+    (T, 4), wheel_forces and slip_velocity (T, 4, 2)."""
 
     t: Any
     q: Any
@@ -53,10 +56,11 @@ class StepRows(Protocol):
     wheel_torques: Any
     chassis_wrench: Any
     drive: Any
-    use: Any
-    slipping: Any
     loads: Any
-    limits: Any
+    wheel_use: Any
+    wheel_slipping: Any
+    wheel_forces: Any
+    slip_velocity: Any
 
 
 class SensedState(Protocol):
@@ -104,8 +108,9 @@ class StepEncoder:
             (topics.WHEEL_STATES, self._wheels.encode(sec, nanosec, q[3:], qd[3:], out.wheel_torques.tolist())),
             (topics.CONSTRAINT_WRENCH, self._wrench.encode(sec, nanosec, *out.chassis_wrench.tolist())),
             (topics.DRIVE_FORCES, self._drive.encode(sec, nanosec, (drive.left, drive.right, drive.lateral))),
-            (topics.WHEEL_CONTACT, self._contact.encode(sec, nanosec, contact.loads.tolist(), contact.use,
-                                                        contact.slipping, contact.limits))]
+            (topics.WHEEL_CONTACT, self._contact.encode(sec, nanosec, contact.loads.tolist(),
+                                                        contact.wheel_use.tolist(), contact.wheel_slipping,
+                                                        contact.wheel_forces, contact.slip_velocity))]
         if self._truth is not None:
             encoded.append((topics.GROUND_TRUTH_ODOM, self._truth.encode(sec, nanosec, true_q, true_qd)))
         encoded.append((topics.CLOCK, self._clock.encode(sec, nanosec)))
@@ -122,8 +127,9 @@ class StepEncoder:
             (topics.WHEEL_STATES, self._wheels.encode_rows(sec, nanosec, q[:, 3:], qd[:, 3:], rows.wheel_torques)),
             (topics.CONSTRAINT_WRENCH, self._wrench.encode_rows(sec, nanosec, rows.chassis_wrench)),
             (topics.DRIVE_FORCES, self._drive.encode_rows(sec, nanosec, rows.drive)),
-            (topics.WHEEL_CONTACT, self._contact.encode_rows(sec, nanosec, rows.loads, rows.use, rows.slipping,
-                                                             rows.limits))]
+            (topics.WHEEL_CONTACT, self._contact.encode_rows(sec, nanosec, rows.loads, rows.wheel_use,
+                                                             rows.wheel_slipping, rows.wheel_forces,
+                                                             rows.slip_velocity))]
         if self._truth is not None:
             columns.append((topics.GROUND_TRUTH_ODOM, self._truth.encode_rows(sec, nanosec, q, qd)))
         columns.append((topics.CLOCK, self._clock.encode_rows(sec, nanosec)))

@@ -63,10 +63,13 @@ WHEEL_STATES = Topic('wheel_states', 'sensor_msgs/msg/JointState')
 CONSTRAINT_WRENCH = Topic('constraint_wrench', 'geometry_msgs/msg/WrenchStamped')
 DRIVE_FORCES = Topic('drive_forces', 'sensor_msgs/msg/JointState')
 WHEEL_CONTACT = Topic('wheel_contact', 'sensor_msgs/msg/JointState')
-"""Wheel-wall contact per step. name: WHEEL_JOINTS then DRIVE_JOINTS (the friction channels);
-effort: each wheel's normal load (N), then each channel's friction limit mu_s N_channel (N);
-position: 0 for the wheels, then each channel's friction use |F| / (mu_s N) (above 1 it slips);
-velocity: 0 for the wheels, then 1 for a slipping channel, 0 for a sticking one."""
+"""Wheel-wall contact per step, per wheel (docs/model.md 11.2). name: WHEEL_JOINTS, then each wheel's x_p
+direction (``wheel_left_front/x``, ...), then its y_p direction (``wheel_left_front/y``, ...), body axes;
+position: each wheel's friction use |f_i| / (mu_s N_i) (above 1 its friction disc cannot hold it), then 0;
+velocity: 1 for a sliding wheel, 0 for a sticking one, then the wheel's contact-point velocity on the wall
+along x_p and along y_p (m/s; its slip while it slides);
+effort: each wheel's normal load N_i (N), then the wall's tangential force on the robot at the wheel along
+x_p and along y_p (N)."""
 DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
 CLOCK = Topic('clock', 'rosgraph_msgs/msg/Clock')
 """The robot's simulation time, published by its dynamics, in its namespace (``/wallbot/clock``):

@@ -21,7 +21,6 @@ JOINT_FIELDS = ('position', 'velocity', 'effort')
 _STAMP = struct.Struct('<iI')
 _TWO = struct.Struct('<2d')
 _ONE = struct.Struct('<d')
-_CHANNELS = struct.Struct(f'<{len(topics.DRIVE_JOINTS)}d')
 
 
 @cdr.encoder('joint_state', JOINT_STATE)
@@ -88,73 +87,92 @@ def _joint_arrays(message: cdr.Reader) -> JointArrays:
 
 
 # --- wheel_contact -------------------------------------------------------------------------------
-CONTACT_NAMES = topics.WHEEL_JOINTS + topics.DRIVE_JOINTS
-"""The names of a ``wheel_contact`` message: the wheels, then the friction channels."""
+CONTACT_NAMES = (topics.WHEEL_JOINTS + tuple(f'{wheel}/x' for wheel in topics.WHEEL_JOINTS)
+                 + tuple(f'{wheel}/y' for wheel in topics.WHEEL_JOINTS))
+"""The names of a ``wheel_contact`` message: the wheels, then each wheel's x_p direction, then its y_p direction."""
+_WHEELS = len(topics.WHEEL_JOINTS)
+_PER_WHEEL = struct.Struct(f'<{_WHEELS}d')
+_PER_DIRECTION = struct.Struct(f'<{2 * _WHEELS}d')
 
 
 class WheelContact(NamedTuple):
-    """What a ``wheel_contact`` message says (topics.WHEEL_CONTACT)."""
+    """What a ``wheel_contact`` message says (topics.WHEEL_CONTACT), each field per wheel in the order of
+    topics.WHEEL_JOINTS."""
 
     stamp_ns: int
     loads: tuple[float, ...]
-    """Normal load of each wheel (N), in the order of topics.WHEEL_JOINTS."""
+    """Normal load N_i (N)."""
     use: tuple[float, ...]
-    """Friction use |F| / (mu_s N) of each channel (left, right, lateral)."""
+    """Friction use |f_i| / (mu_s N_i)."""
     slipping: tuple[float, ...]
-    """1.0 for a slipping channel, 0.0 for a sticking one."""
-    limits: tuple[float, ...]
-    """Friction limit mu_s N of each channel (N)."""
+    """1.0 for a sliding wheel, 0.0 for a sticking one."""
+    force_x: tuple[float, ...]
+    """The wall's tangential force on the robot at the wheel along the body axis x_p (N)."""
+    force_y: tuple[float, ...]
+    """The same along y_p (N)."""
+    velocity_x: tuple[float, ...]
+    """The wheel's contact-point velocity on the wall along x_p (m/s): its slip where it slides."""
+    velocity_y: tuple[float, ...]
+    """The same along y_p (m/s)."""
 
 
 @cdr.encoder('wheel_contact', JOINT_STATE)
 class WheelContactEncoder:
-    """``wheel_contact`` bytes: the wheels' loads as effort; per channel, the use as position, 1/0 for
-    slipping as velocity, the limit as effort (the wheels' positions and velocities 0)."""
+    """``wheel_contact`` bytes (CONTACT_NAMES): per wheel, the use as position, 1/0 for sliding as velocity and
+    the normal load as effort; per wheel and body axis, the contact-point velocity as velocity and the wall's
+    force as effort (their positions 0)."""
 
     def __init__(self) -> None:
         joints = JointStateEncoder(CONTACT_NAMES)
         position, velocity, effort = (joints.offsets[field] for field in JOINT_FIELDS)
-        wheels = 8 * len(topics.WHEEL_JOINTS)
+        per_wheel = 8 * _WHEELS
         self.template, self._stamp = joints.template, joints.stamp
         self._buffer = bytearray(self.template)
-        self._use, self._slipping = position + wheels, velocity + wheels
-        self._loads, self._limits = effort, effort + wheels
-        self._wheel_values = struct.Struct(f'<{len(topics.WHEEL_JOINTS)}d')
+        self._use, self._slipping, self._loads = position, velocity, effort
+        self._velocities, self._forces = velocity + per_wheel, effort + per_wheel
         self._rows = cdr.Rows(self.template, cdr.stamped(
-            self._stamp, use=(self._use, cdr.doubles(3)), slipping=(self._slipping, cdr.doubles(3)),
-            loads=(effort, cdr.doubles(len(topics.WHEEL_JOINTS))), limits=(self._limits, cdr.doubles(3))))
+            self._stamp, use=(self._use, cdr.doubles(_WHEELS)), slipping=(self._slipping, cdr.doubles(_WHEELS)),
+            velocities=(self._velocities, cdr.doubles(2 * _WHEELS)), loads=(self._loads, cdr.doubles(_WHEELS)),
+            forces=(self._forces, cdr.doubles(2 * _WHEELS))))
 
     def encode(self, sec: int, nanosec: int, loads: Sequence[float], use: Sequence[float],
-               slipping: Sequence[bool], limits: Sequence[float]) -> bytes:
+               slipping: Sequence[bool], forces: np.ndarray, velocities: np.ndarray) -> bytes:
+        """``forces`` and ``velocities``: (4, 2), each wheel's (x_p, y_p) components."""
         data = self._buffer
         _STAMP.pack_into(data, self._stamp, sec, nanosec)
-        _CHANNELS.pack_into(data, self._use, *use)
-        left, right, lateral = slipping
-        _CHANNELS.pack_into(data, self._slipping, float(left), float(right), float(lateral))
-        self._wheel_values.pack_into(data, self._loads, *loads)
-        _CHANNELS.pack_into(data, self._limits, *limits)
+        _PER_WHEEL.pack_into(data, self._use, *use)
+        _PER_WHEEL.pack_into(data, self._slipping, *(float(flag) for flag in slipping))
+        _PER_WHEEL.pack_into(data, self._loads, *loads)
+        _PER_DIRECTION.pack_into(data, self._velocities, *velocities.T.ravel().tolist())
+        _PER_DIRECTION.pack_into(data, self._forces, *forces.T.ravel().tolist())
         return bytes(data)
 
     def encode_rows(self, sec: np.ndarray, nanosec: np.ndarray, loads: np.ndarray, use: np.ndarray,
-                    slipping: np.ndarray, limits: np.ndarray) -> list[bytes]:
-        """``encode`` of each row, the same bytes."""
-        return self._rows.fill(len(sec), sec=sec, nanosec=nanosec, loads=loads, use=use,
-                               slipping=slipping.astype(float), limits=limits)
+                    slipping: np.ndarray, forces: np.ndarray, velocities: np.ndarray) -> list[bytes]:
+        """``encode`` of each row (loads, use, slipping (T, 4); forces, velocities (T, 4, 2)), the same bytes."""
+        count = len(sec)
+        return self._rows.fill(count, sec=sec, nanosec=nanosec, loads=loads, use=use,
+                               slipping=slipping.astype(float),
+                               forces=forces.transpose(0, 2, 1).reshape(count, 2 * _WHEELS),
+                               velocities=velocities.transpose(0, 2, 1).reshape(count, 2 * _WHEELS))
 
 
 @cdr.decoder('wheel_contact', JOINT_STATE)
 def decode_wheel_contact(message: cdr.Reader) -> WheelContact:
-    """The contact a serialized ``wheel_contact`` carries, by name (NaN for a name it lacks)."""
+    """The contact a serialized ``wheel_contact`` carries, by name: NaN for what it lacks (a message that names
+    the wheels but not their directions gives their loads only)."""
     joints = _joint_arrays(message)
-    wheels = len(topics.WHEEL_JOINTS)
     count = len(CONTACT_NAMES)
     if joints.name == CONTACT_NAMES and len(joints.position) == len(joints.velocity) == len(joints.effort) == count:
-        return WheelContact(joints.stamp_ns, joints.effort[:wheels], joints.position[wheels:],
-                            joints.velocity[wheels:], joints.effort[wheels:])
-    channels = topics.DRIVE_JOINTS
-    return WheelContact(joints.stamp_ns, joints.values(topics.WHEEL_JOINTS, 'effort'),
-                        joints.values(channels, 'position'), joints.values(channels, 'velocity'),
-                        joints.values(channels, 'effort'))
+        position, velocity, effort = joints.position, joints.velocity, joints.effort
+    elif all(name in joints.name for name in CONTACT_NAMES[_WHEELS:]):
+        position, velocity, effort = (joints.values(CONTACT_NAMES, field) for field in JOINT_FIELDS)
+    else:
+        unknown = (math.nan,) * _WHEELS
+        return WheelContact(joints.stamp_ns, joints.values(topics.WHEEL_JOINTS, 'effort'), *(unknown,) * 6)
+    x, y = slice(_WHEELS, 2 * _WHEELS), slice(2 * _WHEELS, 3 * _WHEELS)
+    return WheelContact(joints.stamp_ns, effort[:_WHEELS], position[:_WHEELS], velocity[:_WHEELS], effort[x],
+                        effort[y], velocity[x], velocity[y])
 
 
 # --- constraint_wrench ---------------------------------------------------------------------------

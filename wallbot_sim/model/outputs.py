@@ -176,8 +176,6 @@ class StepBlock:
     table: StepTable
     wheel_torques: np.ndarray
     """(T, 4), as ``StepOutputs.wheel_torques``."""
-    limits: np.ndarray
-    """(T, 3), as ``ContactOutputs.limits``."""
 
     @property
     def t(self) -> np.ndarray:
@@ -205,9 +203,17 @@ class StepBlock:
         return self.table.loads
 
     @property
-    def use(self) -> np.ndarray:
-        return self.table.use
+    def wheel_use(self) -> np.ndarray:
+        return self.table.wheel_use
 
     @property
-    def slipping(self) -> np.ndarray:
-        return self.table.slipping
+    def wheel_slipping(self) -> np.ndarray:
+        return self.table.wheel_slipping
+
+    @property
+    def wheel_forces(self) -> np.ndarray:
+        return self.table.wheel_forces
+
+    @property
+    def slip_velocity(self) -> np.ndarray:
+        return self.table.slip_velocity

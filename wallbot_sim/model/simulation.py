@@ -439,12 +439,8 @@ class Simulation:
         if not (np.all(np.isfinite(table.constraint_force)) and np.all(np.isfinite(table.residual))):
             return None
         tau_left, tau_right = self.motor_torque
-        static = self.robot.params.wall_friction
         return StepBlock(table, table.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right,
-                                                                                 tau_right]),
-                         np.stack((static * (table.loads[:, 0] + table.loads[:, 1]),
-                                   static * (table.loads[:, 2] + table.loads[:, 3]),
-                                   np.full(count, static * self.robot.adsorption.applied_force)), axis=1))
+                                                                                 tau_right]))
 
     def _tabulating(self, what: str) -> CompiledDynamics:
         compiled = self._compiled_now()
