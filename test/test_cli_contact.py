@@ -1,6 +1,6 @@
 """``wallbot-sim simulate --scenario rest --contact coulomb``: docs/model.md 11.4's analytic cases through the CLI.
 
-The channel flags slip_L, slip_R, slip_lat say that a wheel of the side (any wheel, for lateral) slides."""
+The CSV's slip1..slip4 say which wheels slide, use1..use4 their friction use."""
 
 from __future__ import annotations
 
@@ -27,20 +27,25 @@ def rest_run(tmp_path, *args: str) -> tuple[object, dict[str, list[float]]]:
     return result, {name: [row[i] for row in rows] for i, name in enumerate(header)}
 
 
+def sliding(run: dict[str, list[float]]) -> list[float]:
+    """Every wheel's slip flag at every instant (1 while it slides)."""
+    return [flag for i in range(1, 5) for flag in run[f'slip{i}']]
+
+
 def test_hold(tmp_path):
     result, run = rest_run(tmp_path)
     assert result.returncode == 0, result.stderr
     assert len(run['t']) == 1001 and run['t'][-1] == pytest.approx(1.0)  # rest runs 1 s by default
-    assert run['use_lat'][0] == pytest.approx(0.667, abs=5e-4)
+    assert [run[f'use{i}'][0] for i in range(1, 5)] == pytest.approx([0.667] * 4, abs=5e-4)
     assert max(abs(v) for v in run['y']) < 1e-12
-    assert not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    assert not any(sliding(run))
     assert run['N1'][0] == pytest.approx(38.10, abs=0.005) and run['N3'][0] == pytest.approx(56.50, abs=0.005)
 
 
 def test_slide(tmp_path):
     result, run = rest_run(tmp_path, '--adhesion-force', '100')
     assert result.returncode == 0, result.stderr
-    assert all(run['slip_lat']) and all(run['slip_L']) and all(run['slip_R'])  # every wheel slides down
+    assert all(sliding(run))  # every wheel slides down
     ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
     assert ydd == pytest.approx(-2.81, abs=1e-4)
     assert run['y'][-1] == pytest.approx(-1.405, abs=3e-3)
@@ -50,7 +55,7 @@ def test_slide(tmp_path):
 def test_spinning_climb(tmp_path):
     result, run = rest_run(tmp_path, '--heading', str(math.pi / 2), '--torque', '3,3')
     assert result.returncode == 0, result.stderr
-    assert run['slip_L'][0] == run['slip_R'][0] == 1 and all(run['slip_L']) and all(run['slip_R'])
+    assert all(sliding(run))
     assert max(abs(v) for v in run['vx']) < 1e-9  # sliding along x_p only: straight up
     ydd = (run['vy'][-1] - run['vy'][-101]) / 0.1
     assert ydd == pytest.approx(2.172, abs=5e-4)
@@ -86,7 +91,7 @@ def test_turning_in_place_with_gravity_negligible(tmp_path, torque):
     slides = wheel_slip_speeds(run)[1:] > 1e-3  # v_st
     if torque < 1.696:
         assert max(abs(v) for v in run['theta'] + run['x'] + run['y']) < 1e-9
-        assert not slides.any() and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+        assert not slides.any() and not any(sliding(run))
     else:
         assert run['theta'][-1] > 0.5 and run['omega'][-1] > 1.0
         assert slides.all()
@@ -121,8 +126,8 @@ def test_ideal_contact_reports_zero_slip_and_the_loads(tmp_path):
     assert result.returncode == 0, result.stderr
     header, rows = read_csv(out)
     col = {name: i for i, name in enumerate(header)}
-    assert all(row[col['slip_lat']] == 0 for row in rows)
-    assert rows[-1][col['use_lat']] == pytest.approx(9.0 * 9.81 / 70.0, rel=1e-6)  # what friction would need
+    assert all(row[col[f'slip{i}']] == 0 for row in rows for i in range(1, 5))
+    assert [rows[-1][col[f'use{i}']] for i in range(1, 5)] == pytest.approx([9.0 * 9.81 / 70.0] * 4, rel=1e-6)
     assert rows[-1][col['y']] == pytest.approx(0.0, abs=1e-12)
 
 
@@ -204,7 +209,8 @@ def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):
     result, _ = rest_run(tmp_path, '--adhesion-force', '100', '--duration', '0.3', '--bag', str(tmp_path / 'bag'))
     assert result.returncode == 0, result.stderr
     text = format_summary(summarize(tmp_path / 'rest.csv'))
-    assert 'first slip at t = 0.000 s (left, right, lateral)' in text and 'lifts off' not in text
+    assert 'first slip at t = 0.000 s (left front, left rear, right front, right rear)' in text
+    assert 'lifts off' not in text
     csv_run, bag_run = load_run(tmp_path / 'rest.csv'), load_run(tmp_path / 'bag')
     assert np.array_equal(csv_run.loads, bag_run.loads) and np.array_equal(csv_run.use, bag_run.use)
     assert np.array_equal(csv_run.slip, bag_run.slip) and bag_run.slip[:, 2].all()

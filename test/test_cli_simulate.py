@@ -12,7 +12,7 @@ from wallbot_sim.rundata import CSV_COLUMNS
 
 HEADER = ('t,x,y,theta,phi1,phi2,phi3,phi4,vx,vy,omega,dphi1,dphi2,dphi3,dphi4,ref_x,ref_y,err,'
           'Fx,Fy,Mz,tau1,tau2,tau3,tau4,F_left,F_right,F_lateral,residual,'
-          'N1,N2,N3,N4,use_L,use_R,use_lat,slip_L,slip_R,slip_lat')
+          'N1,N2,N3,N4,use1,use2,use3,use4,slip1,slip2,slip3,slip4,fx1,fx2,fx3,fx4,fy1,fy2,fy3,fy4')
 
 
 def test_csv_has_the_contract_header_and_one_row_per_step(tmp_path):

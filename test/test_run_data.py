@@ -89,6 +89,30 @@ def test_another_robot_s_diagnostics_in_the_bag_are_not_this_run_s(tmp_path):
     assert own < 1.0 and np.nanmax(load_run(bag).residual) == pytest.approx(own, rel=1e-5)
 
 
+def test_each_wheel_s_contact_round_trips_through_the_csv_and_the_bag(tmp_path):
+    """A coulomb turn in place whose rear wheels slide while the front ones stick, written by simulate to a CSV
+    and a bag: either, loaded, gives each wheel's normal load, friction use, slip flag and force in body axes as
+    the model's outputs of every step, to the bit."""
+    from wallbot_sim.cli.main import build_parser, main as cli
+    from wallbot_sim.cli.simulate import build_simulation
+    command = ['simulate', '--scenario', 'rest', '--contact', 'coulomb', '--heading', '0.4', '--torque=-0.9,1.2',
+               '--duration', '0.3', '--quiet']
+    bag, table = tmp_path / 'bag', tmp_path / 'run.csv'
+    assert cli([*command, '--csv', str(table), '--bag', str(bag)]) == 0
+    simulation, duration = build_simulation(build_parser().parse_args([*command, '--csv', '-']))
+    outputs = []
+    simulation.run(duration, lambda out: outputs.append(out.contact))
+    expected = {'loads': [c.loads for c in outputs], 'use': [c.wheel_use for c in outputs],
+                'slip': [c.wheel_slipping for c in outputs], 'wheel_forces': [c.wheel_forces for c in outputs]}
+    slides = np.array(expected['slip'])
+    assert slides[:, [1, 3]].all() and not slides[:, [0, 2]].any()  # rear wheels slide, front wheels stick
+    assert (np.abs(np.array(expected['wheel_forces'])).max(axis=0)[[0, 2]] > 1.0).all()  # front: both axes
+    for run in (load_run(table), load_run(bag)):
+        assert len(run) == len(outputs) == 301
+        for name, values in expected.items():
+            assert np.array_equal(getattr(run, name), np.array(values, dtype=float)), name
+
+
 # --- the summary read in one pass --------------------------------------------------------------------
 def synthetic_bag(path, seconds: float, source: str | None = 'plan', plan_lag: float = 0.0,
                   restart_at: float | None = None, slip_at: float | None = None, seed: int = 3):
@@ -96,7 +120,7 @@ def synthetic_bag(path, seconds: float, source: str | None = 'plan', plan_lag: f
     reference the trajectory node's plans (``source`` 'plan', renewed every 2 s, each logged ``plan_lag``
     seconds after it starts: a recorder whose reader lagged the steps), its 100 Hz poses ('poses') or
     none. ``restart_at``: simulation time goes back to 0 there (a reset); ``slip_at``: from there the
-    left channel slips, and a wheel lifts off 0.1 s later."""
+    left front wheel slides, and a wheel lifts off 0.1 s later."""
     from types import SimpleNamespace
 
     from wallbot_msgs_py import codec, topics
@@ -131,8 +155,9 @@ def synthetic_bag(path, seconds: float, source: str | None = 'plan', plan_lag: f
             t=t, q=np.array([x + rng.normal(0, 1e-3), y + rng.normal(0, 1e-3), 0.3, 0, 0, 0, 0]), qd=rng.normal(size=7),
             wheel_torques=rng.normal(size=4), chassis_wrench=rng.normal(size=3),
             drive=SimpleNamespace(left=rng.normal(), right=rng.normal(), lateral=rng.normal()),
-            contact=SimpleNamespace(loads=loads, use=tuple(rng.uniform(size=3)), slipping=(slipping, False, False),
-                                    limits=tuple(rng.uniform(size=3))))
+            contact=SimpleNamespace(loads=loads, wheel_use=rng.uniform(size=4),
+                                    wheel_slipping=(slipping, False, False, False),
+                                    wheel_forces=rng.normal(size=(4, 2)), slip_velocity=rng.normal(size=(4, 2))))
         queued += [(log_ns, topic, data) for topic, data in encoder.encode(out) if topic in connection]
         if step % 100 == 0:
             status = codec.Status(codec.simulation_status_name('/wallbot/dynamics'), 'ok', 'running',

@@ -79,7 +79,7 @@ def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[st
     run = load_run(csv_path)
     report = motor_report(run, params)
     contact = report.contact  # None when no step had finite friction use (a wheel off the wall at once)
-    use = contact.peak_use if contact is not None else (math.nan,) * 3
+    use = contact.peak_use if contact is not None else (math.nan,) * 4
     lift_off = summary.lift_off
     if result.returncode == 3:  # simulate's verdict: "detached: wheel W, normal load L N, t = T s"
         found = re.search(r'detached: wheel (\d), normal load (\S+) N, t = (\S+) s', result.stderr)
@@ -91,7 +91,7 @@ def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[st
             'peak_abs_F_lateral': summary.peak_lateral_force, 'peak_motor_torque_left': report.left.peak_torque,
             'peak_motor_torque_right': report.right.peak_torque,
             'min_normal_load': min(float(np.min(run.loads)), lift_off[2] if detached else math.inf),
-            'max_use_L': use[0], 'max_use_R': use[1], 'max_use_lat': use[2],
+            **{f'max_use{wheel}': value for wheel, value in enumerate(use, 1)},
             'least_adhesion_force': contact.least_adhesion if contact is not None else math.nan,
             'applied_adhesion_force': report.adsorption.applied, 'slipped': float(slipped),
             'detached': float(detached), 't_detached': lift_off[0] if detached else math.nan,

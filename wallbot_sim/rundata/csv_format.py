@@ -3,8 +3,10 @@
 COLUMN_GROUPS is the one description of the columns: each group's names and how its values come
 from a step's outputs, in order. Velocities are in the wall frame; ``err`` is the distance of the
 centre from the reference point; ``Fx..tau4`` are the constraint force Q_c; ``F_left, F_right,
-F_lateral`` the drive forces (docs/model.md section 8); ``N1..N4`` the normal loads, ``use_*`` the
-friction use and ``slip_*`` the slip flags of the contact (docs/model.md section 11).
+F_lateral`` the drive forces (docs/model.md section 8); then the contact per wheel (docs/model.md
+section 11.2): ``N1..N4`` the normal loads, ``use1..use4`` the friction use |f_i| / (mu_s N_i),
+``slip1..slip4`` the slip flags (1 while the wheel slides), ``fx1..fx4`` and ``fy1..fy4`` the wall's
+tangential force on the robot at each wheel along the body axes x_p and y_p (N).
 """
 
 from __future__ import annotations
@@ -36,8 +38,10 @@ COLUMN_GROUPS: tuple[tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[flo
     (('F_left', 'F_right', 'F_lateral'), lambda out: (out.drive.left, out.drive.right, out.drive.lateral)),
     (('residual',), lambda out: (out.residual,)),
     (('N1', 'N2', 'N3', 'N4'), lambda out: out.contact.loads.tolist()),
-    (('use_L', 'use_R', 'use_lat'), lambda out: out.contact.use),
-    (('slip_L', 'slip_R', 'slip_lat'), lambda out: [int(flag) for flag in out.contact.slipping]),
+    (('use1', 'use2', 'use3', 'use4'), lambda out: out.contact.wheel_use.tolist()),
+    (('slip1', 'slip2', 'slip3', 'slip4'), lambda out: [int(flag) for flag in out.contact.wheel_slipping]),
+    (('fx1', 'fx2', 'fx3', 'fx4'), lambda out: out.contact.wheel_forces[:, 0].tolist()),
+    (('fy1', 'fy2', 'fy3', 'fy4'), lambda out: out.contact.wheel_forces[:, 1].tolist()),
 )
 
 CSV_COLUMNS = tuple(name for names, _values in COLUMN_GROUPS for name in names)
@@ -64,11 +68,18 @@ def csv_line(out: StepOutputs) -> str:
 
 COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}
 """Each column's index."""
-_FLAGS = slice(COLUMN['slip_L'], COLUMN['slip_lat'] + 1)
+_FLAGS = slice(COLUMN['slip1'], COLUMN['slip4'] + 1)
 
 
-def fill_rows(out: StepTable | BatchOutputs, rows: np.ndarray) -> None:
-    """The CSV row (``csv_row``) of every instant of a table or robot of a batch into ``rows`` (rows, len(CSV_COLUMNS))."""
+def fill_rows(out: StepTable, rows: np.ndarray) -> None:
+    """The CSV row (``csv_row``) of every instant of a table into ``rows`` (rows, len(CSV_COLUMNS))."""
+    fill_motion_rows(out, rows)
+    fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
+
+
+def fill_motion_rows(out: StepTable | BatchOutputs, rows: np.ndarray) -> None:
+    """The columns t .. N4 of ``fill_rows`` (all but the wheels' use, slip and force), of a table or of the
+    robots of a batch at one instant."""
     position = out.reference_position
     rows[:, COLUMN['t']] = out.t
     rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
@@ -79,8 +90,14 @@ def fill_rows(out: StepTable | BatchOutputs, rows: np.ndarray) -> None:
     rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
     rows[:, COLUMN['residual']] = out.residual
     rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
-    rows[:, COLUMN['use_L']:COLUMN['use_L'] + 3] = out.use
-    rows[:, _FLAGS] = out.slipping
+
+
+def fill_wheel_rows(rows: np.ndarray, use: np.ndarray, slipping: np.ndarray, forces: np.ndarray) -> None:
+    """The wheels' columns of ``fill_rows``: use (rows, 4), slip flags (rows, 4), forces (rows, 4, 2)."""
+    rows[:, COLUMN['use1']:COLUMN['use1'] + 4] = use
+    rows[:, _FLAGS] = slipping
+    rows[:, COLUMN['fx1']:COLUMN['fx1'] + 4] = forces[:, :, 0]
+    rows[:, COLUMN['fy1']:COLUMN['fy1'] + 4] = forces[:, :, 1]
 
 
 def csv_lines(rows: np.ndarray) -> str:

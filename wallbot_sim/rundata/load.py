@@ -59,10 +59,12 @@ class RunData:
     """How often odometry time jumped back in the bag (earlier runs are not in these arrays)."""
     loads: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
     """(N, 4) normal load of each wheel (N); NaN where not recorded."""
-    use: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
-    """(N, 3) friction use of the left, right and lateral channels."""
-    slip: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
-    """(N, 3) 1 where a channel slips, 0 where it sticks."""
+    use: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    """(N, 4) friction use of each wheel, |f_i| / (mu_s N_i)."""
+    slip: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+    """(N, 4) 1 where a wheel slides, 0 where it sticks."""
+    wheel_forces: np.ndarray = field(default_factory=lambda: np.empty((0, 4, 2)))
+    """(N, 4, 2) the wall's tangential force on the robot at each wheel, body axes x_p, y_p (N)."""
     sensed: np.ndarray = field(default_factory=lambda: np.empty((0, 6)))
     """(N, 6) x, y, theta, vx, vy, omega as the noisy odometry reported them (a run with sensor
     noise; NaN where a stamp has none), empty when the odometry was the simulated state itself."""
@@ -103,15 +105,15 @@ def run_from_columns(rows: np.ndarray, label: str) -> RunData:
     """The run whose steps are ``rows`` (steps, len(CSV_COLUMNS)), in the order of CSV_COLUMNS: a simulate
     CSV's numbers, read or still in memory."""
     col = {name: rows[:, i] for i, name in enumerate(CSV_COLUMNS)}
+
+    def wheels(prefix: str) -> np.ndarray:
+        return np.column_stack([col[f'{prefix}{i}'] for i in range(1, 5)])
     return RunData(label, col['t'], col['x'], col['y'], col['theta'], col['vx'], col['vy'], col['omega'],
-                   np.column_stack([col[f'phi{i}'] for i in range(1, 5)]),
-                   np.column_stack([col[f'dphi{i}'] for i in range(1, 5)]),
-                   np.column_stack([col[f'tau{i}'] for i in range(1, 5)]),
+                   wheels('phi'), wheels('dphi'), wheels('tau'),
                    col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
                    col['F_left'], col['F_right'], col['F_lateral'], col['residual'],
-                   loads=np.column_stack([col[f'N{i}'] for i in range(1, 5)]),
-                   use=np.column_stack([col[name] for name in ('use_L', 'use_R', 'use_lat')]),
-                   slip=np.column_stack([col[name] for name in ('slip_L', 'slip_R', 'slip_lat')]))
+                   loads=wheels('N'), use=wheels('use'), slip=wheels('slip'),
+                   wheel_forces=np.stack((wheels('fx'), wheels('fy')), axis=2))
 
 
 class _LastRun(dict):
@@ -187,7 +189,7 @@ def _drive(data: bytes) -> tuple[int, tuple[float, ...]]:
 
 def _contact(data: bytes) -> tuple[int, tuple[float, ...]]:
     contact = codec.decode_wheel_contact(data)
-    return contact.stamp_ns, (*contact.loads, *contact.use, *contact.slipping)
+    return contact.stamp_ns, (*contact.loads, *contact.use, *contact.slipping, *contact.force_x, *contact.force_y)
 
 
 def _reference(data: bytes) -> tuple[int, tuple[float, ...]]:
@@ -197,7 +199,7 @@ def _reference(data: bytes) -> tuple[int, tuple[float, ...]]:
 
 STAMPED_SERIES: dict[str, tuple[Callable[[bytes], tuple[int, tuple[float, ...]]], int]] = {
     'odom': (_state, 7), 'ground_truth': (_state, 7), 'wheel_states': (_wheels, 12), 'constraint_wrench': (_wrench, 3),
-    'drive_forces': (_drive, 3), 'wheel_contact': (_contact, 10), 'reference': (_reference, 2)}
+    'drive_forces': (_drive, 3), 'wheel_contact': (_contact, 20), 'reference': (_reference, 2)}
 """How each per-stamp topic is read: its decoder to (stamp, values), and how many values."""
 
 
@@ -272,13 +274,14 @@ def _run_data(series: _BagSeries, label: str, path: Path) -> RunData:
         return np.array([table.get(s, nan) for s in stamps], dtype=float).reshape(len(stamps), width)
 
     w, c, d, k = (matched(leaf, width) for leaf, width in (('wheel_states', 12), ('constraint_wrench', 3),
-                                                          ('drive_forces', 3), ('wheel_contact', 10)))
+                                                          ('drive_forces', 3), ('wheel_contact', 20)))
     ref_x, ref_y = _reference_at(t, series.plan, tables['reference'], matched('reference', 2))
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
                    w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, np.hypot(o[:, 1] - ref_x, o[:, 2] - ref_y),
                    c[:, 0], c[:, 1], c[:, 2], d[:, 0], d[:, 1], d[:, 2], matched('diagnostics', 1)[:, 0],
                    np.array(series.path_xy[0]), np.array(series.path_xy[1]), odom.restarts,
-                   loads=k[:, 0:4], use=k[:, 4:7], slip=k[:, 7:10],
+                   loads=k[:, 0:4], use=k[:, 4:8], slip=k[:, 8:12],
+                   wheel_forces=np.stack((k[:, 12:16], k[:, 16:20]), axis=2),
                    sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)))
 
 

@@ -23,6 +23,7 @@ from wallbot_sim.model import ModelError, SampledReference
 from wallbot_sim.model.trajectories import Plan
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import STAMPED_SERIES, bag_topics, namespace_of, residual_max
+from wallbot_sim.rundata.summary import sliding_wheels
 
 PENDING_STATES = 20_000
 """Most states held while the reference at their time has not been read yet (20 s at 1 kHz): a plan or a
@@ -32,7 +33,6 @@ PLAN_MARGIN_NS = 1_000_000_000
 """Plan samples kept before the oldest state still to be compared (the interpolation needs the two around it)."""
 PROGRESS_EVERY = 4096
 """Messages between two calls of the progress callback."""
-CHANNELS = ('left', 'right', 'lateral')
 
 
 class _Peaks:
@@ -177,20 +177,23 @@ class _Tracking:
 
 
 class _Contact:
-    """The first slip and the first negative normal load of the last run."""
+    """The first slip, the first negative normal load and each wheel's peak friction use of the last run."""
 
     def __init__(self) -> None:
         self.stream = _Stream()
         self.first_slip: tuple[float, str] | None = None
         self.lift_off: tuple[float, int, float] | None = None
+        self.use = _Peaks(4)
 
     def add(self, data: bytes) -> None:
         contact = codec.decode_wheel_contact(data)
         if self.stream.restarted(contact.stamp_ns):
             self.first_slip = self.lift_off = None
+            self.use = _Peaks(4)
         t = contact.stamp_ns * 1e-9
+        self.use.add(contact.use)
         if self.first_slip is None and any(flag > 0.5 for flag in contact.slipping):
-            self.first_slip = (t, ', '.join(name for name, flag in zip(CHANNELS, contact.slipping) if flag > 0.5))
+            self.first_slip = (t, sliding_wheels([flag > 0.5 for flag in contact.slipping]))
         loads = [1.0 if math.isnan(load) else load for load in contact.loads]
         if self.lift_off is None and min(loads) < 0.0:
             wheel = loads.index(min(loads))
@@ -257,4 +260,5 @@ def summarize_bag(path: Path, progress: Callable[[float, float], None] | None = 
         tracking.compare(every=True)
     return RunSummary(Path(path), (tracking.last_ns - tracking.first_ns) * 1e-9, tracking.count, tracking.final,
                       tracking.peak, tracking.peak_after_5s, *wrench.peaks.values, *drive.peaks.values,
-                      residual.peaks.values[0], tracking.stream.restarts, contact.first_slip, contact.lift_off)
+                      residual.peaks.values[0], tracking.stream.restarts, contact.first_slip, contact.lift_off,
+                      tuple(contact.use.values))

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import RunData, load_run
 
@@ -40,10 +41,12 @@ class RunSummary:
     restarts: int = 0
     """Times simulation time jumped back in the bag; the figures are of the last run."""
     first_slip: tuple[float, str] | None = None
-    """(time, channels) of the first sample where a friction channel slips; None if none did."""
+    """(time, wheels) of the first sample where a wheel slides; None if none did."""
     lift_off: tuple[float, int, float] | None = None
     """(time, wheel 1..4, load) of the first negative normal load: the detachment that ends a
     coulomb run, or where an ideal run's robot would have peeled off."""
+    peak_wheel_use: tuple[float, ...] = (math.nan,) * 4
+    """The largest friction use |f_i| / (mu_s N_i) of each wheel; NaN when the run did not record it."""
 
 
 def _peak(values: np.ndarray) -> float:
@@ -72,16 +75,21 @@ def summarize_run(run: RunData, path: Path | str) -> RunSummary:
         Path(path), float(run.t[-1] - run.t[0]), len(run.t),
         float(finite_err[-1]) if finite_err.size else math.nan, _peak(err), _peak(late),
         _peak(run.Fx), _peak(run.Fy), _peak(run.Mz), _peak(run.F_left), _peak(run.F_right), _peak(run.F_lateral),
-        _peak(run.residual), run.restarts, _first_slip(run), _lift_off(run))
+        _peak(run.residual), run.restarts, _first_slip(run), _lift_off(run),
+        tuple(_peak(use) for use in run.use.T) if len(run.use) else (math.nan,) * 4)
 
 
 def _first_slip(run) -> tuple[float, str] | None:
-    slipping = np.nan_to_num(run.slip) > 0.5 if len(run.slip) else np.zeros((len(run.t), 3), dtype=bool)
+    slipping = np.nan_to_num(run.slip) > 0.5 if len(run.slip) else np.zeros((len(run.t), 4), dtype=bool)
     rows = np.flatnonzero(slipping.any(axis=1))
     if not rows.size:
         return None
-    names = [name for name, flag in zip(('left', 'right', 'lateral'), slipping[rows[0]]) if flag]
-    return float(run.t[rows[0]]), ', '.join(names)
+    return float(run.t[rows[0]]), sliding_wheels(slipping[rows[0]])
+
+
+def sliding_wheels(flags) -> str:
+    """The wheels whose flags are set, by position ('left front, right rear')."""
+    return ', '.join(name for name, flag in zip(WHEEL_POSITIONS, flags) if flag)
 
 
 def _lift_off(run) -> tuple[float, int, float] | None:
@@ -108,8 +116,10 @@ def format_summary(summary: RunSummary) -> str:
         f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '
         f'|F_lat| {s.peak_lateral_force:.3f} N',
         f'constraint residual: max {s.max_residual:.3e}',
-        'wheel-wall contact:  ' + ('no slip' if s.first_slip is None else
-                                   f'first slip at t = {s.first_slip[0]:.3f} s ({s.first_slip[1]})')
+        'wheel-wall contact:  ' + ('' if all(math.isnan(use) for use in s.peak_wheel_use) else
+                                   'peak friction use ' + ', '.join(f'{use:.3f}' for use in s.peak_wheel_use)
+                                   + ' (wheels 1-4); ')
+        + ('no slip' if s.first_slip is None else f'first slip at t = {s.first_slip[0]:.3f} s ({s.first_slip[1]})')
         + ('' if s.lift_off is None else
            f'; wheel {s.lift_off[1]} lifts off at t = {s.lift_off[0]:.3f} s (normal load {s.lift_off[2]:.2f} N)'),
     ] + ([f'note:                simulation time jumped back {s.restarts} time(s) in this bag (reset or '

@@ -20,18 +20,19 @@ from wallbot_sim.control.sampling import SampledController, close_loop, controll
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_rows
+from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
+from wallbot_sim.rundata.csv_format import COLUMN, CSV_COLUMNS, csv_row, fill_motion_rows, fill_wheel_rows
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
-           'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use_L', 'max_use_R',
-           'max_use_lat', 'least_adhesion_force', 'applied_adhesion_force', 'slipped', 'detached', 't_detached',
-           'max_residual', 'feasible')
-"""The results columns after a robot's parameters."""
+           'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use1', 'max_use2',
+           'max_use3', 'max_use4', 'least_adhesion_force', 'applied_adhesion_force', 'slipped', 'detached',
+           't_detached', 'max_residual', 'feasible')
+"""The results columns after a robot's parameters (``max_use1..4``: each wheel's peak friction use)."""
 FEASIBLE_USE = NumberRange(high=1.0)
-"""Friction use a feasible robot stays within: above 1 a channel would slip on a real wall."""
+"""Friction use a feasible robot stays within: above 1 a wheel would slide on a real wall."""
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,7 @@ def result_row(robot_run: RobotRun, params: RobotParameters) -> list[float]:
     summary = summarize_run(run, 'sweep robot')
     report = motor_report(run, params)
     contact = report.contact
-    use = contact.peak_use if contact is not None else (math.nan,) * 3
+    use = contact.peak_use if contact is not None else (math.nan,) * 4
     lift_off = summary.lift_off
     if lift_off is None and robot_run.lift_off is not None:
         lift_off = (robot_run.lift_off.t, robot_run.lift_off.wheel, robot_run.lift_off.load)
@@ -134,6 +135,22 @@ def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> It
     simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
     steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
     instant = iter(steps)
-    simulation.run(settings.steps, lambda out: fill_rows(out, next(instant)))
-    for i in range(len(models)):
+    simulation.run(settings.steps, lambda out: fill_motion_rows(out, next(instant)))
+    for i, model in enumerate(models):
+        _fill_ideal_wheel_rows(steps[:, i], model)
         yield steps[:, i]
+
+
+def _fill_ideal_wheel_rows(rows: np.ndarray, robot: Robot) -> None:
+    """The wheels' columns of a batch robot's CSV rows: ideal contact's per-wheel outputs, the split of the
+    chassis wrench by the loads (``wheel_forces.ideal_wheel_outputs``, what ``Simulation`` reports), from the rows'
+    heading, wrench and loads; nothing slides.
+
+    The batch's outputs carry no per-wheel contact yet. Once they carry ``StepTable``'s ``wheel_use``,
+    ``wheel_slipping`` and ``wheel_forces``, ``csv_format.fill_rows`` fills these columns from them at each
+    instant, and this goes.
+    """
+    loads = rows[:, COLUMN['N1']:COLUMN['N1'] + 4]
+    forces = split_chassis_wrench(rows[:, COLUMN['theta']], rows[:, COLUMN['Fx']:COLUMN['Fx'] + 3], loads,
+                                  robot.wheel_offsets)
+    fill_wheel_rows(rows, wheel_use(forces, loads, robot.params.wall_friction), np.zeros(loads.shape), forces)

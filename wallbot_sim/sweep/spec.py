@@ -43,9 +43,9 @@ from wallbot_sim.sweep.errors import SweepError
 SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration', 'dt', 'controller',
             'controller_mass_scale', 'robot', 'chunk_size')
 VARIATION = ('grid', 'vary', 'samples', 'seed')
-CHUNK_ROBOT_STEPS = 1_500_000
-"""Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 312 bytes per
-robot-step (about 470 MB), until each robot's run is summarized."""
+CHUNK_ROBOT_STEPS = 1_200_000
+"""Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 392 bytes per
+robot-step (a CSV row; about 470 MB), until each robot's run is summarized."""
 MAX_CHUNK_SIZE = 250
 ROBOT_KEYS = tuple(f.name for f in fields(RobotParameters))
 
