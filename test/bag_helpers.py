@@ -51,7 +51,8 @@ def diagnostics_without_wall_clock(msg: Any, same_moments: bool) -> Any:
     left_out = set(WALL_CLOCK_KEYS)
     if not same_moments:
         left_out |= {'simulation time', 'status', 'constraint residual', 'constraint residual max',
-                     'normal loads (N)', 'friction use (left, right, lateral)', 'slipping'}
+                     'normal loads (N)', 'friction use (left front, left rear, right front, right rear)',
+                     'slipping wheels'}
     return tuple((status.level, status.name, status.hardware_id, tuple(kv.key for kv in status.values),
                   tuple((kv.key, kv.value) for kv in status.values if kv.key not in left_out))
                  for status in msg.status)

@@ -17,7 +17,7 @@ from model_helpers import (
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Simulation
 from wallbot_sim.model.batch import kernel
-from wallbot_sim.model.contact import DetachedError, unheld_slip
+from wallbot_sim.model.contact import WHEEL_POSITIONS, DetachedError, unheld_slip
 from wallbot_sim.model.normal_loads import load_acceleration_gain, normal_loads
 
 DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
@@ -374,13 +374,22 @@ def test_a_robot_falling_without_the_lateral_constraint_is_reported_sliding():
     assert unheld_slip(robot, falling.selection, falling.outputs()) == {}
     falling.run(0.1)
     sliding = unheld_slip(robot, falling.selection, falling.outputs())
-    assert list(sliding) == ['lateral'] and sliding['lateral'] > 0.5
+    assert list(sliding) == list(WHEEL_POSITIONS) and min(sliding.values()) > 0.5  # every wheel, sideways
     holding = at_rest()
     holding.run(0.1)
     assert unheld_slip(holding.robot, holding.selection, holding.outputs()) == {}
     slide = at_rest(adhesion_force=100.0)
     slide.run(0.1)
-    assert list(unheld_slip(slide.robot, slide.selection, slide.outputs())) == ['lateral']
+    sliding = unheld_slip(slide.robot, slide.selection, slide.outputs())
+    assert list(sliding) == list(WHEEL_POSITIONS)
+    assert list(sliding.values()) == pytest.approx([abs(slide.qd[1])] * 4)  # each wheel slides down with the robot
+    turning = at_rest(0.4, (-0.9, 1.2))  # turning in place hard enough to slide the rear wheels, not the front
+    turning.run(0.1)
+    out = turning.outputs()
+    assert out.contact.wheel_slipping == (False, True, False, True)
+    rear = out.contact.slip_velocity[[1, 3]]
+    assert unheld_slip(turning.robot, turning.selection, out) == {'left rear': math.hypot(*rear[0]),
+                                                                 'right rear': math.hypot(*rear[1])}
 
 
 def test_a_new_reference_reaches_the_solver():

@@ -15,8 +15,8 @@ from typing import Mapping, Sequence
 
 from wallbot_msgs_py import cdr, codec, topics
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.constraints import CHANNELS, BaumgarteGains
-from wallbot_sim.model.contact import IDEAL
+from wallbot_sim.model.constraints import BaumgarteGains
+from wallbot_sim.model.contact import IDEAL, WHEEL_POSITIONS
 from wallbot_sim.model.outputs import ContactOutputs
 from wallbot_sim.model.robot import Adsorption
 from wallbot_sim.model.trajectories import Plan, Reference, ReferenceSample, SampledReference, sample_plan, tangent_heading
@@ -241,13 +241,14 @@ def contact_values(contact_model: str, coulomb_applies: bool, contact: ContactOu
         return [('contact model', model)]
     return [('contact model', model),
             ('normal loads (N)', ', '.join(f'{load:.2f}' for load in contact.loads)),
-            ('friction use (left, right, lateral)', ', '.join(f'{use:.3f}' for use in contact.use)),
-            ('slipping', ', '.join(slipping_channels(contact)) or 'none')]
+            (f'friction use ({", ".join(WHEEL_POSITIONS)})',
+             ', '.join(f'{use:.3f}' for use in contact.wheel_use.tolist())),
+            ('slipping wheels', ', '.join(slipping_wheels(contact)) or 'none')]
 
 
-def slipping_channels(contact: ContactOutputs) -> list[str]:
-    """The friction channels slipping in ``contact``."""
-    return [channel for channel, flag in zip(CHANNELS, contact.slipping) if flag]
+def slipping_wheels(contact: ContactOutputs) -> list[str]:
+    """The wheels sliding in ``contact``, by position."""
+    return [wheel for wheel, flag in zip(WHEEL_POSITIONS, contact.wheel_slipping) if flag]
 
 
 def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,

@@ -154,7 +154,7 @@ class HeadlessBagWriter:
         diagnostics = messages.simulation_status(
             self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max, selection.label(),
             sim.robot.adsorption, contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
-            sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_channels(out.contact))
+            sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_wheels(out.contact))
         self._put(topics.DIAGNOSTICS, out.t, codec.diagnostics(out.t, [diagnostics]))
         self._next_diagnostics = out.t + DIAGNOSTICS_PERIOD
         self._window_start, self._window_steps, self._step_time_max = time.perf_counter(), 0, 0.0

@@ -20,7 +20,7 @@ import numpy as np
 
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import (
-    CHANNELS, LATERAL, LEFT, LONGITUDINAL, RIGHT, BaumgarteGains, ConstraintModule, ContactConstraint, WheelContact)
+    LATERAL, LONGITUDINAL, BaumgarteGains, ConstraintModule, ContactConstraint, WheelContact)
 from wallbot_sim.model.contact_kinematics import LATERAL_ROW, LONGITUDINAL_ROW, ContactKinematics
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.kinetic_friction import BoundaryResponse, consistent_friction
@@ -282,19 +282,21 @@ def channel_slipping(sliding: frozenset[int], directions: Sequence[int]) -> tupl
 
 
 def unheld_slip(robot: Robot, selection: ConstraintSelection, out: StepOutputs) -> dict[str, float]:
-    """Channels moving faster than v_st with no friction holding them, and their slip speed (m/s).
+    """Wheels (by position) whose contact point moves faster than v_st with no friction holding it, and that
+    speed (m/s).
 
-    A channel is held while its rows are active and it sticks; otherwise it slides when its slip
-    speed exceeds v_st: a side's largest longitudinal contact speed, the largest lateral one. So a
-    slipping channel, or a robot without the non-lateral or nonslip constraint sliding down the wall.
-    None with the trajectory task on: the task holds the robot.
+    A sticking wheel is held in the directions whose friction row is active (x_p with nonslip, y_p with
+    non-lateral motion); a sliding wheel in none. A wheel's unheld speed is |v_i| over the directions not held:
+    so a sliding wheel, or a robot without the non-lateral or nonslip constraint sliding down the wall. None
+    with the trajectory task on: the task holds the robot.
     """
     if selection.trajectory:
         return {}
-    velocities = np.abs(out.contact.slip_velocity)
-    speeds = {LEFT: float(max(velocities[:2, LONGITUDINAL_ROW])), RIGHT: float(max(velocities[2:, LONGITUDINAL_ROW])),
-              LATERAL: float(max(velocities[:, LATERAL_ROW]))}
-    rows = {LEFT: selection.nonslip, RIGHT: selection.nonslip, LATERAL: selection.non_lateral}
-    slipping = dict(zip(CHANNELS, out.contact.slipping))
-    return {channel: speed for channel, speed in speeds.items()
-            if speed > robot.params.stick_velocity and (slipping[channel] or not rows[channel])}
+    free = [row for row, held in ((LONGITUDINAL_ROW, selection.nonslip), (LATERAL_ROW, selection.non_lateral))
+            if not held]
+    speeds = {}
+    for name, velocity, sliding in zip(WHEEL_POSITIONS, out.contact.slip_velocity, out.contact.wheel_slipping):
+        speed = float(np.hypot(velocity[0], velocity[1])) if sliding else _speed(velocity, free)
+        if speed > robot.params.stick_velocity:
+            speeds[name] = speed
+    return speeds

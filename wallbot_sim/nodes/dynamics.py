@@ -363,7 +363,7 @@ class DynamicsNode(Node):
             contact=messages.contact_values(self.settings.contact_model, sim is None or sim.coulomb_applies,
                                             out.contact if out is not None else None),
             sliding=unheld_slip(loop.robot, sim.selection, out) if sim is not None and out is not None else {},
-            slipping=messages.slipping_channels(out.contact) if out is not None else ())
+            slipping=messages.slipping_wheels(out.contact) if out is not None else ())
         self.diagnostics_pub.publish(codec.diagnostics(t, [report]))
 
     def close(self) -> None:
