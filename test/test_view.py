@@ -46,10 +46,14 @@ def driven_scene(params, theta: float = 0.7, frames: RobotFrames = RobotFrames()
     scene = Scene(params, frame_prefix=frames.prefix)
     scene.update_pose(Pose(1_250_000_000, frames.odom, frames.base_link, 0.3, -0.4, theta))
     scene.update_wheels([0.1, -2.0, 3.5, 7.0])
-    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.3, 0.5, 0.2], [False, False, False])
-    scene.update_drive([12.0, -8.0, 30.0])
+    scene.update_contact(*CONTACT)
     scene.set_reference_path([(math.cos(a), math.sin(a)) for a in np.linspace(0, 2 * math.pi, 50)])
     return scene
+
+
+CONTACT = ([60.0, 40.0, 55.0, 45.0], [0.3, 0.5, 0.2, 0.4], [False] * 4, [7.2, 4.8, -4.4, -3.6],
+           [9.0, 6.0, 8.25, 6.75])
+"""A wheel_contact: loads, use, slip flags, forces along x_p and along y_p."""
 
 
 def rotation(q) -> Rotation:
@@ -170,35 +174,56 @@ def test_the_wheels_are_drawn_where_the_transforms_put_them_turned_by_their_spin
     assert chassis.scale[:2] == pytest.approx((2 * params.half_wheelbase, 2 * params.half_track - scene.width))
 
 
-def test_the_contact_arrows_add_up_to_the_channel_forces_and_show_slip(params):
-    """The four wheels' arrows sum to the traction of both sides and the lateral force, turned into
-    the wall frame; each side's traction is shared by its wheels' normal loads."""
+def test_each_wheel_s_arrow_is_its_force_and_shows_its_slip(params):
+    """Each wheel's arrow starts at its contact point on the wall and is the wall's force on the robot at that
+    wheel, turned from the body axes into the wall frame (FORCE_SCALE m per N); red while that wheel slides."""
     scene = driven_scene(params)
     arrows = [m for m in scene.markers() if m.ns == 'contact_forces']
-    vectors = np.array([(a.points[1] - a.points[0])[:2] / FORCE_SCALE for a in arrows])
     heading = Rotation.from_euler('z', 0.7)
-    assert vectors.sum(axis=0) == pytest.approx(heading.apply([12.0 - 8.0, 30.0, 0.0])[:2], abs=1e-9)
-    front_left = heading.inv().apply([*vectors[0], 0.0])
-    assert front_left[0] == pytest.approx(12.0 * 60.0 / 100.0) and front_left[1] == pytest.approx(30.0 * 60.0 / 200.0)
-    for arrow, origin in zip(arrows, scene.wheel_origins):  # from the contact point on the wall
+    for arrow, origin, fx, fy in zip(arrows, scene.wheel_origins, CONTACT[3], CONTACT[4]):
         assert arrow.points[0] == pytest.approx([0.3, -0.4, 0.0] + heading.apply([origin[0], origin[1], 0.0]))
+        assert (arrow.points[1] - arrow.points[0]) / FORCE_SCALE == pytest.approx(heading.apply([fx, fy, 0.0]))
     assert {a.color for a in arrows} == {(0.1, 0.8, 0.1, 1.0)}
 
-    scene.update_contact([60.0, 40.0, 55.0, 45.0], [1.0, 0.5, 0.2], [True, False, False])  # the left side slips
+    loads, use, _slipping, forces_x, forces_y = CONTACT
+    scene.update_contact(loads, use, [False, True, False, True], forces_x, forces_y)  # the rear wheels slide
     colors = [m.color for m in scene.markers() if m.ns == 'contact_forces']
-    assert colors[0] == colors[1] != colors[2] == colors[3] and colors[0][0] > colors[0][1]
-    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.1, 0.1, 1.0], [False, False, True])  # lateral: every wheel
-    assert all(m.color[0] > m.color[1] for m in scene.markers() if m.ns == 'contact_forces')
+    assert colors[0] == colors[2] != colors[1] == colors[3] and colors[1][0] > colors[1][1]
+
+
+def test_the_arrows_of_a_step_s_wheel_contact_are_the_model_s_wheel_forces(params):
+    """A coulomb turn whose rear wheels slide: its wheel_contact bytes, decoded as the viewer decodes them, draw
+    each wheel's force of the model's outputs in the wall frame, red at the sliding wheels."""
+    from wallbot_msgs_py.step_cdr import StepEncoder
+    from wallbot_sim.control.tracking import DRIVEN
+    from wallbot_sim.model import Robot, Simulation
+    simulation = Simulation(Robot(params), None, DRIVEN, np.array([0.2, 0.1, 0.4, 0, 0, 0, 0]), np.zeros(7),
+                            contact='coulomb')
+    simulation.set_motor_torque(-0.9, 1.2)
+    simulation.run(0.05)
+    out = simulation.outputs()
+    contact = codec.decode_wheel_contact(dict(StepEncoder().encode(out))[topics.WHEEL_CONTACT])
+    scene = Scene(params)
+    scene.update_pose(pose(out.t, *out.q[:3]))
+    scene.update_contact(contact.loads, contact.use, [flag > 0.5 for flag in contact.slipping], contact.force_x,
+                         contact.force_y)
+    arrows = [m for m in scene.markers() if m.ns == 'contact_forces']
+    heading = Rotation.from_euler('z', out.q[2])
+    for arrow, force in zip(arrows, out.contact.wheel_forces):
+        assert (arrow.points[1] - arrow.points[0]) / FORCE_SCALE == pytest.approx(heading.apply([*force, 0.0]))
+    assert out.contact.wheel_slipping == (False, True, False, True)
+    assert [a.color[0] > a.color[1] for a in arrows] == [False, True, False, True]
 
 
 def test_the_chassis_colour_is_the_adhesion_margin(params):
     scene = driven_scene(params)
     chassis = next(m for m in scene.markers() if m.ns == 'chassis')
     assert scene.margin() == pytest.approx(0.5) and chassis.color == margin_color(0.5) == (1.0, 1.0, 0.0, 1.0)
-    scene.update_contact([60.0, 40.0, 55.0, 45.0], [0.0, 0.05, 0.0], [False] * 3)
+    loads, _use, slipping, forces_x, forces_y = CONTACT
+    scene.update_contact(loads, [0.0, 0.05, 0.0, 0.01], slipping, forces_x, forces_y)
     assert next(m for m in scene.markers() if m.ns == 'chassis').color == margin_color(0.95)
     assert margin_color(0.95)[1] == 1.0 and margin_color(0.95)[0] == pytest.approx(0.1)
-    scene.update_contact([60.0, -1.0, 55.0, 45.0], [0.0, 0.0, 0.0], [False] * 3)  # a wheel off the wall
+    scene.update_contact([60.0, -1.0, 55.0, 45.0], [0.0] * 4, slipping, forces_x, forces_y)  # a wheel off the wall
     assert scene.margin() == 0.0 and next(m for m in scene.markers() if m.ns == 'chassis').color == (1.0, 0.0, 0.0, 1.0)
     assert margin_color(-0.3) == (1.0, 0.0, 0.0, 1.0)
 
@@ -251,8 +276,9 @@ def test_nothing_is_drawn_before_the_first_pose_and_no_turns_or_arrows_before_th
 
 # --- the Foxglove layout ------------------------------------------------------------------------------
 LAYOUT = Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'
-PLOTTED = {'F_L': 'drive_left', 'F_R': 'drive_right', 'F_lat': 'lateral',
-           'use_L': 'drive_left', 'use_R': 'drive_right', 'use_lat': 'lateral'}
+PLOTTED = {'F_L': 'drive_left', 'F_R': 'drive_right', 'F_lat': 'lateral', 'use left front': 'wheel_left_front',
+           'use left rear': 'wheel_left_rear', 'use right front': 'wheel_right_front',
+           'use right rear': 'wheel_right_rear'}
 """Each plotted channel's series label and the joint name its array index must have in the message."""
 
 
@@ -272,7 +298,7 @@ def field(message, path: str):
 
 def test_the_foxglove_layout_plots_what_a_recorded_bag_holds(tmp_path):
     """Every plotted path names a recorded topic and a field its messages have, and every indexed
-    channel is the one its label says (wheel_contact lists the wheels before the channels)."""
+    series is the one its label says (a channel of drive_forces, a wheel of wheel_contact)."""
     layout = json.loads(LAYOUT.read_text())
     assert set(panels(layout['layout'])) == set(layout['configById'])
     result = simulate('--scenario', 'circle', '--duration', '0.01', '--csv', tmp_path / 'run.csv',
@@ -284,7 +310,7 @@ def test_the_foxglove_layout_plots_what_a_recorded_bag_holds(tmp_path):
     plotted = [(series['value'], series['label']) for panel in layout['configById'].values()
                for series in panel.get('paths', [])]
     plotted += [(panel['xAxisPath']['value'], 'x') for panel in layout['configById'].values() if 'xAxisPath' in panel]
-    assert len(plotted) == 9
+    assert len(plotted) == 10
     for value, label in plotted:
         topic, path = re.fullmatch(r'(/[\w/]+?)((?:\.\w+(?:\[\d+\])?)+)', value).groups()
         assert topic in first, f'{topic} is not recorded'

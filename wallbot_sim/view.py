@@ -7,17 +7,16 @@ left wheels at +b.
 
 Markers, all in the odometry's frame (``wall``), so a viewer needs no tf tree:
 
-* ``chassis``: a box, coloured by the adhesion margin 1 - the largest friction use of the three
-  channels (green: far from slipping, yellow: half used, red: at the limit or slipping, or a wheel
+* ``chassis``: a box, coloured by the adhesion margin 1 - the largest friction use of the four
+  wheels (green: far from slipping, yellow: half used, red: at the limit or slipping, or a wheel
   off the wall);
 * ``wheels``: the four wheels, and ``wheel_marks``: a bar across each wheel turned by its spin
   angle, so the wheels are seen turning;
 * ``reference_path``: the reference trajectory's path; ``travelled``: the centre's path, its
   newest ``trail_points`` points, one every ``TRAIL_SPACING`` metres or more;
-* ``contact_forces``: the friction force the wall exerts at each wheel, an arrow from the contact
-  point, green while its channels stick, red while one slips. The model's friction acts per channel
-  (each side's traction, the lateral force), so each wheel is drawn with the share of its channel
-  that its normal load carries.
+* ``contact_forces``: the tangential force the wall exerts on the robot at each wheel (``wheel_contact``,
+  docs/model.md 11.2), an arrow from the wheel's contact point, green while the wheel sticks, red while it
+  slides.
 """
 
 from __future__ import annotations
@@ -45,10 +44,6 @@ WHEEL_COLOR = (0.15, 0.15, 0.15, 1.0)
 MARK_COLOR = (0.9, 0.9, 0.9, 1.0)
 REFERENCE_COLOR = (0.2, 0.4, 1.0, 0.8)
 TRAVELLED_COLOR = (1.0, 0.6, 0.0, 1.0)
-LEFT, RIGHT, LATERAL = range(3)
-"""Friction channels, in topics.DRIVE_JOINTS order."""
-WHEEL_SIDES = (LEFT, LEFT, RIGHT, RIGHT)
-"""The traction channel of each wheel, in topics.WHEEL_JOINTS order."""
 
 
 def quaternion_product(p: Quaternion, q: Quaternion) -> Quaternion:
@@ -155,7 +150,7 @@ class Scene:
         self.loads: tuple[float, ...] | None = None
         self.use: tuple[float, ...] | None = None
         self.slipping: tuple[bool, ...] = ()
-        self.drive: tuple[float, float, float] | None = None
+        self.forces: tuple[tuple[float, float], ...] | None = None
         self.forget_wheels_and_contact()
         self.reference_path = np.zeros((0, 3))
         self.trail = Trail(trail_points)
@@ -176,20 +171,19 @@ class Scene:
         """Spin angles (rad) of the wheels, in topics.WHEEL_JOINTS order."""
         self.wheel_angles = tuple(float(angle) for angle in angles)
 
-    def update_contact(self, loads: Sequence[float], use: Sequence[float], slipping: Sequence[bool]) -> None:
-        """Normal loads (N) of the wheels; friction use and slip of the channels (topics.DRIVE_JOINTS order)."""
+    def update_contact(self, loads: Sequence[float], use: Sequence[float], slipping: Sequence[bool],
+                       forces_x: Sequence[float], forces_y: Sequence[float]) -> None:
+        """Per wheel (topics.WHEEL_JOINTS order): normal load (N), friction use, whether it slides, and the
+        wall's force on the robot along the body axes x_p and y_p (N)."""
         self.loads = tuple(float(load) for load in loads)
         self.use = tuple(float(u) for u in use)
         self.slipping = tuple(bool(flag) for flag in slipping)
+        self.forces = tuple((float(fx), float(fy)) for fx, fy in zip(forces_x, forces_y))
 
     def forget_wheels_and_contact(self) -> None:
-        """Back to not knowing the wheel angles, the contact and the drive forces (no longer read)."""
-        self.wheel_angles = self.loads = self.use = self.drive = None
-        self.slipping = (False, False, False)
-
-    def update_drive(self, forces: Sequence[float]) -> None:
-        """The channel forces F_L, F_R, F_lat (N) of ``drive_forces``."""
-        self.drive = (float(forces[0]), float(forces[1]), float(forces[2]))
+        """Back to not knowing the wheel angles and the contact (no longer read)."""
+        self.wheel_angles = self.loads = self.use = self.forces = None
+        self.slipping = (False,) * 4
 
     def set_reference_path(self, points: Sequence[Sequence[float]]) -> None:
         """The reference path's (x, y) points in the wall frame."""
@@ -198,7 +192,7 @@ class Scene:
 
     # --- outputs ---------------------------------------------------------------------------------
     def margin(self) -> float | None:
-        """1 - the largest friction use of the channels (<= 0 when a wheel has no load); None before contact."""
+        """1 - the largest friction use of the wheels (<= 0 when a wheel has no load); None before contact."""
         if self.use is None or self.loads is None:
             return None
         if min(self.loads) <= 0.0:
@@ -210,18 +204,10 @@ class Scene:
         return quaternion_product(axis_rotation(2, self.pose.theta), axis_rotation(1, self.wheel_angles[wheel]))
 
     def contact_forces(self) -> list[tuple[float, float]] | None:
-        """The friction force at each wheel (N, wall frame), its channels shared by normal load."""
-        if self.drive is None or self.loads is None:
+        """The wall's force on the robot at each wheel (N, wall frame); None before contact."""
+        if self.forces is None:
             return None
-        loads = [max(0.0, load) for load in self.loads]
-        total = sum(loads)
-        forces = []
-        for wheel, side in enumerate(WHEEL_SIDES):
-            side_total = sum(loads[i] for i, s in enumerate(WHEEL_SIDES) if s == side)
-            longitudinal = self.drive[side] * loads[wheel] / side_total if side_total > 0.0 else 0.0
-            lateral = self.drive[LATERAL] * loads[wheel] / total if total > 0.0 else 0.0
-            forces.append(self.pose.rotate((longitudinal, lateral)))
-        return forces
+        return [self.pose.rotate(force) for force in self.forces]
 
     def markers(self) -> list[MarkerSpec]:
         """Every marker of the current state (none before the first pose)."""
@@ -252,10 +238,10 @@ class Scene:
                 continue
             start = pose.to_wall((origin[0], origin[1], 0.0))
             end = (start[0] + FORCE_SCALE * forces[wheel][0], start[1] + FORCE_SCALE * forces[wheel][1], 0.0)
-            slips = self.slipping[WHEEL_SIDES[wheel]] or self.slipping[LATERAL]
             markers.append(MarkerSpec('contact_forces', wheel, ARROW, scale=(LINE_WIDTH, 2.5 * LINE_WIDTH,
                                                                               4 * LINE_WIDTH),
-                                      color=SLIPPING if slips else STICKING, points=np.array([start, end])))
+                                      color=SLIPPING if self.slipping[wheel] else STICKING,
+                                      points=np.array([start, end])))
         return markers
 
     @staticmethod

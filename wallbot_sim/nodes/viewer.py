@@ -44,13 +44,13 @@ NEWEST = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=Reliab
 """The per-step topics: only the newest message matters, and the dynamics never waits for this reader."""
 ALWAYS_READ = (topics.ODOM, topics.REFERENCE_PATH)
 """Read all the time, so a viewer opened later sees the path travelled and the reference at once."""
-READ_WHILE_WATCHED = (topics.WHEEL_STATES, topics.WHEEL_CONTACT, topics.DRIVE_FORCES)
-"""Read only while something subscribes ``markers`` or ``/tf`` (or the Foxglove relay runs): three
+READ_WHILE_WATCHED = (topics.WHEEL_STATES, topics.WHEEL_CONTACT)
+"""Read only while something subscribes ``markers`` or ``/tf`` (or the Foxglove relay runs): two
 1 kHz streams that an unwatched viewer does not receive."""
 DRAWN = ALWAYS_READ + READ_WHILE_WATCHED
 """Topics the markers are drawn from."""
-RELAYED_ONLY = (topics.CONSTRAINT_WRENCH, topics.REFERENCE, topics.CONSTRAINTS, topics.ROBOT_DESCRIPTION,
-                topics.DIAGNOSTICS)
+RELAYED_ONLY = (topics.DRIVE_FORCES, topics.CONSTRAINT_WRENCH, topics.REFERENCE, topics.CONSTRAINTS,
+                topics.ROBOT_DESCRIPTION, topics.DIAGNOSTICS)
 """Topics the Foxglove relay serves beside those drawn (the per-step ones at the frame rate)."""
 EVERY_MESSAGE = (topics.DIAGNOSTICS,)
 """Relayed topics whose every message is served, not only each frame's newest."""
@@ -184,13 +184,10 @@ class ViewerNode(Node):
         elif topic is topics.WHEEL_CONTACT:
             contact = codec.decode_wheel_contact(data)
             scene.update_contact(_finite(topic, contact.loads), _finite(topic, contact.use),
-                                 [flag > 0.5 for flag in _finite(topic, contact.slipping)])
+                                 [flag > 0.5 for flag in _finite(topic, contact.slipping)],
+                                 _finite(topic, contact.force_x), _finite(topic, contact.force_y))
         else:
-            joints = codec.decode_joint_state(data)
-            if topic is topics.WHEEL_STATES:
-                scene.update_wheels(_finite(topic, joints.values(topics.WHEEL_JOINTS, 'position')))
-            else:
-                scene.update_drive(_finite(topic, joints.values(topics.DRIVE_JOINTS, 'effort')))
+            scene.update_wheels(_finite(topic, codec.decode_joint_state(data).values(topics.WHEEL_JOINTS, 'position')))
 
     # --- parameters ------------------------------------------------------------------------------
     def _on_set(self, parameters):
