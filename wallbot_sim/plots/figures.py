@@ -10,7 +10,7 @@
 | constraint_forces.png | 9, 12, 17, 25: F_X, F_Y and M_Z |
 | drive_forces.png | 18, 19, 26, 27: left and right drive (traction) forces, and the lateral force |
 | normal_loads.png | (wheel-wall contact) normal load of each wheel; below 0 a wheel lifts off |
-| friction_use.png | (wheel-wall contact) friction use of each channel against the limit 1, slip shaded |
+| friction_use.png | (wheel-wall contact) friction use of each wheel against the limit 1, its slides shaded |
 """
 
 from __future__ import annotations
@@ -206,25 +206,35 @@ class _Figures:
         self.save(fig, 'normal_loads')
 
     def friction_use(self) -> None:
-        fig, axes = self.plt.subplots(3, 1, sharex=True, figsize=(7.5, 7.5))
-        for k, (ax, channel) in enumerate(zip(axes, ('left traction', 'right traction', 'lateral'))):
+        fig, axes = self.plt.subplots(2, 2, sharex=True, sharey=True, figsize=(9.0, 6.5))
+        for wheel, ax in zip(range(4), (axes[0, 0], axes[1, 0], axes[0, 1], axes[1, 1])):  # front row, left column
+            name = topics.WHEEL_JOINTS[wheel].replace('wheel_', '').replace('_', ' ')
             for run in self.runs:
                 if len(run.use):
-                    ax.plot(run.t, run.use[:, k], lw=1.2, label=self.label(run, f'{channel} use'))
-                    ax.fill_between(run.t, 0, 1, where=run.slip[:, k] > 0.5, transform=ax.get_xaxis_transform(),
-                                    alpha=0.2, color='tab:red', lw=0, label=self.label(run, 'slipping'))
-            ax.axhline(1.0, color='k', ls='--', lw=1.0, label='limit |F| = mu_s N')
-            ax.set(ylabel=f'{channel} use')
-            _note_missing(ax, self.runs)
-        axes[0].set_title('Friction use |F| / (mu_s N) per channel' + self.title_suffix)
-        axes[2].set_xlabel('time (s)')
+                    line, = ax.plot(run.t, run.use[:, wheel], lw=1.2, label=self.label(run, 'use'))
+                    sliding = run.slip[:, wheel] > 0.5
+                    if sliding.any():  # shaded in the run's colour when runs are compared
+                        ax.fill_between(run.t, 0, 1, where=sliding, transform=ax.get_xaxis_transform(), alpha=0.2,
+                                        color=line.get_color() if self.many else 'tab:red', lw=0,
+                                        label=self.label(run, 'sliding'))
+            ax.axhline(1.0, color='k', ls='--', lw=1.0, label='limit |f_i| = mu_s N_i')
+            ax.set(title=f'{name} wheel', ylabel='friction use')
+            ax.set_ylim(bottom=0.0)
+            _note_missing(ax, self.runs, legend=False)
+        for ax in axes[1]:
+            ax.set_xlabel('time (s)')
+        entries = {text: handle for ax in axes.flat for handle, text in zip(*ax.get_legend_handles_labels())}
+        if any(len(run.loads) and np.isfinite(run.loads).any() for run in self.runs):  # one legend, four wheels
+            axes[0, 0].legend(entries.values(), entries.keys(), loc='best', fontsize='small')
+        fig.suptitle('Friction use |f_i| / (mu_s N_i) of each wheel' + self.title_suffix)
         self.save(fig, 'friction_use')
 
 
-def _note_missing(ax, runs: Sequence[RunData]) -> None:
-    """Grid and legend; a note when no run recorded the contact (a bag from before wheel_contact)."""
+def _note_missing(ax, runs: Sequence[RunData], legend: bool = True) -> None:
+    """Grid and (``legend``) legend; a note when no run recorded the contact (a bag without wheel_contact)."""
     ax.grid(True, alpha=0.3)
     if any(len(run.loads) and np.isfinite(run.loads).any() for run in runs):
-        ax.legend(loc='best', fontsize='small')
+        if legend:
+            ax.legend(loc='best', fontsize='small')
     else:
         ax.text(0.5, 0.5, 'no wheel-wall contact recorded', transform=ax.transAxes, ha='center', va='center')
