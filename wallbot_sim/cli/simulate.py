@@ -173,7 +173,7 @@ def main(args: argparse.Namespace) -> int:
 
         try:
             if stream is not None and not sinks and controller is None and simulation.tabulates:
-                final = simulation.run_table(duration, _table_writer(stream, progress))
+                final = simulation.run_table(duration, _table_writer(stream, progress, simulation.motor_torque))
             else:
                 final = simulation.run(duration, on_step)
         except DetachedError as detached:
@@ -191,15 +191,16 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _table_writer(stream: TextIO, progress: Progress) -> Callable[[StepTable], None]:
-    """``run_table``'s hook writing each chunk's CSV lines at once (``on_step``'s lines, a chunk at a time)."""
+def _table_writer(stream: TextIO, progress: Progress, motor_torque: tuple[float, float]) -> Callable[[StepTable], None]:
+    """``run_table``'s hook writing each chunk's CSV lines at once (``on_step``'s lines, a chunk at a time), under
+    the run's constant ``motor_torque``."""
     rows = np.empty((0, len(CSV_COLUMNS)))
 
     def on_table(table: StepTable) -> None:
         nonlocal rows
         if len(rows) != len(table.t):
             rows = np.empty((len(table.t), len(CSV_COLUMNS)))
-        fill_rows(table, rows)
+        fill_rows(table, rows, motor_torque)
         with signals.deferred:  # a signal ends the run between two complete chunks
             stream.write(csv_lines(rows))
         progress.update(float(table.t[-1]))

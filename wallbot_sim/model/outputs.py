@@ -159,6 +159,12 @@ class StepTable(NamedTuple):
     reference_position: np.ndarray | None
     """The reference point (T, 2), None without a reference."""
 
+    def wheel_torques(self, motor_torque: tuple[float, float]) -> np.ndarray:
+        """Total torque on each wheel (T, 4) under constant ``motor_torque`` with ideal contact (no kinetic
+        friction), as ``StepOutputs.wheel_torques``: constraint torque and the wheel's share of its motor's."""
+        tau_left, tau_right = motor_torque
+        return self.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right, tau_right])
+
     @property
     def tracking_error(self) -> np.ndarray:
         """Distance of the centre from the reference point (T,) (m); NaN without a reference."""

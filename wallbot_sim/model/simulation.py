@@ -438,9 +438,7 @@ class Simulation:
                             for column in compiled.table(run, self._initial[0], self.steps)))
         if not (np.all(np.isfinite(table.constraint_force)) and np.all(np.isfinite(table.residual))):
             return None
-        tau_left, tau_right = self.motor_torque
-        return StepBlock(table, table.constraint_force[:, 3:] + 0.5 * np.array([tau_left, tau_left, tau_right,
-                                                                                 tau_right]))
+        return StepBlock(table, table.wheel_torques(self.motor_torque))
 
     def _tabulating(self, what: str) -> CompiledDynamics:
         compiled = self._compiled_now()

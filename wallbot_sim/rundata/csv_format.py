@@ -2,8 +2,10 @@
 
 COLUMN_GROUPS is the one description of the columns: each group's names and how its values come
 from a step's outputs, in order. Velocities are in the wall frame; ``err`` is the distance of the
-centre from the reference point; ``Fx..tau4`` are the constraint force Q_c; ``F_left, F_right,
-F_lateral`` the drive forces (docs/model.md section 8); then the contact per wheel (docs/model.md
+centre from the reference point; ``Fx, Fy, Mz`` the constraint wrench Q_c on the chassis, ``tau1..tau4``
+the total torque on each wheel (constraint torque, kinetic friction and its share of the motor torque:
+``StepOutputs.wheel_torques``, what ``wheel_states`` carries as effort); ``F_left, F_right, F_lateral``
+the drive forces (docs/model.md section 8); then the contact per wheel (docs/model.md
 section 11.2): ``N1..N4`` the normal loads, ``use1..use4`` the friction use |f_i| / (mu_s N_i),
 ``slip1..slip4`` the slip flags (1 while the wheel slides), ``fx1..fx4`` and ``fy1..fy4`` the wall's
 tangential force on the robot at each wheel along the body axes x_p and y_p (N).
@@ -34,7 +36,8 @@ COLUMN_GROUPS: tuple[tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[flo
     (('vx', 'vy', 'omega', 'dphi1', 'dphi2', 'dphi3', 'dphi4'), lambda out: out.qd.tolist()),
     (('ref_x', 'ref_y'), _reference),
     (('err',), lambda out: (out.tracking_error,)),
-    (('Fx', 'Fy', 'Mz', 'tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.constraint_force.tolist()),
+    (('Fx', 'Fy', 'Mz'), lambda out: out.chassis_wrench.tolist()),
+    (('tau1', 'tau2', 'tau3', 'tau4'), lambda out: out.wheel_torques.tolist()),
     (('F_left', 'F_right', 'F_lateral'), lambda out: (out.drive.left, out.drive.right, out.drive.lateral)),
     (('residual',), lambda out: (out.residual,)),
     (('N1', 'N2', 'N3', 'N4'), lambda out: out.contact.loads.tolist()),
@@ -71,22 +74,24 @@ COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}
 _FLAGS = slice(COLUMN['slip1'], COLUMN['slip4'] + 1)
 
 
-def fill_rows(out: StepTable, rows: np.ndarray) -> None:
-    """The CSV row (``csv_row``) of every instant of a table into ``rows`` (rows, len(CSV_COLUMNS))."""
-    fill_motion_rows(out, rows)
+def fill_rows(out: StepTable, rows: np.ndarray, motor_torque: tuple[float, float]) -> None:
+    """The CSV row (``csv_row``) of every instant of a table (constant ``motor_torque``, ideal contact) into
+    ``rows`` (rows, len(CSV_COLUMNS))."""
+    fill_motion_rows(out, rows, out.wheel_torques(motor_torque))
     fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
 
 
-def fill_motion_rows(out: StepTable | BatchOutputs, rows: np.ndarray) -> None:
+def fill_motion_rows(out: StepTable | BatchOutputs, rows: np.ndarray, wheel_torques: np.ndarray) -> None:
     """The columns t .. N4 of ``fill_rows`` (all but the wheels' use, slip and force), of a table or of the
-    robots of a batch at one instant."""
+    robots of a batch at one instant, with each wheel's total torque ``wheel_torques`` (rows, 4)."""
     position = out.reference_position
     rows[:, COLUMN['t']] = out.t
     rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
     rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
     rows[:, COLUMN['ref_x']:COLUMN['ref_y'] + 1] = position if position is not None else math.nan
     rows[:, COLUMN['err']] = out.tracking_error
-    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 7] = out.constraint_force
+    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 3] = out.constraint_force[:, :3]
+    rows[:, COLUMN['tau1']:COLUMN['tau1'] + 4] = wheel_torques
     rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
     rows[:, COLUMN['residual']] = out.residual
     rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads

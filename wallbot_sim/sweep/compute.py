@@ -135,7 +135,7 @@ def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> It
     simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
     steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
     instant = iter(steps)
-    simulation.run(settings.steps, lambda out: fill_motion_rows(out, next(instant)))
+    simulation.run(settings.steps, lambda out: fill_motion_rows(out, next(instant), out.wheel_torques))
     for i, model in enumerate(models):
         _fill_ideal_wheel_rows(steps[:, i], model)
         yield steps[:, i]
