@@ -42,12 +42,11 @@ def checked_outputs(csv_path: Path, params) -> dict[str, float]:
     """The outputs a row holds that come straight from the run summary and the motor analysis."""
     summary, run = summarize(csv_path), load_run(csv_path)
     report = motor_report(run, params)
-    contact = report.contact
     return {'final_err': summary.final_tracking_error, 'peak_abs_F_left': summary.peak_drive_force_left,
             'peak_abs_F_right': summary.peak_drive_force_right, 'peak_abs_F_lateral': summary.peak_lateral_force,
             'peak_motor_torque_left': report.left.peak_torque, 'peak_motor_torque_right': report.right.peak_torque,
             'min_normal_load': float(np.min(run.loads)), 'max_residual': summary.max_residual,
-            'least_adhesion_force': contact.least_adhesion if contact is not None else math.nan}
+            'least_adhesion_force': report.adsorption.needed}
 
 
 def main() -> int:

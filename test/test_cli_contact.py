@@ -177,30 +177,32 @@ def test_run_takes_a_robot_file_and_refuses_a_bad_one_before_starting(tmp_path):
 
 
 CLIMB = ('--heading', str(math.pi / 2), '--torque', '2.0,1.95')
-"""Climbing while turning slowly: every channel sticks, the left traction nears its limit."""
+"""Climbing while turning slowly: every wheel sticks, the left ones near their discs' edges."""
 
 
 def slip_count(path: Path) -> float:
     header, run = read_csv(path)
-    return sum(row[header.index(name)] for row in run for name in ('slip_L', 'slip_R', 'slip_lat'))
+    return sum(row[header.index(f'slip{i}')] for row in run for i in range(1, 5))
 
 
-def test_motors_least_adhesion_force_is_what_keeps_the_run_sticking(tmp_path):
+def test_motors_adhesion_needed_is_what_keeps_the_run_sticking(tmp_path):
+    """The adhesion force motors says the climb needed: 2 % less and a wheel slides, 2 % more and none does."""
     result, run = rest_run(tmp_path, *CLIMB)
-    assert result.returncode == 0 and not any(run['slip_L'] + run['slip_R'] + run['slip_lat'])
+    assert result.returncode == 0 and not any(sliding(run))
     report = wallbot('motors', str(tmp_path / 'rest.csv'), '--json')
     assert report.returncode == 0, report.stderr
-    contact = json.loads(report.stdout)['contact']
-    assert contact['peak_use'][0] == pytest.approx(max(run['use_L']))
-    least = contact['least_adhesion']
-    assert contact['least_adhesion_by'] == 'left' and 100.0 < least < 189.0
+    figures = json.loads(report.stdout)
+    assert figures['contact']['peak_use'] == pytest.approx([max(run[f'use{i}']) for i in range(1, 5)])
+    adsorption = figures['adsorption']
+    least = adsorption['needed']
+    assert adsorption['needed_by'] == 'left front wheel, friction' and 100.0 < least < 189.0
     for scale, slips in ((0.98, True), (1.02, False)):
         out = tmp_path / f'at{scale}.csv'
         again = simulate('--scenario', 'rest', '--contact', 'coulomb', *CLIMB, '--adhesion-force', str(scale * least),
                          '--csv', str(out), '--quiet')
         assert again.returncode == 0, again.stderr
-        assert (slip_count(out) > 0) == slips, f'at {scale} x the least adhesion force'
-    assert 'Least adhesion force' in wallbot('motors', str(tmp_path / 'rest.csv')).stdout
+        assert (slip_count(out) > 0) == slips, f'at {scale} x the adhesion force needed'
+    assert 'Adhesion needed' in wallbot('motors', str(tmp_path / 'rest.csv')).stdout
 
 
 def test_summary_plot_and_bag_show_slip_and_lift_off(tmp_path):

@@ -92,7 +92,7 @@ def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[st
             'peak_motor_torque_right': report.right.peak_torque,
             'min_normal_load': min(float(np.min(run.loads)), lift_off[2] if detached else math.inf),
             **{f'max_use{wheel}': value for wheel, value in enumerate(use, 1)},
-            'least_adhesion_force': contact.least_adhesion if contact is not None else math.nan,
+            'least_adhesion_force': report.adsorption.needed,
             'applied_adhesion_force': report.adsorption.applied, 'slipped': float(slipped),
             'detached': float(detached), 't_detached': lift_off[0] if detached else math.nan,
             'max_residual': summary.max_residual,

@@ -1,5 +1,5 @@
-"""``wallbot-sim motors BAG|CSV``: per side, the motor torque, speed and power a run needed, and
-the adsorption force, for choosing a motor (``wallbot_sim.rundata.motors``)."""
+"""``wallbot-sim motors BAG|CSV``: per side, the motor torque, speed and power a run needed, what a turn in
+place takes, and the adhesion force, for choosing a motor (``wallbot_sim.rundata.motors``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import argparse
 import json
 from pathlib import Path
 
-HELP = 'motor sizing of a run: per side peak/RMS torque, peak speed and power, adsorption force needed'
+HELP = ('motor sizing of a run: per side peak/RMS torque, peak speed and power, what a turn in place takes, '
+        'the adhesion force needed')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,13 +19,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from wallbot_sim.config import load_robot_parameters
+    from wallbot_sim.paths import robot_yaml
     from wallbot_sim.rundata import load_run
     from wallbot_sim.rundata.motors import format_report, motor_report
 
-    report = motor_report(load_run(args.run), load_robot_parameters(args.robot))
+    robot_file = args.robot or robot_yaml()
+    report = motor_report(load_run(args.run), load_robot_parameters(robot_file), robot_file)
     if args.json:
-        print(json.dumps({'run': str(Path(args.run)), 'robot': args.robot or 'config/robot.yaml',
-                          **report.as_dict()}, indent=2))
+        print(json.dumps({'run': str(Path(args.run)), **report.as_dict()}, indent=2))
     else:
-        print(format_report(report, args.robot))
+        print(format_report(report))
     return 0

@@ -1,4 +1,5 @@
-"""Motor sizing from a run (``wallbot-sim motors``): what each side's motor had to deliver.
+"""Motor sizing from a run (``wallbot-sim motors``): what each side's motor had to deliver, what a turn in
+place takes, and the adhesion force the run needed.
 
 Per side (left, right), from a bag or a ``simulate`` CSV read through ``wallbot_sim.rundata.load_run``:
 
@@ -9,20 +10,22 @@ Per side (left, right), from a bag or a ``simulate`` CSV read through ``wallbot_
   speed r * spin rate;
 * mechanical power tau_side * spin rate (positive: the motor drives, negative: it brakes).
 
-Adsorption the run needed, per instant: the wall supplies the traction F_L + F_R and the lateral
-force F_lat by friction, and the press must keep the robot from tipping, so
-F_needed = max(m_t g h / min(a, b), |(F_L + F_R, F_lat)| / mu), compared with the applied
-F_ad = k_ad F_min of ``wallbot_sim.model.adsorption_analysis``. This is the whole robot's
-friction budget (F_ad shared equally by the four wheels), not a per-wheel check.
+Turning (``turning``, docs/model.md 11.5): the side torque that starts a turn in place from rest at the
+worst heading, with the run's adhesion force and gravity, against the torque of a steady straight climb
+(r (m_t g + f_r F) / 2 per side, the paper's way of sizing) and the differential side torque the run's
+turns took, r |F_R - F_L| / 2 with each side's traction the sum of its wheels' longitudinal forces. The
+largest of these, and of the run's own peak, governs the motor.
 
-Wheel-wall contact (docs/model.md 11), when the run recorded it: the peak friction use of each channel,
-and the least adhesion force F that would have kept every channel sticking and every wheel on the
-wall. The loads are affine in F for the same motion, N_i(F) = N_i + (F - F_run) / 4 with
-F_run = sum N_i, so per sample: F >= F_run - 4 N_i (wheel on the wall), |F_k| <= mu_s N_k(F) for
-each side k (N_k(F) = N_k + (F - F_run) / 2) and |F_lat| <= mu_s F; the least F is the largest
-bound over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F,
-which changes with F; in a run that slipped, the channel forces are what friction transmitted,
-so the figure is a lower bound.
+The adhesion force the run needed, when it recorded its wheels' contact (docs/model.md 11.2): the least
+F at which, for the same motion, every wheel stays on the wall and its force stays in its friction disc.
+The loads are affine in F, N_i(F) = N_i + (F - F_run) / 4 with F_run = sum N_i; the wheels' forces are
+shared again by those loads as coulomb contact shares a sticking robot's (each side's traction between
+its two wheels by load, the lateral force and its moment by the load-weighted least-norm split), which
+at F_run are the run's own forces, ideal contact's split included; per sample the least F with
+|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by bisection, and the figure is the
+largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
+changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
+the figure is a lower bound.
 
 Samples where the run has no wheel or drive data (a bag row with NaN) are left out; the RMS is
 over samples, which are uniform in time in a 1 kHz run.
@@ -33,13 +36,16 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from wallbot_sim.model import RobotParameters, adsorption_analysis
+from wallbot_sim.model import Robot, RobotParameters
+from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import RunData
+from wallbot_sim.rundata.turning import LEFT, flat_turn_threshold, worst_turn_start
 
 SIDES = ('left', 'right')
 WHEELS = {'left': (0, 1), 'right': (2, 3)}
@@ -71,43 +77,76 @@ class SideFigures:
 
 @dataclass(frozen=True)
 class AdsorptionFigures:
-    """The adsorption force the run needed against the one the robot file applies (N)."""
+    """The adhesion force the run needed, against the run's and the robot file's (N)."""
 
-    peak_needed: float
-    peak_needed_t: float
-    tipping_limit: float
-    """m_t g h / min(a, b): needed at every instant."""
-    peak_friction_needed: float
-    """max |(F_L + F_R, F_lat)| / mu over the run."""
+    needed: float
+    """The least F keeping every wheel on the wall with its force in its friction disc, for the run's motion
+    (the module's docstring); NaN when the run did not record its wheels' contact."""
+    needed_t: float
+    """When it binds (s)."""
+    needed_by: str
+    """The wheel that binds there, and how: e.g. 'left front wheel, friction' or 'right rear wheel, lift-off'."""
+    run_adhesion: float
+    """F_ad of the run, the sum of its normal loads; NaN when not recorded."""
     applied: float
-    """F_ad = k_ad F_min."""
+    """F_ad of the robot file: k_ad F_min unless it gives adhesion_force."""
     minimum_static: float
-    """F_min of the static analysis (robot at rest)."""
+    """F_min of the static analysis (robot at rest, docs/model.md section 3)."""
+    tipping_limit: float
+    """m_t g h / min(a, b)."""
     margin: float
-    """applied / peak_needed: below 1 the run asked for more friction than the wall can give."""
+    """The run's F_ad (the robot file's if not recorded) / needed: below 1 the run asked for more than its
+    adhesion gives."""
+    lower_bound: bool
+    """Whether wheels slid in the run: then ``needed`` is a lower bound."""
 
 
 @dataclass(frozen=True)
 class ContactFigures:
-    """Friction use and the adhesion force the run needed by its per-channel loads."""
+    """Each wheel's peak friction use, in the order of the wheels (left front, left rear, right front, right rear)."""
 
-    peak_use: tuple[float, float, float]
-    """max friction use of the left, right and lateral channels."""
-    peak_use_t: tuple[float, float, float]
-    least_adhesion: float
-    """The least F_ad keeping every channel sticking and every wheel on the wall (N)."""
-    least_adhesion_t: float
-    least_adhesion_by: str
-    """What binds at that instant: 'left', 'right', 'lateral' or a wheel ('wheel 1' .. 'wheel 4')."""
-    run_adhesion: float
-    """F_ad of the run (the sum of its normal loads) (N)."""
+    peak_use: tuple[float, ...]
+    peak_use_t: tuple[float, ...]
     slipped: bool
-    """Whether a channel slipped in the run: then least_adhesion is a lower bound."""
+    """Whether a wheel slid in the run."""
+
+
+@dataclass(frozen=True)
+class TurningFigures:
+    """What turning costs the side motors (N m per side unless said), with the adhesion force ``adhesion``."""
+
+    adhesion: float
+    """F (N): the run's, or the robot file's when the run did not record its loads."""
+    flat_threshold: float
+    """The side torque starting a turn in place with in-plane gravity negligible, mu_s F r / (2 sqrt(1 + (b/a)^2))."""
+    heading: float
+    """The worst heading to start a turn in place from rest (rad; NaN if the robot cannot hold still everywhere)."""
+    direction: str
+    """The way it turns there: 'left' or 'right'."""
+    side: str
+    """The side whose motor delivers ``start_torque`` there."""
+    hold_torque: float
+    """tau_0 = r m_t g sin(heading) / 2: each side's torque holding the robot where it stands."""
+    turn_torque: float
+    """T*: the differential torque at which the first wheel's force leaves its disc."""
+    start_torque: float
+    """|tau_0| + T*: the largest side torque a turn in place takes to start, over every heading."""
+    climb_torque: float
+    """r (m_t g + f_r F) / 2: a side's torque climbing straight up at a steady speed."""
+    run_turn_torque: float
+    """The largest differential side torque of the run, r |F_R - F_L| / 2 of its wheels' longitudinal forces
+    (NaN when not recorded)."""
+    run_turn_t: float
+    governs: str
+    """What the largest side torque is: 'turning in place', 'climbing straight up' or 'this run'."""
+    governing_torque: float
 
 
 @dataclass(frozen=True)
 class MotorReport:
     label: str
+    robot: str
+    """The robot file the figures are for."""
     samples: int
     t_start: float
     t_end: float
@@ -115,6 +154,7 @@ class MotorReport:
     left: SideFigures
     right: SideFigures
     adsorption: AdsorptionFigures
+    turning: TurningFigures
     contact: ContactFigures | None = None
     """None when the run did not record the wheel-wall contact."""
 
@@ -124,8 +164,8 @@ class MotorReport:
 
 def side_series(run: RunData, wheel_radius: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """{side: (motor torque, spin rate)} per sample; NaN where the run has no data."""
-    torques = np.array([side_motor_torques(DriveForces(fl, fr, 0.0), wheel, wheel_radius)
-                        for fl, fr, wheel in zip(run.F_left, run.F_right, run.tau)], dtype=float).reshape(len(run), 2)
+    torques = np.column_stack(side_motor_torques(DriveForces(run.F_left, run.F_right, run.F_lateral), run.tau.T,
+                                                 wheel_radius))  # every sample at once, the same operations
     return {side: (torques[:, k], run.dphi[:, list(WHEELS[side])].mean(axis=1)) for k, side in enumerate(SIDES)}
 
 
@@ -139,8 +179,9 @@ def _side(t: np.ndarray, tau: np.ndarray, rate: np.ndarray, radius: float) -> Si
                        float(max(np.max(power), 0.0)) + 0.0, float(max(np.max(-power), 0.0)) + 0.0)
 
 
-def motor_report(run: RunData, params: RobotParameters) -> MotorReport:
-    """The motor and adsorption figures of a run for the robot ``params``; RunDataError if empty."""
+def motor_report(run: RunData, params: RobotParameters, robot_file: str | Path = 'the robot file') -> MotorReport:
+    """The motor, turning and adsorption figures of a run for the robot ``params`` (read from ``robot_file``);
+    RunDataError if empty."""
     radius = params.wheel_radius
     series = side_series(run, radius)
     valid = np.isfinite(run.t) & np.isfinite(run.F_lateral)
@@ -150,46 +191,175 @@ def motor_report(run: RunData, params: RobotParameters) -> MotorReport:
         raise RunDataError(f'{run.label} has no sample with wheel states and drive forces: nothing to size')
     t = run.t[valid]
     sides = {side: _side(t, tau[valid], rate[valid], radius) for side, (tau, rate) in series.items()}
-    analysis = adsorption_analysis(params)
-    friction = np.hypot(run.F_left[valid] + run.F_right[valid], run.F_lateral[valid]) / params.wall_friction
-    needed = np.maximum(analysis.tipping_limit, friction)
-    i = int(np.argmax(needed))
-    adsorption = AdsorptionFigures(float(needed[i]), float(t[i]), float(analysis.tipping_limit),
-                                   float(np.max(friction)), float(analysis.applied_force),
-                                   float(analysis.minimum_force), float(analysis.applied_force / needed[i]))
-    return MotorReport(run.label, int(valid.sum()), float(t[0]), float(t[-1]), radius,
-                       sides['left'], sides['right'], adsorption, contact_figures(run, params))
+    wheels = _wheel_samples(run)
+    robot = Robot(params)
+    adsorption = _adsorption(wheels, robot)
+    run_peak = max(sides['left'].peak_torque, sides['right'].peak_torque)
+    return MotorReport(run.label, str(robot_file), int(valid.sum()), float(t[0]), float(t[-1]), radius,
+                       sides['left'], sides['right'], adsorption,
+                       turning_figures(wheels, params, adsorption.run_adhesion, run_peak),
+                       None if wheels is None else _contact(wheels))
 
 
-def contact_figures(run: RunData, params: RobotParameters) -> ContactFigures | None:
-    """Peak friction use and least adhesion force of ``run``; None without contact data."""
-    if not len(run.loads):
+class WheelSamples(NamedTuple):
+    """The samples of a run with every wheel's contact recorded."""
+
+    t: np.ndarray
+    loads: np.ndarray
+    """(T, 4)."""
+    use: np.ndarray
+    """(T, 4)."""
+    slip: np.ndarray
+    """(T, 4)."""
+    forces: np.ndarray
+    """(T, 4, 2), body axes."""
+
+
+def _wheel_samples(run: RunData) -> WheelSamples | None:
+    if not len(run.loads) or not len(run.wheel_forces):
         return None
-    valid = np.all(np.isfinite(run.loads), axis=1) & np.all(np.isfinite(run.use), axis=1) & np.isfinite(run.F_lateral)
+    valid = (np.all(np.isfinite(run.loads), axis=1) & np.all(np.isfinite(run.use), axis=1)
+             & np.all(np.isfinite(run.wheel_forces), axis=(1, 2)))
     if not valid.any():
         return None
-    t, loads, use = run.t[valid], run.loads[valid], run.use[valid]
-    forces = np.column_stack((run.F_left[valid], run.F_right[valid], run.F_lateral[valid]))
+    return WheelSamples(run.t[valid], run.loads[valid], run.use[valid], np.nan_to_num(run.slip[valid]),
+                        run.wheel_forces[valid])
+
+
+def _contact(wheels: WheelSamples) -> ContactFigures:
+    peaks = np.argmax(wheels.use, axis=0)
+    return ContactFigures(tuple(float(wheels.use[k, i]) for i, k in enumerate(peaks)),
+                          tuple(float(wheels.t[k]) for k in peaks), bool(wheels.slip.any()))
+
+
+def _adsorption(wheels: WheelSamples | None, robot: Robot) -> AdsorptionFigures:
+    analysis = robot.adsorption
+    if wheels is None:
+        return AdsorptionFigures(math.nan, math.nan, 'not recorded', math.nan, float(analysis.applied_force),
+                                 float(analysis.minimum_force), float(analysis.tipping_limit), math.nan, False)
+    needed, k, wheel, lift_off = least_adhesion(wheels.loads, wheels.forces, robot)
+    run_adhesion = float(np.median(wheels.loads.sum(axis=1)))
+    return AdsorptionFigures(needed, float(wheels.t[k]),
+                             f'{WHEEL_POSITIONS[wheel]} wheel, {"lift-off" if lift_off else "friction"}',
+                             run_adhesion, float(analysis.applied_force), float(analysis.minimum_force),
+                             float(analysis.tipping_limit), run_adhesion / needed, bool(wheels.slip.any()))
+
+
+BISECTIONS = 60
+"""Halvings of a sample's interval of adhesion forces (to far below a newton's round-off)."""
+COARSE = 12
+"""Halvings done for every sample before those that cannot hold the largest figure are left out."""
+
+
+def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple[float, int, int, bool]:
+    """The least adhesion force keeping every wheel of the samples on the wall with its force in its disc
+    (the module's docstring): (F, the sample that binds, the wheel that binds there, whether by lift-off).
+
+    ``loads`` (T, 4) and ``forces`` (T, 4, 2) of the run; per sample the shift of F from the run's, F - F_run,
+    is bisected between where a load reaches 0 and where every wheel holds, first coarsely for every sample,
+    then on for those whose interval reaches the largest lower end.
+    """
+    lift_off = np.max(-4.0 * loads, axis=1)  # a wheel's load is 0 here: below it the wheel is off the wall
     run_force = loads.sum(axis=1)
-    static = params.wall_friction
-    bounds = np.column_stack((
-        run_force - 2.0 * (loads[:, 0] + loads[:, 1]) + 2.0 * np.abs(forces[:, 0]) / static,
-        run_force - 2.0 * (loads[:, 2] + loads[:, 3]) + 2.0 * np.abs(forces[:, 1]) / static,
-        np.abs(forces[:, 2]) / static,
-        run_force[:, None] - 4.0 * loads))
-    names = ('left', 'right', 'lateral', 'wheel 1', 'wheel 2', 'wheel 3', 'wheel 4')
-    i, j = np.unravel_index(int(np.argmax(bounds)), bounds.shape)
-    peaks = np.argmax(use, axis=0)
-    return ContactFigures(tuple(float(use[k, c]) for c, k in enumerate(peaks)), tuple(float(t[k]) for k in peaks),
-                          float(bounds[i, j]), float(t[i]), names[j], float(np.median(run_force)),
-                          bool(np.nan_to_num(run.slip[valid]).any()))
+    resplit = _Resplit(loads, forces, robot)
+    low, high = lift_off, np.maximum(lift_off, 0.0) + run_force + 1.0
+    for _ in range(BISECTIONS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
+        short = ~resplit.holds(high)
+        if not short.any():
+            break
+        high = np.where(short, low + 2.0 * (high - low), high)
+    low, high = _bisect(resplit, low, high, COARSE)
+    candidates = np.flatnonzero(run_force + high >= np.max(run_force + low))
+    resplit = _Resplit(loads[candidates], forces[candidates], robot)
+    low, high = _bisect(resplit, low[candidates], high[candidates], BISECTIONS - COARSE)
+    needed = run_force[candidates] + high
+    j = int(np.argmax(needed))
+    k = int(candidates[j])
+    lifts = high[j] - lift_off[k] <= 1e-9 * max(abs(needed[j]), 1.0)
+    wheel = int(np.argmin(loads[k])) if lifts else int(np.argmax(resplit.use(np.full(len(high), high[j]))[j]))
+    return float(needed[j]), k, wheel, bool(lifts)
 
 
-def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
+def _bisect(resplit: _Resplit, low: np.ndarray, high: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` halvings of each interval (low: not held, high: held)."""
+    for _ in range(count):
+        middle = 0.5 * (low + high)
+        holds = resplit.holds(middle)
+        low, high = np.where(holds, low, middle), np.where(holds, middle, high)
+    return low, high
+
+
+class _Resplit:
+    """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring)."""
+
+    def __init__(self, loads: np.ndarray, forces: np.ndarray, robot: Robot) -> None:
+        self.loads, self.static = loads, robot.params.wall_friction
+        self.along = robot.wheel_offsets[:, 0]
+        across = robot.wheel_offsets[:, 1]
+        self.same_side = (np.sign(across)[:, None] == np.sign(across)[None, :]).astype(float)
+        """(4, 4): 1 where two wheels are of one side; loads @ same_side is each wheel's side's load."""
+        longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
+        self.traction = longitudinal @ self.same_side
+        """Each wheel's side's traction (T, 4)."""
+        self.lateral, self.moment = lateral.sum(axis=1), lateral @ self.along
+
+    def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
+        loads = self.loads + 0.25 * shift[:, None]
+        total, first, second = loads.sum(axis=1), loads @ self.along, loads @ (self.along * self.along)
+        with np.errstate(divide='ignore', invalid='ignore'):  # a side or a row without load holds nothing
+            spread = total * second - first * first
+            lam = (second * self.lateral - first * self.moment) / spread
+            mu = (total * self.moment - first * self.lateral) / spread
+            along = self.traction * loads / (loads @ self.same_side)
+        return along, loads * (lam[:, None] + mu[:, None] * self.along), loads
+
+    def use(self, shift: np.ndarray) -> np.ndarray:
+        """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift``."""
+        along, across, loads = self.components(shift)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            return np.hypot(along, across) / (self.static * loads)
+
+    def holds(self, shift: np.ndarray) -> np.ndarray:
+        """(T,) whether every wheel is on the wall with its force in its disc."""
+        along, across, loads = self.components(shift)
+        limit = self.static * loads
+        return np.all((loads > 0.0) & (along * along + across * across <= limit * limit), axis=1)
+
+
+def turning_figures(wheels: WheelSamples | None, params: RobotParameters, run_adhesion: float,
+                    run_peak: float) -> TurningFigures:
+    """What turning costs (``TurningFigures``); the run's adhesion force unless NaN (then the robot file's)."""
+    robot = Robot(params)
+    adhesion = run_adhesion if math.isfinite(run_adhesion) else float(robot.adsorption.applied_force)
+    radius = params.wheel_radius
+    climb = 0.5 * radius * (robot.total_mass * params.gravity + params.rolling_resistance * adhesion)
+    start = worst_turn_start(params, adhesion)
+    run_turn, run_turn_t = math.nan, math.nan
+    if wheels is not None:
+        longitudinal = wheels.forces[:, :, 0]
+        differential = 0.5 * radius * np.abs(longitudinal[:, 2] + longitudinal[:, 3] - longitudinal[:, 0]
+                                             - longitudinal[:, 1])
+        k = int(np.argmax(differential))
+        run_turn, run_turn_t = float(differential[k]), float(wheels.t[k])
+    if start is None:
+        heading, direction, side, hold, turn, start_torque = math.nan, '', '', math.nan, math.nan, math.nan
+    else:
+        heading, direction, hold, turn, start_torque = (start.heading, start.direction, start.hold_torque,
+                                                        start.turn_torque, start.side_torque)
+        pushes_right = (direction == LEFT) == (hold >= 0.0)
+        side = 'right' if pushes_right else 'left'
+    candidates = {'turning in place': start_torque, 'climbing straight up': climb, 'this run': run_peak}
+    governs = max((name for name in candidates if math.isfinite(candidates[name])), key=candidates.get)
+    return TurningFigures(adhesion, flat_turn_threshold(params, adhesion), heading, direction, side, hold, turn,
+                          start_torque, climb, run_turn, run_turn_t, governs, candidates[governs])
+
+
+def format_report(report: MotorReport) -> str:
     """The table ``wallbot-sim motors`` prints."""
-    a = report.adsorption
+    a, turning = report.adsorption, report.turning
     lines = [f'Run:    {report.label}: {report.samples} samples, t = {report.t_start:.3f} .. {report.t_end:.3f} s',
-             f'Robot:  {robot or "config/robot.yaml"} (wheel radius {report.wheel_radius:g} m)',
+             f'Robot:  {report.robot} (wheel radius {report.wheel_radius:g} m)',
              '',
              f'{"side":<6} {"peak |tau|":>11} {"at t":>8} {"RMS tau":>9} {"peak |w|":>9} {"peak speed":>11} '
              f'{"peak |P|":>9} {"drive P":>8} {"brake P":>8}',
@@ -200,20 +370,48 @@ def format_report(report: MotorReport, robot: str | Path | None = None) -> str:
         lines.append(f'{side:<6} {s.peak_torque:11.4f} {s.peak_torque_t:8.3f} {s.rms_torque:9.4f} '
                      f'{s.peak_spin_rate:9.3f} {s.peak_ground_speed:11.4f} {s.peak_power:9.4f} '
                      f'{s.peak_drive_power:8.4f} {s.peak_brake_power:8.4f}')
-    lines += ['',
-              f'Adsorption needed: {a.peak_needed:.2f} N peak at t = {a.peak_needed_t:.3f} s '
-              f'(tipping limit {a.tipping_limit:.2f} N, friction needed up to {a.peak_friction_needed:.2f} N)',
-              f'Adsorption applied: {a.applied:.2f} N (k_ad x static minimum {a.minimum_static:.2f} N); '
-              f'margin applied/needed {a.margin:.2f}']
-    if a.margin < 1.0:
-        lines.append('WARNING: the run needed more adsorption than the robot applies: on a real wall it would slip')
+    run_peak = max(report.left.peak_torque, report.right.peak_torque)
+    lines += ['', *_turning_lines(turning, run_peak), '', *_adhesion_lines(a)]
     c = report.contact
     if c is not None:
-        lines += ['',
-                  'Friction use (peak):  ' + ', '.join(f'{name} {use:.3f} at t = {t:.3f} s' for name, use, t in
-                                                       zip(('left', 'right', 'lateral'), c.peak_use, c.peak_use_t)),
-                  f'Least adhesion force: {c.least_adhesion:.2f} N to keep every channel sticking and every wheel on '
-                  f'the wall ({c.least_adhesion_by} binds at t = {c.least_adhesion_t:.3f} s; this run had '
-                  f'{c.run_adhesion:.2f} N)' + (' - a lower bound: channels slipped, so the forces are the kinetic '
-                                                'friction they transmitted' if c.slipped else '')]
+        lines += ['', 'Friction use (peak):  ' + ', '.join(
+            f'{name} {use:.3f} at t = {t:.3f} s' for name, use, t in zip(WHEEL_POSITIONS, c.peak_use, c.peak_use_t))]
     return '\n'.join(lines)
+
+
+def _turning_lines(turning: TurningFigures, run_peak: float) -> list[str]:
+    f = turning
+    lines = [f'Turning in place from rest, adhesion {f.adhesion:.2f} N (side torque to start it: the first wheel '
+             'leaves its friction disc):']
+    if math.isfinite(f.heading):
+        lines.append(f'  worst heading {math.degrees(f.heading):.1f} deg (90: facing up), turning {f.direction}: '
+                     f'{f.start_torque:.4f} N m on the {f.side} side (holding {abs(f.hold_torque):.4f} + turning '
+                     f'{f.turn_torque:.4f} N m)')
+    else:
+        lines.append('  the robot cannot hold still at every heading with this adhesion: it slides or peels off '
+                     'before any turn')
+    lines += [f'  with gravity negligible: {f.flat_threshold:.4f} N m per side (mu_s F r / (2 sqrt(1 + (b/a)^2)))',
+              f'Climbing straight up at a steady speed: {f.climb_torque:.4f} N m per side (r (m_t g + f_r F) / 2)',
+              "This run's turns: " + ('not recorded (no wheel forces)' if math.isnan(f.run_turn_torque) else
+                                      f'{f.run_turn_torque:.4f} N m differential side torque at most, '
+                                      f"r |F_R - F_L| / 2 of the wheels' forces (t = {f.run_turn_t:.3f} s)"),
+              f'Sizing: {f.governs} governs, {f.governing_torque:.4f} N m per side (turning in place '
+              f'{f.start_torque:.4f}, climbing straight up {f.climb_torque:.4f}, this run {run_peak:.4f} N m)']
+    return lines
+
+
+def _adhesion_lines(a: AdsorptionFigures) -> list[str]:
+    if math.isnan(a.needed):
+        needed = ['Adhesion needed: not known (the run did not record its wheels\' contact)']
+    else:
+        needed = [f'Adhesion needed: {a.needed:.2f} N ({a.needed_by} binds at t = {a.needed_t:.3f} s): the least '
+                  'adhesion force keeping every wheel on the wall with its force inside its friction disc, for '
+                  "this run's motion" + (' - a lower bound: wheels slid, so their forces are the kinetic friction '
+                                         'they transmitted' if a.lower_bound else '')]
+    run = '' if math.isnan(a.run_adhesion) else f'Adhesion of the run: {a.run_adhesion:.2f} N; '
+    lines = needed + [f'{run}margin {a.margin:.2f}; the robot file applies {a.applied:.2f} N (static minimum '
+                      f'{a.minimum_static:.2f} N, tipping limit {a.tipping_limit:.2f} N)']
+    if a.margin < 1.0:
+        lines.append('WARNING: the run needed more adhesion than it had: on a real wall its wheels would slide or '
+                     'lift off')
+    return lines

@@ -99,7 +99,7 @@ def result_row(robot_run: RobotRun, params: RobotParameters) -> list[float]:
     return [summary.final_tracking_error, summary.peak_tracking_error_after_5s, summary.peak_drive_force_left,
             summary.peak_drive_force_right, summary.peak_lateral_force, report.left.peak_torque,
             report.right.peak_torque, min_load, *use,
-            contact.least_adhesion if contact is not None else math.nan, report.adsorption.applied,
+            report.adsorption.needed, report.adsorption.applied,
             int(slipped), int(detached), lift_off[0] if detached else math.nan, summary.max_residual,
             int(feasible)]
 
