@@ -33,6 +33,8 @@ def sliding(run: dict[str, list[float]]) -> list[float]:
 
 
 def test_hold(tmp_path):
+    """Nothing moves; every wheel uses 2/3 of its disc, so the adhesion force needed is m_t g / mu_s, every disc full
+    at once."""
     result, run = rest_run(tmp_path)
     assert result.returncode == 0, result.stderr
     assert len(run['t']) == 1001 and run['t'][-1] == pytest.approx(1.0)  # rest runs 1 s by default
@@ -40,6 +42,9 @@ def test_hold(tmp_path):
     assert max(abs(v) for v in run['y']) < 1e-12
     assert not any(sliding(run))
     assert run['N1'][0] == pytest.approx(38.10, abs=0.005) and run['N3'][0] == pytest.approx(56.50, abs=0.005)
+    report = wallbot('motors', str(tmp_path / 'rest.csv'), '--json')
+    assert report.returncode == 0, report.stderr
+    assert json.loads(report.stdout)['adsorption']['needed'] == pytest.approx(9.0 * 9.81 / 0.7, rel=1e-9)  # m_t g / mu
 
 
 def test_slide(tmp_path):
