@@ -190,3 +190,9 @@ def test_the_cli_reference_lists_exactly_the_options_of_each_verb(verb: str):
     missing = sorted(set(actions) - documented)
     problems += [f'{option}: an option of the parser, not in docs/cli.md' for option in missing]
     assert not problems, f'docs/cli.md, wallbot-sim {verb}:\n' + '\n'.join(problems)
+
+
+def test_the_cli_reference_lists_the_csv_columns_in_order():
+    from wallbot_sim.rundata.csv_format import CSV_COLUMNS
+    text = FENCE.sub('', CLI_REFERENCE.read_text(encoding='utf-8'))
+    assert f"`{','.join(CSV_COLUMNS)}`" in text[text.index('### The CSV'):], 'docs/cli.md: the CSV columns differ'
