@@ -53,8 +53,9 @@ def write_bag(path: Path, seconds: float) -> None:
         rows = SimpleNamespace(
             t=t, q=np.column_stack([xy, rng.normal(size=(count, 5))]), qd=rng.normal(size=(count, 7)),
             wheel_torques=rng.normal(size=(count, 4)), chassis_wrench=rng.normal(size=(count, 3)),
-            drive=rng.normal(size=(count, 3)), use=rng.uniform(size=(count, 3)), slipping=np.zeros((count, 3), bool),
-            loads=rng.uniform(20, 80, size=(count, 4)), limits=rng.uniform(size=(count, 3)))
+            drive=rng.normal(size=(count, 3)), loads=rng.uniform(20, 80, size=(count, 4)),
+            wheel_use=rng.uniform(size=(count, 4)), wheel_slipping=np.zeros((count, 4), bool),
+            wheel_forces=rng.normal(size=(count, 4, 2)), slip_velocity=rng.normal(size=(count, 4, 2)))
         for step, encoded in zip(k.tolist(), encoder.encode_rows(rows)):
             log_ns, ti = step * 1_000_000, step * 1e-3
             if step % 5000 == 0:
