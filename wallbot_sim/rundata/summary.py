@@ -117,8 +117,8 @@ def format_summary(summary: RunSummary) -> str:
         f'|F_lat| {s.peak_lateral_force:.3f} N',
         f'constraint residual: max {s.max_residual:.3e}',
         'wheel-wall contact:  ' + ('' if all(math.isnan(use) for use in s.peak_wheel_use) else
-                                   'peak friction use ' + ', '.join(f'{use:.3f}' for use in s.peak_wheel_use)
-                                   + ' (wheels 1-4); ')
+                                   'peak friction use ' + ', '.join(f'{name} {use:.3f}' for name, use in
+                                                                    zip(WHEEL_POSITIONS, s.peak_wheel_use)) + '; ')
         + ('no slip' if s.first_slip is None else f'first slip at t = {s.first_slip[0]:.3f} s ({s.first_slip[1]})')
         + ('' if s.lift_off is None else
            f'; wheel {s.lift_off[1]} lifts off at t = {s.lift_off[0]:.3f} s (normal load {s.lift_off[2]:.2f} N)'),
