@@ -95,8 +95,7 @@ class AdsorptionFigures:
     tipping_limit: float
     """m_t g h / min(a, b)."""
     margin: float
-    """The run's F_ad (the robot file's if not recorded) / needed: below 1 the run asked for more than its
-    adhesion gives."""
+    """The run's F_ad / needed: below 1 the run asked for more than its adhesion gives; NaN when not recorded."""
     lower_bound: bool
     """Whether wheels slid in the run: then ``needed`` is a lower bound."""
 
@@ -193,7 +192,7 @@ def motor_report(run: RunData, params: RobotParameters, robot_file: str | Path =
     sides = {side: _side(t, tau[valid], rate[valid], radius) for side, (tau, rate) in series.items()}
     wheels = _wheel_samples(run)
     robot = Robot(params)
-    adsorption = _adsorption(wheels, robot)
+    adsorption = _adsorption(run, wheels, robot)
     run_peak = max(sides['left'].peak_torque, sides['right'].peak_torque)
     return MotorReport(run.label, str(robot_file), int(valid.sum()), float(t[0]), float(t[-1]), radius,
                        sides['left'], sides['right'], adsorption,
@@ -232,13 +231,15 @@ def _contact(wheels: WheelSamples) -> ContactFigures:
                           tuple(float(wheels.t[k]) for k in peaks), bool(wheels.slip.any()))
 
 
-def _adsorption(wheels: WheelSamples | None, robot: Robot) -> AdsorptionFigures:
+def _adsorption(run: RunData, wheels: WheelSamples | None, robot: Robot) -> AdsorptionFigures:
     analysis = robot.adsorption
+    sums = run.loads.sum(axis=1) if len(run.loads) else np.empty(0)
+    sums = sums[np.isfinite(sums)]
+    run_adhesion = float(np.median(sums)) if sums.size else math.nan
     if wheels is None:
-        return AdsorptionFigures(math.nan, math.nan, 'not recorded', math.nan, float(analysis.applied_force),
+        return AdsorptionFigures(math.nan, math.nan, 'not recorded', run_adhesion, float(analysis.applied_force),
                                  float(analysis.minimum_force), float(analysis.tipping_limit), math.nan, False)
     needed, k, wheel, lift_off = least_adhesion(wheels.loads, wheels.forces, robot)
-    run_adhesion = float(np.median(wheels.loads.sum(axis=1)))
     return AdsorptionFigures(needed, float(wheels.t[k]),
                              f'{WHEEL_POSITIONS[wheel]} wheel, {"lift-off" if lift_off else "friction"}',
                              run_adhesion, float(analysis.applied_force), float(analysis.minimum_force),
@@ -409,7 +410,8 @@ def _adhesion_lines(a: AdsorptionFigures) -> list[str]:
                   "this run's motion" + (' - a lower bound: wheels slid, so their forces are the kinetic friction '
                                          'they transmitted' if a.lower_bound else '')]
     run = '' if math.isnan(a.run_adhesion) else f'Adhesion of the run: {a.run_adhesion:.2f} N; '
-    lines = needed + [f'{run}margin {a.margin:.2f}; the robot file applies {a.applied:.2f} N (static minimum '
+    margin = '' if math.isnan(a.margin) else f'margin {a.margin:.2f}; '
+    lines = needed + [f'{run}{margin}the robot file applies {a.applied:.2f} N (static minimum '
                       f'{a.minimum_static:.2f} N, tipping limit {a.tipping_limit:.2f} N)']
     if a.margin < 1.0:
         lines.append('WARNING: the run needed more adhesion than it had: on a real wall its wheels would slide or '
