@@ -62,19 +62,26 @@ def expected_from_csv(csv_path) -> dict:
             'climb': 0.5 * r * (weight + robot['rolling_resistance'] * float(np.median(loads.sum(axis=1))))}
 
 
-def resplit(loads: np.ndarray, forces: np.ndarray, adhesion: float, a: float = 0.10) -> np.ndarray:
+def resplit(loads: np.ndarray, forces: np.ndarray, adhesion: float, held: str, a: float = 0.10,
+            b: float = 0.12) -> np.ndarray:
     """The wheels' forces (4, 2) of one sample shared again by the loads of ``adhesion``: the least sum of
-    |f_i|^2 / N_i with each side's traction, the lateral force and its moment about the centre as the sample's,
-    by a KKT solve of the 8 unknowns (fx1..fx4, fy1..fy4)."""
+    |f_i|^2 / N_i that keeps what ``held`` says as the sample's: 'chassis', the wrench on the chassis (ideal
+    contact's split), or 'sides', each side's traction and the lateral force and its moment (coulomb contact's,
+    the belt's force free); a KKT solve of the 8 unknowns (fx1..fx4, fy1..fy4)."""
     shifted = loads + (adhesion - loads.sum()) / 4.0
-    along = np.array([a, -a, a, -a])
-    rows = np.zeros((4, 8))
-    rows[0, 0:2] = rows[1, 2:4] = 1.0  # each side's traction
-    rows[2, 4:8] = 1.0  # the lateral force
-    rows[3, 4:8] = along  # its moment
+    along, across = np.array([a, -a, a, -a]), np.array([b, b, -b, -b])
+    if held == 'chassis':
+        rows = np.zeros((3, 8))
+        rows[0, 0:4] = rows[1, 4:8] = 1.0
+        rows[2] = np.concatenate((-across, along))  # M_Z = sum (x_i f_yi - y_i f_xi)
+    else:
+        rows = np.zeros((4, 8))
+        rows[0, 0:2] = rows[1, 2:4] = rows[2, 4:8] = 1.0
+        rows[3, 4:8] = along
     target = rows @ np.concatenate((forces[:, 0], forces[:, 1]))
     weights = np.concatenate((shifted, shifted))
-    kkt = np.block([[np.diag(1.0 / weights), rows.T], [rows, np.zeros((4, 4))]])
+    count = len(rows)
+    kkt = np.block([[np.diag(1.0 / weights), rows.T], [rows, np.zeros((count, count))]])
     solution = np.linalg.solve(kkt, np.concatenate((np.zeros(8), target)))
     return np.column_stack((solution[0:4], solution[4:8]))
 
@@ -89,9 +96,9 @@ def wheel_data(csv_path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                       np.column_stack([col[f'fy{i}'] for i in wheels])), axis=2))
 
 
-def largest_use(loads: np.ndarray, forces: np.ndarray, adhesion: float) -> float:
+def largest_use(loads: np.ndarray, forces: np.ndarray, adhesion: float, held: str) -> float:
     shifted = loads + (adhesion - loads.sum()) / 4.0
-    return float(np.max(np.hypot(*resplit(loads, forces, adhesion).T) / (0.7 * shifted)))
+    return float(np.max(np.hypot(*resplit(loads, forces, adhesion, held).T) / (0.7 * shifted)))
 
 
 @pytest.mark.parametrize('which', ['csv', 'bag'])
@@ -112,22 +119,31 @@ def test_tracking_run_figures_match_an_independent_computation(tracking_run, whi
     assert report['turning']['climb_torque'] == pytest.approx(expected['climb'], rel=1e-12)
 
 
-def test_the_adhesion_needed_is_the_least_that_keeps_every_wheel_in_its_disc(tracking_run):
-    """The figure-8 with ideal contact: shared again by the loads of its own adhesion force, every sample's wheel
-    forces are the run's (the split of docs/model.md 11.2 has this form); at the force motors reports, every
-    wheel of every sample is inside its disc and the binding wheel on its edge; a little less, it is outside."""
-    csv_path, _bag = tracking_run
+@pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
+def test_the_adhesion_needed_is_the_least_that_keeps_every_wheel_in_its_disc(tracking_run, tmp_path, contact):
+    """The figure-8 with ideal contact, and a driven climb turning slowly with coulomb contact: shared again by
+    the loads of its own adhesion force as its contact model splits it (ideal: the chassis wrench over the four
+    wheels; coulomb: each side's traction between its wheels, the lateral force and moment over all four), every
+    sample's forces are the run's; at the force motors reports every wheel of every sample is inside its disc
+    and the binding wheel on its edge; a little less, it is outside."""
+    if contact == 'ideal':
+        csv_path, held = tracking_run[0], 'chassis'
+    else:
+        csv_path, held = tmp_path / 'climb.csv', 'sides'
+        result = simulate('--scenario', 'rest', '--contact', 'coulomb', '--heading', str(math.pi / 2), '--torque',
+                          '2.0,1.95', '--csv', csv_path, '--quiet')
+        assert result.returncode == 0, result.stderr
     a = motors_json(csv_path)['adsorption']
     t, loads, forces = wheel_data(csv_path)
     for k in range(0, len(t), 50):
-        assert resplit(loads[k], forces[k], loads[k].sum()) == pytest.approx(forces[k], abs=1e-9)
+        assert resplit(loads[k], forces[k], loads[k].sum(), held) == pytest.approx(forces[k], abs=1e-9)
     needed = a['needed']
     assert 0.5 * a['run_adhesion'] < needed and a['needed_by'].endswith('wheel, friction')
-    uses = [largest_use(loads[k], forces[k], needed) for k in range(len(t))]
+    uses = [largest_use(loads[k], forces[k], needed, held) for k in range(len(t))]
     assert max(uses) <= 1.0 + 1e-9
     binding = int(np.argmin(np.abs(t - a['needed_t'])))
     assert uses[binding] == pytest.approx(1.0, abs=1e-9)
-    assert largest_use(loads[binding], forces[binding], needed * (1.0 - 1e-6)) > 1.0
+    assert largest_use(loads[binding], forces[binding], needed * (1.0 - 1e-6), held) > 1.0
 
 
 def test_table_names_every_figure_and_the_robot_file_it_read(tracking_run, tmp_path):

@@ -19,9 +19,11 @@ largest of these, and of the run's own peak, governs the motor.
 The adhesion force the run needed, when it recorded its wheels' contact (docs/model.md 11.2): the least
 F at which, for the same motion, every wheel stays on the wall and its force stays in its friction disc.
 The loads are affine in F, N_i(F) = N_i + (F - F_run) / 4 with F_run = sum N_i; the wheels' forces are
-shared again by those loads as coulomb contact shares a sticking robot's (each side's traction between
-its two wheels by load, the lateral force and its moment by the load-weighted least-norm split), which
-at F_run are the run's own forces, ideal contact's split included; per sample the least F with
+shared again by those loads as the run's contact shared them: where a sample's forces are the
+load-weighted split of their wrench on the chassis over the four wheels (ideal contact's), that split;
+else as coulomb contact shares a sticking robot's (each side's traction between its two wheels by load,
+the belt's force being free, the lateral force and its moment by the load-weighted least-norm split).
+Either gives back the run's own forces at F_run. Per sample the least F with
 |f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by bisection, and the figure is the
 largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
 changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
@@ -43,6 +45,7 @@ import numpy as np
 from wallbot_sim.model import Robot, RobotParameters
 from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
+from wallbot_sim.model.wheel_forces import split_chassis_wrench
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.load import RunData
 from wallbot_sim.rundata.turning import LEFT, flat_turn_threshold, worst_turn_start
@@ -250,6 +253,8 @@ BISECTIONS = 60
 """Halvings of a sample's interval of adhesion forces (to far below a newton's round-off)."""
 COARSE = 12
 """Halvings done for every sample before those that cannot hold the largest figure are left out."""
+CHASSIS_SPLIT = 1e-9
+"""Relative difference below which a sample's forces are taken for the split of their chassis wrench."""
 
 
 def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple[float, int, int, bool]:
@@ -294,15 +299,21 @@ class _Resplit:
     """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring)."""
 
     def __init__(self, loads: np.ndarray, forces: np.ndarray, robot: Robot) -> None:
-        self.loads, self.static = loads, robot.params.wall_friction
-        self.along = robot.wheel_offsets[:, 0]
-        across = robot.wheel_offsets[:, 1]
+        self.loads, self.static, self.offsets = loads, robot.params.wall_friction, robot.wheel_offsets
+        self.along, across = self.offsets[:, 0], self.offsets[:, 1]
         self.same_side = (np.sign(across)[:, None] == np.sign(across)[None, :]).astype(float)
         """(4, 4): 1 where two wheels are of one side; loads @ same_side is each wheel's side's load."""
         longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
         self.traction = longitudinal @ self.same_side
         """Each wheel's side's traction (T, 4)."""
         self.lateral, self.moment = lateral.sum(axis=1), lateral @ self.along
+        self.wrench = np.column_stack((longitudinal.sum(axis=1), self.lateral, self.moment - longitudinal @ across))
+        """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z) (T, 3)."""
+        self.heading = np.zeros(len(loads))  # the wrench is in body axes already
+        made = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
+        scale = 1.0 + np.max(np.abs(forces), axis=(1, 2))
+        self.chassis = np.all(np.abs(made - forces) <= CHASSIS_SPLIT * scale[:, None, None], axis=(1, 2))
+        """(T,) the samples whose forces are their chassis wrench's split over the four wheels (ideal contact's)."""
 
     def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
@@ -313,7 +324,12 @@ class _Resplit:
             lam = (second * self.lateral - first * self.moment) / spread
             mu = (total * self.moment - first * self.lateral) / spread
             along = self.traction * loads / (loads @ self.same_side)
-        return along, loads * (lam[:, None] + mu[:, None] * self.along), loads
+        across = loads * (lam[:, None] + mu[:, None] * self.along)
+        if self.chassis.any():
+            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
+            along = np.where(self.chassis[:, None], split[:, :, 0], along)
+            across = np.where(self.chassis[:, None], split[:, :, 1], across)
+        return along, across, loads
 
     def use(self, shift: np.ndarray) -> np.ndarray:
         """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift``."""
