@@ -169,7 +169,7 @@ def end_acceleration(states: list, i: int, direction: int) -> np.ndarray:
 
 def bag_figures(bag, events: dict, t_killed: int) -> dict:
     names = {t.name.rsplit('/', 1)[-1]: t.name for t in info(bag).topics}
-    step_stamped = ('wheel_states', 'constraint_wrench', 'drive_forces')
+    step_stamped = tuple(t.name for t in topics.STEP_STAMPED if t is not topics.ODOM)  # what the keeper counts
     wanted = {names[k]: k for k in ('odom', 'clock', 'reference_trajectory', 'reference_path', 'constraints',
                                     *step_stamped)}
     odom, clock, received = [], [], {k: [] for k in wanted.values()}
