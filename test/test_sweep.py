@@ -13,11 +13,13 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pytest
 import yaml
 
+import two_hosts
 from cli_helpers import assert_one_line_error, simulate, wallbot
 from wallbot_sim.cli.sweep import SweepProgress
 from wallbot_sim.config import load_robot_parameters
@@ -37,6 +39,7 @@ CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'coulomb', 'controller': Tru
 """Two robots on the single-robot Simulation under the controller, the one with the higher CoM tipping off
 the wall at once."""
 POLL = 0.05
+DASK = Path(sys.executable).with_name('dask')
 STALL = 120.0
 """Seconds after which a sweep that should have ended is stuck (not a timing requirement)."""
 
@@ -185,22 +188,34 @@ def test_interrupted_sweep_keeps_finished_chunks_and_resumes(process_runner, tmp
     assert [row[1] for row in rows] == values['grid']['body_mass']
 
 
-def test_a_dask_cluster_losing_a_worker_gives_the_local_result(process_runner, tmp_path):
-    """The first worker runs the sweep's chunks alone until one is done; then a second joins and the
-    first is killed with the rest of the queue on it: its chunks are retried, the results equal a
-    local run's."""
-    address, workers = start_dask(process_runner, tmp_path, 1)
+@pytest.fixture
+def lan():
+    """Three hosts on one switch (network namespaces); skipped where they cannot be made."""
+    reason = two_hosts.unavailable_reason()
+    if reason is not None:
+        pytest.skip(reason)
+    with two_hosts.Lan(3) as created:
+        yield created
+
+
+def test_a_cluster_across_hosts_losing_a_worker_gives_the_local_result(process_runner, tmp_path, lan):
+    """The scheduler and the sweep on host 0, a worker on host 1 running the chunks alone until one is done;
+    then a worker on host 2 joins and host 1's is killed with the rest of the queue on it: its chunks are
+    retried on host 2, the results equal a local run's byte for byte."""
+    address = start_dask(process_runner, tmp_path, host=lan.address(0), place=lambda cmd: lan.command(0, cmd))
+    assert address.startswith(f'tcp://{lan.address(0)}:')
+    first = start_worker(process_runner, address, 'w1', host=lan.address(1), place=lambda cmd: lan.command(1, cmd))
     values = {**BATCH_SPEC, 'duration': 0.5, 'grid': {'body_mass': [6.0, 8.0, 10.0, 12.0]}, 'chunk_size': 1}
     spec, out = write_spec(tmp_path, values), tmp_path / 'out'
-    sweep = process_runner.start([sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec, '--out', out,
-                                  '--scheduler', address, '--no-figures'], 'sweep')
+    sweep = process_runner.start(lan.command(0, [sys.executable, '-m', 'wallbot_sim.cli.main', 'sweep', spec,
+                                                 '--out', out, '--scheduler', address, '--no-figures']), 'sweep')
     while sweep.poll() is None and not list((out / 'chunks').glob('*.csv')):
         time.sleep(POLL)
-    assert sweep.poll() is None, process_runner.output('sweep')  # 7 of 8 chunks still to do, all on w0
-    workers.append(start_worker(process_runner, address, 'w1'))
-    workers[0].kill()
+    assert sweep.poll() is None, process_runner.output('sweep')  # 7 of 8 chunks still to do, all on w1
+    second = start_worker(process_runner, address, 'w2', host=lan.address(2), place=lambda cmd: lan.command(2, cmd))
+    first.kill()
     assert sweep.wait(STALL) == 0, process_runner.output('sweep')
-    assert workers[1].poll() is None
+    assert second.poll() is None
     assert 'Remove worker' in process_runner.output('scheduler')
     local = tmp_path / 'local'
     run_sweep(spec, local, '--workers', 1)
@@ -236,24 +251,23 @@ def test_bad_spec_file_is_one_line_on_the_command_line(tmp_path):
     assert not (tmp_path / 'out').exists()
 
 
-def start_dask(process_runner, folder: Path, workers: int, *options: object) -> tuple[str, list]:
-    """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes on 127.0.0.1 (no
-    nanny: killing a worker kills it); the scheduler's address and the worker processes."""
-    dask = Path(sys.executable).with_name('dask')
+def start_dask(process_runner, folder: Path, *options: object, host: str = '127.0.0.1',
+               place: Callable[[list], list] = list) -> str:
+    """A ``dask scheduler`` listening on ``host`` (its command through ``place``: on another host); its address."""
     scheduler_file = folder / 'scheduler.json'
-    process_runner.start([dask, 'scheduler', '--host', '127.0.0.1', '--port', 0, '--no-dashboard',
-                          '--scheduler-file', scheduler_file, *options], 'scheduler')
+    process_runner.start(place([DASK, 'scheduler', '--host', host, '--port', 0, '--no-dashboard',
+                                '--scheduler-file', scheduler_file, *options]), 'scheduler')
     deadline = time.monotonic() + STALL
     while not scheduler_file.exists() and time.monotonic() < deadline:
         time.sleep(POLL)
-    address = json.loads(scheduler_file.read_text())['address']
-    return address, [start_worker(process_runner, address, f'w{k}', *options) for k in range(workers)]
+    return json.loads(scheduler_file.read_text())['address']
 
 
-def start_worker(process_runner, address: str, name: str, *options: object):
-    """A single-threaded ``dask worker`` without a nanny (killing it kills the worker), on 127.0.0.1."""
-    return process_runner.start([Path(sys.executable).with_name('dask'), 'worker', address, '--host', '127.0.0.1',
-                                 '--nthreads', 1, '--no-nanny', '--no-dashboard', '--name', name, *options], name)
+def start_worker(process_runner, address: str, name: str, *options: object, host: str = '127.0.0.1',
+                 place: Callable[[list], list] = list):
+    """A single-threaded ``dask worker`` without a nanny (killing it kills the worker) listening on ``host``."""
+    return process_runner.start(place([DASK, 'worker', address, '--host', host, '--nthreads', 1, '--no-nanny',
+                                       '--no-dashboard', '--name', name, *options]), name)
 
 
 def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_runner, tmp_path):
@@ -265,7 +279,8 @@ def test_a_tls_cluster_runs_the_sweep_for_a_client_with_its_certificate(process_
                     '-days', '1', '-subj', '/CN=wallbot-sweep-test', '-addext', 'basicConstraints=critical,CA:TRUE'],
                    check=True, capture_output=True)
     tls = ['--protocol', 'tls', '--tls-ca-file', cert, '--tls-cert', cert, '--tls-key', key]
-    address, _workers = start_dask(process_runner, tmp_path, 1, *tls[2:])
+    address = start_dask(process_runner, tmp_path, *tls[2:])
+    start_worker(process_runner, address, 'w0', *tls[2:])
     assert address.startswith('tls://')
     security = tmp_path / 'tls.yaml'
     security.write_text(yaml.safe_dump({'tls_ca_file': str(cert), 'tls_client_cert': str(cert),

@@ -1,4 +1,5 @@
-"""Two hosts on one machine: Linux network namespaces joined by a veth pair.
+"""Hosts on one machine: Linux network namespaces joined by a veth pair (``TwoHosts``) or on a
+switch (``Lan``).
 
     with TwoHosts() as hosts:
         subprocess.run(hosts.command(0, ['python', ...]), env={**os.environ, **DDS_OVER_THE_LINK})
@@ -105,6 +106,54 @@ class TwoHosts:
         _ip('-n', self.names[0], 'link', 'set', LINK, 'up' if up else 'down')
         if up:
             _multicast_route(self.names[0])
+
+
+class Lan:
+    """``count`` hosts (network namespaces) on one switch: a Linux bridge in a namespace of its own,
+    each host's ``veth0`` (10.214.0.k/24, k from 1) cabled to it; removed on exit. A host reaches
+    every other one over the switch, as on a real LAN, and nothing outside it."""
+
+    SUBNET = '10.214.0'
+
+    def __init__(self, count: int) -> None:
+        tag = f'wbl{os.getpid()}-{secrets.token_hex(3)}'
+        self.switch = f'{tag}-sw'
+        self.names = tuple(f'{tag}-{k}' for k in range(count))
+        self._created: list[str] = []
+
+    def address(self, host: int) -> str:
+        return f'{self.SUBNET}.{host + 1}'
+
+    def __enter__(self) -> 'Lan':
+        try:
+            for name in (self.switch, *self.names):
+                _ip('netns', 'add', name)
+                self._created.append(name)
+            _ip('-n', self.switch, 'link', 'add', 'br0', 'type', 'bridge')
+            _ip('-n', self.switch, 'link', 'set', 'br0', 'up')
+            for host, name in enumerate(self.names):
+                port = f'port{host}'
+                _ip('link', 'add', LINK, 'netns', name, 'type', 'veth', 'peer', 'name', port, 'netns', self.switch)
+                _ip('-n', self.switch, 'link', 'set', port, 'master', 'br0')
+                _ip('-n', self.switch, 'link', 'set', port, 'up')
+                _ip('-n', name, 'addr', 'add', f'{self.address(host)}/24', 'dev', LINK)
+                _ip('-n', name, 'link', 'set', 'lo', 'up')
+                _ip('-n', name, 'link', 'set', LINK, 'up')
+        except BaseException:
+            self.remove()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.remove()
+
+    def remove(self) -> None:
+        while self._created:
+            subprocess.run(['ip', 'netns', 'delete', self._created.pop()], capture_output=True, check=False)
+
+    def command(self, host: int, cmd: list[str]) -> list[str]:
+        """``cmd`` run inside host ``host``."""
+        return ['ip', 'netns', 'exec', self.names[host], *cmd]
 
 
 def _multicast_route(namespace: str) -> None:
