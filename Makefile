@@ -17,7 +17,7 @@ $(STAMP): setup.py setup.cfg package.xml
 
 # Two workers (pytest-xdist), each a session of its own with its own DDS domain; a test module's
 # tests stay on one worker (its module-scoped fixtures run once).
-PYTEST := $(VPY) -m pytest -q -n 2 --dist loadscope
+PYTEST := $(VPY) -m pytest -q -n 2 --dist loadscope --durations=25
 
 test: venv
 	$(PYTEST) test

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from pathlib import Path
 from typing import Iterator
 
@@ -82,6 +83,22 @@ FAST_MODULES = frozenset({
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line('markers', 'fast: the model and the units, no node processes (make test-fast)')
+    if not hasattr(config, 'workerinput'):  # once, before any xdist worker or node process starts
+        _compile_kernels()
+
+
+def _compile_kernels() -> None:
+    """The numba kernels compiled here, once, into numba's cache (in the checkout): a fresh clone's
+    test processes would otherwise each compile them on first use, several at once, for a minute."""
+    from wallbot_sim.model.batch import kernel
+    if not kernel.available():
+        return
+    from wallbot_sim.model.compiled import compile_kernel
+    started = time.monotonic()
+    compile_kernel()
+    took = time.monotonic() - started
+    if took > 5.0:
+        print(f'\nnumba kernels compiled into the cache in {took:.0f} s (later runs load them)', file=sys.stderr)
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
