@@ -16,18 +16,7 @@ worst heading, with the run's adhesion force and gravity, against the torque of 
 turns took, r |F_R - F_L| / 2 with each side's traction the sum of its wheels' longitudinal forces. The
 largest of these, and of the run's own peak, governs the motor.
 
-The adhesion force the run needed, when it recorded its wheels' contact (docs/model.md 11.2): the least
-F at which, for the same motion, every wheel stays on the wall and its force stays in its friction disc.
-The loads are affine in F, N_i(F) = N_i + (F - F_run) / 4 with F_run = sum N_i; the wheels' forces are
-shared again by those loads as the run's contact shared them: where a sample's forces are the
-load-weighted split of their wrench on the chassis over the four wheels (ideal contact's), that split;
-else as coulomb contact shares a sticking robot's (each side's traction between its two wheels by load,
-the belt's force being free, the lateral force and its moment by the load-weighted least-norm split).
-Either gives back the run's own forces at F_run. Per sample the least F with
-|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by bisection, and the figure is the
-largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
-changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
-the figure is a lower bound.
+The adhesion force the run needed, when it recorded its wheels' contact: ``least_adhesion.least_adhesion``.
 
 Samples where the run has no wheel or drive data (a bag row with NaN) are left out; the RMS is
 over samples, which are uniform in time in a 1 kHz run.
@@ -45,8 +34,8 @@ import numpy as np
 from wallbot_sim.model import Robot, RobotParameters
 from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
-from wallbot_sim.model.wheel_forces import split_chassis_wrench
 from wallbot_sim.rundata.errors import RunDataError
+from wallbot_sim.rundata.least_adhesion import least_adhesion
 from wallbot_sim.rundata.load import RunData
 from wallbot_sim.rundata.turning import LEFT, flat_turn_threshold, worst_turn_start
 
@@ -84,7 +73,7 @@ class AdsorptionFigures:
 
     needed: float
     """The least F keeping every wheel on the wall with its force in its friction disc, for the run's motion
-    (the module's docstring); NaN when the run did not record its wheels' contact."""
+    (``least_adhesion``); NaN when the run did not record its wheels' contact."""
     needed_t: float
     """When it binds (s)."""
     needed_by: str
@@ -247,101 +236,6 @@ def _adsorption(run: RunData, wheels: WheelSamples | None, robot: Robot) -> Adso
                              f'{WHEEL_POSITIONS[wheel]} wheel, {"lift-off" if lift_off else "friction"}',
                              run_adhesion, float(analysis.applied_force), float(analysis.minimum_force),
                              float(analysis.tipping_limit), run_adhesion / needed, bool(wheels.slip.any()))
-
-
-BISECTIONS = 60
-"""Halvings of a sample's interval of adhesion forces (to far below a newton's round-off)."""
-COARSE = 12
-"""Halvings done for every sample before those that cannot hold the largest figure are left out."""
-CHASSIS_SPLIT = 1e-9
-"""Relative difference below which a sample's forces are taken for the split of their chassis wrench."""
-
-
-def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple[float, int, int, bool]:
-    """The least adhesion force keeping every wheel of the samples on the wall with its force in its disc
-    (the module's docstring): (F, the sample that binds, the wheel that binds there, whether by lift-off).
-
-    ``loads`` (T, 4) and ``forces`` (T, 4, 2) of the run; per sample the shift of F from the run's, F - F_run,
-    is bisected between where a load reaches 0 and where every wheel holds, first coarsely for every sample,
-    then on for those whose interval reaches the largest lower end.
-    """
-    lift_off = np.max(-4.0 * loads, axis=1)  # a wheel's load is 0 here: below it the wheel is off the wall
-    run_force = loads.sum(axis=1)
-    resplit = _Resplit(loads, forces, robot)
-    low, high = lift_off, np.maximum(lift_off, 0.0) + run_force + 1.0
-    for _ in range(BISECTIONS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
-        short = ~resplit.holds(high)
-        if not short.any():
-            break
-        high = np.where(short, low + 2.0 * (high - low), high)
-    low, high = _bisect(resplit, low, high, COARSE)
-    candidates = np.flatnonzero(run_force + high >= np.max(run_force + low))
-    resplit = _Resplit(loads[candidates], forces[candidates], robot)
-    low, high = _bisect(resplit, low[candidates], high[candidates], BISECTIONS - COARSE)
-    needed = run_force[candidates] + high
-    j = int(np.argmax(needed))
-    k = int(candidates[j])
-    lifts = high[j] - lift_off[k] <= 1e-9 * max(abs(needed[j]), 1.0)
-    wheel = int(np.argmin(loads[k])) if lifts else int(np.argmax(resplit.use(np.full(len(high), high[j]))[j]))
-    return float(needed[j]), k, wheel, bool(lifts)
-
-
-def _bisect(resplit: _Resplit, low: np.ndarray, high: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` halvings of each interval (low: not held, high: held)."""
-    for _ in range(count):
-        middle = 0.5 * (low + high)
-        holds = resplit.holds(middle)
-        low, high = np.where(holds, low, middle), np.where(holds, middle, high)
-    return low, high
-
-
-class _Resplit:
-    """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring)."""
-
-    def __init__(self, loads: np.ndarray, forces: np.ndarray, robot: Robot) -> None:
-        self.loads, self.static, self.offsets = loads, robot.params.wall_friction, robot.wheel_offsets
-        self.along, across = self.offsets[:, 0], self.offsets[:, 1]
-        self.same_side = (np.sign(across)[:, None] == np.sign(across)[None, :]).astype(float)
-        """(4, 4): 1 where two wheels are of one side; loads @ same_side is each wheel's side's load."""
-        longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
-        self.traction = longitudinal @ self.same_side
-        """Each wheel's side's traction (T, 4)."""
-        self.lateral, self.moment = lateral.sum(axis=1), lateral @ self.along
-        self.wrench = np.column_stack((longitudinal.sum(axis=1), self.lateral, self.moment - longitudinal @ across))
-        """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z) (T, 3)."""
-        self.heading = np.zeros(len(loads))  # the wrench is in body axes already
-        made = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
-        scale = 1.0 + np.max(np.abs(forces), axis=(1, 2))
-        self.chassis = np.all(np.abs(made - forces) <= CHASSIS_SPLIT * scale[:, None, None], axis=(1, 2))
-        """(T,) the samples whose forces are their chassis wrench's split over the four wheels (ideal contact's)."""
-
-    def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
-        loads = self.loads + 0.25 * shift[:, None]
-        total, first, second = loads.sum(axis=1), loads @ self.along, loads @ (self.along * self.along)
-        with np.errstate(divide='ignore', invalid='ignore'):  # a side or a row without load holds nothing
-            spread = total * second - first * first
-            lam = (second * self.lateral - first * self.moment) / spread
-            mu = (total * self.moment - first * self.lateral) / spread
-            along = self.traction * loads / (loads @ self.same_side)
-        across = loads * (lam[:, None] + mu[:, None] * self.along)
-        if self.chassis.any():
-            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
-            along = np.where(self.chassis[:, None], split[:, :, 0], along)
-            across = np.where(self.chassis[:, None], split[:, :, 1], across)
-        return along, across, loads
-
-    def use(self, shift: np.ndarray) -> np.ndarray:
-        """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift``."""
-        along, across, loads = self.components(shift)
-        with np.errstate(divide='ignore', invalid='ignore'):
-            return np.hypot(along, across) / (self.static * loads)
-
-    def holds(self, shift: np.ndarray) -> np.ndarray:
-        """(T,) whether every wheel is on the wall with its force in its disc."""
-        along, across, loads = self.components(shift)
-        limit = self.static * loads
-        return np.all((loads > 0.0) & (along * along + across * across <= limit * limit), axis=1)
 
 
 def turning_figures(wheels: WheelSamples | None, params: RobotParameters, run_adhesion: float,
