@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from scheduling_helpers import VirtualTime
-from wallbot_msgs_py import codec
+from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
@@ -29,6 +29,7 @@ from wallbot_sim.loop import blocks as loop_blocks
 from wallbot_sim.loop import loop as loop_module
 from wallbot_sim.loop import pacing
 from wallbot_sim.loop.blocks import BLOCK_PACED
+from wallbot_sim.loop.faults import parse_schedule, schedule_text
 from wallbot_sim.loop.start import COMMAND_WAIT_WARNING
 from wallbot_sim.loop.waits import BACKPRESSURE_TIMEOUT
 from wallbot_sim.settings.dynamics import DynamicsSettings
@@ -47,6 +48,7 @@ class FakeGraph:
         self.published: list[tuple[float, np.ndarray]] = []
         self.clocks: list[float] = []  # the states published with /clock
         self.snapshots = []
+        self.faults = []
         self.recorder = self.keeper = False
         self.controller = True
 
@@ -60,6 +62,9 @@ class FakeGraph:
 
     def publish_snapshot(self, snapshot) -> None:
         self.snapshots.append(snapshot)
+
+    def publish_fault(self, change) -> None:
+        self.faults.append(change)
 
     def recorder_present(self) -> bool:
         return self.recorder
@@ -862,3 +867,156 @@ def test_driven_blocks_hold_one_torque_and_publish_what_single_steps_publish(fac
     handed_over = [ahead > 0.0 for ahead in blocks.aheads]
     assert any(handed_over) == (factor > 0.0 and lockstep_every > 0 and heard_every != 1)
     assert not any(early for early, (t, _q) in zip(handed_over, blocks.published) if round(t / DT) % 20 == 0)
+
+
+# --- faults ------------------------------------------------------------------------------------------
+def model_steps(torques: list[tuple[float, float]], adhesion: dict[int, float] = {}) -> list[np.ndarray]:
+    """The states of the driven model alone (no loop), the motor torque of each step given, and the adhesion force
+    changed before the steps ``adhesion`` names: the independent account of what the loop's faults do."""
+    robot = loop_module.robot_with(load_robot_parameters(None), 0.0)
+    q0 = np.array([SETTINGS.initial_x, SETTINGS.initial_y, SETTINGS.initial_theta, 0, 0, 0, 0], dtype=float)
+    sim = Simulation(robot, None, DRIVEN.selection, q0, np.zeros(7), dt=DT, gains=GAINS, engine=PYTHON)
+    states = [sim.q.copy()]
+    for step, torque in enumerate(torques):
+        if step in adhesion:
+            sim.set_adhesion_force(adhesion[step])
+        sim.set_motor_torque(*torque)
+        sim.step()
+        states.append(sim.q.copy())
+    return states
+
+
+def test_scheduled_faults_apply_at_their_step_boundaries_as_the_model_with_those_inputs_does():
+    """A left motor dead from 5 ms and the adhesion halved from 9 ms to 12 ms: the loop's states are the model's
+    stepped with the delivered torques and the adhesion forces by hand, each change at its boundary, and every
+    change is told to the graph once, stamped with its time, naming what changed and every fault value after it."""
+    schedule = 'at=0.005 motor_efficiency_left=0.0; at=0.009 adhesion_scale=0.5; at=0.012 adhesion_scale=1.0'
+    loop, graph, log, _clock = make_loop(fault_schedule=schedule)
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1.0, 0.5)))
+    ticks(loop, 15)
+    applied = loop_module.robot_with(load_robot_parameters(None), 0.0).adsorption.applied_force
+    expected = model_steps([(1.0, 0.5)] * 5 + [(0.0, 0.5)] * 10, {9: 0.5 * applied, 12: applied})
+    assert [q.tolist() for _t, q in graph.published] == [q.tolist() for q in expected]
+    assert [(round(change.t, 9), change.changed, change.cause) for change in graph.faults] == [
+        (0.005, ('motor_efficiency_left',), 'scheduled'), (0.009, ('adhesion_scale',), 'scheduled'),
+        (0.012, ('adhesion_scale',), 'scheduled')]
+    assert dict(graph.faults[1].values) == {'adhesion_scale': 0.5, 'motor_efficiency_left': 0.0,
+                                            'motor_efficiency_right': 1.0, 'drop_odom': False,
+                                            'drop_wheel_states': False}
+    assert log.said('scheduled faults: motor_efficiency_left = 0.0 at t = 0.005 s')
+
+
+def test_a_fault_parameter_set_while_running_applies_at_the_next_boundary_and_is_told():
+    loop, graph, _log, _clock = make_loop()
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((1.0, 1.0)))
+    ticks(loop, 3)
+    loop.post(ParameterChange({'motor_efficiency_right': 0.25}))
+    loop.tick()
+    assert loop.sim.motor_torque == (1.0, 0.25)
+    assert [(change.t, change.changed, change.cause) for change in graph.faults] == [
+        (pytest.approx(0.003), ('motor_efficiency_right',), 'parameter')]
+
+
+def test_faults_set_at_start_are_told_at_t0():
+    loop, graph, _log, _clock = make_loop(drop_wheel_states=True, adhesion_scale=2.0)
+    loop.post(DRIVEN)
+    loop.tick()
+    assert [(change.t, change.changed, change.cause) for change in graph.faults] == [
+        (0.0, ('adhesion_scale', 'drop_wheel_states'), 'start')]
+
+
+def test_a_dropout_silences_its_topics_and_lockstep_waits_for_no_answer_to_what_the_controller_did_not_get():
+    """drop_odom silences odom and control_odom (the controller's sensor) for the states after its boundary:
+    lockstep waits for no answer to those, and again for the answer to the first state the controller gets."""
+    loop, graph, _log, _clock = make_loop(lockstep_every=2, fault_schedule='at=0.002 drop_odom=true; at=0.006 '
+                                                                            'drop_odom=false')
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.LOCKSTEP  # t = 0 went out: its answer is awaited
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 3) == [Decision.STEPPED, Decision.STEPPED, Decision.LOCKSTEP]  # 2 ms went out before the fault
+    assert loop.silenced == {topics.ODOM, topics.CONTROL_ODOM} and loop.sim.steps == 2
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 6) == [Decision.STEPPED] * 6 and loop.sim.steps == 8  # 4 and 6 ms were silent
+    assert loop.silenced == frozenset()
+    assert loop.tick() is Decision.LOCKSTEP  # 8 ms went out again: its answer is awaited
+    loop.post(ParameterChange({'drop_wheel_states': True}))
+    loop.post(TorqueCommand((0.1, 0.1)))
+    loop.tick()
+    assert loop.silenced == {topics.WHEEL_STATES} and loop.sim.steps == 9
+
+
+def test_a_strict_lockstep_ends_the_run_naming_the_state_left_unanswered():
+    loop, graph, log, clock = make_loop(lockstep_every=1, strict_lockstep=True, lockstep_timeout=0.5)
+    loop.post(DRIVEN)
+    assert loop.tick() is Decision.LOCKSTEP
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert ticks(loop, 2) == [Decision.STEPPED, Decision.LOCKSTEP]
+    clock.now += 0.5
+    assert loop.tick() is Decision.LOCKSTEP and loop.gave_up is None  # the limit itself still waits
+    clock.now += 0.01
+    assert loop.tick() is Decision.LOCKSTEP and loop.stopping.is_set()
+    assert loop.gave_up == 'no wheel_torque_cmd answering the state at t = 0.001 s within lockstep_timeout 0.5 s (wall)'
+    assert loop.status.state is RunState.GAVE_UP and loop.in_error and graph.times == pytest.approx([0.0, DT])
+    assert [message for level, message in log.lines if level == 'error'] == [
+        f'{loop.gave_up} with strict_lockstep set; exiting']
+
+
+def test_the_state_a_stop_stands_at_goes_out_as_a_snapshot():
+    loop, graph, _log, _clock = make_loop(stop_at=0.004)
+    loop.post(DRIVEN)
+    ticks(loop, 8)
+    assert graph.snapshots[-1].steps == 4 and graph.snapshots[-1].q == tuple(loop.sim.q)
+    assert len([s for s in graph.snapshots if s.steps == 4]) == 1  # once, not at every tick of the stop
+
+
+@pytest.mark.parametrize('text, reason', [
+    ('at=1 motor_efficiency_left=1.5', "entry 1 ('at=1 motor_efficiency_left=1.5'): motor_efficiency_left must be in "
+                                      '[0, 1], got 1.5'),
+    ('at=1 drop_odom=true; motor_efficiency_left=0', 'entry 2 (\'motor_efficiency_left=0\'): at=T (the simulation '
+                                                     'time, s) is missing'),
+    ('at=-1 drop_odom=true', 'at must be a simulation time >= 0 (s), got \'-1\''),
+    ('at=1 gain=2', "'gain' is no fault parameter (adhesion_scale, motor_efficiency_left, motor_efficiency_right, "
+                    'drop_odom, drop_wheel_states)'),
+    ('at=1', 'no fault parameter is set'),
+    ('at=1 drop_odom', "expected NAME=VALUE, got 'drop_odom'"),
+    ('at=1 drop_odom=yes', "drop_odom must be true or false, got 'yes'")])
+def test_a_bad_fault_schedule_is_refused_naming_the_entry_and_why(text, reason):
+    with pytest.raises(ValueError) as refused:
+        parse_schedule(text)
+    assert reason in str(refused.value) and '\n' not in str(refused.value)
+    with pytest.raises(ValueError, match='fault_schedule entry'):
+        make_loop(fault_schedule=text)
+
+
+def test_a_schedule_reads_back_what_it_writes_in_time_order():
+    entries = parse_schedule('at=2.5 adhesion_scale=0.6 ; at=0.5 motor_efficiency_right=0.0 drop_odom=true')
+    assert [entry.at for entry in entries] == [0.5, 2.5]
+    assert parse_schedule(schedule_text(entries)) == entries
+    assert entries[0].changes == (('motor_efficiency_right', 0.0), ('drop_odom', True))
+
+
+@NEEDS_NUMBA
+def test_driven_blocks_end_at_scheduled_faults_and_publish_what_single_steps_publish():
+    """On the compiled engine at factor 0 with lockstep every 20 steps, faults scheduled inside what would be a
+    block apply at its boundary: the messages and the snapshots are those of one step per tick, to the bit."""
+    schedule = 'at=0.013 motor_efficiency_left=0.3; at=0.031 adhesion_scale=0.7; at=0.052 motor_efficiency_left=1.0'
+    runs = []
+    for blocks in (False, True):
+        graph, log = EncodingGraph(blocks), FakeLog()
+        loop = DynamicsLoop(replace(SETTINGS, engine=NUMBA, lockstep_every=20, fault_schedule=schedule,
+                                    snapshot_period=0.05, stop_at=0.08), load_robot_parameters(None), graph, log,
+                            Pacer(0, log.warning))
+        loop.post(DRIVEN)
+        while loop.status.state is not RunState.STOPPED:
+            if loop.tick() is Decision.LOCKSTEP:
+                t = graph.published[-1][0]
+                loop.post(TorqueCommand((0.5 * np.sin(20.0 * t), 0.4 * np.cos(15.0 * t))))
+        runs.append(graph)
+    single, blocks = runs
+    assert blocks.messages == single.messages and len(single.messages) == 81
+    assert [(s.steps, s.q, s.qd) for s in blocks.snapshots] == [(s.steps, s.q, s.qd) for s in single.snapshots]
+    assert [(change.t, change.changed) for change in blocks.faults] == [
+        (change.t, change.changed) for change in single.faults] and len(single.faults) == 3
+    assert max(blocks.block_sizes) > 5

@@ -369,6 +369,20 @@ def test_diagnostics_builder():
                                                                                          ('set', 'belt')])])
 
 
+def test_a_fault_event_reads_back_with_its_time_its_node_what_changed_why_and_every_value():
+    data = codec.fault_event(5.0, '/r2/dynamics', ['motor_efficiency_left', 'adhesion_scale'], 'parameter',
+                             [('motor_efficiency_left', '0.0'), ('adhesion_scale', '0.6'), ('drop_odom', 'false')],
+                             'warn')
+    array = decode(data, topics.FAULTS)
+    assert seconds(array.header.stamp) == 5.0 and array.status[0].level == codec.LEVELS['warn']
+    assert array.status[0].message == 'motor_efficiency_left, adhesion_scale (parameter)'
+    assert codec.decode_fault_event(data) == (5_000_000_000, '/r2/dynamics', ('motor_efficiency_left', 'adhesion_scale'),
+                                              'parameter', {'motor_efficiency_left': '0.0', 'adhesion_scale': '0.6',
+                                                            'drop_odom': 'false'})
+    with pytest.raises(ValueError, match='without a fault event'):
+        codec.decode_fault_event(codec.diagnostics(1.0, [codec.Status('x', 'ok', 'm', [])]))
+
+
 def test_the_status_of_a_robot_s_dynamics_is_told_from_another_robot_s():
     """/diagnostics is one topic for every robot of a domain: a reader picks the status of the dynamics in
     its own namespace by the status's name, the node's fully qualified name."""
@@ -396,6 +410,8 @@ def test_rclpy_decodes_the_codec_bytes_to_the_same_fields():
                                                          BaumgarteGains()),
         topics.DIAGNOSTICS: codec.diagnostics(2.0, [codec.Status('n', 'warn', 'm', [('k', 1.5)])]),
         topics.WHEEL_TORQUE_CMD: codec.wheel_torque_cmd(0.1234567, -4.5),
+        topics.FAULTS: codec.fault_event(1.25, '/wallbot/dynamics', ['drop_odom'], 'scheduled',
+                                         [('drop_odom', 'true'), ('adhesion_scale', '0.6')], 'warn'),
         topics.ROBOT_DESCRIPTION: codec.robot_description('<?xml version="1.0"?>\n<robot name="r" />\n'),
     }
     for topic, data in encoded.items():

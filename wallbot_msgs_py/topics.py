@@ -135,15 +135,21 @@ STATE_SNAPSHOT = Topic('state_snapshot', 'std_msgs/msg/Float64MultiArray', Durab
 RESUME_STATE = Topic('resume_state', 'std_msgs/msg/Float64MultiArray', Durability.TRANSIENT_LOCAL, depth=1)
 """Published by a keeper (the recorder): the newest snapshot it holds, which outlives a killed dynamics;
 a restarted dynamics continues from it."""
+FAULTS = Topic('faults', 'diagnostic_msgs/msg/DiagnosticArray', Durability.TRANSIENT_LOCAL, depth=100)
+"""Published by the dynamics when its fault settings change (a motor's efficiency, the adhesion scale, a sensor
+dropout; set with ``ros2 param set`` or scheduled by ``fault_schedule``): stamped with the simulation time the
+change applies from, naming what changed and why, with every fault setting's value from then on.
+Transient-local, so a recorder matched late still records every event of the run."""
 STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT)
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM)
+            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM, FAULTS)
 """Topics a run records, in this order (robot_description too: a bag replayed in RViz or Foxglove
 has the robot model)."""
-NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic is not GROUND_TRUTH_ODOM)
-"""Topics a run without sensor noise records: its odom is the truth, ground_truth/odom is not published."""
+NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic not in (GROUND_TRUTH_ODOM, FAULTS))
+"""Topics with messages in a run without sensor noise and without faults (what ``simulate --bag`` writes): its odom
+is the truth, ground_truth/odom is not published, and no fault event is."""
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'

@@ -20,6 +20,7 @@ wrench             constraint_wrench                     WrenchEncoder / decode_
 reference_trajectory reference_trajectory                trajectory / decode_plan
 reference_path     reference_path                        path / decode_path
 diagnostics        /diagnostics                          diagnostics / decode_diagnostics
+faults             faults                                fault_event / decode_fault_event
 constraints        constraints                           constraints / decode_constraints
 wheel_torque_cmd   wheel_torque_cmd                      wheel_torque_cmd / decode_wheel_torque_cmd
 robot_description  robot_description                     robot_description / decode_robot_description
@@ -51,17 +52,18 @@ from wallbot_msgs_py.codec.odometry import (NO_VARIANCE, OdometryEncoder, Odomet
                                             decode_odometry, yaw_of, yaw_quaternion)
 from wallbot_msgs_py.codec.plan import PathMessage, PlanSamples, decode_path, decode_plan, path, trajectory
 from wallbot_msgs_py.codec.status import (CONSTRAINTS_STATUS_NAME, GAINS, HARDWARE_ID, LEVELS, ConstraintSwitches,
-                                          Diagnostics, Status, constraints, decode_constraints, decode_diagnostics,
-                                          diagnostics, simulation_status, simulation_status_name)
+                                          Diagnostics, FaultEvent, Status, constraints, decode_constraints,
+                                          decode_diagnostics, decode_fault_event, diagnostics, fault_event,
+                                          simulation_status, simulation_status_name)
 
 __all__ = [
     'CONSTRAINTS_STATUS_NAME', 'CONTACT_NAMES', 'GAINS', 'JOINT_FIELDS', 'HARDWARE_ID', 'LEVELS', 'NO_VARIANCE',
     'ClockEncoder',
-    'ConstraintSwitches', 'Diagnostics', 'JointArrays', 'JointStateEncoder', 'OdometryEncoder', 'OdometryMessage',
+    'ConstraintSwitches', 'Diagnostics', 'FaultEvent', 'JointArrays', 'JointStateEncoder', 'OdometryEncoder', 'OdometryMessage',
     'PathMessage', 'PlanSamples', 'PlanarState', 'Status', 'WheelContact', 'WheelContactEncoder', 'Wrench',
     'WrenchEncoder', 'constraints', 'decode_clock', 'decode_cmd_vel', 'decode_constraints',
-    'decode_diagnostics', 'decode_initial_pose', 'decode_joint_state', 'decode_odometry', 'decode_path',
+    'decode_diagnostics', 'decode_fault_event', 'decode_initial_pose', 'decode_joint_state', 'decode_odometry', 'decode_path',
     'decode_plan', 'decode_robot_description', 'decode_wheel_contact', 'decode_wheel_torque_cmd', 'decode_wrench',
-    'diagnostics', 'leading_stamp_ns', 'path', 'robot_description', 'simulation_status',
+    'diagnostics', 'fault_event', 'leading_stamp_ns', 'path', 'robot_description', 'simulation_status',
     'simulation_status_name', 'to_nanoseconds', 'trajectory', 'wheel_torque_cmd', 'yaw_of', 'yaw_quaternion',
 ]

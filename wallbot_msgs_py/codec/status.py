@@ -1,4 +1,5 @@
-"""diagnostic_msgs: ``/diagnostics`` (DiagnosticArray) and the constraint set, ``constraints`` (DiagnosticStatus)."""
+"""diagnostic_msgs: ``/diagnostics`` (DiagnosticArray), the constraint set, ``constraints`` (DiagnosticStatus), and the
+fault events, ``faults`` (DiagnosticArray)."""
 
 from __future__ import annotations
 
@@ -131,3 +132,48 @@ def decode_constraints(message: cdr.Reader) -> ConstraintSwitches:
         except (KeyError, ValueError):
             raise ValueError(f'constraints message: {name} must be a number, got {values.get(name)!r}') from None
     return ConstraintSwitches(switches, *gains)
+
+
+# --- fault events ----------------------------------------------------------------------------------
+FAULTS = ': faults'
+"""The end of the name of a dynamics node's fault event status, after the node's fully qualified name."""
+
+
+class FaultEvent(NamedTuple):
+    """What a ``faults`` message says: at simulation time ``stamp_ns`` the dynamics ``node`` changed the fault
+    settings ``changed`` (``cause``: why), after which every fault setting has the value ``values`` gives (text)."""
+
+    stamp_ns: int
+    node: str
+    changed: tuple[str, ...]
+    cause: str
+    values: dict[str, str]
+
+
+@cdr.encoder('faults', DIAGNOSTIC_ARRAY)
+def fault_event(t: float, node: str, changed: Sequence[str], cause: str, values: Sequence[tuple[str, str]],
+                level: str) -> bytes:
+    """``faults``: a DiagnosticArray stamped with simulation time ``t`` holding one status named after ``node`` (the
+    dynamics' fully qualified name), its values 'changed' (comma-separated), 'cause', then each fault setting's
+    value as text; ``level`` (one of LEVELS) says whether a fault is on."""
+    out = cdr.Writer()
+    out.header(cdr.to_nanoseconds(t), '')
+    out.uint32(1)
+    message = f'{", ".join(changed)} ({cause})'
+    _write_status(out, Status(node + FAULTS, level, message, [('changed', ','.join(changed)), ('cause', cause),
+                                                               *values]))
+    return out.bytes()
+
+
+@cdr.decoder('faults', DIAGNOSTIC_ARRAY)
+def decode_fault_event(message: cdr.Reader) -> FaultEvent:
+    """The event of a serialized ``faults`` message; ValueError if it holds none."""
+    stamp_ns, _frame = message.header()
+    statuses = [_read_status(message) for _ in range(message.uint32())]
+    for status in statuses:
+        if status.name.endswith(FAULTS):
+            values = status.value_map()
+            changed, cause = values.pop('changed', ''), values.pop('cause', '')
+            return FaultEvent(stamp_ns, status.name[:-len(FAULTS)], tuple(name for name in changed.split(',') if name),
+                              cause, values)
+    raise ValueError('faults message without a fault event status')

@@ -112,9 +112,10 @@ class Blocks:
         Blocks are taken on the compiled engine with ideal contact (``Simulation.tabulates``), publishing every
         state, not resuming, under one motor torque: zero under the trajectory task; driven, the command's, set
         by the single step after it changes. A block ends where a single step would do something between its
-        steps: at the last step the plan covers (trajectory task), before the command in force times out, at a
-        lockstep state (the step after it waits for the controller's answer), before stop_at, at the recorder's
-        window and at the next snapshot. So the states and messages are the single steps', to the bit.
+        steps: at the last step the plan covers (trajectory task), before the command in force times out, before a
+        scheduled fault, at a lockstep state (the step after it waits for the controller's answer), before stop_at,
+        at the recorder's window and at the next snapshot. So the states and messages are the single steps', to the
+        bit.
         """
         loop = self.loop
         sim, settings = loop.sim, loop.settings
@@ -126,6 +127,9 @@ class Blocks:
         every = snapshot_every(settings.snapshot_period, sim.dt)
         if every > 0:
             size = min(size, every - sim.steps % every)
+        fault = loop.schedule.steps_before_next(sim.t, sim.dt)
+        if fault is not None:  # a scheduled fault applies at the boundary after the block's last state
+            size = min(size, max(fault, 1))
         lockstep = settings.lockstep_every
         if lockstep > 0 and not sim.selection.trajectory and not loop.lockstep.lost:
             size = min(size, lockstep - sim.steps % lockstep)
@@ -257,7 +261,7 @@ class Blocks:
             lateness = pacer.wait(steps, sim.dt, lambda: loop.factor, loop.stopping)
         count_step(window, ahead.step_time, lateness)
         state.send(clock, max(-lateness, 0.0))
-        loop.lockstep.mark_sync()
+        loop.lockstep.mark_sync(not loop.settings.drop_odom)
         loop.statistics.note_residual(float(ahead.block.table.residual[row]))
         ahead.published += 1
         return early, woke, last

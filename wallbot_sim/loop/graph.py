@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Callable, Protocol, Sequence
 
 from wallbot_msgs_py.snapshot import DynamicsSnapshot
+from wallbot_sim.loop.faults import FaultChange
 from wallbot_sim.model import StepOutputs
 from wallbot_sim.model.outputs import StepBlock
 
@@ -24,6 +25,9 @@ class Graph(Protocol):
         """``prepare`` of each state of ``block`` at once, in order."""
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None: ...
+
+    def publish_fault(self, change: FaultChange) -> None:
+        """Record a change of the fault settings (an event on ``faults``)."""
 
     def recorder_present(self) -> bool:
         """Whether some node publishes record_progress."""

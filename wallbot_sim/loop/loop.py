@@ -10,12 +10,14 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from wallbot_msgs_py import codec
+from wallbot_msgs_py import codec, topics
 from wallbot_sim import messages
 from wallbot_sim.loop.blocks import Blocks
 from wallbot_sim.loop.commands import Commands
 from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
                                      ResumeSnapshot, Step, Teleport, TorqueCommand)
+from wallbot_sim.loop.faults import (FaultChange, FaultSchedule, delivered, fault_changes, fault_values, parse_schedule,
+                                     silenced)
 from wallbot_sim.loop.graph import Graph, Log
 from wallbot_sim.loop.pacing import Pacer
 from wallbot_sim.loop.resume import ResumeGate
@@ -24,7 +26,7 @@ from wallbot_sim.loop.start import StartGate
 from wallbot_sim.loop.status import WAIT_AFTER, Decision, RunState, Statistics, Status, count_step
 from wallbot_sim.loop.waits import BackPressure, Lockstep
 from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
-                               Simulation, StepOutputs)
+                               Simulation, StepOutputs, adsorption_analysis)
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.model.trajectories import STAMP_RESOLUTION
@@ -32,9 +34,13 @@ from wallbot_sim.settings.dynamics import DynamicsSettings
 from wallbot_sim.settings.table import changed
 
 
-def robot_with(params: RobotParameters, adhesion_force: float) -> Robot:
-    """The robot of the robot file's ``params``, with the adhesion_force setting (N) unless it is 0."""
-    return Robot(params.replace(adhesion_force=adhesion_force) if adhesion_force else params)
+def robot_with(params: RobotParameters, adhesion_force: float, adhesion_scale: float = 1.0) -> Robot:
+    """The robot of the robot file's ``params``, with the adhesion_force setting (N) unless it is 0 (then the file's),
+    times the adhesion_scale setting (a suction fault below 1)."""
+    if adhesion_scale == 1.0:
+        return Robot(params.replace(adhesion_force=adhesion_force) if adhesion_force else params)
+    force = adhesion_force or adsorption_analysis(params).applied_force
+    return Robot(params.replace(adhesion_force=force * adhesion_scale))
 
 
 class DynamicsLoop:
@@ -46,7 +52,9 @@ class DynamicsLoop:
                  pacer: Pacer, clock: Callable[[], float] = time.monotonic) -> None:
         self.settings = settings
         self._robot_file = robot_file
-        self.robot = robot_with(robot_file, settings.adhesion_force)
+        self.robot = robot_with(robot_file, settings.adhesion_force, settings.adhesion_scale)
+        self.schedule = FaultSchedule(parse_schedule(settings.fault_schedule))
+        """The faults still to apply at their simulation times (``loop.faults``)."""
         self.graph, self.log, self.pacer, self.clock = graph, log, pacer, clock
         self._events: queue.SimpleQueue[Event] = queue.SimpleQueue()
         self._wake = threading.Event()
@@ -70,6 +78,8 @@ class DynamicsLoop:
         self.reset_requested: float | None = None  # clock time of a reset not yet applied
         self.last_outputs: StepOutputs | None = None
         self.commands, self.lockstep, self.backpressure = Commands(), Lockstep(), BackPressure()
+        self.lockstep_gave_up: str | None = None
+        """Why a strict lockstep ended the run (the controller left a state unanswered), or None."""
         self.start = StartGate(self)
         self.resume = ResumeGate(settings.resume_wait)
         self.clock_schedule = messages.ClockSchedule(settings.clock_rate_hz)
@@ -94,8 +104,14 @@ class DynamicsLoop:
 
     @property
     def gave_up(self) -> str | None:
-        """Why the loop stopped without starting (then the node exits), or None."""
-        return self.start.command_wait.gave_up
+        """Why the loop stopped for good, its start given up or a strict lockstep's answer missing (then the node
+        exits), or None."""
+        return self.start.command_wait.gave_up or self.lockstep_gave_up
+
+    @property
+    def silenced(self) -> frozenset[topics.Topic]:
+        """The topics a sensor dropout keeps silent now (read by the loop thread as it publishes)."""
+        return silenced(self.settings)
 
     @property
     def in_error(self) -> bool:
@@ -138,6 +154,8 @@ class DynamicsLoop:
         if not self._ready():
             self.pacer.reanchor()
             return Decision.NOT_READY
+        for fault in self.schedule.due(self.sim.t, self.sim.dt):
+            self._apply_settings(dict(fault.changes), cause='scheduled')
         if self._lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
             return Decision.LOCKSTEP
         if self._held_back():
@@ -192,21 +210,31 @@ class DynamicsLoop:
             case RecordProgress():
                 self.backpressure.progress_ns = event.stamp_ns
 
-    def _apply_settings(self, changes: Mapping[str, object]) -> None:
+    def _apply_settings(self, changes: Mapping[str, object], cause: str = 'parameter') -> None:
         self.settings = changed(self.settings, changes)
         if 'realtime_priority' in changes:
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
             self.sim = self.simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
             self.snapshot()
-        if 'adhesion_force' in changes:
-            self.robot = robot_with(self._robot_file, changes['adhesion_force'])
+        if {'adhesion_force', 'adhesion_scale'} & set(changes):
+            self.robot = robot_with(self._robot_file, self.settings.adhesion_force, self.settings.adhesion_scale)
             if self.sim is not None:
                 self.sim.set_adhesion_force(self.robot.params.adhesion_force)
         if 'contact_model' in changes and self.sim is not None:
             self.sim.set_contact_model(changes['contact_model'])
         self.pacer.reanchor()
-        self.log.info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
+        self.log.info(('scheduled faults: ' if cause == 'scheduled' else 'parameters: ')
+                      + ', '.join(f'{k} = {v}' for k, v in changes.items())
+                      + (f' at t = {self.sim.t:.3f} s' if self.sim is not None else ''))
+        faults = fault_changes(changes)
+        if faults:
+            self.tell_faults(faults, cause)
+
+    def tell_faults(self, names: tuple[str, ...], cause: str) -> None:
+        """Tell the graph that the fault settings ``names`` changed (an event it records)."""
+        self.graph.publish_fault(FaultChange(self.sim.t if self.sim is not None else 0.0, names,
+                                             fault_values(self.settings), cause))
 
     def simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
         reference = self.plan.reference if self.plan is not None else None
@@ -280,6 +308,8 @@ class DynamicsLoop:
                            if self.detached else Status(RunState.PAUSED))
             return False
         if self.settings.stop_at > 0.0 and sim.t >= self.settings.stop_at - 0.5 * sim.dt:
+            if self.status.state is not RunState.STOPPED:
+                self.snapshot()  # the state it stands at, for whoever asked for the stop
             self.status = Status(RunState.STOPPED, t=sim.t)
             return False
         if sim.selection.trajectory and not self.plan.covers(sim.t, sim.t + sim.dt):
@@ -320,10 +350,22 @@ class DynamicsLoop:
             return False
         if self.lockstep.holds(self.clock(), self.settings.lockstep_timeout):
             return True
+        if self.settings.strict_lockstep:
+            return self._give_up_lockstep()
         self.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
         self.log.warning(f'no wheel_torque_cmd within {self.settings.lockstep_timeout:g} s (wall) of the state '
                          f'at t = {self.sim.t:.3f} s: stepping on without lockstep until commands return')
         return False
+
+    def _give_up_lockstep(self) -> bool:
+        """A strict lockstep's answer did not come: the run ends, naming the state left unanswered."""
+        if self.lockstep_gave_up is None:
+            self.lockstep_gave_up = (f'no wheel_torque_cmd answering the state at t = {self.sim.t:.3f} s within '
+                                     f'lockstep_timeout {self.settings.lockstep_timeout:g} s (wall)')
+            self.log.error(f'{self.lockstep_gave_up} with strict_lockstep set; exiting')
+            self.status = Status(RunState.GAVE_UP, reason=self.lockstep_gave_up)
+            self.stopping.set()
+        return True
 
     def _held_back(self) -> bool:
         """Whether a recorder's progress is more than the window behind (``BackPressure``)."""
@@ -331,15 +373,17 @@ class DynamicsLoop:
                                            self.settings.backpressure_window * self.sim.dt, self.log)
 
     def torque_at(self, t: float) -> tuple[float, float]:
-        """The motor torque of a step from time ``t`` (``Commands.torque_at``)."""
-        return self.commands.torque_at(t, self.sim.selection.trajectory, self.settings.command_timeout)
+        """The motor torque of a step from time ``t``: the command in force (``Commands.torque_at``) as the motors
+        deliver it (``faults.delivered``)."""
+        return delivered(self.commands.torque_at(t, self.sim.selection.trajectory, self.settings.command_timeout),
+                         self.settings)
 
     def _step(self) -> None:
         self.stepped = True
         sim, commands, timeout = self.sim, self.commands, self.settings.command_timeout
         if commands.command is not None and not commands.expired:
             commands.note_expiry(sim.t, sim.selection.trajectory, timeout, self.log)
-        torque = commands.torque_at(sim.t, sim.selection.trajectory, timeout)
+        torque = self.torque_at(sim.t)
         if torque != sim.motor_torque:
             sim.set_motor_torque(*torque)
         began = time.perf_counter()
@@ -367,7 +411,7 @@ class DynamicsLoop:
         count_step(window, step_time, self.pacer.wait(sim.steps, sim.dt, lambda: self.factor, self.stopping))
         if publish:
             send()
-            self.lockstep.mark_sync()
+            self.lockstep.mark_sync(not self.settings.drop_odom)
             every = snapshot_every(self.settings.snapshot_period, sim.dt)
             if every > 0 and sim.steps % every == 0:
                 self.snapshot()
@@ -392,4 +436,4 @@ class DynamicsLoop:
         self.last_outputs = out
         self.statistics.note_residual(out.residual)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
-        self.lockstep.mark_sync()
+        self.lockstep.mark_sync(not self.settings.drop_odom)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Callable
 from wallbot_msgs_py import codec
 from wallbot_msgs_py.snapshot import DynamicsSnapshot
 from wallbot_sim.loop.events import ConstraintSwitch
+from wallbot_sim.loop.faults import faults_on
 from wallbot_sim.loop.graph import Log
 from wallbot_sim.loop.snapshots import kept_constraints
 from wallbot_sim.loop.status import RunState, Status
@@ -168,6 +169,8 @@ class StartGate:
         loop.log.info(f'starting with constraints {switch.selection.label()}{fresh}')
         loop.publish(loop.sim.outputs())
         loop.snapshot()
+        if faults_on(loop.settings):  # faults set at start: the run's record says so from t = 0
+            loop.tell_faults(faults_on(loop.settings), 'start')
 
     def _restore(self, kept: DynamicsSnapshot, switch: ConstraintSwitch) -> None:
         """Continue from a kept snapshot; then apply the constraint set in force now, if it differs."""

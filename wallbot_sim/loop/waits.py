@@ -41,6 +41,8 @@ class Lockstep:
     def __init__(self) -> None:
         self.serial = self.sync_serial = 0
         """Commands received; that count when a sync state went out."""
+        self.sync_delivered = True
+        """Whether the controller's odometry carried the last state published."""
         self.first_sync: int | None = None
         """``serial`` when this process published its first state (None: none yet)."""
         self.since: float | None = None
@@ -54,16 +56,17 @@ class Lockstep:
         lost, self.lost = self.lost, False
         return lost
 
-    def mark_sync(self) -> None:
-        """A state was just published: lockstep waits for a command newer than this."""
-        self.sync_serial = self.serial
+    def mark_sync(self, delivered: bool = True) -> None:
+        """A state was just published: lockstep waits for a command newer than this, if the controller's odometry
+        carried it (``delivered``; a sensor dropout silences it)."""
+        self.sync_serial, self.sync_delivered = self.serial, delivered
         if self.first_sync is None:
             self.first_sync = self.serial
 
     def awaited(self, every: int, steps: int, trajectory: bool, catching_up: bool) -> bool:
         """Whether the last published state, the simulation at ``steps``, was a sync state whose answer (a command
         that arrived after it) is still to come."""
-        return (every > 0 and not trajectory and not self.lost and steps % every == 0
+        return (every > 0 and not trajectory and not self.lost and steps % every == 0 and self.sync_delivered
                 and self.serial == self.sync_serial and not catching_up)
 
     def first_answer_pending(self) -> bool:

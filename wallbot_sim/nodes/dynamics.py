@@ -49,6 +49,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
                               RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
+from wallbot_sim.loop.faults import FaultChange, FaultSchedule, faults_on
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
@@ -58,7 +59,7 @@ from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_re
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
 from wallbot_sim.settings.dynamics import DYNAMICS, NOISE_PARAMETERS, DynamicsSettings
-from wallbot_sim.settings.table import SettingsTable, changed
+from wallbot_sim.settings.table import SettingsTable, changed, text_of
 from wallbot_sim.urdf import RobotFrames
 
 BURST_CONTROL_ODOM_EVERY = 10
@@ -90,7 +91,8 @@ class DynamicsNode(Node):
             self._load_kernel()
         self._warn_lockstep_unseen()
         self.exit_status: int | None = None
-        """Set once the node cannot go on (its start gave up): ``common.run_nodes`` ends the process with it."""
+        """Set once the node cannot go on (its start gave up, or a strict lockstep's answer did not come):
+        ``common.run_nodes`` ends the process with it."""
         self.loop = DynamicsLoop(self.settings, load_robot_parameters(self.settings.robot_file or None), self,
                                  self.get_logger(), Pacer(self.settings.realtime_priority, self.get_logger().warning))
         self._create_publishers(frames)
@@ -130,11 +132,14 @@ class DynamicsNode(Node):
         self.domain_clock_pub = (self.create_publisher(ClockMsg, topics.DOMAIN_CLOCK.name,
                                                        qos_profile(topics.DOMAIN_CLOCK))
                                  if self.settings.domain_clock else None)
+        self.fault_pub = self.create_publisher(DiagnosticArray, topics.FAULTS.name, qos_profile(topics.FAULTS))
         levels = NoiseLevels(*(getattr(self.settings, name) for name in NOISE_PARAMETERS))
         self.noise = SensorNoise(levels, self.settings.noise_seed) if levels.on else None
+        # the state beside a noisy odom, or one the schedule silences for a while: a bag keeps every state
+        truth = levels.on or FaultSchedule.sets(self.loop.schedule.pending, 'drop_odom')
         self.encoder = StepEncoder(frames.odom, frames.base_link, levels.pose_variances(),
-                                   levels.twist_variances(), ground_truth=levels.on)
-        if levels.on:
+                                   levels.twist_variances(), ground_truth=truth)
+        if truth:
             self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(
                 Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
 
@@ -290,8 +295,11 @@ class DynamicsNode(Node):
     def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
               heard: set[topics.Topic], controller: bool, ahead: float) -> None:
         """Publish one state's messages (/clock if ``clock``, the others where ``heard``, odom on control_odom if
-        ``controller``: ``_to_controller``); hand them to the tap, ``ahead`` seconds before the state is due (the
-        loop does so only for a state nobody outside hears)."""
+        ``controller``: ``_to_controller``) but those a sensor dropout silences; hand them to the tap, ``ahead``
+        seconds before the state is due (the loop does so only for a state nobody outside hears)."""
+        silenced = self.loop.silenced
+        if silenced:
+            encoded = [(topic, data) for topic, data in encoded if topic not in silenced]
         for topic, data in encoded:
             if topic is not topics.CLOCK:
                 if topic in heard:
@@ -307,6 +315,11 @@ class DynamicsNode(Node):
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
         self.snapshot_pub.publish(encode_snapshot(snapshot))
+
+    def publish_fault(self, change: FaultChange) -> None:
+        self.fault_pub.publish(codec.fault_event(
+            change.t, self.get_fully_qualified_name(), change.changed, change.cause,
+            [(name, text_of(value)) for name, value in change.values], 'warn' if faults_on(self.loop.settings) else 'ok'))
 
     def recorder_present(self) -> bool:
         return self.count_publishers(self.progress_topic) > 0

@@ -35,6 +35,10 @@ ENGINE_HELP = ("how the steps are computed: numba (the batch's compiled kernel, 
                'then it loads from there), or python (the model as written, the reference)')
 NO_KEEPER = 'no keeper of snapshots in this process'
 """Why the composed process (``dynamics_recorder_node``) fixes resume_wait and snapshot_period at 0."""
+EFFICIENCY = NumberRange(0.0, 1.0)
+"""A motor's delivered share of its commanded torque: 1 healthy, 0 dead."""
+ADHESION_SCALE = NumberRange(1e-3, 10.0)
+"""The adhesion force relative to the configured one (a suction fault below 1); the model needs a positive force."""
 NOISE = NumberRange(0.0, 10.0)
 RATE_NOISE = NumberRange(0.0, 100.0)
 
@@ -92,6 +96,22 @@ class DynamicsSettings:
     engine: str = setting(NUMBA, ENGINE_HELP, choices=ENGINES, read_only=True)
     adhesion_force: float = setting(0.0, 'force pressing the robot to the wall (N)',
                                     NumberRange(0.0, 1e6, low_open=True, zero="the robot file's"))
+    adhesion_scale: float = setting(1.0, "a suction fault: the adhesion force relative to adhesion_force (or the robot "
+                                         "file's)", ADHESION_SCALE)
+    motor_efficiency_left: float = setting(1.0, 'a motor fault: the share of the commanded left side torque the left '
+                                                'motor delivers (0: dead)', EFFICIENCY)
+    motor_efficiency_right: float = setting(1.0, 'a motor fault: the share of the commanded right side torque the '
+                                                 'right motor delivers (0: dead)', EFFICIENCY)
+    drop_odom: bool = setting(False, 'a sensor fault: odom and control_odom go silent (ground_truth/odom, where '
+                                     'published, keeps the state)')
+    drop_wheel_states: bool = setting(False, 'a sensor fault: wheel_states goes silent')
+    fault_schedule: str = setting('', 'faults at simulation times: entries "at=T NAME=VALUE ..." separated by ";", '
+                                      'each NAME a fault parameter (adhesion_scale, motor_efficiency_left, '
+                                      'motor_efficiency_right, drop_odom, drop_wheel_states) set at the step boundary '
+                                      'at T s; empty = none', read_only=True)
+    strict_lockstep: bool = setting(False, 'a lockstep wait that reaches lockstep_timeout ends the run (the node exits '
+                                           '1 naming the state left unanswered) instead of stepping on',
+                                    read_only=True)
     backpressure_window: int = setting(BACKPRESSURE_WINDOW, "max steps ahead of a recorder's record_progress "
                                                             '(any factor)', NumberRange(1, 1_000_000))
     snapshot_period: float = setting(0.01, 'simulation seconds between state snapshots (kept by the recorder for a '
@@ -131,6 +151,8 @@ DYNAMICS = table_of(DynamicsSettings)
 NOISE_PARAMETERS = ('odom_noise_position', 'odom_noise_heading', 'odom_noise_linear', 'odom_noise_angular',
                     'encoder_noise', 'encoder_velocity_noise')
 """The sensor noise settings, in the order of ``NoiseLevels``' fields."""
+FAULT_PARAMETERS = ('adhesion_scale', 'motor_efficiency_left', 'motor_efficiency_right', 'drop_odom', 'drop_wheel_states')
+"""The fault settings (``loop.faults``): changed while running, or at simulation times by ``fault_schedule``."""
 COMPOSED = DYNAMICS.fixing({'resume_wait': (0.0, NO_KEEPER), 'snapshot_period': (0.0, NO_KEEPER)})
 """The dynamics' settings in the composed process (``dynamics_recorder_node``): with no keeper of snapshots there,
 a start never waits for one, and a snapshot is published only at events."""
