@@ -15,7 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from wallbot_sim.cli.monitor import Monitor  # noqa: E402
+from wallbot_sim.graph_monitor import Monitor  # noqa: E402
 
 
 def main() -> int:

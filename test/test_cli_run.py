@@ -449,7 +449,7 @@ def test_the_monitor_follows_its_robot_through_a_reset_and_reads_only_its_diagno
 
     from wallbot_msgs_py import topics
     from wallbot_msgs_py.qos import qos_profile
-    from wallbot_sim.cli.monitor import Monitor
+    from wallbot_sim.graph_monitor import Monitor
 
     monitor = Monitor()
     context = rclpy.Context()

@@ -63,6 +63,9 @@ ENGINE = DYNAMICS['engine'].default
 DRIVE_TOPICS = {'cmd_vel': (topics.WHEEL_TORQUE_CMD, topics.CMD_VEL),
                 'joint_commands': (topics.WHEEL_TORQUE_CMD, topics.JOINT_COMMANDS, topics.JOINT_STATES)}
 """What a driven run records besides topics.RECORDED (wheel_torque_cmd: the torques applied)."""
+TESTED_DRIVES = {'wheel_torque_cmd': (topics.WHEEL_TORQUE_CMD,), **DRIVE_TOPICS}
+"""What a controller under test may publish (``describe_tested_graph``), and what its run records besides
+topics.RECORDED."""
 REST = InitialPose(0.0, 0.0, 0.0, True)
 """Where a driven run starts: at rest at the origin, facing +X."""
 SIM_TIME = {'use_sim_time': True}
@@ -107,13 +110,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
     ``domain_clock`` false: the dynamics leaves the domain's ``/clock`` to another robot's.
     """
-    reference = scenario.reference
-    if isinstance(reference, Circle):
-        shape = {'shape': 'circle', 'radius': reference.radius}
-    elif isinstance(reference, FigureEight):
-        shape = {'shape': 'figure8', 'amplitude': reference.amplitude}
-    else:
-        raise GraphDescriptionError(f'scenario {scenario.name!r}: the trajectory node plays circles and figure-8s only')
+    trajectory = _trajectory(scenario, bag is not None)
     closed_loop = controller_mass_scale is not None
     if closed_loop:
         selection = DRIVEN
@@ -128,9 +125,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     specs += [
         node('constraint_config', 'wallbot_sim.nodes.constraint_config', CONSTRAINT_CONFIG,
              {**switches, **robot, **frames, 'wait_for_recorder': bag is not None, **SIM_TIME}),
-        node('trajectory', 'wallbot_sim.nodes.trajectory', TRAJECTORY, {
-            **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
-            'wait_for_recorder': bag is not None, **SIM_TIME}),
+        trajectory,
     ]
     if closed_loop:
         specs.append(node(CONTROLLER, 'wallbot_sim.nodes.controller', CONTROLLER_SETTINGS, {
@@ -178,6 +173,60 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                          adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine, frames,
                          domain_clock)
     return _with_recorder(specs, dynamics, recorder, compose)
+
+
+def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: int, *, stop_at: float, bag: Path,
+                          robot_file: Path | None = None, contact_model: str = 'ideal', adhesion_force: float = 0.0,
+                          controller_timeout: float = 5.0, start_timeout: float = 30.0, fault_schedule: str = '',
+                          engine: str = ENGINE) -> list[NodeSpec]:
+    """The graph ``wallbot-sim test`` (and the pytest fixture) runs a controller under test in, without it (the test
+    starts it as a process of its own): the driven robot (no trajectory task) of ``scenario``, with its trajectory
+    node publishing the reference to track (None: at rest at the origin, no reference), recorded (composed).
+
+    The dynamics runs as fast as the controller answers (factor 0) in strict lockstep: it publishes every
+    ``control_steps``-th state on control_odom and takes no step before the answer to it, at most
+    ``controller_timeout`` wall seconds (longer ends the run, the dynamics exiting 1 naming the state); it starts
+    once the controller hears it and gives up after ``start_timeout``; it stops at ``stop_at`` (s, the fixture moves
+    it). ``drive``: what the controller publishes, wheel_torque_cmd itself, or cmd_vel or joint_commands to the drive
+    node (``DRIVES``), which answers in lockstep with the controller. ``fault_schedule``: the dynamics' faults at
+    simulation times (``loop.faults``).
+    """
+    if drive not in TESTED_DRIVES:
+        raise GraphDescriptionError(f'unknown drive {drive!r}: use {", ".join(TESTED_DRIVES)}')
+    robot = {'robot_file': str(robot_file)} if robot_file is not None else {}
+    specs = [node('constraint_config', 'wallbot_sim.nodes.constraint_config', CONSTRAINT_CONFIG,
+                  {**switches_from_selection(DRIVEN), **robot, 'wait_for_recorder': True, **SIM_TIME})]
+    if scenario is not None:
+        specs.append(_trajectory(scenario, True))
+    if drive in DRIVES:
+        name, module, table = DRIVES[drive]
+        rate = {'rate_hz': round(DYNAMICS['rate_hz'].default / control_steps)}
+        specs.append(node(name, module, table, {**robot, **SIM_TIME, 'wait_for_recorder': True, 'answer_commands': True,
+                                                **rate}, CONTROLLER_REMAPS if drive == 'cmd_vel' else ()))
+    pose = scenario.initial if scenario is not None else REST
+    dynamics = _dynamics(pose, stop_at, 0.0, True, 0, robot, contact_model, adhesion_force, control_steps, engine, {},
+                         True)
+    dynamics = node(dynamics.name, dynamics.module, DYNAMICS, {
+        **dynamics.parameters, 'strict_lockstep': True, 'lockstep_timeout': float(controller_timeout),
+        'command_wait_timeout': float(start_timeout),
+        **({'command_sensor': 'wheel_states'} if drive == 'joint_commands' else {}),
+        **({'fault_schedule': fault_schedule} if fault_schedule else {})})
+    recorded = [t.name for t in (*topics.RECORDED, *TESTED_DRIVES[drive])]
+    return _with_recorder(specs, dynamics, {'output': str(bag), 'topics': recorded}, compose=True)
+
+
+def _trajectory(scenario: Scenario, recorded: bool) -> NodeSpec:
+    """The trajectory node playing ``scenario``'s reference; GraphDescriptionError for a shape it does not plan."""
+    reference = scenario.reference
+    if isinstance(reference, Circle):
+        shape = {'shape': 'circle', 'radius': reference.radius}
+    elif isinstance(reference, FigureEight):
+        shape = {'shape': 'figure8', 'amplitude': reference.amplitude}
+    else:
+        raise GraphDescriptionError(f'scenario {scenario.name!r}: the trajectory node plays circles and figure-8s only')
+    return node('trajectory', 'wallbot_sim.nodes.trajectory', TRAJECTORY, {
+        **shape, 'period': reference.period, 'center_x': reference.center[0], 'center_y': reference.center[1],
+        'wait_for_recorder': recorded, **SIM_TIME})
 
 
 def _with_recorder(specs: list[NodeSpec], dynamics: NodeSpec, recorder: dict[str, object],

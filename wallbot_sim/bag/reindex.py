@@ -267,3 +267,15 @@ def reindex(path: Path | str) -> ReindexReport:
         shutil.rmtree(work, ignore_errors=True)
     duration = (copy.last - copy.first) * 1e-9 if copy.first is not None else 0.0
     return ReindexReport(directory, writer.count, chunks, truncated, duration)
+
+
+def repair_unclosed(bag: Path) -> str:
+    """Rebuild the index and metadata.yaml of a bag its recorder could not close (it was killed, or the dynamics in
+    its process was); what was done, to append to a run's error ('' if the bag was closed, or holds no MCAP file)."""
+    if (bag / 'metadata.yaml').is_file() or not any(bag.glob('*.mcap')):
+        return ''
+    try:
+        repaired = reindex(bag)
+    except BagError as error:
+        return f' (its recorder did not close it, and reindexing failed: {error})'
+    return f' (its recorder did not close it; reindexed: {repaired.messages} messages, {repaired.duration:.3f} s)'

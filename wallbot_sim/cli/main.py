@@ -18,8 +18,9 @@ from wallbot_sim.model.errors import ModelError
 from wallbot_sim.plots.errors import PlotError
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.sweep.errors import SweepError
+from wallbot_sim.testing.errors import ControllerWouldNotStart, SpecError
 
-USER_ERRORS = (CliError, BagError, ModelError, PlotError, RunDataError, SweepError)
+USER_ERRORS = (CliError, BagError, ModelError, PlotError, RunDataError, SweepError, SpecError, ControllerWouldNotStart)
 """What a verb may raise for bad input: printed as one line, exit status 2 (or a CliError's code).
 The libraries' errors know nothing of the command line; this is the one place that maps them."""
 
@@ -33,6 +34,7 @@ VERBS = {
     'bag': 'wallbot_sim.cli.bag',
     'motors': 'wallbot_sim.cli.motors',
     'sweep': 'wallbot_sim.cli.sweep',
+    'test': 'wallbot_sim.cli.test',
 }
 
 

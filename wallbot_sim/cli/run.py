@@ -22,7 +22,6 @@ from typing import Callable
 
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.engine import load_compiled_kernel, require_compiled_engine
-from wallbot_sim.cli.monitor import Monitor
 from wallbot_sim.cli.options import add_graph_option
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
@@ -32,6 +31,7 @@ from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable,
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER, RECORDER, VIEWER,
                                            GraphDescriptionError, describe_driven_graph, describe_graph)
+from wallbot_sim.graph_monitor import Monitor
 from wallbot_sim.graph_options import option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot
@@ -281,6 +281,7 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
                 load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
             run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
+            from wallbot_sim.bag.reindex import repair_unclosed
             raise CliError(f'{died}; partial bag kept in {bag}{repair_unclosed(bag)}', code=1) from None
         except KeyboardInterrupt:
             if duration > 0 or progress.latest is None:
@@ -291,20 +292,6 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
             report(bag, out, robot, plots=not args.no_plots)
             return 130
     return report(bag, out, robot, plots=not args.no_plots)
-
-
-def repair_unclosed(bag: Path) -> str:
-    """Rebuild the index and metadata.yaml of a bag its recorder could not close (it was killed, or the
-    dynamics in its process was); what was done, to append to the run's error."""
-    from wallbot_sim.bag.errors import BagError
-    from wallbot_sim.bag.reindex import reindex
-    if (bag / 'metadata.yaml').is_file() or not any(bag.glob('*.mcap')):
-        return ''
-    try:
-        repaired = reindex(bag)
-    except BagError as error:
-        return f' (its recorder did not close it, and reindexing failed: {error})'
-    return f' (its recorder did not close it; reindexed: {repaired.messages} messages, {repaired.duration:.3f} s)'
 
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:

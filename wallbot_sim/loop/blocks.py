@@ -261,7 +261,7 @@ class Blocks:
             lateness = pacer.wait(steps, sim.dt, lambda: loop.factor, loop.stopping)
         count_step(window, ahead.step_time, lateness)
         state.send(clock, max(-lateness, 0.0))
-        loop.lockstep.mark_sync(not loop.settings.drop_odom)
+        loop.lockstep.mark_sync(loop.commander_hears())
         loop.statistics.note_residual(float(ahead.block.table.residual[row]))
         ahead.published += 1
         return early, woke, last

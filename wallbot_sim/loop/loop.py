@@ -334,6 +334,11 @@ class DynamicsLoop:
         self.status = Status(RunState.RUNNING)
         return True
 
+    def commander_hears(self) -> bool:
+        """Whether the commander's sensor (``command_sensor``) carries the states published now (no dropout)."""
+        return not (self.settings.drop_odom if self.settings.command_sensor == 'odom'
+                    else self.settings.drop_wheel_states)
+
     def answer_awaited(self) -> bool:
         """Lockstep: whether the last published state was a sync state whose answer is still to come
         (``Lockstep.awaited``)."""
@@ -411,7 +416,7 @@ class DynamicsLoop:
         count_step(window, step_time, self.pacer.wait(sim.steps, sim.dt, lambda: self.factor, self.stopping))
         if publish:
             send()
-            self.lockstep.mark_sync(not self.settings.drop_odom)
+            self.lockstep.mark_sync(self.commander_hears())
             every = snapshot_every(self.settings.snapshot_period, sim.dt)
             if every > 0 and sim.steps % every == 0:
                 self.snapshot()
@@ -436,4 +441,4 @@ class DynamicsLoop:
         self.last_outputs = out
         self.statistics.note_residual(out.residual)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
-        self.lockstep.mark_sync(not self.settings.drop_odom)
+        self.lockstep.mark_sync(self.commander_hears())

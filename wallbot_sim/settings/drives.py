@@ -46,6 +46,10 @@ class CmdVelSettings:
     max_wheel_torque: float = setting(LOOP.max_wheel_torque, "side torque limit (N m; the dynamics' limit)",
                                       WHEEL_TORQUE_LIMIT)
     wait_for_recorder: bool = recorder_wait('subscribe odom (and so let the dynamics start)')
+    answer_commands: bool = setting(False, 'in lockstep with a commander under test: answer a control instant only '
+                                           'once a cmd_vel stamped with its state came (the commander answers each '
+                                           'control_odom state), and subscribe odom only once every cmd_vel publisher '
+                                           'subscribes control_odom', read_only=True)
     use_sim_time: bool = sim_time()
 
 
@@ -62,6 +66,9 @@ class JointBridgeSettings:
     robot_file: str = setting('', 'unused: accepted so that every node of a run takes the same robot file',
                               read_only=True)
     wait_for_recorder: bool = recorder_wait('subscribe joint_commands and wheel_states')
+    answer_commands: bool = setting(False, 'in lockstep with a commander under test, which answers each joint_states '
+                                           'with one joint_commands: subscribe wheel_states only once every '
+                                           'joint_commands publisher hears joint_states', read_only=True)
     use_sim_time: bool = sim_time()
 
 

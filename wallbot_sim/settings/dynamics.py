@@ -35,6 +35,7 @@ ENGINE_HELP = ("how the steps are computed: numba (the batch's compiled kernel, 
                'then it loads from there), or python (the model as written, the reference)')
 NO_KEEPER = 'no keeper of snapshots in this process'
 """Why the composed process (``dynamics_recorder_node``) fixes resume_wait and snapshot_period at 0."""
+COMMAND_SENSORS = ('odom', 'wheel_states')
 EFFICIENCY = NumberRange(0.0, 1.0)
 """A motor's delivered share of its commanded torque: 1 healthy, 0 dead."""
 ADHESION_SCALE = NumberRange(1e-3, 10.0)
@@ -84,6 +85,10 @@ class DynamicsSettings:
     lockstep_every: int = setting(0, 'driven mode: after publishing every Nth step, wait for the command answering '
                                      'that state before stepping on (at most lockstep_timeout); 0 = off',
                                   NumberRange(0, 1_000_000))
+    command_sensor: str = setting('odom', 'the topic the commander answers in driven mode: odom (or control_odom), or '
+                                          'wheel_states (joint_bridge_node, ros2_control); a start waits for a commander '
+                                          'subscribing it, and while a dropout silences it lockstep waits for no answer',
+                                  choices=COMMAND_SENSORS, read_only=True)
     lockstep_timeout: float = setting(2.0, 'wall seconds lockstep waits for a command before stepping on without it '
                                            'until commands return (a dead controller costs this once)',
                                       NumberRange(0.01, 60.0))

@@ -1,0 +1,134 @@
+"""What a launcher sees of the graph it started (``wallbot-sim run``, ``wallbot-sim test``, the pytest fixture): how far
+the recorder got, the dynamics' diagnostics and the state it last published, the trajectory node's reference poses;
+and the dynamics' parameters it sets. A node of its own, in the run's domain and the robot's namespace."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Mapping
+
+from wallbot_msgs_py import codec, topics
+from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot
+from wallbot_sim import messages
+
+PARAMETER_TIMEOUT = 10.0
+"""Wall seconds a parameter set waits for the dynamics' answer."""
+
+
+class ParameterRefused(RuntimeError):
+    """The dynamics refused a parameter set, or did not answer it (the one-line reason)."""
+
+
+class Monitor:
+    """The launcher's own view of the graph: how far the recorder got, the dynamics' diagnostics and latest state.
+
+    ``domain_id``: the run's ROS_DOMAIN_ID, for a launcher whose environment names another (the pytest fixture; a
+    ``wallbot-sim`` verb exports the run's domain instead); discovery stays on this machine either way."""
+
+    def __init__(self, namespace: str = topics.NAMESPACE, domain_id: int | None = None) -> None:
+        import rclpy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from nav_msgs.msg import Odometry
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import Float64MultiArray
+
+        from wallbot_msgs_py.qos import qos_profile
+        from wallbot_sim.nodes.common import events_executor
+        self._rclpy = rclpy
+        self.context = rclpy.Context()
+        saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read as the context is made
+        try:
+            rclpy.init(context=self.context, domain_id=domain_id,
+                       signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+        finally:
+            if saved is None:
+                os.environ.pop('ROS_AUTOMATIC_DISCOVERY_RANGE')
+            else:
+                os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved
+        self.node = rclpy.create_node('run_monitor', namespace=namespace, context=self.context)
+        self.executor = events_executor(self.context)  # a callback per message, no wait set per wake-up
+        self.executor.add_node(self.node)
+        self.recorded = -math.inf
+        """Simulation time up to which the recorder has written the run: its newest record_progress (which
+        goes back with the run at a ``~/reset`` of the dynamics)."""
+        self.diagnostics: dict[str, str] = {}
+        """The values of the newest status of the dynamics in ``namespace``."""
+        self.snapshot: DynamicsSnapshot | None = None
+        """The newest state the dynamics published as a snapshot (at its events, and where a stop holds it)."""
+        self.reference_time = -math.inf
+        self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
+        self._parameters = None
+        self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
+                                      qos_profile(topics.RECORD_PROGRESS), raw=True)
+        self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
+                                      qos_profile(topics.DIAGNOSTICS), raw=True)
+        # only the stamp is read (100 poses per simulated second)
+        self.node.create_subscription(Odometry, topics.REFERENCE.name, self._on_reference,
+                                      qos_profile(topics.REFERENCE), raw=True)
+        self.node.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
+                                      qos_profile(topics.STATE_SNAPSHOT), raw=True)
+
+    def _on_progress(self, data: bytes) -> None:
+        self.recorded = codec.decode_clock(data) * 1e-9
+
+    def _on_reference(self, data: bytes) -> None:
+        stamp_ns = codec.leading_stamp_ns(data)
+        if stamp_ns is not None:
+            self.reference_time = stamp_ns * 1e-9
+
+    def _on_snapshot(self, data: bytes) -> None:
+        try:
+            self.snapshot = decode_snapshot(data)
+        except ValueError:
+            return
+
+    def _on_diagnostics(self, data: bytes) -> None:
+        try:  # every robot of the domain publishes on /diagnostics: its own dynamics' status only
+            status = codec.simulation_status(codec.decode_diagnostics(data).statuses, self.node.get_namespace())
+        except ValueError:
+            return
+        if status is not None:
+            self.diagnostics = status.value_map()
+
+    @property
+    def status(self) -> str:
+        """The dynamics' newest status ('running', 'stopped at ...', 'gave up: ...'), '' before its first."""
+        return self.diagnostics.get('status', '')
+
+    def dynamics_stopped(self) -> bool:
+        """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
+        return self.status.startswith('stopped')
+
+    def reference_reached(self, duration: float) -> bool:
+        """Whether the trajectory node has published its last reference pose of a run of ``duration``."""
+        return self.reference_time >= duration - 1.0 / messages.PUBLISH_RATE_HZ - 1e-9
+
+    def spin(self, seconds: float) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+
+    def recorder_ready(self) -> bool:
+        return self.node.count_publishers(self.progress_topic) > 0
+
+    def set_dynamics_parameters(self, values: Mapping[str, object]) -> None:
+        """Set parameters of the dynamics as ``ros2 param set`` does (they apply at its next step boundary);
+        ParameterRefused with the dynamics' reason if it refuses one, or if it does not answer."""
+        from rclpy.parameter import Parameter
+        from rclpy.parameter_client import AsyncParameterClient
+        if self._parameters is None:
+            self._parameters = AsyncParameterClient(self.node, topics.NODE_DYNAMICS)
+        if not self._parameters.wait_for_services(PARAMETER_TIMEOUT):
+            raise ParameterRefused(f'the dynamics offers no parameter service within {PARAMETER_TIMEOUT:g} s')
+        future = self._parameters.set_parameters([Parameter(name, value=value) for name, value in values.items()])
+        self.executor.spin_until_future_complete(future, timeout_sec=PARAMETER_TIMEOUT)
+        if not future.done():
+            raise ParameterRefused(f'the dynamics did not answer a parameter set within {PARAMETER_TIMEOUT:g} s')
+        refused = [result.reason for result in future.result().results if not result.successful]
+        if refused:
+            raise ParameterRefused('; '.join(refused))
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self._rclpy.try_shutdown(context=self.context)
