@@ -67,8 +67,9 @@ setup(
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'foxglove': ['foxglove-sdk'],
         # mujoco: the independent engine the contact model is checked against (test/test_peer_mujoco.py)
+        # xmlschema: the JUnit files of wallbot-sim test are validated against the JUnit schema (test/data)
         'test': ['pytest', 'pytest-xdist', 'mcap', 'colcon-common-extensions', 'import-linter', 'yourdfpy', 'foxglove-sdk',
-                 'websockets', 'mujoco'],
+                 'websockets', 'mujoco', 'xmlschema'],
     },
     # ignored (with a warning) by setuptools >= 72; kept for older colcon/setuptools setups
     tests_require=['pytest'],
@@ -90,5 +91,7 @@ setup(
             'joint_bridge_node = wallbot_sim.nodes.joint_bridge:main',
             'viewer_node = wallbot_sim.nodes.viewer:main',
         ],
+        # the ``wallbot`` fixture of controller tests (wallbot_sim/testing/plugin.py), in every pytest run
+        'pytest11': ['wallbot_sim = wallbot_sim.testing.plugin'],
     },
 )

@@ -178,7 +178,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
 def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: int, *, stop_at: float, bag: Path,
                           robot_file: Path | None = None, contact_model: str = 'ideal', adhesion_force: float = 0.0,
                           controller_timeout: float = 5.0, start_timeout: float = 30.0, fault_schedule: str = '',
-                          engine: str = ENGINE) -> list[NodeSpec]:
+                          ground_truth: bool = False, engine: str = ENGINE) -> list[NodeSpec]:
     """The graph ``wallbot-sim test`` (and the pytest fixture) runs a controller under test in, without it (the test
     starts it as a process of its own): the driven robot (no trajectory task) of ``scenario``, with its trajectory
     node publishing the reference to track (None: at rest at the origin, no reference), recorded (composed).
@@ -189,7 +189,8 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
     once the controller hears it and gives up after ``start_timeout``; it stops at ``stop_at`` (s, the fixture moves
     it). ``drive``: what the controller publishes, wheel_torque_cmd itself, or cmd_vel or joint_commands to the drive
     node (``DRIVES``), which answers in lockstep with the controller. ``fault_schedule``: the dynamics' faults at
-    simulation times (``loop.faults``).
+    simulation times (``loop.faults``). ``ground_truth``: the exact state on ground_truth/odom too, so the bag keeps
+    every state while a fault silences odom.
     """
     if drive not in TESTED_DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {", ".join(TESTED_DRIVES)}')
@@ -210,7 +211,8 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
         **dynamics.parameters, 'strict_lockstep': True, 'lockstep_timeout': float(controller_timeout),
         'command_wait_timeout': float(start_timeout),
         **({'command_sensor': 'wheel_states'} if drive == 'joint_commands' else {}),
-        **({'fault_schedule': fault_schedule} if fault_schedule else {})})
+        **({'fault_schedule': fault_schedule} if fault_schedule else {}),
+        **({'ground_truth': True} if ground_truth else {})})
     recorded = [t.name for t in (*topics.RECORDED, *TESTED_DRIVES[drive])]
     return _with_recorder(specs, dynamics, {'output': str(bag), 'topics': recorded}, compose=True)
 

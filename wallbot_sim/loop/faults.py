@@ -111,11 +111,6 @@ class FaultSchedule:
             return None
         return max(round((self.pending[0].at - t) / dt), 0)
 
-    @staticmethod
-    def sets(entries: Iterable[ScheduledFault], name: str) -> bool:
-        """Whether an entry of ``entries`` sets the fault setting ``name`` to something other than its default."""
-        default = DYNAMICS[name].default
-        return any(value != default for fault in entries for changed, value in fault.changes if changed == name)
 
 
 def fault_values(settings: DynamicsSettings) -> tuple[tuple[str, Value], ...]:

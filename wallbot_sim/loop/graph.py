@@ -39,7 +39,8 @@ class Graph(Protocol):
         """Whether some node publishes resume_state."""
 
     def controller_listening(self) -> bool:
-        """Whether a wheel_torque_cmd publisher exists and hears odom (see ``heard_by_every``)."""
+        """Whether a wheel_torque_cmd publisher exists and hears the command sensor, odom (or control_odom) or
+        wheel_states (``command_sensor``; see ``heard_by_every``)."""
 
 
 @dataclass(frozen=True)

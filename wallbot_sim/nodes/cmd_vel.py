@@ -23,6 +23,12 @@ dynamics in lockstep with it (``lockstep_every`` = 1000 / ``rate_hz``) steps onl
 answers and a run does not depend on CPU load. With ``wait_for_recorder`` (``wallbot-sim run``
 sets it when it records) the node subscribes odom, and so lets such a dynamics start, only once
 a recorder hears ``wheel_torque_cmd``: the bag holds every command from t = 0.
+
+With ``answer_commands`` (``wallbot-sim test`` sets it: a controller under test publishes cmd_vel) the
+commander is in the lockstep too: it answers each control_odom state with a TwistStamped stamped with
+that state's stamp, and the node answers that instant only once that cmd_vel came, taking it as the
+command at that instant. It subscribes odom, and so lets the dynamics start, only once every cmd_vel
+publisher subscribes control_odom, so the commander hears the first state.
 """
 
 from __future__ import annotations
@@ -39,13 +45,16 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.wheel_speed import AxisLimits, WheelSpeedController, WheelSpeedSettings
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, run, subscribe_odom_when_recorded
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, HeldCommands, run, senders_listen, steady_timer,
+                                      subscribe_odom_when_recorded)
 from wallbot_sim.nodes.parameters import declare_setting, declare_typed, param_dict, parameter_result
 from wallbot_sim.settings.drives import CMD_VEL, CmdVelSettings
 from wallbot_sim.settings.table import changed, parameters
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
+COMMANDER_CHECK = 0.02
+"""Wall seconds between looks for a commander hearing odom (answer_commands)."""
 TUNED = ('wheel_separation', 'wheel_radius', 'cmd_vel_timeout', 'linear.x.max_velocity', 'linear.x.max_acceleration',
          'angular.z.max_velocity', 'angular.z.max_acceleration', 'wheel_speed_kp', 'wheel_speed_ki',
          'max_wheel_torque')
@@ -71,12 +80,19 @@ class CmdVelNode(Node):
         self.settings: CmdVelSettings = declare_typed(self, CmdVelSettings, CMD_VEL, {
             'wheel_separation': 2.0 * robot.half_track, 'wheel_radius': robot.wheel_radius})
         self.use_stamped, self.rate_hz = self.settings.use_stamped_vel, self.settings.rate_hz
+        if self.settings.answer_commands and not self.use_stamped:
+            raise ValueError('answer_commands needs use_stamped_vel: an answer names its state by its stamp')
         self.controller = WheelSpeedController(loop_settings(self.settings))
         self.instants = ControlInstants(int(self.rate_hz))
         self.now_ns: int | None = None
         """The newest odometry stamp: simulation time as this node knows it."""
         self.early: tuple[float, float] | None = None
         """The newest cmd_vel that came before any odometry."""
+        self.answers: dict[int, tuple[float, float]] = {}
+        """With answer_commands: the cmd_vel answering each state (its stamp), not used yet."""
+        self.unanswered: tuple[int, tuple[float, float]] | None = None
+        """With answer_commands: the control instant (stamp, measured wheel speeds) waiting for its cmd_vel."""
+        self.commander_check = None
 
         publisher = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                           qos_profile(topics.WHEEL_TORQUE_CMD))
@@ -91,11 +107,28 @@ class CmdVelNode(Node):
             'of simulation time; ' + ', '.join(f'{name} {parameters(self.settings)[name]:g}' for name in TUNED))
 
     def _subscribe_odom(self) -> None:
+        if self.settings.answer_commands and not senders_listen(self, self.resolve_topic_name(topics.CMD_VEL.name),
+                                                                 self.resolve_topic_name(topics.ODOM.name)):
+            if self.commander_check is None:  # until the commander hears the states it answers
+                self.commander_check = steady_timer(self, COMMANDER_CHECK, self._subscribe_odom)
+            return
+        if self.commander_check is not None:
+            self.commander_check.cancel()
+            self.get_logger().info('the commander hears odom: subscribing it')
         # raw: of the 1 kHz odometry only the states acted on are decoded
         self.create_subscription(Odometry, topics.ODOM.name, self._on_odom, qos_profile(topics.ODOM), raw=True)
 
     def _on_cmd_vel(self, data: bytes) -> None:
-        self._command(*codec.decode_cmd_vel(data, self.use_stamped))
+        command = codec.decode_cmd_vel(data, self.use_stamped)
+        if not self.settings.answer_commands:
+            self._command(*command)
+            return
+        stamp_ns = codec.leading_stamp_ns(data)
+        if stamp_ns is None:
+            return
+        self.answers[stamp_ns] = command
+        if self.unanswered is not None and self.unanswered[0] in self.answers:
+            self._answer(*self.unanswered)
 
     def _command(self, linear: float, angular: float) -> None:
         if self.now_ns is None:  # before the first odometry: received when simulation time is known
@@ -131,6 +164,23 @@ class CmdVelNode(Node):
         s = self.controller.settings
         half = 0.5 * s.wheel_separation
         measured = ((forward - half * yaw_rate) / s.wheel_radius, (forward + half * yaw_rate) / s.wheel_radius)
+        if self.settings.answer_commands:
+            self.answers = {stamp: command for stamp, command in self.answers.items() if stamp >= stamp_ns}
+            self.unanswered = (stamp_ns, measured)
+            if stamp_ns in self.answers:
+                self._answer(stamp_ns, measured)
+            return
+        self._act(stamp_ns, measured)
+
+    def _answer(self, stamp_ns: int, measured: tuple[float, float]) -> None:
+        """The control instant at ``stamp_ns`` with the commander's answer to it (answer_commands)."""
+        self.unanswered = None
+        self._command(*self.answers.pop(stamp_ns))
+        self._act(stamp_ns, measured)
+
+    def _act(self, stamp_ns: int, measured: tuple[float, float]) -> None:
+        """The wheel-speed loop at the control instant ``stamp_ns``, the wheels turning at ``measured`` (rad/s)."""
+        s = self.controller.settings
         was_timed_out = self.controller.timed_out
         out = self.controller.update(stamp_ns * 1e-9, *measured)
         if self.controller.timed_out and not was_timed_out:

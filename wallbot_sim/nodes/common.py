@@ -211,11 +211,17 @@ def heard_by_every(node: Node, publisher: Publisher, senders_topic: str) -> bool
     Endpoints of nodes not yet identified all carry UNKNOWN_NODE, which would make a sender look
     like it subscribes when another unidentified node does: not ready until every sender is known.
     """
-    senders = {(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(senders_topic)}
     listeners = node.get_subscriptions_info_by_topic(publisher.topic_name)
-    return (bool(senders) and all(name != UNKNOWN_NODE for _namespace, name in senders)
-            and senders <= {(i.node_namespace, i.node_name) for i in listeners}
-            and publisher.get_subscription_count() >= len(listeners))
+    return senders_listen(node, senders_topic, publisher.topic_name) and publisher.get_subscription_count() >= len(
+        listeners)
+
+
+def senders_listen(node: Node, senders_topic: str, listened_topic: str) -> bool:
+    """Whether some node publishes on ``senders_topic`` and each such node, every one identified, subscribes
+    ``listened_topic`` (both resolved names): of the graph as ``node`` has discovered it."""
+    senders = {(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(senders_topic)}
+    listeners = {(i.node_namespace, i.node_name) for i in node.get_subscriptions_info_by_topic(listened_topic)}
+    return bool(senders) and all(name != UNKNOWN_NODE for _namespace, name in senders) and senders <= listeners
 
 
 def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Timer:

@@ -49,7 +49,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
                               RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
-from wallbot_sim.loop.faults import FaultChange, FaultSchedule, faults_on
+from wallbot_sim.loop.faults import FaultChange, faults_on
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
@@ -135,8 +135,7 @@ class DynamicsNode(Node):
         self.fault_pub = self.create_publisher(DiagnosticArray, topics.FAULTS.name, qos_profile(topics.FAULTS))
         levels = NoiseLevels(*(getattr(self.settings, name) for name in NOISE_PARAMETERS))
         self.noise = SensorNoise(levels, self.settings.noise_seed) if levels.on else None
-        # the state beside a noisy odom, or one the schedule silences for a while: a bag keeps every state
-        truth = levels.on or FaultSchedule.sets(self.loop.schedule.pending, 'drop_odom')
+        truth = levels.on or self.settings.ground_truth
         self.encoder = StepEncoder(frames.odom, frames.base_link, levels.pose_variances(),
                                    levels.twist_variances(), ground_truth=truth)
         if truth:
@@ -335,8 +334,9 @@ class DynamicsNode(Node):
     def controller_listening(self) -> bool:
         # and every discovered command publisher is matched here: its answer to the first state
         # must not be sent before (the other direction is the controller's to check)
-        return (any(heard_by_every(self, publisher, self.command_topic)
-                    for publisher in (self.publishers_[topics.ODOM], self.control_odom_pub))
+        sensors = ((self.publishers_[topics.ODOM], self.control_odom_pub) if self.settings.command_sensor == 'odom'
+                   else (self.publishers_[topics.WHEEL_STATES],))
+        return (any(heard_by_every(self, publisher, self.command_topic) for publisher in sensors)
                 and self.command_sub.get_publisher_count() >= self.count_publishers(self.command_topic))
 
     def _run_loop(self) -> None:

@@ -21,6 +21,11 @@ With ``wait_for_recorder`` (``wallbot-sim run`` sets it when it records) the nod
 ``joint_commands`` and ``wheel_states``, and so forwards anything, only once a recorder hears
 ``wheel_torque_cmd`` and ``joint_states``: the bag holds every command that reached the simulation
 and every joint state, also when a loaded machine's discovery matches the recorder late.
+
+With ``answer_commands`` (``wallbot-sim test`` sets it: a controller under test publishes joint_commands,
+one answering each joint_states, and the dynamics waits for it in lockstep, its ``command_sensor``
+wheel_states) it subscribes only once, besides, every joint_commands publisher hears joint_states (so
+the controller gets the first state), and holds a command until the dynamics hears it.
 """
 
 from __future__ import annotations
@@ -35,12 +40,14 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, WhenRecorded, heard_by_every, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.settings.drives import JOINT_BRIDGE, JointBridgeSettings
 
 THROTTLE = 1.0
 """Seconds between repeated log lines of one kind."""
+COMMANDER_CHECK = 0.02
+"""Wall seconds between looks for a commander hearing joint_states (answer_commands)."""
 
 
 class JointBridgeNode(Node):
@@ -50,10 +57,13 @@ class JointBridgeNode(Node):
         super().__init__(topics.NODE_JOINT_BRIDGE, namespace=topics.NAMESPACE, cli_args=ROBOT_CLOCK_ARGS, **kwargs)
         settings: JointBridgeSettings = declare_typed(self, JointBridgeSettings, JOINT_BRIDGE)
         rate_hz, self.max_torque = settings.rate_hz, settings.max_wheel_torque
+        self.answer_commands = settings.answer_commands
+        self.commander_check = None
         self.instants = ControlInstants(int(rate_hz))
         self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES))
         self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
+        self.held = HeldCommands(self, self.command_pub, topics.WHEEL_STATES.name) if self.answer_commands else None
         if settings.wait_for_recorder:
             WhenRecorded(self, [self.command_pub, self.state_pub], self._subscribe, 'a recorder hears '
                          'wheel_torque_cmd and joint_states: subscribing joint_commands and wheel_states')
@@ -65,6 +75,14 @@ class JointBridgeNode(Node):
                                f'wheel_torque_cmd (side totals within +-{self.max_torque:g} N m)')
 
     def _subscribe(self) -> None:
+        if self.answer_commands and not heard_by_every(self, self.state_pub,
+                                                       self.resolve_topic_name(topics.JOINT_COMMANDS.name)):
+            if self.commander_check is None:  # until the commander hears the states it answers
+                self.commander_check = steady_timer(self, COMMANDER_CHECK, self._subscribe)
+            return
+        if self.commander_check is not None:
+            self.commander_check.cancel()
+            self.get_logger().info('the commander hears joint_states: subscribing wheel_states and joint_commands')
         # raw: of the 1 kHz wheel states only those republished are decoded
         self.create_subscription(JointState, topics.WHEEL_STATES.name, self._on_wheel_states,
                                  qos_profile(topics.WHEEL_STATES), raw=True)
@@ -89,7 +107,11 @@ class JointBridgeNode(Node):
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
             return
-        self.command_pub.publish(codec.wheel_torque_cmd(left, right))
+        command = codec.wheel_torque_cmd(left, right)
+        if self.held is not None:
+            self.held.send(command)
+        else:
+            self.command_pub.publish(command)
 
     def _on_set(self, parameters):
         return parameter_result(JOINT_BRIDGE.reasons(param_dict(parameters)))

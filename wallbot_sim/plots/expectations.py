@@ -4,6 +4,7 @@ limit, the worst instant and the faults of the run (PNG, matplotlib's Agg backen
 from __future__ import annotations
 
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -46,7 +47,8 @@ def write_expectation_figure(path: Path, title: str, t: np.ndarray, series: Mapp
         ax.axvline(when, color='tab:purple', lw=1.0, alpha=0.7, label='fault' if k == 0 else None)
         ax.annotate(label, (when, 1.0), xycoords=('data', 'axes fraction'), rotation=90, va='top', ha='right',
                     fontsize='x-small', color='tab:purple')
-    ax.set(xlabel='time (s)', ylabel=ylabel, title=title)
+    ax.set(xlabel='time (s)', ylabel=ylabel)
+    ax.set_title(textwrap.fill(title, 90), fontsize='medium')
     ax.grid(True, alpha=0.3)
     ax.legend(loc='best', fontsize='small')
     fig.tight_layout()

@@ -146,6 +146,8 @@ class DynamicsSettings:
     encoder_velocity_noise: float = setting(0.0, 'standard deviation of the noise on each wheel speed in '
                                                  'wheel_states (rad/s); 0 = exact', NumberRange(0.0, 1000.0),
                                             read_only=True)
+    ground_truth: bool = setting(False, 'also publish the exact state on ground_truth/odom (as any sensor noise does): a '
+                                        'bag then keeps every state while odom is silent or noisy', read_only=True)
     noise_seed: int = setting(0, 'seed of the sensor noise (the same seed, the same noise)',
                               NumberRange(0, 2**31 - 1), read_only=True)
     use_sim_time: bool = setting(False, "rclpy's: follow a clock topic instead of the wall clock",

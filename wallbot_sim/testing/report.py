@@ -51,8 +51,6 @@ def failing_figure(verdict: Verdict, run: RunData, outcome: Outcome, folder: Pat
                    events: list[tuple[float, str]]) -> Path:
     """The figure of the quantity ``verdict`` judged, over ``run``."""
     name, title = verdict.name, f'{verdict.name}: {verdict.detail}'
-    if len(title) > 90:
-        title = title[:87] + '...'
     if name == 'max_tracking_error_after':
         start = outcome.spec.expect.max_tracking_error_after[0]
         series, ylabel, limit = {'tracking error': run.err}, 'tracking error (m)', Limit(verdict.limit, start)

@@ -7,7 +7,6 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from wallbot_sim.testing.expectations import Ending
 from wallbot_sim.testing.junit import write_junit
 from wallbot_sim.testing.outcome import Outcome, judged
 from wallbot_sim.testing.report import write_report
@@ -29,7 +28,7 @@ def run_spec(spec: Spec, out: Path, junit: Path | None = None,
         session.advance(duration)
         session.finish()
     except RunFailed as failure:
-        ending = Ending(session.now, str(failure), detached=str(failure).startswith('the simulation detached'))
+        ending = failure.ending(session.now)
     finally:
         session.close()
     outcome = judged(spec, session.bag, duration, ending, time.monotonic() - began)

@@ -27,6 +27,7 @@ from wallbot_sim.graph_description import DYNAMICS_RECORDER, describe_tested_gra
 from wallbot_sim.loop.faults import ScheduledFault, schedule_text
 from wallbot_sim.settings.dynamics import DYNAMICS
 from wallbot_sim.testing.errors import ControllerWouldNotStart, SpecError
+from wallbot_sim.testing.expectations import Ending
 from wallbot_sim.testing.spec import DROPS, Spec
 
 CONTROLLER = 'controller'
@@ -46,7 +47,15 @@ EPSILON = 1e-9
 
 class RunFailed(Exception):
     """The run ended before the time it was advanced to: the controller did not answer, or exited; a node died; the
-    robot left the wall or the simulation diverged (the one-line reason)."""
+    robot left the wall (``detached``) or the simulation diverged (the one-line reason)."""
+
+    def __init__(self, reason: str, detached: bool = False) -> None:
+        super().__init__(reason)
+        self.detached = detached
+
+    def ending(self, t: float) -> Ending:
+        """The run's ending, at simulation time ``t``."""
+        return Ending(t, str(self), self.detached)
 
 
 @dataclass(frozen=True)
@@ -67,10 +76,16 @@ class RobotState:
 class Session:
     """One run of ``spec`` with its controller: ``start`` it, ``advance`` it, ``inject`` faults, ``close`` it (always:
     every process ends, the domain is freed). Output in ``out``: the bag (``out/bag``) and each process's log
-    (``out/logs``)."""
+    (``out/logs``). ``ground_truth``: the exact state on ground_truth/odom too (a fault injected later may silence
+    odom)."""
 
-    def __init__(self, spec: Spec, out: Path, progress: Callable[[float], None] | None = None) -> None:
+    def __init__(self, spec: Spec, out: Path, progress: Callable[[float], None] | None = None,
+                 ground_truth: bool = False) -> None:
         self.spec, self.out, self.progress = spec, Path(out), progress
+        self.ground_truth = ground_truth or any(value is True and name == DROPS['odom']
+                                                for fault in spec.faults for name, value in fault.changes)
+        """Whether the dynamics publishes the exact state on ground_truth/odom: asked, or odom silenced by a fault, so
+        that the bag keeps every state."""
         self.bag = self.out / 'bag'
         if self.bag.exists():
             raise SpecError(f'{self.bag} exists already: choose another output directory')
@@ -109,7 +124,8 @@ class Session:
         return describe_tested_graph(spec.loaded_scenario(), spec.drive, spec.control_steps, stop_at=stop_at,
                                      bag=self.bag.resolve(), robot_file=spec.robot, contact_model=spec.contact,
                                      adhesion_force=spec.adhesion_force, controller_timeout=spec.controller_timeout,
-                                     start_timeout=spec.start_timeout, fault_schedule=schedule_text(spec.faults))
+                                     start_timeout=spec.start_timeout, fault_schedule=schedule_text(spec.faults),
+                                     ground_truth=self.ground_truth)
 
     def controller_env(self) -> dict[str, str]:
         """What the controller finds in its environment besides the domain (the module's docstring)."""
@@ -208,7 +224,7 @@ class Session:
             raise RunFailed(f'node {name} exited with status {status} at t = {self.now:.3f} s; its log: {log}')
         status = self.monitor.status
         if status.startswith(('detached', 'diverged')):
-            raise RunFailed(f'the simulation {status} at t = {self.now:.3f} s')
+            raise RunFailed(f'the simulation {status} at t = {self.now:.3f} s', detached=status.startswith('detached'))
 
     def _given_up(self) -> str | None:
         """Why the dynamics gave up (the controller did not come up or did not answer), from its last diagnostics,

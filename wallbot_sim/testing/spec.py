@@ -263,8 +263,13 @@ def fault_schedule(entries: Sequence[Mapping[str, Any]]) -> tuple[ScheduledFault
             spans.setdefault(name, {})[index] = (at, until)
         scheduled.append(ScheduledFault(at, tuple(changes.items())))
         if until < math.inf:
-            scheduled.append(ScheduledFault(until, tuple((name, DYNAMICS[name].default) for name in changes)))
+            scheduled.append(ScheduledFault(until, tuple(healed(changes).items())))
     return tuple(sorted(scheduled, key=lambda fault: fault.at))
+
+
+def healed(changes: Mapping[str, Any]) -> dict[str, Any]:
+    """The settings that end a fault of ``changes``: each back to its default (no fault)."""
+    return {name: DYNAMICS[name].default for name in changes}
 
 
 def fault_entry(entry: Any) -> tuple[float, float, dict[str, Any]]:
