@@ -38,13 +38,7 @@ def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple
     lift_off = np.max(-4.0 * loads, axis=1)  # a wheel's load is 0 here: below it the wheel is off the wall
     run_force = loads.sum(axis=1)
     resplit = _Resplit(loads, forces, robot)
-    low, high = lift_off, np.maximum(lift_off, 0.0) + run_force + 1.0
-    for _ in range(BISECTIONS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
-        short = ~resplit.holds(high)
-        if not short.any():
-            break
-        high = np.where(short, low + 2.0 * (high - low), high)
-    low, high = _bisect(resplit, low, high, COARSE)
+    low, high = _bisect(resplit, *_bracket(resplit, lift_off, run_force), COARSE)
     candidates = np.flatnonzero(run_force + high >= np.max(run_force + low))
     resplit = _Resplit(loads[candidates], forces[candidates], robot)
     low, high = _bisect(resplit, low[candidates], high[candidates], BISECTIONS - COARSE)
@@ -54,6 +48,26 @@ def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple
     lifts = high[j] - lift_off[k] <= 1e-9 * max(abs(needed[j]), 1.0)
     wheel = int(np.argmin(loads[k])) if lifts else int(np.argmax(resplit.use(np.full(len(high), high[j]))[j]))
     return float(needed[j]), k, wheel, bool(lifts)
+
+
+def needed_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> np.ndarray:
+    """Each sample's least adhesion force keeping its wheels on the wall with their forces in their discs (T,):
+    ``least_adhesion`` sample by sample, whose largest it is."""
+    run_force = loads.sum(axis=1)
+    resplit = _Resplit(loads, forces, robot)
+    _low, high = _bisect(resplit, *_bracket(resplit, np.max(-4.0 * loads, axis=1), run_force), BISECTIONS)
+    return run_force + high
+
+
+def _bracket(resplit: _Resplit, lift_off: np.ndarray, run_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds."""
+    low, high = lift_off, np.maximum(lift_off, 0.0) + run_force + 1.0
+    for _ in range(BISECTIONS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
+        short = ~resplit.holds(high)
+        if not short.any():
+            break
+        high = np.where(short, low + 2.0 * (high - low), high)
+    return low, high
 
 
 def _bisect(resplit: _Resplit, low: np.ndarray, high: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:

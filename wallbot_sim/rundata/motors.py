@@ -35,7 +35,7 @@ from wallbot_sim.model import Robot, RobotParameters
 from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
 from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.least_adhesion import least_adhesion
+from wallbot_sim.rundata.least_adhesion import least_adhesion, needed_adhesion
 from wallbot_sim.rundata.load import RunData
 from wallbot_sim.rundata.turning import LEFT, flat_turn_threshold, worst_turn_start
 
@@ -215,6 +215,15 @@ def _wheel_samples(run: RunData) -> WheelSamples | None:
         return None
     return WheelSamples(run.t[valid], run.loads[valid], run.use[valid], np.nan_to_num(run.slip[valid]),
                         run.wheel_forces[valid])
+
+
+def adhesion_margins(run: RunData, params: RobotParameters) -> tuple[np.ndarray, np.ndarray] | None:
+    """(t, the adhesion force pressing the robot over the least it needed there) at each sample with every wheel's
+    contact recorded; None when the run recorded none."""
+    wheels = _wheel_samples(run)
+    if wheels is None:
+        return None
+    return wheels.t, wheels.loads.sum(axis=1) / needed_adhesion(wheels.loads, wheels.forces, Robot(params))
 
 
 def _contact(wheels: WheelSamples) -> ContactFigures:

@@ -2,15 +2,18 @@
 
 Each gives a :class:`Verdict`: whether it holds, the figure measured and its limit, and the simulation time of the
 worst instant. The figures are the run data layer's own: the tracking error of ``RunData`` (the recorded plan's
-reference), the first slip and lift-off of the run summary (``summary.summarize_run``), the motor torque per side and
-the adhesion margin of the motor report (``motors.motor_report``, what ``wallbot-sim motors`` prints).
+reference), the first slip and lift-off of the run summary (``summary.summarize_run``), the motor torque per side of
+the motor report (``motors.motor_report``, what ``wallbot-sim motors`` prints) and the adhesion needed sample by
+sample (``motors.adhesion_margins``).
 
 * ``max_tracking_error_after {t, m}``: the largest distance of the centre from the reference from ``t`` on, at most
   ``m`` metres;
 * ``no_slip``: no wheel slips (coulomb contact) and the friction use stays at most 1 (ideal contact, whose wheels
   cannot slip: the friction the motion needed stays within mu_s N);
 * ``no_detachment``: every wheel's normal load stays >= 0 (a coulomb run whose robot leaves the wall ends there);
-* ``min_adhesion_margin``: the applied adhesion force over the least the run needed (the motor report's margin);
+* ``min_adhesion_margin``: the least over the run of the adhesion force pressing the robot (its normal loads' sum)
+  over the least force keeping every wheel on the wall with its force in its friction disc at that instant
+  (``motors.adhesion_margins``; the motor report's margin is the run's median force over the largest needed);
 * ``max_motor_torque``: the largest side torque the motors delivered, N m.
 """
 
@@ -23,7 +26,7 @@ import numpy as np
 
 from wallbot_sim.model import RobotParameters
 from wallbot_sim.rundata import RunData, RunDataError
-from wallbot_sim.rundata.motors import motor_report
+from wallbot_sim.rundata.motors import adhesion_margins, motor_report
 from wallbot_sim.rundata.summary import RunSummary, summarize_run
 from wallbot_sim.testing.spec import Expectations
 
@@ -127,14 +130,15 @@ def no_detachment(run: RunData, summary: RunSummary, ending: Ending | None) -> V
 
 def adhesion_margin(run: RunData, params: RobotParameters, limit: float) -> Verdict:
     name = 'min_adhesion_margin'
-    try:
-        adsorption = motor_report(run, params).adsorption
-    except RunDataError as error:
-        return Verdict(name, None, math.nan, limit, '', math.nan, f'not judged: {error}')
-    margin, t = adsorption.margin, adsorption.peak_needed_t
-    return Verdict(name, margin >= limit, margin, limit, '', t,
-                   f'adhesion margin at least {margin:.3f} (limit {limit:g}): {adsorption.applied:.2f} N applied, '
-                   f'{adsorption.peak_needed:.2f} N needed at t = {t:.3f} s')
+    margins = adhesion_margins(run, params)
+    if margins is None:
+        return Verdict(name, None, math.nan, limit, '', math.nan, 'not judged: the run recorded no wheel contact')
+    t, margin = margins
+    k = int(np.argmin(margin))
+    least = float(margin[k])
+    return Verdict(name, least >= limit, least, limit, '', float(t[k]),
+                   f'adhesion margin at least {least:.3f} (limit {limit:g}), least at t = {t[k]:.3f} s: '
+                   f'the adhesion pressing the robot over the least that holds every wheel there')
 
 
 def motor_torque(run: RunData, params: RobotParameters, limit: float) -> Verdict:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from wallbot_sim.plots.expectations import Limit, write_expectation_figure
 from wallbot_sim.rundata import RunData
-from wallbot_sim.rundata.motors import side_series
+from wallbot_sim.rundata.motors import adhesion_margins, side_series
 from wallbot_sim.testing.expectations import Verdict
 from wallbot_sim.testing.outcome import RUN, Outcome, recorded_run, robot_parameters
 
@@ -64,9 +64,11 @@ def failing_figure(verdict: Verdict, run: RunData, outcome: Outcome, folder: Pat
     elif name == 'no_detachment':
         series = {f'wheel {k + 1}': run.loads[:, k] for k in range(run.loads.shape[1])}
         ylabel, limit = 'normal load (N)', Limit(0.0)
-    else:  # min_adhesion_margin: the forces the wall's friction carries, against the adhesion that presses it
-        series = {'F_left': run.F_left, 'F_right': run.F_right, 'F_lateral': run.F_lateral}
-        ylabel, limit = 'drive and lateral forces (N)', None
+    else:  # min_adhesion_margin, at the samples with every wheel's contact (judged so there was one)
+        t, margin = adhesion_margins(run, robot_parameters(outcome.spec))
+        return write_expectation_figure(folder / f'{name}.png', title, t, {'adhesion margin': margin},
+                                        'applied / needed adhesion force', Limit(verdict.limit), verdict.worst_t,
+                                        events)
     return write_expectation_figure(folder / f'{name}.png', title, run.t, series, ylabel, limit, verdict.worst_t,
                                     events)
 
