@@ -65,8 +65,8 @@ class Monitor:
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
                                       qos_profile(topics.DIAGNOSTICS), raw=True)
         # only the stamp is read (100 poses per simulated second)
-        self.node.create_subscription(Odometry, topics.REFERENCE.name, self._on_reference,
-                                      qos_profile(topics.REFERENCE), raw=True)
+        self.reference_subscription = self.node.create_subscription(
+            Odometry, topics.REFERENCE.name, self._on_reference, qos_profile(topics.REFERENCE), raw=True)
         self.node.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
                                       qos_profile(topics.STATE_SNAPSHOT), raw=True)
 
@@ -100,6 +100,10 @@ class Monitor:
     def dynamics_stopped(self) -> bool:
         """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
         return self.status.startswith('stopped')
+
+    def reference_heard(self) -> bool:
+        """Whether the trajectory node's reference reaches the monitor (the poses sent before do not)."""
+        return self.reference_subscription.get_publisher_count() > 0
 
     def reference_reached(self, duration: float) -> bool:
         """Whether the trajectory node has published its last reference pose of a run of ``duration``."""

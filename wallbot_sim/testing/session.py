@@ -114,6 +114,8 @@ class Session:
         self._wait(self.monitor.recorder_ready, RECORDER_TIMEOUT, 'the recorder did not come up')
         for spec in specs[1:]:
             self.graph.start_node(spec)
+        if self.spec.loaded_scenario() is not None:  # before the run moves the reference on (``finish`` waits for it)
+            self._wait(self.monitor.reference_heard, RECORDER_TIMEOUT, 'the trajectory node did not come up')
         self._start_controller()
         self._wait(lambda: self.monitor.recorded >= 0.0, self.spec.start_timeout + STALL,
                    'the run did not begin')
