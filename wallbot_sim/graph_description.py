@@ -190,7 +190,8 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
     it). ``drive``: what the controller publishes, wheel_torque_cmd itself, or cmd_vel or joint_commands to the drive
     node (``DRIVES``), which answers in lockstep with the controller. ``fault_schedule``: the dynamics' faults at
     simulation times (``loop.faults``). ``ground_truth``: the exact state on ground_truth/odom too, so the bag keeps
-    every state while a fault silences odom.
+    every state while a fault silences odom. The bag leaves out /diagnostics, the dynamics' status at 1 Hz of wall
+    time with its wall-clock figures: so a spec run twice records the same messages.
     """
     if drive not in TESTED_DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {", ".join(TESTED_DRIVES)}')
@@ -213,7 +214,7 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
         **({'command_sensor': 'wheel_states'} if drive == 'joint_commands' else {}),
         **({'fault_schedule': fault_schedule} if fault_schedule else {}),
         **({'ground_truth': True} if ground_truth else {})})
-    recorded = [t.name for t in (*topics.RECORDED, *TESTED_DRIVES[drive])]
+    recorded = [t.name for t in (*topics.RECORDED, *TESTED_DRIVES[drive]) if t is not topics.DIAGNOSTICS]
     return _with_recorder(specs, dynamics, {'output': str(bag), 'topics': recorded}, compose=True)
 
 
