@@ -39,7 +39,7 @@ def main(args: argparse.Namespace) -> int:
         raise CliError(f'cannot create output directory {out}: {error.strerror}') from None
     duration = spec.run_duration()
     print(f'wallbot-sim test: {spec.name}: {spec.scenario}, {duration:g} s, controller `{" ".join(spec.controller)}` '
-          f'publishing {spec.drive}; output in {out}', file=sys.stderr)
+          f'publishing {spec.drive}; output in {out}')
     progress = Progress(duration, sys.stderr)
     outcome = run_spec(spec, out, Path(args.junit) if args.junit else None,
                        lambda t: progress.update(t, force=t >= duration - 1e-9))
