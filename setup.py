@@ -92,6 +92,8 @@ setup(
             'viewer_node = wallbot_sim.nodes.viewer:main',
         ],
         # the ``wallbot`` fixture of controller tests (wallbot_sim/testing/plugin.py), in every pytest run
-        'pytest11': ['wallbot_sim = wallbot_sim.testing.plugin'],
+        # named by its module: so that ``-p wallbot_sim.testing.plugin`` and a conftest's ``pytest_plugins`` naming it
+        # find it registered already, where the package is installed
+        'pytest11': ['wallbot_sim.testing.plugin = wallbot_sim.testing.plugin'],
     },
 )

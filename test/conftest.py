@@ -27,6 +27,9 @@ if str(REPO_ROOT) not in sys.path:  # allow running the tests without installing
 from wallbot_sim.domain import DomainClaim, claim_domain_id, isolated_ros_env  # noqa: E402
 from wallbot_sim.graph import ChildProcesses  # noqa: E402
 
+pytest_plugins = ('wallbot_sim.testing.plugin',)
+"""The ``wallbot`` fixture, which the ``pytest11`` entry point gives a session where wallbot_sim is installed."""
+
 _ENV_KEYS = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE')
 LOG_TAIL = 3000
 """Characters of each child process's log a failed test reports."""
