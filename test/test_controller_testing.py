@@ -17,7 +17,7 @@ from cli_helpers import assert_one_line_error, wallbot
 from wallbot_msgs_py.codec import FaultEvent
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import Robot
-from wallbot_sim.rundata.motors import least_adhesion, needed_adhesion
+from wallbot_sim.rundata.least_adhesion import least_adhesion, needed_adhesion
 from wallbot_sim.testing import Outcome, SpecError, load_spec, make_spec
 from wallbot_sim.testing.expectations import Ending, Verdict
 from wallbot_sim.testing.junit import write_junit
