@@ -10,7 +10,7 @@ import yaml
 
 from cli_helpers import assert_one_line_error, simulate
 from wallbot_sim import paths
-from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.config import load_robot_parameters, load_scenario, load_world
 from wallbot_sim.model import ParameterError
 from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.sweep.errors import SweepError
@@ -68,7 +68,34 @@ def test_a_sweep_spec_names_the_closest_key(tmp_path, text, words):
         load_spec(path)
 
 
-@pytest.mark.parametrize('loader', [load_robot_parameters, load_scenario, load_spec])
+@pytest.mark.parametrize('text, words', [
+    ('inclnation: 45\n', "unknown world key 'inclnation' (did you mean 'inclination'?)"),
+    ('inclination: 200\n', 'inclination must be in [0, 180], got 200'),
+    ('patches:\n  - {x: [0, 1], y: [0, 1], wall_fricton: 0.3, kinetic_friction: 0.2}\n',
+     "unknown patches[0] key 'wall_fricton' (did you mean 'wall_friction'?)"),
+    ('patches:\n  - {x: [0, 1], y: [0, 1], wall_friction: 0.3, kinetic_friction: 0.4}\n',
+     'patches[0] kinetic_friction must be <= its wall_friction (0.3), got 0.4'),
+    ('patches:\n  - {x: [1, 0], y: [0, 1], wall_friction: 0.3, kinetic_friction: 0.2}\n',
+     'patches[0] x must be [low, high] with low < high, got [1, 0]'),
+    ('seams:\n  - {from: [0, 1], to: [2, 1]}\n', "seams[0] needs 'width'"),
+    ('seams:\n  - {from: [0, 1], to: [0, 1], width: 0.004}\n', 'seams[0] from and to must differ'),
+    ('seams: {from: [0, 1]}\n', 'seams must be a list'),
+])
+def test_a_world_file_refuses_what_it_does_not_know(tmp_path, text, words):
+    path = tmp_path / 'world.yaml'
+    path.write_text(text)
+    with pytest.raises(ParameterError) as error:
+        load_world(path)
+    assert str(error.value).startswith(f'{path}: {words}'), str(error.value)
+    assert '\n' not in str(error.value)
+
+
+def test_the_example_world_has_a_patch_and_a_seam():
+    world = load_world(paths.config_dir() / 'world.yaml')
+    assert world.inclination == 90.0 and len(world.patches) == 1 and len(world.seams) == 1
+
+
+@pytest.mark.parametrize('loader', [load_robot_parameters, load_scenario, load_spec, load_world])
 def test_a_yaml_syntax_error_names_the_file_and_line_once(tmp_path, loader):
     path = tmp_path / 'broken.yaml'
     path.write_text('name: circle\nreference:\n  shape: circle\n  radius: [1.0\nduration: 20.0\n')

@@ -24,7 +24,7 @@ TABLES = {'dynamics': DYNAMICS, 'controller': CONTROLLER, 'viewer': VIEWER, 'tra
           'recorder': RECORDER}
 SIMULATE_OPTIONS = {'--heading': ('dynamics', 'initial_theta'), '--contact': ('dynamics', 'contact_model'),
                     '--engine': ('dynamics', 'engine'), '--adhesion-force': ('dynamics', 'adhesion_force'),
-                    '--controller-mass-scale': ('controller', 'mass_scale')}
+                    '--controller-mass-scale': ('controller', 'mass_scale'), '--world': ('dynamics', 'world_file')}
 """simulate's options that set what a node's parameter sets (its --duration and --dt are its own: a headless run
 ends, and steps by a time step, not a rate)."""
 

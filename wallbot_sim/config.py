@@ -10,6 +10,7 @@ import yaml
 from wallbot_sim import paths
 from wallbot_sim.model import ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.scenario import SHAPES
+from wallbot_sim.model.world import World
 
 
 def read_yaml(path: str | Path) -> Any:
@@ -53,5 +54,16 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     values = read_yaml(path)
     try:
         return Scenario.from_mapping(values)
+    except ParameterError as error:
+        raise ParameterError(f'{path}: {error}') from None
+
+
+def load_world(path: str | Path | None) -> World | None:
+    """The world file at ``path`` (docs/model.md 13.1), or None for none (a vertical, uniform wall)."""
+    if not path:
+        return None
+    values = read_yaml(path)
+    try:
+        return World.from_mapping(values)
     except ParameterError as error:
         raise ParameterError(f'{path}: {error}') from None

@@ -93,7 +93,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
                    robot_file: Path | None = None, contact_model: str = 'ideal',
                    adhesion_force: float = 0.0, viewer: bool = False, foxglove_port: int = 0,
                    foxglove_host: str = DEFAULT_HOST, engine: str = ENGINE, compose: bool = False,
-                   frame_prefix: str = '', domain_clock: bool = True) -> list[NodeSpec]:
+                   frame_prefix: str = '', domain_clock: bool = True,
+                   world_file: Path | None = None) -> list[NodeSpec]:
     """The nodes of a run of ``scenario``, in start order (the recorder first, so it misses nothing).
 
     ``duration`` 0 runs until stopped. Without ``bag`` there is no recorder and the dynamics does
@@ -109,6 +110,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
     (e.g. ``robot2/``): the robot's frames' prefix, given to every node that names them (the
     dynamics, constraint_config's robot_description, the viewer's tf); "" sets no parameter.
     ``domain_clock`` false: the dynamics leaves the domain's ``/clock`` to another robot's.
+    ``world_file`` (the dynamics' surface) None: a vertical, uniform wall.
     """
     trajectory = _trajectory(scenario, bag is not None)
     closed_loop = controller_mass_scale is not None
@@ -132,7 +134,8 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
             'mass_scale': float(controller_mass_scale), 'engine': engine, 'wait_for_recorder': bag is not None,
             **SIM_TIME}, CONTROLLER_REMAPS))
     specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
-    dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+    dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority,
+                         {**robot, **_world(world_file)}, contact_model,
                          adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames, domain_clock)
     return _with_recorder(specs, dynamics, recorder, compose)
 
@@ -142,7 +145,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
                           contact_model: str = 'ideal', adhesion_force: float = 0.0, viewer: bool = False,
                           foxglove_port: int = 0, foxglove_host: str = DEFAULT_HOST,
                           engine: str = ENGINE, compose: bool = False, frame_prefix: str = '',
-                          domain_clock: bool = True) -> list[NodeSpec]:
+                          domain_clock: bool = True, world_file: Path | None = None) -> list[NodeSpec]:
     """The nodes of a run driven by the user (``run rest --drive DRIVE``): the driven set (no
     trajectory task, no trajectory node), at rest at the origin, and the ``DRIVES`` node.
 
@@ -150,7 +153,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
     ``joint_commands``: joint_bridge_node (joint_states, joint_commands); the dynamics does not
     wait, since the commands come from the user's controller_manager (zero torque until then).
     ``viewer``, ``foxglove_port``, ``foxglove_host``, ``engine``, ``compose``, ``frame_prefix``,
-    ``domain_clock``: as for describe_graph.
+    ``domain_clock``, ``world_file``: as for describe_graph.
     """
     if drive not in DRIVES:
         raise GraphDescriptionError(f'unknown drive {drive!r}: use {" or ".join(DRIVES)}')
@@ -169,7 +172,8 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
              CONTROLLER_REMAPS if drive == 'cmd_vel' else ()),
         *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
     ]
-    dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority, robot, contact_model,
+    dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority,
+                         {**robot, **_world(world_file)}, contact_model,
                          adhesion_force, CMD_VEL_STEPS if drive == 'cmd_vel' else None, engine, frames,
                          domain_clock)
     return _with_recorder(specs, dynamics, recorder, compose)
@@ -249,6 +253,11 @@ def launch_name(spec: NodeSpec) -> dict[str, str]:
     """The ``name`` a launch_ros Node action gives the process of ``spec``: none for the composed
     process, whose two nodes keep their own names (a launch name renames every node of a process)."""
     return {} if spec.module == COMPOSED_MODULE else {'name': spec.name}
+
+
+def _world(world_file: Path | None) -> dict[str, str]:
+    """The dynamics' world_file parameter (none for a vertical, uniform wall)."""
+    return {'world_file': str(world_file)} if world_file is not None else {}
 
 
 def _frames(frame_prefix: str) -> dict[str, str]:

@@ -64,6 +64,9 @@ OPTIONS = (
                 "with the controller: its robot's mass relative to the simulator's (model mismatch)"),
     node_option('dynamics', DYNAMICS, 'robot_file', '--robot', 'robot',
                 'robot parameter YAML (empty: the installed config/robot.yaml)'),
+    node_option('dynamics', DYNAMICS, 'world_file', '--world', 'world',
+                'world YAML: inclination, friction patches, seams (python engine only; empty: a vertical, uniform '
+                'wall)'),
     node_option('dynamics', DYNAMICS, 'contact_model', '--contact', 'contact',
                 'wheel-wall contact: ideal, or coulomb (friction-limited; with the controller or a drive)'),
     node_option('dynamics', DYNAMICS, 'adhesion_force', '--adhesion-force',
@@ -123,7 +126,8 @@ def launched_graph(texts: Mapping[str, str]) -> list[NodeSpec]:
                   contact_model=values['contact'], adhesion_force=values['adhesion_force'], viewer=values['viewer'],
                   foxglove_port=values['foxglove_port'], foxglove_host=values['foxglove_host'],
                   engine=values['engine'], compose=values['compose'], frame_prefix=values['frame_prefix'],
-                  domain_clock=values['domain_clock'])
+                  domain_clock=values['domain_clock'],
+                  world_file=Path(values['world']).resolve() if values['world'] else None)
     if values['drive']:
         changed = [name for name in SCENARIO_ARGUMENTS if values[name] != BY_NAME[name].setting.default]
         if changed:

@@ -25,7 +25,7 @@ from wallbot_sim.cli.engine import load_compiled_kernel, require_compiled_engine
 from wallbot_sim.cli.options import add_graph_option
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.config import load_robot_parameters, load_scenario, load_world
 from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
                                 claim_domain_id)
 from wallbot_sim.graph import Graph, NodeDied, NodeSpec
@@ -34,8 +34,8 @@ from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER
 from wallbot_sim.graph_monitor import Monitor
 from wallbot_sim.graph_options import option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
-from wallbot_sim.model import STRUCTURAL, ConstraintSelection, Robot
-from wallbot_sim.model.simulation import NUMBA
+from wallbot_sim.model import STRUCTURAL, ConstraintSelection, ParameterError, Robot
+from wallbot_sim.model.simulation import NUMBA, refuse_compiled
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
@@ -82,6 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              'attaches another terminal')
     add_graph_option(parser, 'real_time_factor')
     add_graph_option(parser, 'robot', default=None)
+    add_graph_option(parser, 'world', default=None)
     add_graph_option(parser, 'contact')
     add_graph_option(parser, 'engine')
     add_graph_option(parser, 'adhesion_force')
@@ -218,7 +219,7 @@ def main(args: argparse.Namespace) -> int:
                                   controller_mass_scale=mass_scale, robot_file=robot_file,
                                   contact_model=args.contact, adhesion_force=args.adhesion_force, engine=args.engine,
                                   compose=args.compose, realtime_priority=args.realtime_priority,
-                                  **viewer_options(args))
+                                  world_file=world_path(args), **viewer_options(args))
         except GraphDescriptionError as error:
             raise CliError(str(error)) from None
     return run_described(args, describe, f'{scenario.name}, {selection.label()}{loop}', duration, robot_file)
@@ -238,9 +239,15 @@ def main_driven(args: argparse.Namespace) -> int:
         return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
                                      robot_file=robot_file, contact_model=args.contact,
                                      adhesion_force=args.adhesion_force, engine=args.engine, compose=args.compose,
-                                     realtime_priority=args.realtime_priority, **viewer_options(args))
+                                     realtime_priority=args.realtime_priority, world_file=world_path(args),
+                                     **viewer_options(args))
     return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
                          reference=False)
+
+
+def world_path(args: argparse.Namespace) -> Path | None:
+    """--world resolved (the nodes run elsewhere), None without it."""
+    return Path(args.world).resolve() if args.world else None
 
 
 def viewer_options(args: argparse.Namespace) -> dict[str, object]:
@@ -256,7 +263,13 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
     params = load_robot_parameters(robot_file)
     if args.engine == NUMBA:
         require_compiled_engine()
-    robot = Robot(params.replace(adhesion_force=args.adhesion_force) if args.adhesion_force else params)
+    robot = Robot(params.replace(adhesion_force=args.adhesion_force) if args.adhesion_force else params,
+                  load_world(args.world))
+    if args.engine == NUMBA:
+        try:
+            refuse_compiled(robot)
+        except ParameterError as error:
+            raise CliError(str(error)) from None
     try:
         claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
     except DomainUnavailable as error:

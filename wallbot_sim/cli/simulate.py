@@ -15,7 +15,7 @@ from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.engine import require_compiled_engine
 from wallbot_sim.cli.options import add_graph_option, add_setting, number
 from wallbot_sim.cli.progress import Progress
-from wallbot_sim.config import load_robot_parameters, load_scenario
+from wallbot_sim.config import load_robot_parameters, load_scenario, load_world
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, TorqueCommand, close_loop, controller_robot
 from wallbot_sim.control.tracking import DRIVEN
@@ -59,6 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--duration', type=number(POSITIVE), help='seconds to simulate (default: the scenario\'s)')
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
+    add_graph_option(parser, 'world', default=None)
     add_graph_option(parser, 'engine')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
@@ -70,7 +71,7 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     params = load_robot_parameters(args.robot)
     if args.adhesion_force:  # 0: the robot file's
         params = params.replace(adhesion_force=args.adhesion_force)
-    robot = Robot(params)
+    robot = Robot(params, load_world(args.world))
     rest = args.scenario == REST
     if not rest and (args.heading is not None or args.torque is not None):
         raise CliError('--heading and --torque set up --scenario rest; a trajectory scenario starts as its file says')

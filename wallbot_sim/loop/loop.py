@@ -29,18 +29,21 @@ from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, Diverge
                                Simulation, StepOutputs, adsorption_analysis)
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.scenario import moving_start
+from wallbot_sim.model.simulation import NUMBA, refuse_compiled
+from wallbot_sim.model.world import World
 from wallbot_sim.model.trajectories import STAMP_RESOLUTION
 from wallbot_sim.settings.dynamics import DynamicsSettings
 from wallbot_sim.settings.table import changed
 
 
-def robot_with(params: RobotParameters, adhesion_force: float, adhesion_scale: float = 1.0) -> Robot:
-    """The robot of the robot file's ``params``, with the adhesion_force setting (N) unless it is 0 (then the file's),
-    times the adhesion_scale setting (a suction fault below 1)."""
+def robot_with(params: RobotParameters, adhesion_force: float, adhesion_scale: float = 1.0,
+               world: World | None = None) -> Robot:
+    """The robot of the robot file's ``params`` on ``world``, with the adhesion_force setting (N) unless it is 0
+    (then the file's), times the adhesion_scale setting (a suction fault below 1)."""
     if adhesion_scale == 1.0:
-        return Robot(params.replace(adhesion_force=adhesion_force) if adhesion_force else params)
+        return Robot(params.replace(adhesion_force=adhesion_force) if adhesion_force else params, world)
     force = adhesion_force or adsorption_analysis(params).applied_force
-    return Robot(params.replace(adhesion_force=force * adhesion_scale))
+    return Robot(params.replace(adhesion_force=force * adhesion_scale), world)
 
 
 class DynamicsLoop:
@@ -49,10 +52,14 @@ class DynamicsLoop:
     parameter values, which a :class:`ParameterChange` updates at the next step boundary."""
 
     def __init__(self, settings: DynamicsSettings, robot_file: RobotParameters, graph: Graph, log: Log,
-                 pacer: Pacer, clock: Callable[[], float] = time.monotonic) -> None:
+                 pacer: Pacer, clock: Callable[[], float] = time.monotonic, world: World | None = None) -> None:
+        """``world``: the world file's surface (None: a vertical, uniform wall); what only the python engine
+        computes is refused here on the numba engine (ParameterError)."""
         self.settings = settings
-        self._robot_file = robot_file
-        self.robot = robot_with(robot_file, settings.adhesion_force, settings.adhesion_scale)
+        self._robot_file, self._world = robot_file, world
+        self.robot = robot_with(robot_file, settings.adhesion_force, settings.adhesion_scale, world)
+        if settings.engine == NUMBA:
+            refuse_compiled(self.robot)
         self.schedule = FaultSchedule(parse_schedule(settings.fault_schedule))
         """The faults still to apply at their simulation times (``loop.faults``)."""
         self.graph, self.log, self.pacer, self.clock = graph, log, pacer, clock
@@ -218,7 +225,8 @@ class DynamicsLoop:
             self.sim = self.simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
             self.snapshot()
         if {'adhesion_force', 'adhesion_scale'} & set(changes):
-            self.robot = robot_with(self._robot_file, self.settings.adhesion_force, self.settings.adhesion_scale)
+            self.robot = robot_with(self._robot_file, self.settings.adhesion_force, self.settings.adhesion_scale,
+                                    self._world)
             if self.sim is not None:
                 self.sim.set_adhesion_force(self.robot.params.adhesion_force)
         if 'contact_model' in changes and self.sim is not None:

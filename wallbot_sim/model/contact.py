@@ -134,14 +134,14 @@ class CoulombContact:
         self.kinematics = ContactKinematics(robot)
         self.gains = gains
         self.sliding: frozenset[int] = frozenset()
-        self.loads = np.full(4, 0.25 * robot.adsorption.applied_force)
+        self.loads = np.full(4, 0.25 * robot.wall_load)
         """The loads held over the step (Newton's start at the next boundary)."""
         self._layout = ContactLayout([], self.kinematics, gains)
 
-    def reset(self, adhesion_force: float) -> None:
-        """Every wheel sticking, loads at rest on a level share."""
+    def reset(self, wall_load: float) -> None:
+        """Every wheel sticking, loads at rest on a level share of ``wall_load`` (``Robot.wall_load``)."""
         self.sliding = frozenset()
-        self.loads = np.full(4, 0.25 * adhesion_force)
+        self.loads = np.full(4, 0.25 * wall_load)
 
     def layout(self, modules: Sequence[ConstraintModule]) -> ContactLayout:
         """The layout of ``modules`` (remembered for the last list and gains)."""
@@ -181,8 +181,9 @@ class CoulombContact:
         """
         layout = self.layout(modules)
         params = robot.params
+        static, kinetic = robot.wheel_friction(q)  # each wheel's patch's, held over the step
         sliding = self.sliding & layout.wheels
-        solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+        solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque, kinetic)
         stopped: set[int] = set()
         for _ in range(_SETTLE_PASSES):
             reversing = {wheel for wheel in solution.sliding - stopped
@@ -190,23 +191,23 @@ class CoulombContact:
             if reversing:
                 stopped |= reversing
                 qd = project(layout.active(layout.wheels - sliding | frozenset(reversing)), qd)
-                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque, kinetic)
             candidates = {wheel for wheel in sliding
                           if _speed(solution.velocities[wheel], layout.directions) < params.stick_velocity
                           or _speed(solution.predicted[wheel], layout.directions) < params.stick_velocity}
             while candidates:
                 trial = sliding - candidates
                 trial_qd = project(layout.active(layout.wheels - trial), qd)
-                trial_solution = self._solve(robot, layout, trial, t, q, trial_qd, dt, motor_torque)
-                holding = {wheel for wheel in candidates if _holds(trial_solution, wheel, params.wall_friction)}
+                trial_solution = self._solve(robot, layout, trial, t, q, trial_qd, dt, motor_torque, kinetic)
+                holding = {wheel for wheel in candidates if _holds(trial_solution, wheel, static[wheel])}
                 if holding == candidates:
                     sliding, qd, solution = trial, trial_qd, trial_solution
                     break
                 candidates = holding
             while exceeded := {wheel for wheel in layout.wheels - sliding
-                               if not _holds(solution, wheel, params.wall_friction)}:
+                               if not _holds(solution, wheel, static[wheel])}:
                 sliding = sliding | exceeded
-                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque)
+                solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque, kinetic)
             if not any(float(solution.velocities[wheel] @ solution.predicted[wheel]) < 0.0
                        for wheel in solution.sliding - stopped):
                 break
@@ -214,9 +215,10 @@ class CoulombContact:
         return qd, solution
 
     def _solve(self, robot: Robot, layout: ContactLayout, sliding: frozenset[int], t: float, q: np.ndarray,
-               qd: np.ndarray, dt: float, motor_torque: tuple[float, float]) -> ContactSolution:
-        """The motion with the ``sliding`` wheels sliding: their friction and every wheel's load solved together
-        (``consistent_friction``), then the sticking wheels' share of the constraint force."""
+               qd: np.ndarray, dt: float, motor_torque: tuple[float, float], kinetic: np.ndarray) -> ContactSolution:
+        """The motion with the ``sliding`` wheels sliding: their friction (``kinetic``: mu_k per wheel) and every
+        wheel's load solved together (``consistent_friction``), then the sticking wheels' share of the constraint
+        force."""
         params = robot.params
         active = layout.active(layout.wheels - sliding)
         directions = np.array(layout.directions, dtype=int)
@@ -239,7 +241,8 @@ class CoulombContact:
                              normal_loads(robot, q, qd, np.zeros(7), spin_momentum=True),
                              load_acceleration_gain(robot, q, spin_momentum=True), slip_rows, slip_rows @ qd,
                              self.kinematics.drift(q, qd)[direction_of], wheel_of),
-            params.kinetic_friction, params.velocity_epsilon, dt, self.loads, robot.adsorption.applied_force)
+            kinetic[wheel_of], params.velocity_epsilon, dt, self.loads,
+            robot.adsorption.applied_force or robot.total_mass * params.gravity)  # the residual's scale
         held = HeldFriction(self.kinematics, wheel_of, direction_of, solved.friction) if count else None
         friction = solved.friction @ slip_rows if count else None
         force = robot.applied_force(q, qd, motor_torque, solved.loads)
@@ -266,7 +269,7 @@ def _speed(velocity: np.ndarray, directions: Sequence[int]) -> float:
     return float(np.linalg.norm(velocity[list(directions)]))
 
 
-def _holds(solution: ContactSolution, wheel: int, static_friction: float) -> bool:
+def _holds(solution: ContactSolution, wheel: int, static_friction: np.floating) -> bool:
     """Whether the wheel's force lies in its friction disc, |f_i| <= mu_s N_i."""
     force = solution.wheel_forces[wheel]
     return not float(np.hypot(force[0], force[1])) > static_friction * float(solution.loads[wheel])

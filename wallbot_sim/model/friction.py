@@ -2,7 +2,7 @@
 
 The channel forces are the drive forces of section 8 (with coulomb contact, the sums of the wheels'
 forces); each is set against mu_s times the load bounding it: left and right traction their side's
-load, lateral F_ad. The wheels' own use is ``wheel_forces.wheel_use``.
+load, lateral the sum of the loads (F_ad on a vertical wall). The wheels' own use is ``wheel_forces.wheel_use``.
 """
 
 from __future__ import annotations
@@ -21,21 +21,21 @@ class FrictionUse(NamedTuple):
     lateral: float
 
 
-def channel_loads(loads: np.ndarray, adhesion_force: float) -> tuple[float, float, float]:
-    """The normal load bounding each channel: N_1 + N_2, N_3 + N_4, F_ad (N)."""
-    return float(loads[0] + loads[1]), float(loads[2] + loads[3]), adhesion_force
+def channel_loads(loads: np.ndarray, wall_load: float) -> tuple[float, float, float]:
+    """The normal load bounding each channel: N_1 + N_2, N_3 + N_4, and ``wall_load``, F_ad + m_t g cos i (N)."""
+    return float(loads[0] + loads[1]), float(loads[2] + loads[3]), wall_load
 
 
-def friction_use(forces: Sequence[float], loads: np.ndarray, adhesion_force: float,
+def friction_use(forces: Sequence[float], loads: np.ndarray, wall_load: float,
                  static_friction: float) -> FrictionUse:
-    """u_L = |F_L| / (mu_s N_L), u_R = |F_R| / (mu_s N_R), u_lat = |F_lat| / (mu_s F_ad).
+    """u_L = |F_L| / (mu_s N_L), u_R = |F_R| / (mu_s N_R), u_lat = |F_lat| / (mu_s (F_ad + m_t g cos i)).
 
     ``forces``: the channel forces (F_L, F_R, F_lat).
 
     A channel whose load is not positive can transmit nothing: its use is infinite unless its force is 0.
     """
     return FrictionUse(*(_ratio(abs(force), static_friction * load)
-                         for force, load in zip(forces, channel_loads(loads, adhesion_force))))
+                         for force, load in zip(forces, channel_loads(loads, wall_load))))
 
 
 def _ratio(force: float, limit: float) -> float:

@@ -63,9 +63,11 @@ class KineticSolution(NamedTuple):
     """w (m,): the sliding components' slip velocities predicted for the step's end."""
 
 
-def consistent_friction(response: BoundaryResponse, kinetic_friction: float, epsilon: float, dt: float,
+def consistent_friction(response: BoundaryResponse, kinetic_friction: np.ndarray, epsilon: float, dt: float,
                         loads: np.ndarray, adhesion_force: float) -> KineticSolution:
-    """(f, N) solving the boundary's equations (Newton's method with a halving line search from ``loads``)."""
+    """(f, N) solving the boundary's equations (Newton's method with a halving line search from ``loads``).
+
+    ``kinetic_friction``: mu_k of each sliding component's wheel (m,); ``adhesion_force`` scales the tolerance."""
     count = len(response.slip)
     state = np.concatenate((np.zeros(count), loads))
     state[:count] = _friction_of(response, kinetic_friction, epsilon, dt, state)
@@ -97,7 +99,7 @@ def _norm(vector: np.ndarray) -> float:
     return float(np.max(np.abs(vector))) if len(vector) else 0.0
 
 
-def _friction_of(response: BoundaryResponse, kinetic_friction: float, epsilon: float, dt: float,
+def _friction_of(response: BoundaryResponse, kinetic_friction: np.ndarray, epsilon: float, dt: float,
                  state: np.ndarray) -> np.ndarray:
     """The friction opposing the slip predicted with no friction, at the loads of ``state`` (Newton's start)."""
     count = len(response.slip)
@@ -117,7 +119,7 @@ def _wheel_speeds(predicted: np.ndarray, wheel_of: np.ndarray, epsilon: float) -
     return np.sqrt(squares + epsilon * epsilon)[wheel_of]
 
 
-def _equations(response: BoundaryResponse, kinetic_friction: float, epsilon: float, dt: float,
+def _equations(response: BoundaryResponse, kinetic_friction: np.ndarray, epsilon: float, dt: float,
                state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The residual (m + 4,) of z = (f, N), its Jacobian, and the predicted slip velocities w (m,).
 

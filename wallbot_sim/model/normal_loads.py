@@ -4,9 +4,11 @@ The adhesion force F_ad presses the robot to the wall at the geometric centre; t
 back at the wheels with N_1..N_4. Gravity and inertia act on the whole mass m_t at the CoM
 height h, so the loads also balance their moment about the wall plane:
 
-    sum N_i = F_ad,  sum x_i N_i = h F_bx,  sum y_i N_i = h F_by,
+    sum N_i = F_ad + W,  sum x_i N_i = h F_bx + W c_Gx,  sum y_i N_i = h F_by + W c_Gy,
 
-with F_b = R(th)^T m_t (g_vec - a_G) in the body frame. Four loads, three equations: the
+with F_b = R(th)^T m_t (g_vec - a_G) in the body frame, g_vec = (0, -g sin i) the in-plane part of
+gravity, W = m_t g cos i its out-of-plane part pressing the robot on the surface at its CoM c_G =
+m_b c / m_t (docs/model.md 13.1). Four loads, three equations: the
 least-norm solution (a rigid chassis on four equal springs), in closed form for the rectangle.
 """
 
@@ -20,7 +22,7 @@ from wallbot_sim.model.robot import Robot
 
 
 def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, spin_momentum: bool = False) -> np.ndarray:
-    """N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2), wheels in order 1..4 (N).
+    """N_i = (F_ad + W)/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2), wheels in order 1..4 (N).
 
     ``spin_momentum`` (coulomb contact, docs/model.md 11.1): the moment balance also turns the wheels'
     spin angular momentum J_w pd_i along y_p, whose rate J_w (sum pdd_i y_p - thd sum pd_i x_p) takes
@@ -35,16 +37,18 @@ def normal_loads(robot: Robot, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, s
     mass = robot.total_mass
     inertial_x = mass * float(qdd[0]) - thdd * rsy - thd * thd * rsx
     inertial_y = mass * float(qdd[1]) + thdd * rsx - thd * thd * rsy
-    fx, fy = -inertial_x, -mass * params.gravity - inertial_y  # F_gi = m_t (g_vec - a_G), wall frame
+    fx, fy = -inertial_x, -mass * robot.slope_gravity - inertial_y  # F_gi = m_t (g_vec - a_G), wall frame
     body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
     a, b, h = params.half_wheelbase, params.half_track, params.com_height
-    moment_x, moment_y = h * body_x, h * body_y
+    # the weight's out-of-plane part m_t g cos i acts at the whole robot's CoM, m_b c / m_t from the centre
+    moment_x = h * body_x + robot.normal_weight * sx / mass
+    moment_y = h * body_y + robot.normal_weight * sy / mass
     if spin_momentum:
         spin = params.wheel_spin_inertia
         moment_x -= spin * float(qdd[3] + qdd[4] + qdd[5] + qdd[6])
         moment_y -= spin * thd * float(qd[3] + qd[4] + qd[5] + qd[6])
     offsets = robot.wheel_offsets
-    return (0.25 * robot.adsorption.applied_force + (0.25 * moment_x / (a * a)) * offsets[:, 0]
+    return (0.25 * robot.wall_load + (0.25 * moment_x / (a * a)) * offsets[:, 0]
             + (0.25 * moment_y / (b * b)) * offsets[:, 1])
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wallbot_sim.model.parameters import RobotParameters
+from wallbot_sim.model.world import World
 
 DOF = 7
 
@@ -42,23 +43,29 @@ class Adsorption:
         return self.applied_force / self.minimum_force
 
 
-def adsorption_analysis(params: RobotParameters) -> Adsorption:
-    """F_min = max(m_t g / mu, m_t g h / min(a, b)) and F_ad (k_ad F_min unless given)."""
+def adsorption_analysis(params: RobotParameters, applied: float | None = None) -> Adsorption:
+    """F_min = max(m_t g / mu, m_t g h / min(a, b)) on a vertical wall, and F_ad: ``applied`` (a vacuum chamber's
+    force now), else the robot file's ``adhesion_force``, else k_ad F_min."""
     total_mass = params.body_mass + 4.0 * params.wheel_mass
     weight = total_mass * params.gravity
     sliding = weight / params.wall_friction
     tipping = weight * params.com_height / min(params.half_wheelbase, params.half_track)
     minimum = max(sliding, tipping)
-    applied = params.adsorption_safety * minimum if params.adhesion_force is None else params.adhesion_force
+    if applied is None:
+        applied = params.adsorption_safety * minimum if params.adhesion_force is None else params.adhesion_force
     return Adsorption(total_mass, sliding, tipping, minimum, applied)
 
 
 class Robot:
-    """Mass matrix M(q) and generalized applied force Q(q, qd, tau) of the unconstrained robot."""
+    """Mass matrix M(q) and generalized applied force Q(q, qd, tau) of the unconstrained robot on its surface."""
 
-    def __init__(self, params: RobotParameters) -> None:
+    def __init__(self, params: RobotParameters, world: World | None = None,
+                 adhesion_force: float | None = None) -> None:
+        """``world``: the surface (None: a vertical, uniform wall); ``adhesion_force``: F_ad now, in place of the
+        robot file's (a vacuum chamber's force, >= 0)."""
         self.params = params
-        self.adsorption = adsorption_analysis(params)
+        self.world = world or World()
+        self.adsorption = adsorption_analysis(params, adhesion_force)
         a, b = params.half_wheelbase, params.half_track
         self.wheel_offsets = np.array([[a, b], [-a, b], [a, -b], [-a, -b]])
         """d_i: axle centres in the body frame, rows in wheel order."""
@@ -72,10 +79,15 @@ class Robot:
                             + 4.0 * params.wheel_yaw_inertia
                             + params.wheel_mass * float(np.sum(self.wheel_offsets ** 2)))
         """J_t about the geometric centre."""
-        self._resistance_gains = [params.rolling_resistance * self.adsorption.normal_force_per_wheel] * 4
+        slope_sin, slope_cos = self.world.slope
+        self.slope_gravity = params.gravity * slope_sin
+        """g sin i: gravity's pull down the slope, along -Y (m/s^2)."""
+        self.normal_weight = self.total_mass * params.gravity * slope_cos
+        """m_t g cos i: the weight pressing the robot on the surface (negative: pulling it off) (N)."""
+        self._resistance_gains = [params.rolling_resistance * (0.25 * max(self.wall_load, 0.0))] * 4
         self._perpendicular_offsets = [(-dy, dx) for dx, dy in self.wheel_offsets.tolist()]
         self._first_moment_xy = tuple(self.first_moment.tolist())
-        self._weight = self.total_mass * params.gravity
+        self._weight = self.total_mass * self.slope_gravity
         self._centred = not self.first_moment.any()
         """With the CoM at the centre, M is constant (and so is its inverse)."""
         chassis = [self.total_mass, self.total_mass, self.yaw_inertia]
@@ -84,6 +96,25 @@ class Robot:
         self._inverse_factor_centred = np.sqrt(self._inverse_centred)
         for constant in (self._mass_centred, self._inverse_centred, self._inverse_factor_centred):
             constant.flags.writeable = False
+
+    @property
+    def wall_load(self) -> float:
+        """F_ad + m_t g cos i: what the surface pushes back with, the sum of the normal loads (N)."""
+        return self.adsorption.applied_force + self.normal_weight
+
+    def with_adhesion_force(self, force: float) -> Robot:
+        """The same robot on the same surface pressed by ``force`` (N) instead."""
+        return Robot(self.params, self.world, force)
+
+    def wheel_points(self, q: np.ndarray) -> np.ndarray:
+        """The wheels' contact points in the wall frame (4, 2): the centre plus R(th) d_i."""
+        cos_t, sin_t = math.cos(float(q[2])), math.sin(float(q[2]))
+        rotated = self.wheel_offsets @ np.array([[cos_t, sin_t], [-sin_t, cos_t]])
+        return rotated + q[:2]
+
+    def wheel_friction(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(mu_s, mu_k) of each wheel (4,) at q: its patch's, else the robot file's."""
+        return self.world.friction_at(self.wheel_points(q), self.params.wall_friction, self.params.kinetic_friction)
 
     def offset_moment_arm(self, theta: float) -> tuple[float, float]:
         """u(th) = R(th) S s, the coupling between heading and translation."""
@@ -133,7 +164,7 @@ class Robot:
                       loads: np.ndarray | None = None) -> np.ndarray:
         """Q: offset-CoM centripetal term, gravity, rolling resistance and motor torques.
 
-        Rolling resistance f_r N at each wheel with N = F_ad / 4 (section 4), or with each wheel's own
+        Rolling resistance f_r N at each wheel with N = (F_ad + m_t g cos i) / 4 (section 4), or with each wheel's own
         load where ``loads`` are given (coulomb contact: f_r max(N_i, 0), a lifted wheel has none).
         """
         gains = (self._resistance_gains if loads is None
@@ -170,7 +201,7 @@ class Robot:
         thd2 = thd * thd
         fx = thd2 * (cos_t * sx - sin_t * sy)
         fy = thd2 * (sin_t * sx + cos_t * sy) - self._weight
-        mz = -self.params.gravity * uy
+        mz = -self.slope_gravity * uy
         eps2 = self.params.velocity_epsilon ** 2
         for gain, (arm_x, arm_y, vx, vy) in zip(gains, self._axle_velocities(q, qd)):
             scale = -gain / math.sqrt(vx * vx + vy * vy + eps2)

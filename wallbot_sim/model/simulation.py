@@ -23,6 +23,7 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
 from wallbot_sim.model.trajectories import LastSample, Reference
+from wallbot_sim.model.world import World
 
 if TYPE_CHECKING:
     from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
@@ -92,6 +93,8 @@ class Simulation:
         """The loads coulomb contact's rolling resistance holds over this step; None: section 4's F_ad / 4."""
         self.set_contact_model(contact)
         self._initial = (t0, _state_vector(q0, qd0))
+        if engine == NUMBA:
+            refuse_compiled(robot)
         self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         self.steps = 0
@@ -138,7 +141,7 @@ class Simulation:
         self.steps = 0
         self._cached: StepOutputs | None = None
         if self._coulomb is not None:
-            self._coulomb.reset(self.robot.adsorption.applied_force)
+            self._coulomb.reset(self.robot.wall_load)
         self._active, self._friction, self._held_loads = self._modules, None, None
 
     @property
@@ -190,7 +193,7 @@ class Simulation:
 
         Sliding wheels keep sliding; the loads their friction holds are found again at the next boundary.
         """
-        self.robot = Robot(self.robot.params.replace(adhesion_force=force))
+        self.robot = Robot(self.robot.params.replace(adhesion_force=force), self.robot.world)
         self._cached = None
 
     def set_reference(self, reference: Reference | None) -> None:
@@ -222,7 +225,7 @@ class Simulation:
             self._active = self._coulomb.active_modules(new_modules)
         else:
             if self._coulomb is not None:
-                self._coulomb.reset(self.robot.adsorption.applied_force)
+                self._coulomb.reset(self.robot.wall_load)
             self._active = new_modules
         self._friction = self._held_loads = None
         velocity_rows = [row for module in self._active if isinstance(module, VelocityConstraint)
@@ -316,10 +319,9 @@ class Simulation:
         loads, static = solution.loads, self.robot.params.wall_friction
         layout = self._coulomb.layout(self._modules)
         return ContactOutputs(
-            loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.adsorption.applied_force,
-                                static),
+            loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.wall_load, static),
             self._limits(loads), channel_slipping(solution.sliding, layout.directions), solution.friction_force,
-            solution.wheel_forces, wheel_use(solution.wheel_forces[None], loads[None], static)[0],
+            solution.wheel_forces, wheel_use(solution.wheel_forces[None], loads[None], self.robot.wheel_friction(q)[0])[0],
             tuple(wheel in solution.sliding for wheel in range(4)),  # type: ignore[arg-type]
             contact_velocities(q[None, 2], qd[None], self.robot.wheel_offsets, self.robot.params.wheel_radius)[0])
 
@@ -329,12 +331,12 @@ class Simulation:
         q = self._y[:DOF]
         loads = normal_loads(self.robot, q, qd, motion.acceleration)
         drive = drive_forces(q[2], motion.constraint_force[:3], self.robot.params.half_track)
-        return loads, friction_use((drive.left, drive.right, drive.lateral), loads,
-                                   self.robot.adsorption.applied_force, self.robot.params.wall_friction), drive
+        return loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.wall_load,
+                                   self.robot.params.wall_friction), drive
 
     def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
         static = self.robot.params.wall_friction
-        return tuple(static * load for load in channel_loads(loads, self.robot.adsorption.applied_force))
+        return tuple(static * load for load in channel_loads(loads, self.robot.wall_load))
 
     def step(self) -> None:
         """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite, and
@@ -482,6 +484,19 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
     force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
     return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
+
+
+def python_only_features(robot: Robot) -> list[str]:
+    """What ``robot`` has that only the Python model computes: a world file, a motor block, a vacuum block."""
+    return [name for name, present in (('a world file', robot.world != World()),) if present]
+
+
+def refuse_compiled(robot: Robot) -> None:
+    """ParameterError naming the python engine if ``robot`` has what the compiled kernel does not compute."""
+    features = python_only_features(robot)
+    if features:
+        raise ParameterError(f'{" and ".join(features)} run on the python engine only: use --engine python '
+                             '(engine parameter python)')
 
 
 def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:

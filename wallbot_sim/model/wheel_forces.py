@@ -85,8 +85,9 @@ def split_contact_force(contact_rows: np.ndarray, row_loads: np.ndarray, other_r
     return weights * (made.T @ (np.linalg.pinv((made * weights) @ made.T, rcond=_SINGULAR) @ (basis.T @ force)))
 
 
-def wheel_use(forces: np.ndarray, loads: np.ndarray, static_friction: float) -> np.ndarray:
-    """|f_i| / (mu_s N_i) (T, 4) of forces (T, 4, 2): above 1 the wheel's friction disc cannot hold it.
+def wheel_use(forces: np.ndarray, loads: np.ndarray, static_friction: float | np.ndarray) -> np.ndarray:
+    """|f_i| / (mu_s N_i) (T, 4) of forces (T, 4, 2), mu_s one or each wheel's: above 1 the wheel's friction disc
+    cannot hold it.
 
     A wheel of no positive load can hold nothing: its use is infinite unless its force is 0 (then 0).
     """
@@ -110,5 +111,7 @@ def ideal_wheel_outputs(robot: Robot, q: np.ndarray, qd: np.ndarray, wrench: np.
     """Each wheel's share of the wrench (T, 3) on the chassis at states q, qd (T, 7) with loads (T, 4): ideal
     contact's outputs per wheel (what friction would have to supply)."""
     forces = split_chassis_wrench(q[:, 2], wrench, loads, robot.wheel_offsets)
-    return WheelOutputs(forces, wheel_use(forces, loads, robot.params.wall_friction),
+    static = (np.array([robot.wheel_friction(row)[0] for row in q]) if robot.world.patches
+              else robot.params.wall_friction)
+    return WheelOutputs(forces, wheel_use(forces, loads, static),
                         contact_velocities(q[:, 2], qd, robot.wheel_offsets, robot.params.wheel_radius))

@@ -45,7 +45,7 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_snapshot
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
-from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
                               RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
@@ -94,7 +94,8 @@ class DynamicsNode(Node):
         """Set once the node cannot go on (its start gave up, or a strict lockstep's answer did not come):
         ``common.run_nodes`` ends the process with it."""
         self.loop = DynamicsLoop(self.settings, load_robot_parameters(self.settings.robot_file or None), self,
-                                 self.get_logger(), Pacer(self.settings.realtime_priority, self.get_logger().warning))
+                                 self.get_logger(), Pacer(self.settings.realtime_priority, self.get_logger().warning),
+                                 world=load_world(self.settings.world_file))
         self._create_publishers(frames)
         self._create_subscriptions()
         self.pause_requested = False

@@ -16,6 +16,8 @@ FRAME_PREFIX_HELP = ("comes before the robot's own frames, base_frame_id and the
                      'viewer')
 """The ``frame_prefix`` setting of every node that names the robot's frames."""
 ROBOT_FILE_HELP = 'robot parameter YAML; empty = installed config/robot.yaml'
+WORLD_FILE_HELP = ('world YAML: inclination, friction patches, seams (python engine only); empty = a vertical, '
+                   'uniform wall')
 
 
 def sim_time() -> bool:

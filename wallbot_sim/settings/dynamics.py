@@ -12,7 +12,8 @@ from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.model.contact import CONTACT_MODELS, IDEAL
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.simulation import ENGINES, NUMBA
-from wallbot_sim.settings.common import COORDINATE, FRAME_PREFIX_HELP, ROBOT_FILE_HELP, WHEEL_TORQUE_LIMIT
+from wallbot_sim.settings.common import (COORDINATE, FRAME_PREFIX_HELP, ROBOT_FILE_HELP, WHEEL_TORQUE_LIMIT,
+                                         WORLD_FILE_HELP)
 from wallbot_sim.settings.table import setting, table_of
 
 REAL_TIME_FACTOR = NumberRange(1e-3, 1e6, zero='as fast as possible')
@@ -55,6 +56,7 @@ class DynamicsSettings:
     initial_at_rest: bool = setting(True, 'start at rest; false: with the reference velocity at t = 0, wheels '
                                           'rolling')
     robot_file: str = setting('', ROBOT_FILE_HELP, read_only=True)
+    world_file: str = setting('', WORLD_FILE_HELP, read_only=True)
     rate_hz: int = setting(1000, 'integration rate (RK4 steps per second of simulation time)',
                            NumberRange(1, 100_000))
     publish_every: int = setting(1, 'publish every N steps', NumberRange(1, 1_000_000))

@@ -1,0 +1,48 @@
+"""``simulate --world``: the surface of a world file through the CLI (docs/model.md 13.1), refused by the numba
+engine in one line naming the python engine."""
+
+from __future__ import annotations
+
+import pytest
+
+from cli_helpers import assert_one_line_error, read_csv, simulate
+from wallbot_sim import paths
+from wallbot_sim.model import RobotParameters
+
+PARAMS = RobotParameters()
+WEIGHT = (PARAMS.body_mass + 4 * PARAMS.wheel_mass) * PARAMS.gravity
+
+
+def ceiling(tmp_path, adhesion: float):
+    world = tmp_path / 'ceiling.yaml'
+    world.write_text('inclination: 180\n')
+    out = tmp_path / 'run.csv'
+    result = simulate('--scenario', 'rest', '--contact', 'coulomb', '--engine', 'python', '--world', world,
+                      '--adhesion-force', adhesion, '--duration', 0.05, '--csv', out, '--quiet')
+    return result, read_csv(out)
+
+
+def test_on_the_ceiling_too_little_adhesion_detaches_at_once(tmp_path):
+    result, (header, rows) = ceiling(tmp_path, 0.9 * WEIGHT)
+    assert result.returncode == 3 and 'detached: wheel 1' in result.stderr and 't = 0.000 s' in result.stderr
+    assert len(rows) == 1 and rows[0][header.index('N1')] == pytest.approx(-0.025 * WEIGHT, rel=1e-9)
+
+
+def test_on_the_ceiling_enough_adhesion_holds(tmp_path):
+    result, (header, rows) = ceiling(tmp_path, 1.2 * WEIGHT)
+    assert result.returncode == 0, result.stderr
+    assert [row[header.index('N1')] for row in rows] == pytest.approx([0.05 * WEIGHT] * len(rows), rel=1e-9)
+    assert max(abs(row[header.index('y')]) for row in rows) < 1e-9
+
+
+def test_the_numba_engine_refuses_a_world_in_one_line_naming_the_python_engine(tmp_path):
+    result = simulate('--scenario', 'rest', '--world', paths.config_dir() / 'world.yaml', '--engine', 'numba',
+                      '--csv', tmp_path / 'run.csv')
+    assert_one_line_error(result, 'a world file', '--engine python')
+
+
+def test_a_misspelt_world_key_is_one_line_naming_the_closest(tmp_path):
+    world = tmp_path / 'world.yaml'
+    world.write_text('inclination: 45\npatchs: []\n')
+    result = simulate('--scenario', 'rest', '--world', world, '--engine', 'python', '--csv', tmp_path / 'run.csv')
+    assert_one_line_error(result, str(world), "unknown world key 'patchs' (did you mean 'patches'?)")
