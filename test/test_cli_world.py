@@ -46,3 +46,21 @@ def test_a_misspelt_world_key_is_one_line_naming_the_closest(tmp_path):
     world.write_text('inclination: 45\npatchs: []\n')
     result = simulate('--scenario', 'rest', '--world', world, '--engine', 'python', '--csv', tmp_path / 'run.csv')
     assert_one_line_error(result, str(world), "unknown world key 'patchs' (did you mean 'patches'?)")
+
+
+def test_a_motor_block_appends_the_applied_torques_to_the_csv(tmp_path):
+    """Facing up, commanding 50 N m per side against a 4 N m stall torque: the CSV's tau_L_applied, tau_R_applied
+    start at the stall torque (at rest) and fall along the torque-speed line with the wheels' speed."""
+    robot = tmp_path / 'robot.yaml'
+    robot.write_text(paths.robot_yaml().read_text() + 'motor: {stall_torque: 4.0, no_load_speed: 20.0}\n')
+    out = tmp_path / 'run.csv'
+    result = simulate('--scenario', 'rest', '--heading', 1.5707963267948966, '--torque', '50,50', '--robot', robot,
+                      '--engine', 'python', '--duration', 0.1, '--csv', out, '--quiet')
+    assert result.returncode == 0, result.stderr
+    header, rows = read_csv(out)
+    assert header[-2:] == ['tau_L_applied', 'tau_R_applied']
+    left, right = header.index('tau_L_applied'), header.index('tau_R_applied')
+    assert rows[0][left] == rows[0][right] == 4.0
+    for row in rows:
+        speed = 0.5 * (row[header.index('dphi1')] + row[header.index('dphi2')])
+        assert row[left] == pytest.approx(4.0 * (1 - speed / 20.0), rel=1e-12)

@@ -24,7 +24,7 @@ from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.simulation import NUMBA
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_line, csv_lines, fill_rows
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, block_columns, block_groups, csv_line, csv_lines, fill_rows
 from wallbot_sim.settings.dynamics import DYNAMICS
 
 HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
@@ -160,12 +160,13 @@ def main(args: argparse.Namespace) -> int:
         sinks.append(bag)
     with _open_csv(args.csv) as stream:
         if stream is not None:
-            csv.writer(stream).writerow(CSV_COLUMNS)
+            groups = block_groups(simulation.robot.params)
+            csv.writer(stream).writerow(CSV_COLUMNS + block_columns(groups))
 
         def on_step(out: StepOutputs) -> None:
             with signals.deferred:  # a signal ends the run between two complete steps
                 if stream is not None:
-                    stream.write(csv_line(out))
+                    stream.write(csv_line(out, groups))
                 for sink in sinks:
                     sink.write(out)
                 if controller is not None:  # after the state was written, as the graph answers a published state

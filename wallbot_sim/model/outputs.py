@@ -98,6 +98,7 @@ class StepOutputs:
     constraint_force: np.ndarray
     residual: float
     motor_torque: tuple[float, float]
+    """The side torques acting (N m): the command, clipped by a motor block (docs/model.md 13.2)."""
     drive: DriveForces
     """The channel forces of the whole contact wrench (constraint force plus kinetic friction)."""
     reference: ReferenceSample | None

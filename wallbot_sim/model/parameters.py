@@ -7,6 +7,7 @@ from typing import Any, Mapping
 
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.keys import check_keys
+from wallbot_sim.model.motor import MotorParameters
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 
 _POSITIVE = (
@@ -16,6 +17,8 @@ _POSITIVE = (
     'stick_velocity',
 )
 _NON_NEGATIVE = ('rolling_resistance',)
+OPTIONAL_BLOCKS = ('motor',)
+"""The robot file's blocks it may leave out (docs/model.md 13)."""
 
 
 @dataclass(frozen=True)
@@ -43,6 +46,8 @@ class RobotParameters:
     adhesion_force: float | None = None
     """F_ad (N); None applies k_ad F_min (section 3)."""
     stick_velocity: float = 1.0e-3
+    motor: MotorParameters | None = None
+    """The optional ``motor`` block (docs/model.md 13.2); None: any commanded torque is applied."""
 
     def __post_init__(self) -> None:
         for name in _POSITIVE + _NON_NEGATIVE:
@@ -53,6 +58,8 @@ class RobotParameters:
                                  f'got {self.kinetic_friction!r}')
         if self.adhesion_force is not None:  # null applies k_ad F_min
             object.__setattr__(self, 'adhesion_force', POSITIVE.check('adhesion_force', self.adhesion_force))
+        if isinstance(self.motor, Mapping):  # a parsed block, or ``replace``'s copy of one
+            object.__setattr__(self, 'motor', MotorParameters.from_mapping(self.motor))
         offset = self.com_offset
         if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
             raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')
@@ -66,7 +73,7 @@ class RobotParameters:
             raise ParameterError(f'robot parameters must be a mapping of names to values, got {values!r}')
         known = {f.name for f in fields(cls)}
         check_keys(values, known, 'robot parameter')
-        missing = sorted(known - set(values))
+        missing = sorted(known - set(values) - set(OPTIONAL_BLOCKS))
         if missing:
             raise ParameterError(f'missing robot parameter {missing[0]!r}')
         return cls(**values)

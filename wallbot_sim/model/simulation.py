@@ -97,6 +97,9 @@ class Simulation:
             refuse_compiled(robot)
         self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
+        """The commanded side torques (N m); ``applied_torque`` is what acts."""
+        self._held_torque: tuple[np.ndarray | None, tuple[float, float]] = (None, self.motor_torque)
+        """The state the applied torque was found at, and that torque (held over the step from there)."""
         self.steps = 0
         self.reset()
 
@@ -169,9 +172,21 @@ class Simulation:
 
     # --- configuration -------------------------------------------------------------------
     def set_motor_torque(self, tau_left: float, tau_right: float) -> None:
-        """Motor torques (N m) held from the next step on."""
+        """Motor torques (N m) commanded from the next step on."""
         self.motor_torque = (float(tau_left), float(tau_right))
+        self._held_torque = (None, self.motor_torque)
         self._cached = None
+
+    @property
+    def applied_torque(self) -> tuple[float, float]:
+        """The side torques acting over the step from the current state: the command, clipped to the robot file's
+        motor envelope at the wheels' speeds of this state where it has a ``motor`` block (docs/model.md 13.2)."""
+        state, torque = self._held_torque
+        if state is not self._y:
+            motor = self.robot.params.motor
+            torque = self.motor_torque if motor is None else motor.applied(self.motor_torque, self._y[DOF:])
+            self._held_torque = (self._y, torque)
+        return torque
 
     def set_contact_model(self, name: str) -> None:
         """'ideal' or 'coulomb' from this step boundary on.
@@ -259,12 +274,12 @@ class Simulation:
     def solve(self, t: float, q: np.ndarray, qd: np.ndarray) -> ConstrainedMotion:
         """The constrained motion at (t, q, qd) with the held motor torques (and contact state)."""
         if self._friction is None and self._held_loads is None:
-            return constrained_motion(self.robot, self._active, t, q, qd, self.motor_torque)
+            return constrained_motion(self.robot, self._active, t, q, qd, self.applied_torque)
         force, rows, rhs = self._problem(t, q, qd)
         return solve_with_factor(self.robot.mass_matrix(q), self.robot.mass_inverse_factor(q), force, rows, rhs)
 
     def _problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        force, rows, rhs = stack_problem(self.robot, self._active, t, q, qd, self.motor_torque, self._held_loads)
+        force, rows, rhs = stack_problem(self.robot, self._active, t, q, qd, self.applied_torque, self._held_loads)
         if self._friction is not None:
             force = force + self._friction(q, qd)
         return force, rows, rhs
@@ -284,9 +299,11 @@ class Simulation:
             if self.coulomb_applies:
                 velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(self.robot, self._modules, self._t, q, velocities, self.dt,
-                                                    self.motor_torque, self._project)
+                                                    self.applied_torque, self._project)
                 if qd is not velocities:  # a wheel stopped or stuck again: its slip was projected away
+                    torque = self.applied_torque  # the boundary's, which the settled contact holds
                     self._y = np.concatenate((q, qd))
+                    self._held_torque = (self._y, torque)
                     q = self._y[:DOF]
                 self._active, self._friction, self._held_loads = solution.active, solution.friction, solution.loads
                 motion, drive = solution.motion, wheel_force_sums(solution.wheel_forces)
@@ -305,7 +322,7 @@ class Simulation:
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
-                self.motor_torque, drive, reference, contact)
+                self.applied_torque, drive, reference, contact)
         return self._cached
 
     def _ideal_contact(self, loads: np.ndarray, use: FrictionUse, wheels: WheelOutputs) -> ContactOutputs:
@@ -488,14 +505,16 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
 
 def python_only_features(robot: Robot) -> list[str]:
     """What ``robot`` has that only the Python model computes: a world file, a motor block, a vacuum block."""
-    return [name for name, present in (('a world file', robot.world != World()),) if present]
+    return [name for name, present in (('a world file', robot.world != World()),
+                                       ('a motor block', robot.params.motor is not None)) if present]
 
 
 def refuse_compiled(robot: Robot) -> None:
     """ParameterError naming the python engine if ``robot`` has what the compiled kernel does not compute."""
     features = python_only_features(robot)
     if features:
-        raise ParameterError(f'{" and ".join(features)} run on the python engine only: use --engine python '
+        verb = 'runs' if len(features) == 1 else 'run'
+        raise ParameterError(f'{" and ".join(features)} {verb} on the python engine only: use --engine python '
                              '(engine parameter python)')
 
 

@@ -9,6 +9,10 @@ the drive forces (docs/model.md section 8); then the contact per wheel (docs/mod
 section 11.2): ``N1..N4`` the normal loads, ``use1..use4`` the friction use |f_i| / (mu_s N_i),
 ``slip1..slip4`` the slip flags (1 while the wheel slides), ``fx1..fx4`` and ``fy1..fy4`` the wall's
 tangential force on the robot at each wheel along the body axes x_p and y_p (N).
+
+A robot file's optional blocks (docs/model.md 13) append their columns (BLOCK_GROUPS), in that order:
+``motor``: ``tau_L_applied, tau_R_applied``, the side torques acting (the command clipped to the
+torque-speed envelope). A robot file without them writes CSV_COLUMNS alone.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
-from wallbot_sim.model import StepOutputs
+from wallbot_sim.model import RobotParameters, StepOutputs
 from wallbot_sim.model.outputs import StepTable
 
 if TYPE_CHECKING:  # the batch package loads numba, which the CSV does not need
@@ -58,15 +62,32 @@ def csv_row(out: StepOutputs) -> list[float]:
 
 CSV_LINE_END = '\r\n'
 """``csv.writer``'s default line terminator."""
+ColumnGroup = tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[float]]]
+BLOCK_GROUPS: dict[str, ColumnGroup] = {
+    'motor': (('tau_L_applied', 'tau_R_applied'), lambda out: out.motor_torque),
+}
+"""The columns of each optional block of the robot file, appended in this order where the block is given."""
 
 
-def csv_line(out: StepOutputs) -> str:
-    """``csv_row`` as the line ``csv.writer`` writes for it, terminator included (faster than the writer).
+def block_groups(params: RobotParameters) -> tuple[ColumnGroup, ...]:
+    """The column groups the blocks ``params`` has append."""
+    return tuple(group for block, group in BLOCK_GROUPS.items() if getattr(params, block) is not None)
+
+
+def block_columns(groups: Sequence[ColumnGroup]) -> tuple[str, ...]:
+    """The names of ``groups``' columns, in order."""
+    return tuple(name for names, _values in groups for name in names)
+
+
+def csv_line(out: StepOutputs, groups: Sequence[ColumnGroup] = ()) -> str:
+    """``csv_row`` (then the values of the blocks' ``groups``) as the line ``csv.writer`` writes for it,
+    terminator included (faster than the writer).
 
     The writer quotes nothing here (a number's repr holds no comma, quote or line break) and writes
     each value as its repr; joining the reprs skips its per-field checks.
     """
-    return ','.join(map(repr, csv_row(out))) + CSV_LINE_END
+    extra = [float(value) for _names, values in groups for value in values(out)]
+    return ','.join(map(repr, csv_row(out) + extra)) + CSV_LINE_END
 
 
 COLUMN = {name: i for i, name in enumerate(CSV_COLUMNS)}

@@ -23,8 +23,12 @@ from typing import Any, Callable
 import numpy as np
 
 from wallbot_msgs_py import codec, topics
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS
+from wallbot_sim.rundata.csv_format import BLOCK_GROUPS, CSV_COLUMNS, block_columns
 from wallbot_sim.rundata.errors import RunDataError
+
+BLOCK_COLUMNS = set(block_columns(tuple(BLOCK_GROUPS.values())))
+"""The columns a robot file's blocks append (a run's data reads the common columns)."""
+
 
 @dataclass
 class RunData:
@@ -89,9 +93,10 @@ def _load_csv(path: Path, label: str) -> RunData:
         with open(path, newline='', encoding='utf-8') as stream:
             reader = csv.reader(stream)
             header = next(reader, None)
-            if header is None or list(header) != list(CSV_COLUMNS):
+            if header is None or tuple(header[:len(CSV_COLUMNS)]) != CSV_COLUMNS or not set(
+                    header[len(CSV_COLUMNS):]) <= BLOCK_COLUMNS:
                 raise RunDataError(f'{path} is not a wallbot-sim simulate CSV (header differs)')
-            rows = np.array([[float(v) for v in row] for row in reader if row], dtype=float)
+            rows = np.array([[float(v) for v in row[:len(CSV_COLUMNS)]] for row in reader if row], dtype=float)
     except OSError as error:
         raise RunDataError(f'cannot read {path}: {error.strerror}') from None
     except ValueError:

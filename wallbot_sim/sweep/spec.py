@@ -35,6 +35,7 @@ from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DEFAULT_STEP, TIME_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS
+from wallbot_sim.model.parameters import OPTIONAL_BLOCKS
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.sweep.compute import RunSettings
@@ -47,7 +48,7 @@ CHUNK_ROBOT_STEPS = 1_200_000
 """Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 392 bytes per
 robot-step (a CSV row; about 470 MB), until each robot's run is summarized."""
 MAX_CHUNK_SIZE = 250
-ROBOT_KEYS = tuple(f.name for f in fields(RobotParameters))
+ROBOT_KEYS = tuple(f.name for f in fields(RobotParameters) if f.name not in OPTIONAL_BLOCKS)
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,10 @@ def parse_spec(values: Any, folder: Path = Path('.')) -> SweepSpec:
     if robot is not None and not isinstance(robot, str):
         raise SweepError(f'robot must be a robot file path, got {robot!r}')
     base = load_robot_parameters(None if robot is None else folder / robot)
+    blocks = [block for block in OPTIONAL_BLOCKS if getattr(base, block) is not None]
+    if blocks:
+        raise SweepError(f'the robot file\'s {blocks[0]} block runs on the python engine only and a sweep runs on the '
+                         'batch (numba): drop the block, or simulate --engine python robot by robot')
     grid = _grid(values.get('grid'))
     vary = _vary(values.get('vary'))
     both = set(grid) & set(vary)
