@@ -64,3 +64,23 @@ def test_a_motor_block_appends_the_applied_torques_to_the_csv(tmp_path):
     for row in rows:
         speed = 0.5 * (row[header.index('dphi1')] + row[header.index('dphi2')])
         assert row[left] == pytest.approx(4.0 * (1 - speed / 20.0), rel=1e-12)
+
+
+def test_a_vacuum_block_appends_dp_and_f_ad_and_the_pump_command_lowers_them(tmp_path):
+    robot = tmp_path / 'robot.yaml'
+    robot.write_text(paths.robot_yaml().read_text() + 'adhesion: {chamber_area: 0.02, chamber_volume: 0.002, '
+                     'pump_max_pressure: 12000.0, pump_max_flow: 0.01, leak_area: 2.0e-5}\n')
+    out = tmp_path / 'run.csv'
+    result = simulate('--scenario', 'rest', '--robot', robot, '--engine', 'python', '--pump-command', 0.9,
+                      '--duration', 0.2, '--csv', out, '--quiet')
+    assert result.returncode == 0, result.stderr
+    header, rows = read_csv(out)
+    assert header[-2:] == ['dp', 'F_ad']
+    dp, force = header.index('dp'), header.index('F_ad')
+    assert all(row[force] == pytest.approx(0.02 * row[dp], rel=1e-12) for row in rows)
+    assert rows[-1][dp] < rows[0][dp]  # from the balance at full command towards the lower one at 0.9
+
+
+def test_the_pump_command_needs_a_vacuum_block(tmp_path):
+    result = simulate('--scenario', 'rest', '--engine', 'python', '--pump-command', 0.5, '--csv', tmp_path / 'r.csv')
+    assert_one_line_error(result, '--pump-command', 'adhesion block')

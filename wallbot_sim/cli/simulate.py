@@ -24,6 +24,7 @@ from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.outputs import StepTable
 from wallbot_sim.model.simulation import NUMBA
+from wallbot_sim.model.vacuum import PUMP_COMMAND
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, block_columns, block_groups, csv_line, csv_lines, fill_rows
 from wallbot_sim.settings.dynamics import DYNAMICS
 
@@ -60,6 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--dt', type=number(TIME_STEP), default=1e-3, help='RK4 step in seconds (default 0.001)')
     parser.add_argument('--robot', help='robot parameter YAML (default: config/robot.yaml)')
     add_graph_option(parser, 'world', default=None)
+    parser.add_argument('--pump-command', type=number(PUMP_COMMAND), default=1.0,
+                        help="with the robot file's adhesion block: the vacuum pump's command in [0, 1] (default 1)")
     add_graph_option(parser, 'engine')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
@@ -72,6 +75,8 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     if args.adhesion_force:  # 0: the robot file's
         params = params.replace(adhesion_force=args.adhesion_force)
     robot = Robot(params, load_world(args.world))
+    if args.pump_command != 1.0 and params.adhesion is None:
+        raise CliError("--pump-command drives the robot file's adhesion block (a vacuum chamber): the file has none")
     rest = args.scenario == REST
     if not rest and (args.heading is not None or args.torque is not None):
         raise CliError('--heading and --torque set up --scenario rest; a trajectory scenario starts as its file says')
@@ -95,12 +100,15 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
         q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
         simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact, engine=args.engine)
         simulation.set_motor_torque(*parse_torque(args.torque))
-        return simulation, args.duration if args.duration is not None else REST_DURATION
-    scenario = load_scenario(args.scenario)
-    q0, qd0 = scenario.initial_state(robot)
-    duration = args.duration if args.duration is not None else scenario.duration
-    return Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact,
-                      engine=args.engine), duration
+        duration = args.duration if args.duration is not None else REST_DURATION
+    else:
+        scenario = load_scenario(args.scenario)
+        q0, qd0 = scenario.initial_state(robot)
+        duration = args.duration if args.duration is not None else scenario.duration
+        simulation = Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact,
+                                engine=args.engine)
+    simulation.set_pump_command(args.pump_command)
+    return simulation, duration
 
 
 def build_controller(args: argparse.Namespace, simulation: Simulation,

@@ -103,6 +103,8 @@ class StepOutputs:
     """The channel forces of the whole contact wrench (constraint force plus kinetic friction)."""
     reference: ReferenceSample | None
     contact: ContactOutputs
+    vacuum: tuple[float, float] | None = None
+    """(dp (Pa), F_ad (N)) of a vacuum chamber (docs/model.md 13.3); None without one."""
 
     @property
     def chassis_wrench(self) -> np.ndarray:

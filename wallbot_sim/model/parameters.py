@@ -8,6 +8,7 @@ from typing import Any, Mapping
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.keys import check_keys
 from wallbot_sim.model.motor import MotorParameters
+from wallbot_sim.model.vacuum import VacuumParameters
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
 
 _POSITIVE = (
@@ -17,7 +18,7 @@ _POSITIVE = (
     'stick_velocity',
 )
 _NON_NEGATIVE = ('rolling_resistance',)
-OPTIONAL_BLOCKS = ('motor',)
+OPTIONAL_BLOCKS = ('motor', 'adhesion')
 """The robot file's blocks it may leave out (docs/model.md 13)."""
 
 
@@ -48,6 +49,8 @@ class RobotParameters:
     stick_velocity: float = 1.0e-3
     motor: MotorParameters | None = None
     """The optional ``motor`` block (docs/model.md 13.2); None: any commanded torque is applied."""
+    adhesion: VacuumParameters | None = None
+    """The optional ``adhesion`` block, a vacuum chamber (docs/model.md 13.3); None: F_ad is constant."""
 
     def __post_init__(self) -> None:
         for name in _POSITIVE + _NON_NEGATIVE:
@@ -58,8 +61,9 @@ class RobotParameters:
                                  f'got {self.kinetic_friction!r}')
         if self.adhesion_force is not None:  # null applies k_ad F_min
             object.__setattr__(self, 'adhesion_force', POSITIVE.check('adhesion_force', self.adhesion_force))
-        if isinstance(self.motor, Mapping):  # a parsed block, or ``replace``'s copy of one
-            object.__setattr__(self, 'motor', MotorParameters.from_mapping(self.motor))
+        for block, kind in (('motor', MotorParameters), ('adhesion', VacuumParameters)):
+            if isinstance(getattr(self, block), Mapping):  # a parsed block, or ``replace``'s copy of one
+                object.__setattr__(self, block, kind.from_mapping(getattr(self, block)))
         offset = self.com_offset
         if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
             raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')

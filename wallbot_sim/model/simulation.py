@@ -23,6 +23,7 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
 from wallbot_sim.model.trajectories import LastSample, Reference
+from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
 from wallbot_sim.model.world import World
 
 if TYPE_CHECKING:
@@ -100,6 +101,12 @@ class Simulation:
         """The commanded side torques (N m); ``applied_torque`` is what acts."""
         self._held_torque: tuple[np.ndarray | None, tuple[float, float]] = (None, self.motor_torque)
         """The state the applied torque was found at, and that torque (held over the step from there)."""
+        vacuum = robot.params.adhesion
+        self._chamber = None if vacuum is None else Chamber(vacuum, robot.world)
+        self.pump_command = 1.0
+        """u in [0, 1], the vacuum pump's command (``set_pump_command``)."""
+        self.pressure = 0.0
+        """dp (Pa) of the vacuum chamber, a state integrated with the robot's; 0 without a chamber."""
         self.steps = 0
         self.reset()
 
@@ -143,6 +150,8 @@ class Simulation:
         self._t, self._y = t0, y0.copy()
         self.steps = 0
         self._cached: StepOutputs | None = None
+        if self._chamber is not None:  # the chamber starts balanced where the robot starts
+            self._set_pressure(self._chamber.steady_pressure(y0[:2], self.pump_command))
         if self._coulomb is not None:
             self._coulomb.reset(self.robot.wall_load)
         self._active, self._friction, self._held_loads = self._modules, None, None
@@ -187,6 +196,16 @@ class Simulation:
             torque = self.motor_torque if motor is None else motor.applied(self.motor_torque, self._y[DOF:])
             self._held_torque = (self._y, torque)
         return torque
+
+    def set_pump_command(self, command: float) -> None:
+        """The vacuum pump's command u in [0, 1] from this step boundary on."""
+        self.pump_command = PUMP_COMMAND.check('pump command', command)
+        self._cached = None
+
+    def _set_pressure(self, pressure: float) -> None:
+        """dp, and the robot pressed by the chamber's dp x area from here (held over the next step)."""
+        self.pressure = pressure
+        self.robot = self.robot.with_adhesion_force(max(pressure, 0.0) * self.robot.params.adhesion.chamber_area)
 
     def set_contact_model(self, name: str) -> None:
         """'ideal' or 'coulomb' from this step boundary on.
@@ -322,7 +341,8 @@ class Simulation:
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
-                self.applied_torque, drive, reference, contact)
+                self.applied_torque, drive, reference, contact,
+                None if self._chamber is None else (self.pressure, self.robot.adsorption.applied_force))
         return self._cached
 
     def _ideal_contact(self, loads: np.ndarray, use: FrictionUse, wheels: WheelOutputs) -> ContactOutputs:
@@ -370,7 +390,10 @@ class Simulation:
             cached = self._cached  # outputs already asked for at this state: their solve is RK4's first stage
             with np.errstate(over='ignore', invalid='ignore'):  # divergence is checked just below
                 k1 = None if cached is None else np.concatenate((self._y[DOF:], cached.acceleration))
-                y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
+                if self._chamber is None:
+                    y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
+                else:
+                    y, pressure = self._step_with_chamber(k1)
             y = y if np.all(np.isfinite(y)) else None
         if y is None:
             raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
@@ -378,6 +401,20 @@ class Simulation:
         self._t = self._initial[0] + self.steps * self.dt
         self._y = y
         self._cached = None
+        if self._chamber is not None:
+            self._set_pressure(pressure)
+
+    def _step_with_chamber(self, k1: np.ndarray | None) -> tuple[np.ndarray, float]:
+        """One RK4 step of the robot and the chamber's dp together: dp's rate at each stage's centre (the seams
+        under it), the robot's motion under the F_ad held from the boundary."""
+        def derivative(t: float, state: np.ndarray) -> np.ndarray:
+            return np.append(self._derivative(t, state[:-1]),
+                             self._chamber.rate(float(state[-1]), state[:2], self.pump_command))
+        start = np.append(self._y, self.pressure)
+        first = None if k1 is None else np.append(k1, self._chamber.rate(self.pressure, self._y[:2],
+                                                                          self.pump_command))
+        end = rk4_step(derivative, self._t, start, self.dt, first)
+        return end[:-1], float(end[-1])
 
     def _compiled_now(self) -> CompiledDynamics | None:
         """The compiled dynamics configured for what is active, when they cover it (ideal contact, no modules of
@@ -506,7 +543,8 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
 def python_only_features(robot: Robot) -> list[str]:
     """What ``robot`` has that only the Python model computes: a world file, a motor block, a vacuum block."""
     return [name for name, present in (('a world file', robot.world != World()),
-                                       ('a motor block', robot.params.motor is not None)) if present]
+                                       ('a motor block', robot.params.motor is not None),
+                                       ('a vacuum block', robot.params.adhesion is not None)) if present]
 
 
 def refuse_compiled(robot: Robot) -> None:
