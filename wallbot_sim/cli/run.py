@@ -35,7 +35,8 @@ from wallbot_sim.graph_monitor import Monitor
 from wallbot_sim.graph_options import option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
 from wallbot_sim.model import STRUCTURAL, ConstraintSelection, ParameterError, Robot
-from wallbot_sim.model.simulation import NUMBA, refuse_compiled
+from wallbot_sim.model.python_only import refuse_compiled
+from wallbot_sim.model.simulation import NUMBA
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'

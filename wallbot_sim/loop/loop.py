@@ -29,7 +29,8 @@ from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, Diverge
                                Simulation, StepOutputs, adsorption_analysis)
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.scenario import moving_start
-from wallbot_sim.model.simulation import NUMBA, refuse_compiled
+from wallbot_sim.model.python_only import refuse_compiled
+from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.model.world import World
 from wallbot_sim.model.trajectories import STAMP_RESOLUTION
 from wallbot_sim.settings.dynamics import DynamicsSettings

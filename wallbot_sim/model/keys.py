@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import difflib
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 from wallbot_sim.model.errors import ParameterError
 
@@ -29,3 +29,14 @@ def check_keys(values: Mapping[str, Any], known: Iterable[str], what: str) -> No
     reason = unknown_key(values, known, what)
     if reason is not None:
         raise ParameterError(reason)
+
+
+def check_block(values: Any, known: Sequence[str], where: str) -> None:
+    """Raise ParameterError unless ``values`` is a mapping of exactly the keys ``known`` (a block of a file, named
+    ``where``): no mapping, an unknown key (the closest named) or a missing one."""
+    if not isinstance(values, Mapping):
+        raise ParameterError(f'{where} must be a mapping of {", ".join(known)}, got {values!r}')
+    check_keys(values, known, f'{where} key')
+    missing = [key for key in known if key not in values]
+    if missing:
+        raise ParameterError(f'{where} needs {missing[0]!r}')

@@ -19,8 +19,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from wallbot_sim.model.errors import ParameterError
-from wallbot_sim.model.keys import check_keys
+from wallbot_sim.model.keys import check_block
 from wallbot_sim.model.numbers import POSITIVE
 
 _KEYS = ('stall_torque', 'no_load_speed')
@@ -41,12 +40,7 @@ class MotorParameters:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> MotorParameters:
-        if not isinstance(values, Mapping):
-            raise ParameterError(f'motor must be a mapping of {", ".join(_KEYS)}, got {values!r}')
-        check_keys(values, _KEYS, 'motor key')
-        missing = [key for key in _KEYS if key not in values]
-        if missing:
-            raise ParameterError(f'motor needs {missing[0]!r}')
+        check_block(values, _KEYS, 'motor')
         return cls(**values)
 
     def limits(self, speed: float) -> tuple[float, float]:

@@ -23,8 +23,8 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
 from wallbot_sim.model.trajectories import LastSample, Reference
+from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
-from wallbot_sim.model.world import World
 
 if TYPE_CHECKING:
     from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
@@ -538,22 +538,6 @@ def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: flo
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
     force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
     return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
-
-
-def python_only_features(robot: Robot) -> list[str]:
-    """What ``robot`` has that only the Python model computes: a world file, a motor block, a vacuum block."""
-    return [name for name, present in (('a world file', robot.world != World()),
-                                       ('a motor block', robot.params.motor is not None),
-                                       ('a vacuum block', robot.params.adhesion is not None)) if present]
-
-
-def refuse_compiled(robot: Robot) -> None:
-    """ParameterError naming the python engine if ``robot`` has what the compiled kernel does not compute."""
-    features = python_only_features(robot)
-    if features:
-        verb = 'runs' if len(features) == 1 else 'run'
-        raise ParameterError(f'{" and ".join(features)} {verb} on the python engine only: use --engine python '
-                             '(engine parameter python)')
 
 
 def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:

@@ -19,8 +19,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from wallbot_sim.model.errors import ParameterError
-from wallbot_sim.model.keys import check_keys
+from wallbot_sim.model.keys import check_block
 from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE, NumberRange
 from wallbot_sim.model.world import World
 
@@ -56,12 +55,7 @@ class VacuumParameters:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> VacuumParameters:
-        if not isinstance(values, Mapping):
-            raise ParameterError(f'adhesion must be a mapping of {", ".join(_KEYS)}, got {values!r}')
-        check_keys(values, _KEYS, 'adhesion key')
-        missing = [key for key in _KEYS if key not in values]
-        if missing:
-            raise ParameterError(f'adhesion needs {missing[0]!r}')
+        check_block(values, _KEYS, 'adhesion')
         return cls(**values)
 
     @property

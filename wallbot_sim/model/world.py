@@ -17,7 +17,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from wallbot_sim.model.errors import ParameterError
-from wallbot_sim.model.keys import check_keys
+from wallbot_sim.model.keys import check_block, check_keys
 from wallbot_sim.model.numbers import FINITE, POSITIVE, NumberRange
 
 INCLINATION = NumberRange(0.0, 180.0)
@@ -39,7 +39,7 @@ class Patch:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], where: str) -> Patch:
-        _check_block(values, _PATCH_KEYS, where)
+        check_block(values, _PATCH_KEYS, where)
         static = POSITIVE.check(f'{where} wall_friction', values['wall_friction'])
         kinetic = POSITIVE.check(f'{where} kinetic_friction', values['kinetic_friction'])
         if kinetic > static:
@@ -62,7 +62,7 @@ class Seam:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any], where: str) -> Seam:
-        _check_block(values, _SEAM_KEYS, where)
+        check_block(values, _SEAM_KEYS, where)
         start, end = _point(values['from'], f'{where} from'), _point(values['to'], f'{where} to')
         if start == end:
             raise ParameterError(f'{where} from and to must differ, got {list(start)} twice')
@@ -129,15 +129,6 @@ class World:
     def seam_area(self, centre: np.ndarray, radius: float) -> float:
         """The seams' gap area (m^2) under a disc of ``radius`` about the wall-frame point ``centre``."""
         return sum(seam.width * seam.length_within(centre, radius) for seam in self.seams)
-
-
-def _check_block(values: Any, known: tuple[str, ...], where: str) -> None:
-    if not isinstance(values, Mapping):
-        raise ParameterError(f'{where} must be a mapping of {", ".join(known)}, got {values!r}')
-    check_keys(values, known, f'{where} key')
-    missing = [key for key in known if key not in values]
-    if missing:
-        raise ParameterError(f'{where} needs {missing[0]!r}')
 
 
 def _sequence(values: Any, name: str) -> list[Any]:
