@@ -77,10 +77,26 @@ class RunData:
         return len(self.t)
 
 
+RUN_BAG = 'bag'
+"""The bag's name in a run's folder (``wallbot-sim run --out DIR`` records DIR/bag)."""
+
+
+def run_label(path: Path | str) -> str:
+    """What names a run in figures and reports: a CSV's (or a lone .mcap's) stem; a bag's folder, or for a
+    run's own bag (DIR/bag, or DIR/bag/bag.mcap) the run's folder DIR."""
+    path = Path(path).resolve()
+    suffix = path.suffix.lower()
+    if suffix == '.csv' or (suffix == '.mcap' and not (path.parent / 'metadata.yaml').is_file()):
+        return path.stem
+    bag = path.parent if suffix == '.mcap' else path
+    return bag.parent.name if bag.name == RUN_BAG and bag.parent.name else bag.name
+
+
 def load_run(path: Path | str, label: str | None = None) -> RunData:
-    """A bag directory (or its .mcap) or a simulate CSV; RunDataError / BagError otherwise."""
+    """A bag directory (or its .mcap) or a simulate CSV; RunDataError / BagError otherwise. Labelled
+    ``label`` or by ``run_label``."""
     path = Path(path)
-    label = label or (path.stem if path.is_file() else path.name)
+    label = label or run_label(path)
     if not path.exists():
         raise RunDataError(f'{path} does not exist')
     if path.is_file() and path.suffix.lower() == '.csv':
