@@ -20,6 +20,14 @@ _POSITIVE = (
 _NON_NEGATIVE = ('rolling_resistance',)
 OPTIONAL_BLOCKS = ('motor', 'adhesion')
 """The robot file's blocks it may leave out (docs/model.md 13)."""
+UNITS = {
+    'body_mass': 'kg', 'wheel_mass': 'kg', 'body_yaw_inertia': 'kg m^2', 'wheel_yaw_inertia': 'kg m^2',
+    'wheel_spin_inertia': 'kg m^2', 'wheel_radius': 'm', 'half_wheelbase': 'm', 'half_track': 'm', 'com_offset': 'm',
+    'com_height': 'm', 'wall_friction': '-', 'rolling_resistance': '-', 'gravity': 'm/s^2', 'adsorption_safety': '-',
+    'velocity_epsilon': 'm/s', 'baumgarte_alpha': '1/s', 'baumgarte_beta': '1/s', 'kinetic_friction': '-',
+    'adhesion_force': 'N', 'stick_velocity': 'm/s',
+}
+"""The unit of each parameter (config/robot.yaml's comments); '-' a ratio."""
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,14 @@ OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_righ
            'max_use3', 'max_use4', 'least_adhesion_force', 'applied_adhesion_force', 'slipped', 'detached',
            't_detached', 'max_residual', 'feasible')
 """The results columns after a robot's parameters (``max_use1..4``: each wheel's peak friction use)."""
+OUTPUT_UNITS = {
+    'final_err': 'm', 'peak_err_after_5s': 'm', 'peak_abs_F_left': 'N', 'peak_abs_F_right': 'N',
+    'peak_abs_F_lateral': 'N', 'peak_motor_torque_left': 'N m', 'peak_motor_torque_right': 'N m',
+    'min_normal_load': 'N', 'max_use1': '-', 'max_use2': '-', 'max_use3': '-', 'max_use4': '-',
+    'least_adhesion_force': 'N', 'applied_adhesion_force': 'N', 'slipped': '0 or 1', 'detached': '0 or 1',
+    't_detached': 's', 'max_residual': 'm/s^2, rad/s^2', 'feasible': '0 or 1',
+}
+"""The unit of each output ('-': a ratio; the residual |A qdd - b| mixes the rows' accelerations)."""
 FEASIBLE_USE = NumberRange(high=1.0)
 """Friction use a feasible robot stays within: above 1 a wheel would slide on a real wall."""
 
