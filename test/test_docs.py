@@ -196,3 +196,53 @@ def test_the_cli_reference_lists_the_csv_columns_in_order():
     from wallbot_sim.rundata.csv_format import CSV_COLUMNS
     text = FENCE.sub('', CLI_REFERENCE.read_text(encoding='utf-8'))
     assert f"`{','.join(CSV_COLUMNS)}`" in text[text.index('### The CSV'):], 'docs/cli.md: the CSV columns differ'
+
+
+# --- the command blocks: each runs in the suite or says why not (test/doc_blocks.py) -------------------
+
+def test_every_command_block_runs_in_the_suite_or_says_why_not():
+    from doc_blocks import DOCUMENTS as PAGES, NOT_RUN, SHORTENED, blocks
+    problems = []
+    for page in PAGES:
+        for block in blocks(page):
+            if block.kind == 'console' and block.not_run_reason is None:
+                problems.append(f'{block.where}: a console block without "<!-- not run: REASON -->" before it')
+            elif block.kind == 'bash' and block.note and not SHORTENED.fullmatch(block.note):
+                problems.append(f'{block.where}: a bash block runs; its note {block.note!r} is no shortening')
+            elif block.kind == 'bash':
+                try:
+                    block.script()
+                except ValueError as error:
+                    problems.append(str(error))
+            elif block.kind not in ('bash', 'console') and NOT_RUN.fullmatch(block.note):
+                problems.append(f'{block.where}: a {block.kind} block is no command')
+    assert not problems, '\n'.join(problems)
+
+
+def test_every_page_with_commands_is_run_by_a_test_class():
+    import test_doc_examples
+    import test_doc_graph_examples
+    from doc_blocks import DOCUMENTS as PAGES, blocks
+    from doc_checks import DocumentRuns
+    covered = {cls.document for module in (test_doc_examples, test_doc_graph_examples) for cls in vars(module).values()
+               if isinstance(cls, type) and issubclass(cls, DocumentRuns) and cls is not DocumentRuns}
+    with_commands = {page for page in PAGES if any(block.runnable for block in blocks(page))}
+    assert with_commands == covered
+
+
+def test_every_quoted_number_checked_is_still_quoted():
+    from doc_checks import CLAIMS
+    for claim in CLAIMS:
+        assert all(claim.quoted()), claim.pattern
+
+
+def test_every_image_of_the_docs_is_made_by_docs_make_figures():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location('make_figures', REPO_ROOT / 'docs' / 'make_figures.py')
+    make_figures = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_figures)
+    shown = {Path(target).stem for document in DOCUMENTS for target in LINK.findall(prose(document.read_text(encoding='utf-8')))
+             if target.endswith('.png')}
+    assert shown == set(make_figures.IMAGES) == {path.stem for path in (REPO_ROOT / 'docs' / 'images').glob('*.png')}
+    for page, command, _written in make_figures.IMAGES.values():
+        make_figures.documented_command(REPO_ROOT / page, command)
