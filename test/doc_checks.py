@@ -152,6 +152,12 @@ CLAIMS = (
 )
 
 
+GRAPH_PAGES = (REPO_ROOT / 'README.md', REPO_ROOT / 'docs' / 'controller.md')
+"""The pages whose blocks start the node graph (test_doc_graph_examples.py)."""
+HEADLESS_PAGES = tuple(REPO_ROOT / 'docs' / name for name in ('examples.md', 'sweeps.md', 'driving.md', 'visualization.md'))
+"""The pages whose blocks run without ROS (test_doc_examples.py, fast tier)."""
+
+
 def claims_of(document: Path) -> list[Claim]:
     return [claim for claim in CLAIMS if REPO_ROOT / claim.document == document]
 

@@ -3,13 +3,7 @@ where their notes say nothing quoted depends on it), printing what the pages sho
 
 from __future__ import annotations
 
-from doc_blocks import REPO_ROOT
-from doc_checks import DocumentRuns
+from doc_checks import GRAPH_PAGES, DocumentRuns
 
-
-class TestReadme(DocumentRuns):
-    document = REPO_ROOT / 'README.md'
-
-
-class TestController(DocumentRuns):
-    document = REPO_ROOT / 'docs' / 'controller.md'
+for _page in GRAPH_PAGES:
+    globals()[f'Test_{_page.stem}'] = type(f'Test_{_page.stem}', (DocumentRuns,), {'document': _page})
