@@ -7,6 +7,8 @@ bag holds every 1 ms step and the controller's commands.
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 from pathlib import Path
 
 import numpy as np
@@ -48,10 +50,10 @@ def model_closed_loop(scenario_name: str, mass_scale: float, steps: int) -> np.n
     return model_loop_states(scenario_name, mass_scale, steps)[:, :2]
 
 
-def model_loop_states(scenario_name: str, mass_scale: float, steps: int, lost_answer: int | None = None) -> np.ndarray:
+def model_loop_states(scenario_name: str, mass_scale: float, steps: int, lost_answers: Collection[int] = ()) -> np.ndarray:
     """The states (x, y, theta, xd, yd, thd) after each of ``steps`` steps, from the start, of the loop
-    of ``model_closed_loop``. ``lost_answer``: the step of a control instant whose command never
-    arrives (the controller still computed it): the previous command runs on for that period."""
+    of ``model_closed_loop``. ``lost_answers``: the steps of control instants whose commands never
+    arrive (the controller still computed them): the command before runs on over their periods."""
     params, scenario = ROBOT.params, load_scenario(scenario_name)
     plant = Simulation(ROBOT, None, DRIVEN, *scenario.initial_state(ROBOT))
     controller = TrackingController(Robot(params.replace(body_mass=params.body_mass * mass_scale)), scenario.reference)
@@ -61,7 +63,7 @@ def model_loop_states(scenario_name: str, mass_scale: float, steps: int, lost_an
         if k % CONTROL_STEPS == 0:
             command = controller.update(plant.t, plant.q, plant.qd, CONTROL_STEPS * plant.dt)
             answer = tuple(min(MAX_TORQUE, max(-MAX_TORQUE, tau)) for tau in (command.tau_left, command.tau_right))
-            if k != lost_answer:
+            if k not in lost_answers:
                 held = answer
                 plant.set_motor_torque(*held)
         plant.step()

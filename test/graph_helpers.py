@@ -187,6 +187,13 @@ class Graph:
             if stamp > newest:
                 newest, progressed = stamp, time.monotonic()
 
+    def reported_time(self) -> int:
+        """The simulation time (ns) of the dynamics' newest /diagnostics report since the last ``clear`` of
+        that topic (-1: none yet): its own time, at most a report period (a wall second) old. Unlike the
+        odometry this test may still be taking a backlog of, a report arrives within a round of the executor."""
+        reports = self.messages(topics.DIAGNOSTICS.name)
+        return ns(reports[-1]) if reports else -1
+
     def held_at(self, holding, last_published: int = 0, what: str = 'the dynamics holding') -> int:
         """The simulation time (ns) at which the dynamics holds, as it reports it itself.
 

@@ -24,6 +24,7 @@ from wallbot_sim.bag.reader import info
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ, Rewind, SampledController, controller_robot
+from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.paths import scenario_yaml
 from wallbot_sim.rundata import format_summary, load_run, summarize
 
@@ -103,7 +104,7 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
         assert np.max(np.abs(getattr(recorded, name) - expected)) < 1e-9 * max(1.0, np.max(np.abs(expected))), name
     assert np.array_equal(recorded.slip, computed.slip)
     slipped = computed.slip.any(axis=0)
-    assert slipped.tolist() == ([True, True, True] if contact == 'coulomb' else [False, False, False])
+    assert slipped.tolist() == [contact == 'coulomb'] * 4
 
     name = topics.WHEEL_TORQUE_CMD.resolve()
     graph_topic, headless_topic = info(tmp_path / 'run' / 'bag').topic(name), info(headless_bag).topic(name)
@@ -139,7 +140,7 @@ def test_a_fast_circle_slips_and_the_csv_and_summary_say_so(tmp_path):
     slip = run.slip > 0.5
     assert slip[:, 0].sum() > 1000 and slip[:, 1].sum() > 1000, slip.sum(axis=0)
     first = int(np.flatnonzero(slip.any(axis=1))[0])
-    names = ', '.join(name for name, flag in zip(('left', 'right', 'lateral'), slip[first]) if flag)
+    names = ', '.join(name for name, flag in zip(WHEEL_POSITIONS, slip[first]) if flag)
     assert f'first slip at t = {run.t[first]:.3f} s ({names})' in format_summary(summarize(out))
     assert run.err[-1] > 0.5  # lost: the controller does nothing about slip
 

@@ -85,6 +85,26 @@ def test_keeper_announces_nothing_then_holds_the_newest_snapshot_seen_until_the_
     assert (held.t, held.seen_until_ns) == (0.0, 0)
 
 
+def test_keeper_holds_no_snapshot_past_what_it_received_while_an_older_one_serves():
+    """A loaded keeper gets snapshots ahead of the step messages: it republishes the newest one it has
+    seen the steps up to (the resumed dynamics recomputes from there), never one that would skip steps."""
+    keeper = SnapshotKeeper()
+    keeper.snapshot(snapshot(steps=10))  # t = 0.26 s
+    keeper.stamp('/wallbot/odom', 262 * MS)
+    keeper.snapshot(snapshot(steps=20))  # t = 0.27 s, before its steps arrived
+    keeper.snapshot(snapshot(steps=30))  # t = 0.28 s
+    held = decode_snapshot(keeper.due())
+    assert (held.steps, held.seen_until_ns) == (10, 262 * MS)
+    keeper.stamp('/wallbot/odom', 275 * MS)
+    held = decode_snapshot(keeper.due())
+    assert (held.steps, held.seen_until_ns) == (20, 275 * MS)
+    keeper.stamp('/wallbot/odom', 281 * MS)
+    assert decode_snapshot(keeper.due()).steps == 30
+    keeper.snapshot(snapshot(steps=0, anchor=0.0))  # a reset: the older run's snapshots are no longer its
+    keeper.stamp('/wallbot/odom', 0)
+    assert decode_snapshot(keeper.due()).t == 0.0
+
+
 def test_gate_waits_for_a_keeper_from_its_first_question_until_a_deadline():
     gate = ResumeGate(wait=1.0)
     assert not gate.settle(100.0, keeper_seen=False)  # the wait starts here (after wait_for_recorder, say)

@@ -128,35 +128,45 @@ def decode_snapshot(message: cdr.Reader) -> DynamicsSnapshot | None:
 
 
 class SnapshotKeeper:
-    """What a keeper node republishes: the newest snapshot, its seen-until the newest step stamp received.
+    """What a keeper node republishes: the newest snapshot not past what it received, seen until the newest
+    step stamp received.
 
     ``stamp`` takes the header stamp of every step message the keeper receives, per topic: one
     writer per topic delivers in order, so each topic's last stamp is where that stream is,
     across a reset too (time going back), and their maximum is the newest state the keeper saw.
+    Snapshots come on a topic of their own and may overtake the step messages of a loaded keeper;
+    a resume from a snapshot newer than those would leave the steps between out of the record, so
+    the keeper holds on to the snapshots newer than what it saw and republishes the newest of the
+    others (the resumed dynamics recomputes from it, unpublished, up to ``seen_until``).
     """
 
     def __init__(self) -> None:
-        self._snapshot: DynamicsSnapshot | None = None
+        self._snapshots: list[DynamicsSnapshot] = []
+        """Since the last time the snapshots went back (a reset): in order of time."""
         self._last_ns: dict[str, int] = {}
         self._changed = True  # a keeper announces at start that it holds nothing yet
 
     def snapshot(self, snapshot: DynamicsSnapshot) -> None:
         """A snapshot from the dynamics."""
-        self._snapshot = snapshot
+        if self._snapshots and snapshot.stamp_ns < self._snapshots[-1].stamp_ns:
+            self._snapshots.clear()
+        self._snapshots.append(snapshot)
         self._changed = True
 
     def stamp(self, topic: str, stamp_ns: int) -> None:
         """The header stamp of a step message received on ``topic``."""
         if self._last_ns.get(topic) != stamp_ns:
             self._last_ns[topic] = stamp_ns
-            self._changed = self._changed or self._snapshot is not None
+            self._changed = self._changed or bool(self._snapshots)
 
     def held(self) -> DynamicsSnapshot | None:
         """The snapshot to republish, with seen-until set; None while nothing is held."""
-        if self._snapshot is None:
+        if not self._snapshots:
             return None
-        seen = max(self._last_ns.values(), default=self._snapshot.seen_until_ns)
-        return replace(self._snapshot, seen_until_ns=seen)
+        seen = max(self._last_ns.values(), default=self._snapshots[-1].seen_until_ns)
+        reached = [k for k, kept in enumerate(self._snapshots) if kept.stamp_ns <= seen]
+        del self._snapshots[:reached[-1] if reached else 0]  # older than the newest reached: not needed again
+        return replace(self._snapshots[0], seen_until_ns=seen)
 
     def due(self) -> bytes | None:
         """The message of ``held()`` if it changed since the last call, else None."""

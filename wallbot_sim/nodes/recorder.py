@@ -14,7 +14,8 @@ Design (see docs/bags.md):
   backpressure_window of it, which is what makes recording lossless (KEEP_ALL alone is not);
 * the offered QoS recorded for a topic is the publishers' (from the graph) when its first message
   arrives, else the profile of topics.py;
-* the dynamics' keeper: it holds the newest ``state_snapshot`` and republishes it (transient-local,
+* the dynamics' keeper: it holds the newest ``state_snapshot`` not past the steps it received
+  (``SnapshotKeeper``) and republishes it (transient-local,
   every KEEP_PERIOD when it changed) on ``resume_state``, with the newest step stamp it received as
   ``seen_until``, so a dynamics restarted after a SIGKILL continues where the bag ends
   (``wallbot_msgs_py.snapshot``);
