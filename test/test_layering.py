@@ -42,9 +42,9 @@ def test_every_layering_contract_is_kept(linter):
     ('wallbot_sim/model/robot.py', 'import rclpy', 'wallbot_sim.model is pure NumPy'),
     ('wallbot_sim/rundata/load.py', 'from wallbot_sim.cli.errors import CliError', 'know nothing of the command line'),
     ('wallbot_sim/loop/blocks.py', 'import rclpy',
-     'the dynamics loop (its package), its settings, its sensor noise and its step tap know no ROS'),
+     'the dynamics loop (its package), its settings, sensors'),
     ('wallbot_sim/settings/table.py', 'import rcl_interfaces',
-     'the dynamics loop (its package), its settings, its sensor noise and its step tap know no ROS'),
+     'the dynamics loop (its package), its settings, sensors'),
     ('wallbot_sim/urdf.py', 'import std_msgs', 'the URDF generator knows no ROS'),
     ('wallbot_sim/view.py', 'import visualization_msgs', 'what the viewer draws and encodes'),
 ], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'settings', 'urdf', 'view'])

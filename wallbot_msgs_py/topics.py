@@ -111,9 +111,22 @@ CMD_VEL = Topic('cmd_vel', 'geometry_msgs/msg/TwistStamped', depth=10)
 """Velocity command of the robot (base_link: linear.x m/s, angular.z rad/s) for cmd_vel_node; a
 geometry_msgs/msg/Twist instead when its ``use_stamped_vel`` is false."""
 CMD_VEL_UNSTAMPED_TYPE = 'geometry_msgs/msg/Twist'
-JOINT_STATES = Topic('joint_states', 'sensor_msgs/msg/JointState', depth=10)
-"""The four wheel joints (WHEEL_JOINTS) as joint_state_broadcaster publishes them: position (rad),
-velocity (rad/s), effort (N m, as wheel_states), at joint_bridge_node's ``rate_hz`` of simulation time."""
+JOINT_STATES = Topic('joint_states', 'sensor_msgs/msg/JointState')
+"""The four wheel joints (WHEEL_JOINTS) as joint_state_broadcaster publishes them. With the robot file's
+``sensors.encoders`` the dynamics publishes them in every drive mode, as the encoders read them: position (rad)
+quantized to ``counts_per_rev``, velocity (rad/s) the count's change over the sample period, no effort, at the
+encoders' ``rate`` of simulation time. Without it, joint_bridge_node (``--drive joint_commands``) republishes
+wheel_states at its ``rate_hz``: position, velocity, effort (N m). Depth 1000 like the per-step topics (a recorder
+starved of CPU is resent what the writer's history holds)."""
+IMU = Topic('imu', 'sensor_msgs/msg/Imu')
+"""The robot file's ``sensors.imu`` (published by the dynamics at its ``rate``): REP 145, frame ``base_link``,
+linear_acceleration the specific force (on a vertical wall at rest facing +X, y = +g; on the floor, z = +g),
+angular_velocity (0, 0, turning rate), each with the sensor's noise and bias; orientation_covariance[0] = -1."""
+CHAMBER_PRESSURE = Topic('chamber_pressure', 'sensor_msgs/msg/FluidPressure')
+"""The robot file's ``sensors.pressure`` (published by the dynamics at its ``rate``): the vacuum chamber's absolute
+pressure, 101325 Pa - dp, with the sensor's noise and bias, frame ``base_link``."""
+SENSORS = (IMU, JOINT_STATES, CHAMBER_PRESSURE)
+"""The robot's sensors the dynamics publishes (each where the robot file's ``sensors`` block has it)."""
 JOINT_COMMANDS = Topic('joint_commands', 'sensor_msgs/msg/JointState', depth=10)
 """Effort per wheel joint (topic_based_ros2_control's command topic), summed per side into the side
 motor torques by joint_bridge_node (wallbot_sim.control.joint_interface)."""
@@ -144,12 +157,12 @@ STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTA
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM, FAULTS)
+            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM, FAULTS, *SENSORS)
 """Topics a run records, in this order (robot_description too: a bag replayed in RViz or Foxglove
 has the robot model)."""
-NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic not in (GROUND_TRUTH_ODOM, FAULTS))
-"""Topics with messages in a run without sensor noise and without faults (what ``simulate --bag`` writes): its odom
-is the truth, ground_truth/odom is not published, and no fault event is."""
+NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic not in (GROUND_TRUTH_ODOM, FAULTS, *SENSORS))
+"""Topics with messages in a run without sensor noise, faults and sensors (what ``simulate --bag`` writes): its odom
+is the truth, ground_truth/odom is not published, no fault event is, and no sensor of the robot file's."""
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'
@@ -198,7 +211,7 @@ CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.va
 
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
-    known = RECORDED + (CONTROL_ODOM, WHEEL_TORQUE_CMD, CMD_VEL, JOINT_STATES, JOINT_COMMANDS)
+    known = RECORDED + (CONTROL_ODOM, WHEEL_TORQUE_CMD, CMD_VEL, JOINT_COMMANDS)
     for topic in known:
         if name in (topic.name, topic.resolve()):
             return topic

@@ -61,7 +61,7 @@ DRIVES = {'cmd_vel': (topics.NODE_CMD_VEL, 'wallbot_sim.nodes.cmd_vel', CMD_VEL)
 ENGINE = DYNAMICS['engine'].default
 """The engine of a run: the dynamics' (and the controller's) default."""
 DRIVE_TOPICS = {'cmd_vel': (topics.WHEEL_TORQUE_CMD, topics.CMD_VEL),
-                'joint_commands': (topics.WHEEL_TORQUE_CMD, topics.JOINT_COMMANDS, topics.JOINT_STATES)}
+                'joint_commands': (topics.WHEEL_TORQUE_CMD, topics.JOINT_COMMANDS)}
 """What a driven run records besides topics.RECORDED (wheel_torque_cmd: the torques applied)."""
 TESTED_DRIVES = {'wheel_torque_cmd': (topics.WHEEL_TORQUE_CMD,), **DRIVE_TOPICS}
 """What a controller under test may publish (``describe_tested_graph``), and what its run records besides

@@ -15,6 +15,8 @@ odometry           odom, control_odom, ground_truth/odom, OdometryEncoder / deco
                    reference
 joint_state        wheel_states, drive_forces,           JointStateEncoder / decode_joint_state
                    joint_states, joint_commands
+imu                imu                                   ImuEncoder / decode_imu
+fluid_pressure     chamber_pressure                      FluidPressureEncoder / decode_fluid_pressure
 wheel_contact      wheel_contact                         WheelContactEncoder / decode_wheel_contact
 wrench             constraint_wrench                     WrenchEncoder / decode_wrench
 reference_trajectory reference_trajectory                trajectory / decode_plan
@@ -51,6 +53,8 @@ from wallbot_msgs_py.codec.joints import (CONTACT_NAMES, JOINT_FIELDS, JointArra
 from wallbot_msgs_py.codec.odometry import (NO_VARIANCE, OdometryEncoder, OdometryMessage, PlanarState,
                                             decode_odometry, yaw_of, yaw_quaternion)
 from wallbot_msgs_py.codec.plan import PathMessage, PlanSamples, decode_path, decode_plan, path, trajectory
+from wallbot_msgs_py.codec.sensors import (FluidPressureEncoder, ImuEncoder, ImuMessage, PressureMessage,
+                                           decode_fluid_pressure, decode_imu)
 from wallbot_msgs_py.codec.status import (CONSTRAINTS_STATUS_NAME, GAINS, HARDWARE_ID, LEVELS, ConstraintSwitches,
                                           Diagnostics, FaultEvent, Status, constraints, decode_constraints,
                                           decode_diagnostics, decode_fault_event, diagnostics, fault_event,
@@ -58,7 +62,8 @@ from wallbot_msgs_py.codec.status import (CONSTRAINTS_STATUS_NAME, GAINS, HARDWA
 
 __all__ = [
     'CONSTRAINTS_STATUS_NAME', 'CONTACT_NAMES', 'GAINS', 'JOINT_FIELDS', 'HARDWARE_ID', 'LEVELS', 'NO_VARIANCE',
-    'ClockEncoder',
+    'ClockEncoder', 'FluidPressureEncoder', 'ImuEncoder', 'ImuMessage', 'PressureMessage', 'decode_fluid_pressure',
+    'decode_imu',
     'ConstraintSwitches', 'Diagnostics', 'FaultEvent', 'JointArrays', 'JointStateEncoder', 'OdometryEncoder', 'OdometryMessage',
     'PathMessage', 'PlanSamples', 'PlanarState', 'Status', 'WheelContact', 'WheelContactEncoder', 'Wrench',
     'WrenchEncoder', 'constraints', 'decode_clock', 'decode_cmd_vel', 'decode_constraints',

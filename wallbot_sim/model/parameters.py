@@ -8,8 +8,9 @@ from typing import Any, Mapping
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.keys import check_keys
 from wallbot_sim.model.motor import MotorParameters
-from wallbot_sim.model.vacuum import VacuumParameters
 from wallbot_sim.model.numbers import FINITE, NON_NEGATIVE, POSITIVE
+from wallbot_sim.model.sensors import SensorParameters
+from wallbot_sim.model.vacuum import VacuumParameters
 
 _POSITIVE = (
     'body_mass', 'wheel_mass', 'body_yaw_inertia', 'wheel_yaw_inertia', 'wheel_spin_inertia',
@@ -18,7 +19,9 @@ _POSITIVE = (
     'stick_velocity',
 )
 _NON_NEGATIVE = ('rolling_resistance',)
-OPTIONAL_BLOCKS = ('motor', 'adhesion')
+PYTHON_ONLY_BLOCKS = ('motor', 'adhesion')
+"""The blocks that change the dynamics, which only the Python model computes (docs/model.md 13)."""
+OPTIONAL_BLOCKS = (*PYTHON_ONLY_BLOCKS, 'sensors')
 """The robot file's blocks it may leave out (docs/model.md 13)."""
 UNITS = {
     'body_mass': 'kg', 'wheel_mass': 'kg', 'body_yaw_inertia': 'kg m^2', 'wheel_yaw_inertia': 'kg m^2',
@@ -59,6 +62,8 @@ class RobotParameters:
     """The optional ``motor`` block (docs/model.md 13.2); None: any commanded torque is applied."""
     adhesion: VacuumParameters | None = None
     """The optional ``adhesion`` block, a vacuum chamber (docs/model.md 13.3); None: F_ad is constant."""
+    sensors: SensorParameters | None = None
+    """The optional ``sensors`` block (docs/model.md 13.5); None: the graph publishes no sensor of its own."""
 
     def __post_init__(self) -> None:
         for name in _POSITIVE + _NON_NEGATIVE:
@@ -69,9 +74,11 @@ class RobotParameters:
                                  f'got {self.kinetic_friction!r}')
         if self.adhesion_force is not None:  # null applies k_ad F_min
             object.__setattr__(self, 'adhesion_force', POSITIVE.check('adhesion_force', self.adhesion_force))
-        for block, kind in (('motor', MotorParameters), ('adhesion', VacuumParameters)):
+        for block, kind in (('motor', MotorParameters), ('adhesion', VacuumParameters), ('sensors', SensorParameters)):
             if isinstance(getattr(self, block), Mapping):  # a parsed block, or ``replace``'s copy of one
                 object.__setattr__(self, block, kind.from_mapping(getattr(self, block)))
+        if self.sensors is not None and self.sensors.pressure is not None and self.adhesion is None:
+            raise ParameterError('sensors pressure measures the vacuum chamber: the robot file has no adhesion block')
         offset = self.com_offset
         if isinstance(offset, (str, bytes)) or not hasattr(offset, '__len__') or len(offset) != 2:
             raise ParameterError(f'com_offset must be a pair [c_x, c_y], got {offset!r}')

@@ -35,7 +35,7 @@ from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import FluidPressure, Imu, JointState
 from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -58,6 +58,7 @@ from wallbot_sim.nodes.common import heard_by_every, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
 from wallbot_sim.nodes.step_tap import StepTap
+from wallbot_sim.sensors import SensorSuite
 from wallbot_sim.settings.dynamics import DYNAMICS, NOISE_PARAMETERS, DynamicsSettings
 from wallbot_sim.settings.table import SettingsTable, changed, text_of
 from wallbot_sim.urdf import RobotFrames
@@ -70,8 +71,10 @@ MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
                  topics.WHEEL_CONTACT: JointState,
                  topics.CLOCK: ClockMsg}
 """The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
-STEP_TOPICS = (*MESSAGE_TYPES, topics.GROUND_TRUTH_ODOM)
-"""Every topic ``prepare``'s send may publish (ground_truth/odom while the sensor noise is on)."""
+SENSOR_TYPES = {topics.IMU: Imu, topics.JOINT_STATES: JointState, topics.CHAMBER_PRESSURE: FluidPressure}
+"""The robot file's sensors (``wallbot_sim.sensors``), published where its ``sensors`` block has them."""
+STEP_TOPICS = (*MESSAGE_TYPES, topics.GROUND_TRUTH_ODOM, *SENSOR_TYPES)
+"""Every topic ``prepare``'s send may publish (ground_truth/odom while the sensor noise is on, the sensors)."""
 
 
 class DynamicsNode(Node):
@@ -142,6 +145,10 @@ class DynamicsNode(Node):
         if truth:
             self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(
                 Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
+        sensors = self.loop.robot.params.sensors
+        self.sensors = SensorSuite(sensors, self.loop.robot, frames.base_link) if sensors is not None else None
+        for topic in self.sensors.topics if self.sensors is not None else ():
+            self.publishers_[topic] = self.create_publisher(SENSOR_TYPES[topic], topic.name, qos_profile(topic))
 
     def _create_subscriptions(self) -> None:
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
@@ -246,6 +253,8 @@ class DynamicsNode(Node):
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
         sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
         encoded, stamp_ns = self.encoder.encode(out, sensed), codec.to_nanoseconds(out.t)
+        if self.sensors is not None:
+            encoded[-1:-1] = self.sensors.encode(out)  # before /clock, which goes last
 
         def send() -> None:
             heard = self._heard()
@@ -262,7 +271,7 @@ class DynamicsNode(Node):
         heard = self._heard()
         if self.settings.control_odom_every >= BURST_CONTROL_ODOM_EVERY:
             heard.discard(topics.CONTROL_ODOM)
-        return self.noise is None and not (burst and heard)
+        return self.noise is None and self.sensors is None and not (burst and heard)
 
     def prepare_block(self, block: StepBlock) -> list[PreparedState]:
         heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states

@@ -6,7 +6,8 @@
   ``wheel_states`` carries it), stamped in simulation time, at ``rate_hz`` (50 by default) of
   simulation time: the ``wheel_states`` message at or after each multiple of 1 / ``rate_hz``,
   republished. A controller_manager reads states at its own update rate; 1 kHz would only load
-  the graph.
+  the graph. A robot file (``robot_file``) with ``sensors.encoders`` has the dynamics publish
+  ``joint_states`` as the encoders read them (``wallbot_sim.sensors``): then this node publishes none.
 * subscribes ``joint_commands`` (sensor_msgs/JointState with one effort per wheel joint, what
   topic_based_ros2_control's hardware interface publishes for effort command interfaces) and
   sends the side torques (``wallbot_sim.control.joint_interface``: each side's two efforts summed,
@@ -38,6 +39,7 @@ from std_msgs.msg import Float64MultiArray
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
 from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, WhenRecorded, heard_by_every, run, steady_timer
@@ -60,22 +62,27 @@ class JointBridgeNode(Node):
         self.answer_commands = settings.answer_commands
         self.commander_check = None
         self.instants = ControlInstants(int(rate_hz))
-        self.state_pub = self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES))
+        sensors = load_robot_parameters(settings.robot_file or None).sensors
+        self.state_pub = (None if sensors is not None and sensors.encoders is not None else
+                          self.create_publisher(JointState, topics.JOINT_STATES.name, qos_profile(topics.JOINT_STATES)))
+        states = [self.state_pub] if self.state_pub is not None else []
         self.command_pub = self.create_publisher(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name,
                                                  qos_profile(topics.WHEEL_TORQUE_CMD))
         self.held = HeldCommands(self, self.command_pub, topics.WHEEL_STATES.name) if self.answer_commands else None
         if settings.wait_for_recorder:
-            WhenRecorded(self, [self.command_pub, self.state_pub], self._subscribe, 'a recorder hears '
+            WhenRecorded(self, [self.command_pub, *states], self._subscribe, 'a recorder hears '
                          'wheel_torque_cmd and joint_states: subscribing joint_commands and wheel_states')
         else:
             self._subscribe()
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
-        self.get_logger().info(f'joint_states at {rate_hz} Hz of simulation time; joint_commands efforts -> '
-                               f'wheel_torque_cmd (side totals within +-{self.max_torque:g} N m)')
+        self.get_logger().info((f'joint_states at {rate_hz} Hz of simulation time' if states else
+                                'joint_states from the robot\'s encoders (the dynamics)')
+                               + f'; joint_commands efforts -> wheel_torque_cmd (side totals within '
+                                 f'+-{self.max_torque:g} N m)')
 
     def _subscribe(self) -> None:
-        if self.answer_commands and not heard_by_every(self, self.state_pub,
+        if self.answer_commands and self.state_pub is not None and not heard_by_every(self, self.state_pub,
                                                        self.resolve_topic_name(topics.JOINT_COMMANDS.name)):
             if self.commander_check is None:  # until the commander hears the states it answers
                 self.commander_check = steady_timer(self, COMMANDER_CHECK, self._subscribe)
@@ -95,7 +102,7 @@ class JointBridgeNode(Node):
             self.get_logger().error('ignoring a malformed wheel_states message', throttle_duration_sec=THROTTLE)
             return
         self.instants.observe(stamp_ns)
-        if not self.instants.due(stamp_ns):
+        if self.state_pub is None or not self.instants.due(stamp_ns):
             return
         self.instants.acted(stamp_ns)
         self.state_pub.publish(data)  # the same message: wheel_states has the wheel joints, as joint_states

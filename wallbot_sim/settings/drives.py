@@ -63,8 +63,8 @@ class JointBridgeSettings:
     rate_hz: int = setting(50, 'joint_states per second of simulation time', NumberRange(1, 1000), read_only=True)
     max_wheel_torque: float = setting(5.0, "largest accepted |side total| of the efforts (N m; the dynamics' limit)",
                                       WHEEL_TORQUE_LIMIT)
-    robot_file: str = setting('', 'unused: accepted so that every node of a run takes the same robot file',
-                              read_only=True)
+    robot_file: str = setting('', 'robot parameter YAML: with sensors.encoders the dynamics publishes joint_states (from '
+                                  'the encoders) and this node none; empty = the installed robot.yaml', read_only=True)
     wait_for_recorder: bool = recorder_wait('subscribe joint_commands and wheel_states')
     answer_commands: bool = setting(False, 'in lockstep with a commander under test, which answers each joint_states '
                                            'with one joint_commands: subscribe wheel_states only once every '

@@ -35,7 +35,7 @@ from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DEFAULT_STEP, TIME_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS
-from wallbot_sim.model.parameters import OPTIONAL_BLOCKS
+from wallbot_sim.model.parameters import OPTIONAL_BLOCKS, PYTHON_ONLY_BLOCKS
 from wallbot_sim.model.scenario import SHAPES
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
 from wallbot_sim.sweep.compute import RunSettings
@@ -91,7 +91,7 @@ def parse_spec(values: Any, folder: Path = Path('.')) -> SweepSpec:
     if robot is not None and not isinstance(robot, str):
         raise SweepError(f'robot must be a robot file path, got {robot!r}')
     base = load_robot_parameters(None if robot is None else folder / robot)
-    blocks = [block for block in OPTIONAL_BLOCKS if getattr(base, block) is not None]
+    blocks = [block for block in PYTHON_ONLY_BLOCKS if getattr(base, block) is not None]
     if blocks:
         raise SweepError(f'the robot file\'s {blocks[0]} block runs on the python engine only and a sweep runs on the '
                          'batch (numba): drop the block, or simulate --engine python robot by robot')
