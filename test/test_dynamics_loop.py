@@ -23,7 +23,7 @@ from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
 from wallbot_sim.loop import (ConstraintSwitch, Decision, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause,
-                              PreparedState, RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
+                              PreparedState, PumpCommand, RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
                               TorqueCommand)
 from wallbot_sim.loop import blocks as loop_blocks
 from wallbot_sim.loop import loop as loop_module
@@ -1020,3 +1020,29 @@ def test_driven_blocks_end_at_scheduled_faults_and_publish_what_single_steps_pub
     assert [(change.t, change.changed) for change in blocks.faults] == [
         (change.t, change.changed) for change in single.faults] and len(single.faults) == 3
     assert max(blocks.block_sizes) > 5
+
+
+def test_a_pump_command_reaches_the_chamber_at_the_next_boundary_and_outlives_a_reset():
+    """u = 0.5 from the start: dp relaxes to the chamber's balance at half flow (tau about 23 ms, so within 0.1 % after
+    0.3 s) and a reset's new simulation keeps the command; a robot without the adhesion block refuses it in one
+    line and runs at full command."""
+    vacuum = load_robot_parameters(None).replace(adhesion={
+        'chamber_area': 0.02, 'chamber_volume': 0.002, 'pump_max_pressure': 12000.0, 'pump_max_flow': 0.01,
+        'leak_area': 2.0e-5})
+    graph, log, clock = FakeGraph(), FakeLog(), FakeClock()
+    loop = DynamicsLoop(SETTINGS, vacuum, graph, log, Pacer(0, log.warning), clock=clock)
+    loop.post(DRIVEN)
+    loop.post(PumpCommand(0.5))
+    ticks(loop, 300)
+    half = vacuum.adhesion.steady_pressure(vacuum.adhesion.leak_area, 0.5)
+    assert loop.sim.pump_command == 0.5 and loop.sim.pressure == pytest.approx(half, rel=1e-3)
+    assert half < 0.9 * vacuum.adhesion.steady_pressure(vacuum.adhesion.leak_area, 1.0)
+    loop.post(Reset())
+    ticks(loop, 1)
+    assert loop.sim.t == pytest.approx(DT) and loop.sim.pump_command == 0.5
+    plain, _graph, plain_log, _clock = make_loop()
+    plain.post(DRIVEN)
+    plain.post(PumpCommand(0.2))
+    ticks(plain, 2)
+    assert plain.sim.pump_command == 1.0
+    assert plain_log.said('pump_command 0.2 ignored: the robot file has no adhesion block')

@@ -441,3 +441,15 @@ def test_every_topic_of_the_contract_has_a_standard_type():
     unusual = {topic.name: topic.type for topic in declared
                if topic.type.split('/')[0] not in topics.STANDARD_PACKAGES or topic.type.split('/')[1] != 'msg'}
     assert not unusual
+
+
+@pytest.mark.parametrize('command', [0.0, 0.37, 1.0])
+def test_a_pump_command_reads_back_and_rosbags_reads_the_same_float64(command):
+    data = codec.pump_command(command)
+    assert codec.decode_pump_command(data) == command == decode(data, topics.PUMP_COMMAND).data
+
+
+@pytest.mark.parametrize('command', [1.5, -0.1, math.nan, math.inf])
+def test_a_pump_command_outside_0_1_is_refused_naming_the_value(command):
+    with pytest.raises(ValueError, match=r'^pump_command must be in \[0, 1\], got '):
+        codec.decode_pump_command(codec.pump_command(command))

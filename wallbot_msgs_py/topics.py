@@ -96,6 +96,10 @@ writer's history, and a KEEP_LAST writer has overwritten what is older than its 
 dynamics runs at most its backpressure_window (200 steps) ahead of the recorder, so the history
 must hold that many commands (with depth 10, 83 of 200 commands reached a recorder stopped for
 200 steps: test_recorder.py, 2026-12-02)."""
+PUMP_COMMAND = Topic('pump_command', 'std_msgs/msg/Float64', depth=10)
+"""The vacuum pump's command u in [0, 1] (1: full flow, the default; docs/model.md 13.3), applied by the dynamics
+from its next step boundary and held; a value outside [0, 1] is refused with one log line and never applied, as is
+any command to a robot file without the ``adhesion`` block."""
 REFERENCE = Topic('reference', 'nav_msgs/msg/Odometry', depth=100)
 REFERENCE_TRAJECTORY = Topic('reference_trajectory', 'trajectory_msgs/msg/MultiDOFJointTrajectory',
                              Durability.TRANSIENT_LOCAL, depth=1)
@@ -157,12 +161,14 @@ STEP_STAMPED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTA
 """The dynamics' per-step topics in its namespace; each message starts with a std_msgs/Header."""
 
 RECORDED = (ODOM, WHEEL_STATES, CONSTRAINT_WRENCH, DRIVE_FORCES, WHEEL_CONTACT, REFERENCE, REFERENCE_TRAJECTORY,
-            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM, FAULTS, *SENSORS)
+            REFERENCE_PATH, CONSTRAINTS, ROBOT_DESCRIPTION, CLOCK, DIAGNOSTICS, GROUND_TRUTH_ODOM, FAULTS, *SENSORS, PUMP_COMMAND)
 """Topics a run records, in this order (robot_description too: a bag replayed in RViz or Foxglove
 has the robot model)."""
-NOISELESS_RECORDED = tuple(topic for topic in RECORDED if topic not in (GROUND_TRUTH_ODOM, FAULTS, *SENSORS))
-"""Topics with messages in a run without sensor noise, faults and sensors (what ``simulate --bag`` writes): its odom
-is the truth, ground_truth/odom is not published, no fault event is, and no sensor of the robot file's."""
+NOISELESS_RECORDED = tuple(topic for topic in RECORDED
+                           if topic not in (GROUND_TRUTH_ODOM, FAULTS, *SENSORS, PUMP_COMMAND))
+"""Topics with messages in a run without sensor noise, faults, sensors and pump commands (what ``simulate --bag``
+writes): its odom is the truth, ground_truth/odom is not published, no fault event is, and no sensor of the robot
+file's."""
 
 WALL_FRAME = 'wall'
 BASE_FRAME = 'base_link'

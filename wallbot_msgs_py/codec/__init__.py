@@ -25,6 +25,7 @@ diagnostics        /diagnostics                          diagnostics / decode_di
 faults             faults                                fault_event / decode_fault_event
 constraints        constraints                           constraints / decode_constraints
 wheel_torque_cmd   wheel_torque_cmd                      wheel_torque_cmd / decode_wheel_torque_cmd
+pump_command       pump_command                          pump_command / decode_pump_command
 robot_description  robot_description                     robot_description / decode_robot_description
 cmd_vel            cmd_vel                               (published by a teleop tool) / decode_cmd_vel
 initialpose        initialpose                           (published by RViz) / decode_initial_pose
@@ -45,8 +46,9 @@ simulation time.
 
 from wallbot_msgs_py.cdr import leading_stamp_ns, to_nanoseconds
 from wallbot_msgs_py.codec.clock import ClockEncoder, decode_clock
-from wallbot_msgs_py.codec.commands import (decode_cmd_vel, decode_initial_pose, decode_robot_description,
-                                            decode_wheel_torque_cmd, robot_description, wheel_torque_cmd)
+from wallbot_msgs_py.codec.commands import (decode_cmd_vel, decode_initial_pose, decode_pump_command,
+                                            decode_robot_description, decode_wheel_torque_cmd, pump_command,
+                                            robot_description, wheel_torque_cmd)
 from wallbot_msgs_py.codec.joints import (CONTACT_NAMES, JOINT_FIELDS, JointArrays, JointStateEncoder, WheelContact,
                                           WheelContactEncoder, Wrench, WrenchEncoder, decode_joint_state,
                                           decode_wheel_contact, decode_wrench)
@@ -63,7 +65,7 @@ from wallbot_msgs_py.codec.status import (CONSTRAINTS_STATUS_NAME, GAINS, HARDWA
 __all__ = [
     'CONSTRAINTS_STATUS_NAME', 'CONTACT_NAMES', 'GAINS', 'JOINT_FIELDS', 'HARDWARE_ID', 'LEVELS', 'NO_VARIANCE',
     'ClockEncoder', 'FluidPressureEncoder', 'ImuEncoder', 'ImuMessage', 'PressureMessage', 'decode_fluid_pressure',
-    'decode_imu',
+    'decode_imu', 'decode_pump_command', 'pump_command',
     'ConstraintSwitches', 'Diagnostics', 'FaultEvent', 'JointArrays', 'JointStateEncoder', 'OdometryEncoder', 'OdometryMessage',
     'PathMessage', 'PlanSamples', 'PlanarState', 'Status', 'WheelContact', 'WheelContactEncoder', 'Wrench',
     'WrenchEncoder', 'constraints', 'decode_clock', 'decode_cmd_vel', 'decode_constraints',

@@ -1,4 +1,5 @@
 """What drives the robot and what describes it: ``wheel_torque_cmd`` (std_msgs/Float64MultiArray),
+``pump_command`` (std_msgs/Float64),
 ``cmd_vel`` (geometry_msgs/TwistStamped or Twist), ``initialpose`` (PoseWithCovarianceStamped) and
 ``robot_description`` (std_msgs/String)."""
 
@@ -10,9 +11,27 @@ import struct
 from wallbot_msgs_py import cdr, topics
 
 FLOAT64_MULTIARRAY = 'std_msgs/msg/Float64MultiArray'
+FLOAT64 = 'std_msgs/msg/Float64'
 TWIST_STAMPED = 'geometry_msgs/msg/TwistStamped'
 POSE_WITH_COVARIANCE_STAMPED = 'geometry_msgs/msg/PoseWithCovarianceStamped'
 STRING = 'std_msgs/msg/String'
+
+
+@cdr.encoder('pump_command', FLOAT64)
+def pump_command(command: float) -> bytes:
+    """``pump_command``: the vacuum pump's command u in [0, 1] (1: full flow) as a std_msgs/Float64."""
+    out = cdr.Writer()
+    out.float64s((command,))
+    return out.bytes()
+
+
+@cdr.decoder('pump_command', FLOAT64)
+def decode_pump_command(message: cdr.Reader) -> float:
+    """u of a serialized ``pump_command``; ValueError naming the value unless it is a number in [0, 1]."""
+    command, = message.float64s(1)
+    if not 0.0 <= command <= 1.0:  # NaN too
+        raise ValueError(f'pump_command must be in [0, 1], got {command!r}')
+    return command
 
 
 class _TorqueCommand:

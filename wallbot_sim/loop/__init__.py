@@ -24,13 +24,13 @@ instead), so the state sequence does not depend on pacing, CPU load or message t
 gives the same states at any ``real_time_factor``.
 """
 
-from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
-                                     ResumeSnapshot, Step, Teleport, TorqueCommand)
+from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, PumpCommand,
+                                     RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.graph import Graph, Log, PreparedState
 from wallbot_sim.loop.loop import DynamicsLoop
 from wallbot_sim.loop.pacing import Pacer
 from wallbot_sim.loop.status import Decision, RunState, Status, Window
 
 __all__ = ['ConstraintSwitch', 'Decision', 'DynamicsLoop', 'Event', 'Graph', 'Log', 'NewPlan', 'Pacer',
-           'ParameterChange', 'Pause', 'PreparedState', 'RecordProgress', 'Reset', 'ResumeSnapshot', 'RunState',
+           'ParameterChange', 'Pause', 'PreparedState', 'PumpCommand', 'RecordProgress', 'Reset', 'ResumeSnapshot', 'RunState',
            'Status', 'Step', 'Teleport', 'TorqueCommand', 'Window']

@@ -47,6 +47,13 @@ class TorqueCommand:
 
 
 @dataclass(frozen=True)
+class PumpCommand:
+    """A validated pump_command u in [0, 1]."""
+
+    command: float
+
+
+@dataclass(frozen=True)
 class Reset:
     """Back to the initial state at t = 0 (once lockstep's pending answer arrived)."""
 
@@ -96,5 +103,5 @@ class RecordProgress:
     stamp_ns: int
 
 
-Event = Union[ConstraintSwitch, NewPlan, TorqueCommand, Reset, Pause, Step, Teleport, ResumeSnapshot, ParameterChange,
+Event = Union[ConstraintSwitch, NewPlan, TorqueCommand, PumpCommand, Reset, Pause, Step, Teleport, ResumeSnapshot, ParameterChange,
               RecordProgress]

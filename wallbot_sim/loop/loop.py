@@ -14,8 +14,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_sim import messages
 from wallbot_sim.loop.blocks import Blocks
 from wallbot_sim.loop.commands import Commands
-from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, RecordProgress, Reset,
-                                     ResumeSnapshot, Step, Teleport, TorqueCommand)
+from wallbot_sim.loop.events import (ConstraintSwitch, Event, NewPlan, ParameterChange, Pause, PumpCommand,
+                                     RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.faults import (FaultChange, FaultSchedule, delivered, fault_changes, fault_values, parse_schedule,
                                      silenced)
 from wallbot_sim.loop.graph import Graph, Log
@@ -85,6 +85,8 @@ class DynamicsLoop:
         start's wait for its first answer comes after the steps of its catch-up)."""
         self.reset_requested: float | None = None  # clock time of a reset not yet applied
         self.last_outputs: StepOutputs | None = None
+        self.pump_command = 1.0
+        """The vacuum pump's command u (pump_command), held by every simulation the loop makes."""
         self.commands, self.lockstep, self.backpressure = Commands(), Lockstep(), BackPressure()
         self.lockstep_gave_up: str | None = None
         """Why a strict lockstep ended the run (the controller left a state unanswered), or None."""
@@ -198,6 +200,8 @@ class DynamicsLoop:
                 if self.lockstep.command_came():
                     self.log.info(f'wheel_torque_cmd again at t = {self.sim.t:.3f} s: lockstep resumed')
                 self.snapshot()  # so a resume recomputes the steps after it with the commands they had
+            case PumpCommand():
+                self._command_pump(event.command)
             case Reset():
                 self.reset_requested = self.clock()
             case Pause():
@@ -240,6 +244,14 @@ class DynamicsLoop:
         if faults:
             self.tell_faults(faults, cause)
 
+    def _command_pump(self, command: float) -> None:
+        if self.robot.params.adhesion is None:
+            self.log.warning(f'pump_command {command:g} ignored: the robot file has no adhesion block')
+            return
+        self.pump_command = command
+        if self.sim is not None:
+            self.sim.set_pump_command(command)
+
     def tell_faults(self, names: tuple[str, ...], cause: str) -> None:
         """Tell the graph that the fault settings ``names`` changed (an event it records)."""
         self.graph.publish_fault(FaultChange(self.sim.t if self.sim is not None else 0.0, names,
@@ -251,6 +263,8 @@ class DynamicsLoop:
         sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / settings.rate_hz, t0=t0,
                          gains=self.gains, contact=settings.contact_model, engine=settings.engine)
         sim.set_motor_torque(*torque)
+        if self.pump_command != 1.0:
+            sim.set_pump_command(self.pump_command)
         return sim
 
     def initial_state(self) -> tuple[np.ndarray, np.ndarray]:

@@ -36,7 +36,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import FluidPressure, Imu, JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
@@ -47,7 +47,7 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
-                              RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
+                              PumpCommand, RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
 from wallbot_sim.loop.faults import FaultChange, faults_on
 from wallbot_sim.model import ModelError, SampledReference, StepOutputs
@@ -160,6 +160,8 @@ class DynamicsNode(Node):
                                  qos_profile(topics.REFERENCE_TRAJECTORY), raw=True)  # see plan_from_cdr
         self.command_sub = self.create_subscription(Float64MultiArray, topics.WHEEL_TORQUE_CMD.name, self._on_command,
                                                     qos_profile(topics.WHEEL_TORQUE_CMD), raw=True)
+        self.create_subscription(Float64, topics.PUMP_COMMAND.name, self._on_pump_command,
+                                 qos_profile(topics.PUMP_COMMAND), raw=True)
         self.create_subscription(ClockMsg, topics.RECORD_PROGRESS.name, self._on_progress,
                                  qos_profile(topics.RECORD_PROGRESS), raw=True)
         self.create_subscription(Float64MultiArray, topics.RESUME_STATE.name, self._on_resume_state,
@@ -191,6 +193,12 @@ class DynamicsNode(Node):
     def _on_command(self, data: bytes) -> None:
         try:
             self.loop.post(TorqueCommand(codec.decode_wheel_torque_cmd(data, self.settings.max_wheel_torque)))
+        except ValueError as error:
+            self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
+
+    def _on_pump_command(self, data: bytes) -> None:
+        try:
+            self.loop.post(PumpCommand(codec.decode_pump_command(data)))
         except ValueError as error:
             self.get_logger().warning(f'rejected: {error}', throttle_duration_sec=THROTTLE)
 
