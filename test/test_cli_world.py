@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from bag_helpers import by_topic
 from cli_helpers import assert_one_line_error, read_csv, simulate
 from wallbot_sim import paths
 from wallbot_sim.model import RobotParameters
@@ -64,6 +65,24 @@ def test_a_motor_block_appends_the_applied_torques_to_the_csv(tmp_path):
     for row in rows:
         speed = 0.5 * (row[header.index('dphi1')] + row[header.index('dphi2')])
         assert row[left] == pytest.approx(4.0 * (1 - speed / 20.0), rel=1e-12)
+
+
+def test_a_headless_bag_s_diagnostics_name_the_saturated_side_since_its_first_step(tmp_path):
+    """simulate --bag writes the dynamics' motor entries: 50 N m on the left against 4 N m saturates it from t = 0,
+    the right's 1 N m stays inside its envelope (at 1 kHz over 0.1 s the wheels stay far below 20 rad/s)."""
+    robot = tmp_path / 'robot.yaml'
+    robot.write_text(paths.robot_yaml().read_text() + 'motor: {stall_torque: 4.0, no_load_speed: 20.0}\n')
+    bag = tmp_path / 'bag'
+    result = simulate('--scenario', 'rest', '--torque', '50,1', '--robot', robot, '--engine', 'python',
+                      '--duration', 0.1, '--bag', bag, '--quiet')
+    assert result.returncode == 0, result.stderr
+    [last] = by_topic(bag)['/diagnostics'][-1].status
+    values = {value.key: value.value for value in last.values}
+    assert last.level == last.WARN and 'motor saturated: left since t = 0.000 s' in last.message
+    assert float(values['left motor commanded (N m)']) == 50.0 and 0.0 < float(values['left motor applied (N m)']) < 4.0
+    assert float(values['left motor saturated since (s)']) == 0.0
+    assert values['right motor saturated since (s)'] == 'not saturated'
+    assert float(values['right motor applied (N m)']) == float(values['right motor commanded (N m)']) == 1.0
 
 
 def test_a_vacuum_block_appends_dp_and_f_ad_and_the_pump_command_lowers_them(tmp_path):

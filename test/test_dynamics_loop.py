@@ -18,7 +18,8 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.model import BaumgarteGains, SampledReference
+from wallbot_sim.model import BaumgarteGains, RobotParameters, SampledReference
+from wallbot_sim.model.motor import MotorParameters
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.simulation import NUMBA, PYTHON, Simulation
 from wallbot_sim.model.trajectories import Circle, sample_plan
@@ -119,9 +120,9 @@ class FakeClock:
         return self.now
 
 
-def make_loop(**settings):
+def make_loop(robot_file: RobotParameters | None = None, **settings):
     graph, log, clock = FakeGraph(), FakeLog(), FakeClock()
-    loop = DynamicsLoop(replace(SETTINGS, **settings), load_robot_parameters(None), graph, log,
+    loop = DynamicsLoop(replace(SETTINGS, **settings), robot_file or load_robot_parameters(None), graph, log,
                         Pacer(0, log.warning), clock=clock)
     return loop, graph, log, clock
 
@@ -945,6 +946,54 @@ def test_a_dropout_silences_its_topics_and_lockstep_waits_for_no_answer_to_what_
     loop.post(TorqueCommand((0.1, 0.1)))
     loop.tick()
     assert loop.silenced == {topics.WHEEL_STATES} and loop.sim.steps == 9
+
+
+def diagnosed(loop: DynamicsLoop) -> codec.Status:
+    """The dynamics' /diagnostics status as the node builds it from ``loop`` (its loop figures zero)."""
+    motor, saturated = loop.saturation.report()
+    figures = messages.LoopFigures(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, 'normal')
+    return messages.simulation_status('/wallbot/dynamics', str(loop.status), False, loop.command_state(), loop.sim.t,
+                                      figures, 0.0, 0.0, loop.sim.selection.label(), loop.robot.adsorption,
+                                      motor=motor, saturated=saturated)
+
+
+def test_the_diagnostics_name_a_saturated_motor_since_when_commanded_and_applied():
+    """A 4 N m stall torque, 20 rad/s no-load speed: 50 N m on the left from rest saturates it from t = 0, each step
+    applying T_s (1 - w/w_0) at its wheels' speed w there (the model's envelope, computed here from the state), while
+    the right's 0.5 N m is applied; a command inside the envelope ends it, and the next saturation has its own start."""
+    motor = MotorParameters(stall_torque=4.0, no_load_speed=20.0)
+    loop, _graph, _log, _clock = make_loop(load_robot_parameters(None).replace(motor=motor))
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((50.0, 0.5)))
+    ticks(loop, 20)
+    speed = 0.5 * float(loop.last_outputs.qd[3] + loop.last_outputs.qd[4])  # the left wheels' now
+    loop.tick()  # the step from now
+    left, right = loop.saturation.sides
+    assert 0.5 < speed < 20.0 and (left.commanded, left.saturated_since) == (50.0, 0.0)
+    assert left.applied == pytest.approx(4.0 * (1.0 - speed / 20.0), rel=1e-12)
+    assert (right.commanded, right.applied, right.saturated_since) == (0.5, 0.5, None)
+    status = diagnosed(loop)
+    values = dict(status.values)
+    assert status.level == 'warn' and 'motor saturated: left since t = 0.000 s (commanded 50 N m, applied' in status.message
+    assert 'right since' not in status.message
+    assert values['left motor saturated since (s)'] == 0.0 and values['right motor saturated since (s)'] == 'not saturated'
+    assert values['left motor applied (N m)'] == left.applied and values['right motor commanded (N m)'] == 0.5
+    loop.post(TorqueCommand((0.5, 0.5)))
+    loop.tick()
+    assert [side.saturated_since for side in loop.saturation.sides] == [None, None]
+    assert diagnosed(loop).level == 'ok' and 'saturated' not in diagnosed(loop).message
+    loop.post(TorqueCommand((0.5, -50.0)))
+    ticks(loop, 3)
+    assert [side.saturated_since for side in loop.saturation.sides] == [None, pytest.approx(0.022)]
+    assert loop.saturation.sides[1].applied == -4.0  # braking against forward wheels: the current limit, T_s
+
+
+def test_without_a_motor_block_the_diagnostics_carry_no_motor_entries():
+    loop, _graph, _log, _clock = make_loop()
+    loop.post(DRIVEN)
+    loop.post(TorqueCommand((50.0, 0.5)))
+    ticks(loop, 3)
+    assert loop.saturation.sides == () and not any('motor' in key for key, _value in diagnosed(loop).values)
 
 
 def test_a_strict_lockstep_ends_the_run_naming_the_state_left_unanswered():

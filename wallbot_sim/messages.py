@@ -255,10 +255,12 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
                       residual: float, residual_max: float, constraints_label: str,
                       adsorption: Adsorption, *, detached: bool = False,
                       contact: Sequence[tuple[str, object]] = (), sliding: Mapping[str, float] | None = None,
-                      slipping: Sequence[str] = ()) -> codec.Status:
+                      slipping: Sequence[str] = (), motor: Sequence[tuple[str, object]] = (),
+                      saturated: str = '') -> codec.Status:
     """The dynamics' status on ``/diagnostics``: OK while running, paused or stopped, WARN while
-    waiting, without torque commands, slipping or sliding with nothing holding the robot, ERROR once
-    diverged or detached."""
+    waiting, without torque commands, slipping, sliding with nothing holding the robot or with a motor
+    saturated, ERROR once diverged or detached. ``motor``: the motor block's entries and ``saturated`` the
+    saturated sides (``loop.status.MotorSaturation``)."""
     level = 'error' if diverged or detached else (
         'ok' if status in ('running', 'paused') or status.startswith('stopped') else 'warn')
     timed_out = command.startswith('timed out')
@@ -277,11 +279,15 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
         ('adsorption minimum (N)', float(adsorption.minimum_force)),
         ('adsorption margin', float(adsorption.margin)),
         *contact,
+        *motor,
     ]
     message = f'{status}; no wheel_torque_cmd: zero torque' if level == 'warn' and timed_out else status
     if (sliding or slipping) and level != 'error':
         level = 'warn'
         moving = ', '.join(f'{channel} at {speed:.3g} m/s' for channel, speed in (sliding or {}).items())
         message += f'; sliding: {moving}' if sliding else '; slipping: ' + ', '.join(slipping)
+    if saturated and level != 'error':
+        level = 'warn'
+        message += f'; motor saturated: {saturated}'
     return codec.Status(codec.simulation_status_name(node_name), level, message, values)
 

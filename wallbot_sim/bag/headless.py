@@ -30,6 +30,7 @@ from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.bag.writer import BagWriter
+from wallbot_sim.loop.status import MotorSaturation
 from wallbot_sim.model import Simulation, StepOutputs, tangent_heading
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.urdf import robot_urdf
@@ -63,6 +64,7 @@ class HeadlessBagWriter:
         self._last_write = self._window_start
         self._next_diagnostics = simulation.t
         self._residual_max = 0.0
+        self._saturation = MotorSaturation(simulation.robot.params.motor is not None)
         self._unreported: StepOutputs | None = None
         t = simulation.t
         selection = simulation.selection
@@ -140,6 +142,7 @@ class HeadlessBagWriter:
         self._window_steps += 1
         self._residual_max = max(self._residual_max, out.residual)
         self._unreported = out
+        self._saturation.note(out.t, self.simulation.motor_torque, out.motor_torque)
         if out.t >= self._next_diagnostics - 1e-12:
             self._diagnostics(out, 'running')
 
@@ -151,10 +154,12 @@ class HeadlessBagWriter:
         selection = self.simulation.selection
         command = messages.COMMAND_IGNORED if selection.trajectory else messages.applied_command(*out.motor_torque)
         sim = self.simulation
+        motor, saturated = self._saturation.report()
         diagnostics = messages.simulation_status(
             self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max, selection.label(),
             sim.robot.adsorption, contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
-            sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_wheels(out.contact))
+            sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_wheels(out.contact),
+            motor=motor, saturated=saturated)
         self._put(topics.DIAGNOSTICS, out.t, codec.diagnostics(out.t, [diagnostics]))
         self._next_diagnostics = out.t + DIAGNOSTICS_PERIOD
         self._window_start, self._window_steps, self._step_time_max = time.perf_counter(), 0, 0.0

@@ -23,7 +23,7 @@ from wallbot_sim.loop.pacing import Pacer
 from wallbot_sim.loop.resume import ResumeGate
 from wallbot_sim.loop.snapshots import snapshot_every, snapshot_of
 from wallbot_sim.loop.start import StartGate
-from wallbot_sim.loop.status import WAIT_AFTER, Decision, RunState, Statistics, Status, count_step
+from wallbot_sim.loop.status import WAIT_AFTER, Decision, MotorSaturation, RunState, Statistics, Status, count_step
 from wallbot_sim.loop.waits import BackPressure, Lockstep
 from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
                                Simulation, StepOutputs, adsorption_analysis)
@@ -94,6 +94,7 @@ class DynamicsLoop:
         self.resume = ResumeGate(settings.resume_wait)
         self.clock_schedule = messages.ClockSchedule(settings.clock_rate_hz)
         self.statistics = Statistics()
+        self.saturation = MotorSaturation(robot_file.motor is not None)
         self.blocks = Blocks(self)
 
     # --- any thread ---------------------------------------------------------------------------------
@@ -414,6 +415,8 @@ class DynamicsLoop:
         torque = self.torque_at(sim.t)
         if torque != sim.motor_torque:
             sim.set_motor_torque(*torque)
+        if self.saturation.present:
+            self.saturation.note(sim.t, sim.motor_torque, sim.applied_torque)
         began = time.perf_counter()
         try:
             sim.step()
@@ -463,5 +466,6 @@ class DynamicsLoop:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
         self.statistics.note_residual(out.residual)
+        self.saturation.note(out.t, self.sim.motor_torque, out.motor_torque)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
         self.lockstep.mark_sync(self.commander_hears())

@@ -115,3 +115,54 @@ def count_step(window: Window, step_time: float, lateness: float) -> None:
     window.lateness_max = max(window.lateness_max, lateness)
     if lateness > LATE_LIMIT:
         window.late += 1
+
+
+SIDES = ('left', 'right')
+
+
+@dataclass(frozen=True)
+class SideMotor:
+    """One side motor at a state: the torque it was commanded (after a motor_efficiency fault) and the torque its
+    envelope let it apply (N m), and since when (simulation s) it has applied less than commanded (None: it applies
+    its command)."""
+
+    commanded: float
+    applied: float
+    saturated_since: float | None
+
+
+class MotorSaturation:
+    """The side motors' saturation (docs/model.md 13.2) over the step from each state: noted at every state (by the
+    loop thread, by ``simulate --bag``), read by the diagnostics (a tuple replaced whole: a reader sees one state's). Without a motor block (``present`` false)
+    it notes nothing and reports nothing."""
+
+    def __init__(self, present: bool) -> None:
+        self.present = present
+        self.sides: tuple[SideMotor, ...] = ()
+        """The left and right motor at the newest state noted (empty before the first)."""
+
+    def note(self, t: float, commanded: tuple[float, float], applied: tuple[float, float]) -> None:
+        """The step from the state at ``t`` (s) applies ``applied`` for ``commanded``: a side saturates where they differ (the
+        envelope clips exactly, so a command inside it is applied to the bit)."""
+        if not self.present:
+            return
+        before = self.sides or (None, None)
+        self.sides = tuple(
+            SideMotor(command, torque, None if torque == command else
+                      (prior.saturated_since if prior is not None and prior.saturated_since is not None else t))
+            for prior, command, torque in zip(before, commanded, applied))
+
+    def report(self) -> tuple[list[tuple[str, object]], str]:
+        """The diagnostics' entries (each side's commanded and applied torque and since when it saturates) and the
+        saturated sides, e.g. 'left since t = 1.234 s (commanded 3 N m, applied 1.2 N m)' ('' for none), of one
+        state."""
+        sides, entries = self.sides, []
+        for side, motor in zip(SIDES, sides):
+            since = motor.saturated_since
+            entries += [(f'{side} motor commanded (N m)', motor.commanded),
+                        (f'{side} motor applied (N m)', motor.applied),
+                        (f'{side} motor saturated since (s)', 'not saturated' if since is None else since)]
+        saturated = ', '.join(f'{side} since t = {motor.saturated_since:.3f} s (commanded {motor.commanded:.3g} N m, '
+                              f'applied {motor.applied:.3g} N m)'
+                              for side, motor in zip(SIDES, sides) if motor.saturated_since is not None)
+        return entries, saturated

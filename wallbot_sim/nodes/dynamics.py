@@ -378,6 +378,7 @@ class DynamicsNode(Node):
         loop = self.loop
         window = loop.statistics.take()
         sim, out, status = loop.sim, loop.last_outputs, loop.status
+        motor, saturated = loop.saturation.report()
         elapsed = max(time.perf_counter() - window.started, 1e-9)
         t = sim.t if sim is not None else 0.0
         rate = window.steps / elapsed
@@ -394,7 +395,8 @@ class DynamicsNode(Node):
             contact=messages.contact_values(self.settings.contact_model, sim is None or sim.coulomb_applies,
                                             out.contact if out is not None else None),
             sliding=unheld_slip(loop.robot, sim.selection, out) if sim is not None and out is not None else {},
-            slipping=messages.slipping_wheels(out.contact) if out is not None else ())
+            slipping=messages.slipping_wheels(out.contact) if out is not None else (),
+            motor=motor, saturated=saturated)
         self.diagnostics_pub.publish(codec.diagnostics(t, [report]))
 
     def close(self) -> None:
