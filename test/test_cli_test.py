@@ -12,11 +12,16 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+import pytest
 import xmlschema
 import yaml
 
+from bag_helpers import by_topic, stamp_ns
 from cli_helpers import WALLBOT, assert_one_line_error
+from wallbot_msgs_py import topics
+from wallbot_sim import paths
 from wallbot_sim.bag.reader import info, messages
+from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.rundata import load_run
 from wallbot_sim.rundata.faults import fault_events
 
@@ -113,6 +118,24 @@ def test_a_controller_that_will_not_start_is_one_line_and_exit_status_2(tmp_path
         result = run_test(spec, tmp_path / f'out-{command[-1]}')
         assert result.returncode == 2, result.stdout + result.stderr
         assert_one_line_error(result, 'wallbot-sim test: error:', words)
+
+
+def test_a_spec_s_world_and_dropped_imu_reach_the_run(tmp_path):
+    """On the floor (the spec's world, inclination 0) the IMU at rest reads +g along z (REP 145 specific force; on the
+    default vertical wall it would read it along y), and a fault dropping imu for 0.1 s silences exactly the states its steps reach."""
+    (tmp_path / 'floor.yaml').write_text('inclination: 0\n')
+    (tmp_path / 'robot.yaml').write_text(paths.robot_yaml().read_text() + 'sensors: {imu: {}}\n')
+    spec = write_spec(tmp_path / 'floor_spec.yaml', scenario='rest', duration=0.3, robot='robot.yaml',
+                      world='floor.yaml', controller=f'{UNDER_TEST} answer 0.0 0.0',
+                      faults=[{'at': 0.1, 'for': 0.1, 'drop': 'imu'}])
+    result = run_test(spec, tmp_path / 'out')
+    assert result.returncode == 0, result.stdout + result.stderr
+    imu = by_topic(tmp_path / 'out' / 'bag')[topics.IMU.resolve()]
+    gravity = load_robot_parameters(tmp_path / 'robot.yaml').gravity
+    assert all(message.linear_acceleration.z == pytest.approx(gravity, rel=1e-9)
+               and abs(message.linear_acceleration.y) < 1e-9 for message in imu)
+    stamps = [round(stamp_ns(message) / 5e6) * 5 for message in imu]  # ms, on the 200 Hz grid
+    assert stamps == [ms for ms in range(0, 301, 5) if not 100 < ms <= 200]  # the states the steps from 0.1 s to 0.2 s reach
 
 
 def bag_messages(bag: Path) -> dict[str, list[bytes]]:

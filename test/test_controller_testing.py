@@ -15,8 +15,11 @@ import yaml
 
 from cli_helpers import assert_one_line_error, wallbot
 from wallbot_msgs_py.codec import FaultEvent
+from wallbot_sim import paths
 from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.graph_description import describe_tested_graph
 from wallbot_sim.model import Robot
+from wallbot_sim.model.simulation import NUMBA, PYTHON
 from wallbot_sim.rundata.least_adhesion import least_adhesion, needed_adhesion
 from wallbot_sim.testing import Outcome, SpecError, load_spec, make_spec
 from wallbot_sim.testing.expectations import Ending, Verdict
@@ -36,7 +39,8 @@ def spec_file(tmp_path: Path, **changes) -> Path:
 
 
 @pytest.mark.parametrize('changes, words', [
-    ({'world': 'my_wall.yaml'}, 'world: world files are not supported by this version'),
+    ({'world': 'my_wall.yaml'}, 'world: '),
+    ({'world': 7}, 'world must be a world file path, got 7'),
     ({'scenaro': 'circle'}, "unknown test spec key 'scenaro' (did you mean 'scenario'?)"),
     ({'controller': None}, 'controller is missing'),
     ({'controller': ''}, 'controller must be a command line or a list of its words'),
@@ -44,8 +48,8 @@ def spec_file(tmp_path: Path, **changes) -> Path:
     ({'duration': None}, 'duration is missing: scenario rest has none of its own'),
     ({'control_rate': 30}, 'control_rate must be a whole number of Hz dividing 1000'),
     ({'faults': [{'at': 0.5, 'motor_left': 1.5}]}, 'faults[0]: motor_efficiency_left must be'),
-    ({'faults': [{'at': 0.5, 'drop': 'imu'}]}, "faults[0]: drop must name a sensor topic, odom or wheel_states, "
-                                                "got 'imu'"),
+    ({'faults': [{'at': 0.5, 'drop': 'gps'}]}, "faults[0]: drop must name a sensor topic (odom, wheel_states, imu), "
+                                                "got 'gps'"),
     ({'faults': [{'at': 2.0, 'motor_left': 0.0}]}, 'a fault at 2 s comes after the run ends (1 s)'),
     ({'faults': [{'at': 0.2, 'for': 0.5, 'adhesion_scale': 0.6}, {'at': 0.5, 'adhesion_scale': 0.8}]},
      'faults[1]: adhesion_scale at 0.5 s overlaps faults[0]'),
@@ -64,7 +68,7 @@ def test_a_bad_spec_is_one_line_naming_the_file_and_what_is_wrong(tmp_path, chan
 def test_the_command_line_refuses_a_bad_spec_with_exit_status_2_and_one_line(tmp_path):
     result = wallbot('test', spec_file(tmp_path, world='my_wall.yaml'), '--out', tmp_path / 'out')
     assert result.returncode == 2
-    assert_one_line_error(result, 'wallbot-sim test: error:', 'world: world files are not supported')
+    assert_one_line_error(result, 'wallbot-sim test: error:', 'world: ', 'my_wall.yaml')
     assert not (tmp_path / 'out').exists()  # refused before anything ran
 
 
@@ -74,6 +78,28 @@ def test_a_spec_reads_its_files_from_its_folder_and_its_controller_as_words(tmp_
     assert spec.run_duration() == spec.loaded_scenario().duration
     with pytest.raises(SpecError, match=r"scenario: .*my_circle\.yaml"):
         load_spec(spec_file(tmp_path, scenario='my_circle.yaml'))
+
+
+def test_a_world_runs_the_tested_graph_on_the_python_engine_with_the_dynamics_world_file(tmp_path):
+    """The spec's world (relative to its folder) reaches the dynamics as run's --world does, and needs the python
+    engine (as a robot file's motor block does); without either the dynamics runs on numba."""
+    (tmp_path / 'floor.yaml').write_text('inclination: 0\n')
+    (tmp_path / 'motor.yaml').write_text(paths.robot_yaml().read_text() + 'motor: {stall_torque: 4.0, '
+                                                                          'no_load_speed: 20.0}\n')
+    plain, floor, motor = (load_spec(spec_file(tmp_path, **changes)) for changes in
+                           ({}, {'world': 'floor.yaml'}, {'robot': 'motor.yaml'}))
+    assert floor.world == tmp_path / 'floor.yaml' and plain.world is None
+    assert (plain.engine, floor.engine, motor.engine) == (NUMBA, PYTHON, PYTHON)
+    for spec in (plain, floor):
+        dynamics, *_others = describe_tested_graph(None, spec.drive, spec.control_steps, stop_at=1.0,
+                                                   bag=tmp_path / 'bag', world_file=spec.world, engine=spec.engine)
+        assert dynamics.parameters.get('world_file') == (str(spec.world) if spec.world else None)
+        assert dynamics.parameters['engine'] == spec.engine
+
+
+def test_a_dropped_imu_is_the_dynamics_drop_imu_setting_for_its_span():
+    assert [(fault.at, dict(fault.changes)) for fault in fault_schedule([{'at': 0.2, 'for': 0.1, 'drop': 'imu'}])] == [
+        (0.2, {'drop_imu': True}), (pytest.approx(0.3), {'drop_imu': False})]
 
 
 def test_a_fault_for_a_while_ends_with_its_settings_back_at_no_fault():

@@ -904,7 +904,7 @@ def test_scheduled_faults_apply_at_their_step_boundaries_as_the_model_with_those
         (0.012, ('adhesion_scale',), 'scheduled')]
     assert dict(graph.faults[1].values) == {'adhesion_scale': 0.5, 'motor_efficiency_left': 0.0,
                                             'motor_efficiency_right': 1.0, 'drop_odom': False,
-                                            'drop_wheel_states': False}
+                                            'drop_wheel_states': False, 'drop_imu': False}
     assert log.said('scheduled faults: motor_efficiency_left = 0.0 at t = 0.005 s')
 
 
@@ -1027,7 +1027,7 @@ def test_the_state_a_stop_stands_at_goes_out_as_a_snapshot():
                                                      'time, s) is missing'),
     ('at=-1 drop_odom=true', 'at must be a simulation time >= 0 (s), got \'-1\''),
     ('at=1 gain=2', "'gain' is no fault parameter (adhesion_scale, motor_efficiency_left, motor_efficiency_right, "
-                    'drop_odom, drop_wheel_states)'),
+                    'drop_odom, drop_wheel_states, drop_imu)'),
     ('at=1', 'no fault parameter is set'),
     ('at=1 drop_odom', "expected NAME=VALUE, got 'drop_odom'"),
     ('at=1 drop_odom=yes', "drop_odom must be true or false, got 'yes'")])

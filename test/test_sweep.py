@@ -72,7 +72,9 @@ def expected_row(robot_values: dict, spec_values: dict, folder: Path) -> dict[st
     csv_path = folder / 'run.csv'
     args = ['--scenario', spec_values['scenario'], '--duration', spec_values['duration'], '--robot', robot_file,
             '--csv', csv_path, '--quiet', '--contact', spec_values.get('contact', 'ideal')]
-    if not batch_supports(parse_spec(spec_values).settings):
+    if 'world' in spec_values:
+        args += ['--world', folder / spec_values['world']]
+    if not batch_supports(parse_spec(spec_values, folder).settings):
         args += ['--engine', 'python']  # such a sweep runs robot by robot on it: the same round-off
     if spec_values.get('controller'):
         args += ['--controller', '--controller-mass-scale', spec_values['controller_mass_scale']]
@@ -108,7 +110,7 @@ def assert_rows_match_simulate(out: Path, spec_values: dict, folder: Path, rtol:
                                printed: tuple[str, ...] = ()) -> None:
     """Every row against its robot's simulate run; the ``printed`` columns to simulate's 0.01 of their unit."""
     names, rows = read_results(out / 'results.csv')
-    spec = parse_spec(spec_values)
+    spec = parse_spec(spec_values, folder)
     assert [row[0] for row in rows] == list(range(len(spec.robots)))
     for row, robot_values in zip(rows, spec.robots):
         got = dict(zip(names, row))
@@ -134,6 +136,26 @@ def test_controller_rows_are_simulate_runs_exactly(tmp_path):
     names, rows = read_results(tmp_path / 'out' / 'results.csv')
     detached = [dict(zip(names, row))['detached'] for row in rows]
     assert detached == [0.0, 1.0]  # the higher CoM lifts a wheel, the robot file's holds
+
+
+def test_a_world_sweep_runs_robot_by_robot_as_simulate_world_runs_each_robot(tmp_path):
+    """On the floor (inclination 0) the batch, which computes the vertical wall only, is left for the single-robot
+    path: every row is simulate --world's run of its robot, and its loads carry the weight too (their sum is
+    F_ad + m_t g, section 13.1, so the least one is above the vertical wall's)."""
+    (tmp_path / 'floor.yaml').write_text('inclination: 0\n')
+    values = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', 'duration': 0.05,
+              'grid': {'body_mass': [6.0, 12.0]}, 'world': 'floor.yaml'}
+    spec_path = write_spec(tmp_path, values)
+    spec = parse_spec(values, tmp_path)
+    assert not batch_supports(spec.settings) and spec.settings.world is not None
+    run_sweep(spec_path, tmp_path / 'out', '--workers', 1)
+    assert_rows_match_simulate(tmp_path / 'out', values, tmp_path, rtol=0.0)
+    names, rows = read_results(tmp_path / 'out' / 'results.csv')
+    wall = expected_row({'body_mass': 12.0}, {key: value for key, value in values.items() if key != 'world'}, tmp_path)
+    floor = dict(zip(names, rows[1]))
+    params = load_robot_parameters().replace(body_mass=12.0)
+    weight = (params.body_mass + 4 * params.wheel_mass) * params.gravity
+    assert floor['min_normal_load'] > wall['min_normal_load'] + 0.2 * weight
 
 
 def test_results_do_not_depend_on_workers_chunking_or_resumption(batch_sweep, tmp_path):

@@ -182,7 +182,8 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
 def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: int, *, stop_at: float, bag: Path,
                           robot_file: Path | None = None, contact_model: str = 'ideal', adhesion_force: float = 0.0,
                           controller_timeout: float = 5.0, start_timeout: float = 30.0, fault_schedule: str = '',
-                          ground_truth: bool = False, engine: str = ENGINE) -> list[NodeSpec]:
+                          ground_truth: bool = False, engine: str = ENGINE,
+                          world_file: Path | None = None) -> list[NodeSpec]:
     """The graph ``wallbot-sim test`` (and the pytest fixture) runs a controller under test in, without it (the test
     starts it as a process of its own): the driven robot (no trajectory task) of ``scenario``, with its trajectory
     node publishing the reference to track (None: at rest at the origin, no reference), recorded (composed).
@@ -194,7 +195,7 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
     it). ``drive``: what the controller publishes, wheel_torque_cmd itself, or cmd_vel or joint_commands to the drive
     node (``DRIVES``), which answers in lockstep with the controller. ``fault_schedule``: the dynamics' faults at
     simulation times (``loop.faults``). ``ground_truth``: the exact state on ground_truth/odom too, so the bag keeps
-    every state while a fault silences odom. The bag leaves out /diagnostics, the dynamics' status at 1 Hz of wall
+    every state while a fault silences odom. ``world_file``: as for describe_graph. The bag leaves out /diagnostics, the dynamics' status at 1 Hz of wall
     time with its wall-clock figures: so a spec run twice records the same messages.
     """
     if drive not in TESTED_DRIVES:
@@ -210,8 +211,8 @@ def describe_tested_graph(scenario: Scenario | None, drive: str, control_steps: 
         specs.append(node(name, module, table, {**robot, **SIM_TIME, 'wait_for_recorder': True, 'answer_commands': True,
                                                 **rate}, CONTROLLER_REMAPS if drive == 'cmd_vel' else ()))
     pose = scenario.initial if scenario is not None else REST
-    dynamics = _dynamics(pose, stop_at, 0.0, True, 0, robot, contact_model, adhesion_force, control_steps, engine, {},
-                         True)
+    dynamics = _dynamics(pose, stop_at, 0.0, True, 0, {**robot, **_world(world_file)}, contact_model, adhesion_force,
+                         control_steps, engine, {}, True)
     dynamics = node(dynamics.name, dynamics.module, DYNAMICS, {
         **dynamics.parameters, 'strict_lockstep': True, 'lockstep_timeout': float(controller_timeout),
         'command_wait_timeout': float(start_timeout),

@@ -20,7 +20,8 @@ from wallbot_msgs_py import topics
 from wallbot_sim.settings.dynamics import DYNAMICS, FAULT_PARAMETERS, DynamicsSettings
 from wallbot_sim.settings.table import SettingError, Value, parameters, text_of
 
-SILENCED = {'drop_odom': (topics.ODOM, topics.CONTROL_ODOM), 'drop_wheel_states': (topics.WHEEL_STATES,)}
+SILENCED = {'drop_odom': (topics.ODOM, topics.CONTROL_ODOM), 'drop_wheel_states': (topics.WHEEL_STATES,),
+            'drop_imu': (topics.IMU,)}
 """The topics each dropout setting silences (control_odom carries odom's messages)."""
 
 

@@ -112,9 +112,10 @@ class DynamicsSettings:
     drop_odom: bool = setting(False, 'a sensor fault: odom and control_odom go silent (ground_truth/odom, where '
                                      'published, keeps the state)')
     drop_wheel_states: bool = setting(False, 'a sensor fault: wheel_states goes silent')
+    drop_imu: bool = setting(False, "a sensor fault: imu goes silent (the robot file's sensors.imu)")
     fault_schedule: str = setting('', 'faults at simulation times: entries "at=T NAME=VALUE ..." separated by ";", '
                                       'each NAME a fault parameter (adhesion_scale, motor_efficiency_left, '
-                                      'motor_efficiency_right, drop_odom, drop_wheel_states) set at the step boundary '
+                                      'motor_efficiency_right, drop_odom, drop_wheel_states, drop_imu) set at the step boundary '
                                       'at T s; empty = none', read_only=True)
     strict_lockstep: bool = setting(False, 'a lockstep wait that reaches lockstep_timeout ends the run (the node exits '
                                            '1 naming the state left unanswered) instead of stepping on',
@@ -160,7 +161,8 @@ DYNAMICS = table_of(DynamicsSettings)
 NOISE_PARAMETERS = ('odom_noise_position', 'odom_noise_heading', 'odom_noise_linear', 'odom_noise_angular',
                     'encoder_noise', 'encoder_velocity_noise')
 """The sensor noise settings, in the order of ``NoiseLevels``' fields."""
-FAULT_PARAMETERS = ('adhesion_scale', 'motor_efficiency_left', 'motor_efficiency_right', 'drop_odom', 'drop_wheel_states')
+FAULT_PARAMETERS = ('adhesion_scale', 'motor_efficiency_left', 'motor_efficiency_right', 'drop_odom', 'drop_wheel_states',
+                    'drop_imu')
 """The fault settings (``loop.faults``): changed while running, or at simulation times by ``fault_schedule``."""
 COMPOSED = DYNAMICS.fixing({'resume_wait': (0.0, NO_KEEPER), 'snapshot_period': (0.0, NO_KEEPER)})
 """The dynamics' settings in the composed process (``dynamics_recorder_node``): with no keeper of snapshots there,

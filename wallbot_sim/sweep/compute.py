@@ -4,7 +4,7 @@ Every robot runs as ``wallbot-sim simulate`` runs it (same scenario, constraints
 step), and its row holds the numbers the run summary and the motor analysis of ``wallbot_sim.rundata``
 give for that run's CSV. :func:`robot_runs` is the one place that chooses how the runs are computed:
 the batch core (``wallbot_sim.model.batch``) for what it supports, the single-robot ``Simulation``
-robot by robot otherwise.
+(python engine) robot by robot otherwise: the coulomb contact, the controller, a world file.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scena
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
+from wallbot_sim.model.world import World
 from wallbot_sim.rundata.csv_format import COLUMN, CSV_COLUMNS, csv_row, fill_motion_rows, fill_wheel_rows
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
@@ -54,6 +55,8 @@ class RunSettings:
     dt: float
     controller: bool
     controller_mass_scale: float
+    world: World | None = None
+    """The world file's surface (None: a vertical, uniform wall), as ``simulate --world``."""
 
     @property
     def steps(self) -> int:
@@ -62,8 +65,9 @@ class RunSettings:
 
 
 def batch_supports(settings: RunSettings) -> bool:
-    """Whether the batch core runs these settings (ideal contact, no controller)."""
-    return settings.contact == 'ideal' and not settings.controller
+    """Whether the batch core runs these settings (ideal contact, no controller, no world file: the batch computes
+    the vertical, uniform wall only)."""
+    return settings.contact == 'ideal' and not settings.controller and settings.world is None
 
 
 class RobotRun(NamedTuple):
@@ -113,7 +117,7 @@ def result_row(robot_run: RobotRun, params: RobotParameters) -> list[float]:
 
 
 def _single_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
-    robot = Robot(params)
+    robot = Robot(params, settings.world)
     q0, qd0 = settings.scenario.initial_state(robot)
     simulation = Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0, dt=settings.dt,
                             contact=settings.contact)

@@ -7,6 +7,7 @@
     controller: false            # the example tracking controller closes the loop
     controller_mass_scale: 1.0
     robot: config/robot.yaml     # the robot file the varied keys override (default: the installed one)
+    world: config/world.yaml     # optional: the world file every robot runs on (robot by robot, python engine)
     grid:                        # full factorial over lists
       body_mass: [6.0, 8.0, 10.0]
     vary:                        # [low, high], drawn uniformly for `samples` robots with `seed`
@@ -30,7 +31,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from wallbot_sim.config import load_robot_parameters, load_scenario, read_yaml
+from wallbot_sim.config import load_robot_parameters, load_scenario, load_world, read_yaml
 from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.control.tracking import DRIVEN
 from wallbot_sim.model import DEFAULT_STEP, TIME_STEP, ConstraintSelection, ParameterError, RobotParameters, Scenario
@@ -42,7 +43,7 @@ from wallbot_sim.sweep.compute import RunSettings
 from wallbot_sim.sweep.errors import SweepError
 
 SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration', 'dt', 'controller',
-            'controller_mass_scale', 'robot', 'chunk_size')
+            'controller_mass_scale', 'robot', 'world', 'chunk_size')
 VARIATION = ('grid', 'vary', 'samples', 'seed')
 CHUNK_ROBOT_STEPS = 1_200_000
 """Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 392 bytes per
@@ -156,7 +157,11 @@ def _settings(values: Mapping[str, Any], folder: Path) -> RunSettings:
                          'actuator, not friction)')
     duration = _number(values, 'duration', POSITIVE, scenario.duration)
     time_step = _number(values, 'dt', TIME_STEP, DEFAULT_STEP)
-    return RunSettings(scenario, selection, contact, duration, time_step, controller, scale)
+    world = values.get('world')
+    if world is not None and not isinstance(world, str):
+        raise SweepError(f'world must be a world file path, got {world!r}')
+    return RunSettings(scenario, selection, contact, duration, time_step, controller, scale,
+                       None if world is None else load_world(folder / world))
 
 
 def _grid(grid: Any) -> dict[str, list]:

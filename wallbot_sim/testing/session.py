@@ -127,7 +127,7 @@ class Session:
                                      bag=self.bag.resolve(), robot_file=spec.robot, contact_model=spec.contact,
                                      adhesion_force=spec.adhesion_force, controller_timeout=spec.controller_timeout,
                                      start_timeout=spec.start_timeout, fault_schedule=schedule_text(spec.faults),
-                                     ground_truth=self.ground_truth)
+                                     ground_truth=self.ground_truth, world_file=spec.world, engine=spec.engine)
 
     def controller_env(self) -> dict[str, str]:
         """What the controller finds in its environment besides the domain (the module's docstring)."""

@@ -2,6 +2,7 @@
 
     scenario: circle              # circle, figure8, rest (at rest at the origin, no reference) or a scenario file
     robot: my_robot.yaml          # optional: the robot file (default: the installed one)
+    world: my_world.yaml          # optional: the world file (inclination, patches, seams; default: a vertical wall)
     contact: coulomb              # ideal (default) or coulomb
     duration: 3.0                 # simulated seconds (default: the scenario's; rest needs one)
     drive: wheel_torque_cmd       # what the controller publishes: wheel_torque_cmd, cmd_vel or joint_commands
@@ -13,7 +14,7 @@
     faults:                       # optional, at simulation times
       - {at: 1.0, motor_left: 0.0}                 # the left motor delivers 0 % of its torque from 1 s
       - {at: 1.5, for: 0.5, adhesion_scale: 0.6}   # 60 % adhesion for 0.5 s
-      - {at: 2.0, for: 0.2, drop: odom}            # odom (and control_odom) silent for 0.2 s
+      - {at: 2.0, for: 0.2, drop: odom}            # odom (and control_odom) silent for 0.2 s (or wheel_states, imu)
     expect:
       max_tracking_error_after: {t: 2.0, m: 0.01}  # after t s, the centre within m metres of the reference
       no_slip: true                # no wheel slips (coulomb), no friction use above 1 (ideal)
@@ -22,9 +23,9 @@
       max_motor_torque: 2.5        # N m per side, delivered by the motors
 
 Every key is checked as the other input files' are: an unknown one is refused naming the closest known one, a bad
-value in one line naming the key. Relative file paths (scenario, robot) are relative to the spec's folder; the
-controller command runs in the current directory. ``world`` (a wall of its own) is refused: this version simulates
-the plain wall only.
+value in one line naming the key. Relative file paths (scenario, robot, world) are relative to the spec's folder;
+the controller command runs in the current directory. A world file, or a robot file's motor or adhesion block, runs
+the dynamics on the python engine (docs/model.md 13).
 """
 
 from __future__ import annotations
@@ -33,17 +34,19 @@ import math
 import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
-from wallbot_sim.config import load_robot_parameters, load_scenario, read_yaml
+from wallbot_sim.config import load_robot_parameters, load_scenario, load_world, read_yaml
 from wallbot_sim.control.sampling import CONTROL_RATE_HZ, steps_per_period
 from wallbot_sim.control.wheel_speed import SPEED_LOOP_RATE_HZ
 from wallbot_sim.loop.faults import ScheduledFault
-from wallbot_sim.model import ParameterError, Scenario
+from wallbot_sim.model import ParameterError, Robot, Scenario
 from wallbot_sim.model.contact import CONTACT_MODELS, IDEAL
 from wallbot_sim.model.keys import unknown_key
 from wallbot_sim.model.numbers import NumberRange
+from wallbot_sim.model.python_only import python_only_features
 from wallbot_sim.model.scenario import SHAPES
+from wallbot_sim.model.simulation import NUMBA, PYTHON
 from wallbot_sim.settings.dynamics import DYNAMICS
 from wallbot_sim.testing.errors import SpecError
 
@@ -57,7 +60,7 @@ FAULT_KEYS = ('at', 'for', 'motor_left', 'motor_right', 'adhesion_scale', 'drop'
 FAULT_SETTINGS = {'motor_left': 'motor_efficiency_left', 'motor_right': 'motor_efficiency_right',
                   'adhesion_scale': 'adhesion_scale'}
 """A fault's key and the dynamics setting it sets (``drop`` sets the dropout setting of its topic)."""
-DROPS = {'odom': 'drop_odom', 'wheel_states': 'drop_wheel_states'}
+DROPS = {'odom': 'drop_odom', 'wheel_states': 'drop_wheel_states', 'imu': 'drop_imu'}
 """The sensor topics a fault may silence, and the dynamics setting that does."""
 EXPECTATIONS = ('max_tracking_error_after', 'no_slip', 'no_detachment', 'min_adhesion_margin', 'max_motor_torque')
 DURATION = NumberRange(0.0, 1e6, low_open=True)
@@ -92,6 +95,8 @@ class Spec:
     scenario: str = 'circle'
     """circle, figure8, rest, or a scenario file's path."""
     robot: Path | None = None
+    world: Path | None = None
+    """The world file (None: a vertical, uniform wall)."""
     contact: str = IDEAL
     duration: float | None = None
     """Simulated seconds (None: the scenario's)."""
@@ -115,6 +120,12 @@ class Spec:
     def control_steps(self) -> int:
         """Dynamics steps per control period: every that many steps a state waits for its answer."""
         return steps_per_period(self.rate)
+
+    @property
+    def engine(self) -> str:
+        """The dynamics' engine: python where the robot file's blocks or the world file need it, else numba."""
+        robot = Robot(load_robot_parameters(self.robot), load_world(self.world))
+        return PYTHON if python_only_features(robot) else NUMBA
 
     def loaded_scenario(self) -> Scenario | None:
         """The scenario (None for rest)."""
@@ -142,15 +153,13 @@ def parse_spec(values: Any, folder: Path = Path('.'), name: str = 'controller te
     reason = unknown_key(values, KEYS, 'test spec key')
     if reason is not None:
         raise SpecError(reason)
-    if 'world' in values:
-        raise SpecError('world: world files are not supported by this version (the robot runs on the plain wall)')
     if 'controller' not in values:
         raise SpecError('controller is missing: the command that starts the controller under test')
     return make_spec(folder=folder, name=name, **values)
 
 
 def make_spec(controller: str | Sequence[str], scenario: str = 'circle', robot: str | Path | None = None,
-              contact: str = IDEAL, duration: float | None = None, drive: str = 'wheel_torque_cmd',
+              world: str | Path | None = None, contact: str = IDEAL, duration: float | None = None, drive: str = 'wheel_torque_cmd',
               control_rate: int | None = None, controller_timeout: float = 5.0, start_timeout: float = 30.0,
               adhesion_force: float | None = None, faults: Sequence[Mapping[str, Any]] | None = None,
               expect: Mapping[str, Any] | None = None, folder: Path = Path('.'),
@@ -161,12 +170,13 @@ def make_spec(controller: str | Sequence[str], scenario: str = 'circle', robot: 
         raise SpecError(f'scenario must be {", ".join(SHAPES)}, {REST} or a scenario file, got {scenario!r}')
     if scenario not in (*SHAPES, REST):
         scenario = str(folder / scenario)
-    robot_path = _robot(robot, folder)
+    robot_path = _input_file('robot', robot, folder, load_robot_parameters)
+    world_path = _input_file('world', world, folder, load_world)
     if contact not in CONTACT_MODELS:
         raise SpecError(f'contact must be one of {", ".join(CONTACT_MODELS)}, got {contact!r}')
     if drive not in DRIVES:
         raise SpecError(f'drive must be one of {", ".join(DRIVES)}, got {drive!r}')
-    spec = Spec(controller=_command(controller), scenario=scenario, robot=robot_path, contact=contact,
+    spec = Spec(controller=_command(controller), scenario=scenario, robot=robot_path, world=world_path, contact=contact,
                 duration=None if duration is None else _number('duration', duration, DURATION),
                 drive=drive, control_rate=_rate(control_rate),
                 controller_timeout=_number('controller_timeout', controller_timeout, TIMEOUT),
@@ -188,16 +198,17 @@ def make_spec(controller: str | Sequence[str], scenario: str = 'circle', robot: 
     return spec
 
 
-def _robot(robot: Any, folder: Path) -> Path | None:
-    if robot is None:
+def _input_file(key: str, value: Any, folder: Path, load: Callable[[Path], object]) -> Path | None:
+    """The robot or world file ``value`` names (relative to ``folder``), read by ``load`` to check it; None for none."""
+    if value is None:
         return None
-    if not isinstance(robot, (str, Path)):
-        raise SpecError(f'robot must be a robot file path, got {robot!r}')
-    path = (folder / robot).resolve()
+    if not isinstance(value, (str, Path)):
+        raise SpecError(f'{key} must be a {key} file path, got {value!r}')
+    path = (folder / value).resolve()
     try:
-        load_robot_parameters(path)
+        load(path)
     except ParameterError as error:
-        raise SpecError(f'robot: {error}') from None
+        raise SpecError(f'{key}: {error}') from None
     return path
 
 
@@ -285,7 +296,7 @@ def fault_entry(entry: Any) -> tuple[float, float, dict[str, Any]]:
     changes = {setting: _setting(setting, entry[key]) for key, setting in FAULT_SETTINGS.items() if key in entry}
     if 'drop' in entry:
         if entry['drop'] not in DROPS:
-            raise SpecError(f'drop must name a sensor topic, {" or ".join(DROPS)}, got {entry["drop"]!r}')
+            raise SpecError(f'drop must name a sensor topic ({", ".join(DROPS)}), got {entry["drop"]!r}')
         changes[DROPS[entry['drop']]] = True
     if not changes:
         raise SpecError(f'no fault is given: use {", ".join(key for key in FAULT_KEYS if key not in ("at", "for"))}')
