@@ -40,6 +40,14 @@ def synthetic_run(label: str, reference: bool, sliding_wheel: int | None = None)
     return run_from_columns(np.column_stack([col[name] for name in CSV_COLUMNS]), label)
 
 
+def with_machine(run: RunData, names: tuple[str, ...]) -> RunData:
+    """``run`` with the machine series ``names`` (a motor block's applied torques, a vacuum block's dp and F_ad)."""
+    shapes = {'tau_L_applied': 2.0 - run.t, 'tau_R_applied': 1.5 - run.t, 'dp': 10000.0 - 100 * run.t,
+              'F_ad': 200.0 - 2 * run.t}
+    run.machine = {name: (run.t, shapes[name]) for name in names}
+    return run
+
+
 def drawn(runs: list[RunData]) -> dict:
     figures = dict(run_figures(plt, runs, 0.1, 0.12))
     yield_figures.extend(figures.values())
@@ -69,7 +77,8 @@ def has_data(ax) -> bool:
 
 def test_every_axis_of_a_run_figure_has_its_unit_and_data():
     for many in (False, True):
-        runs = [synthetic_run('first', True, 2)] + ([synthetic_run('second', True, 3)] if many else [])
+        runs = [with_machine(synthetic_run('first', True, 2), ('tau_L_applied', 'tau_R_applied', 'dp', 'F_ad'))]
+        runs += [synthetic_run('second', True, 3)] if many else []
         for name, fig in drawn(runs).items():
             for ax in data_axes(fig):
                 assert has_data(ax), f'{name}: a panel without data'
@@ -80,7 +89,8 @@ def test_every_axis_of_a_run_figure_has_its_unit_and_data():
 
 def test_a_run_without_a_reference_has_no_tracking_error_and_lists_no_reference():
     figures = drawn([synthetic_run('rest_run', False)])
-    assert 'tracking_error' not in figures and list(figures) == [name for name in FIGURES if name != 'tracking_error']
+    assert 'tracking_error' not in figures
+    assert list(figures) == [name for name in FIGURES if name not in ('tracking_error', 'machine')]
     for name in ('path', 'position'):
         labels = [text for ax in figures[name].axes for text in ax.get_legend_handles_labels()[1]]
         assert not any('reference' in text for text in labels), f'{name} lists a reference: {labels}'
@@ -101,8 +111,24 @@ def test_titles_name_the_run_by_its_folder(tmp_path):
         assert any('(first)' in title for title in titles), f'{name}: {titles}'
 
 
+def test_the_machine_figure_has_a_panel_for_each_series_a_run_has_and_only_for_such_runs():
+    """A motor block's CSV: one torque panel, a line a side; a bag with chamber_pressure only: the dp panel alone;
+    a run without the blocks: no machine figure."""
+    motor = drawn([with_machine(synthetic_run('motor', False), ('tau_L_applied', 'tau_R_applied'))])['machine']
+    [torque] = motor.axes
+    assert torque.get_ylabel() == 'applied side torque (N m)'
+    assert torque.get_legend_handles_labels()[1] == ['tau_L applied', 'tau_R applied']
+    [pressure] = drawn([with_machine(synthetic_run('bag', False), ('dp',))])['machine'].axes
+    assert pressure.get_ylabel() == 'chamber pressure difference dp (Pa)' and has_data(pressure)
+    both = drawn([with_machine(synthetic_run('a', False), ('dp', 'F_ad')), synthetic_run('b', False)])['machine']
+    assert [ax.get_ylabel() for ax in both.axes] == ['chamber pressure difference dp (Pa)', 'adhesion force F_ad (N)']
+    assert 'machine' not in drawn([synthetic_run('plain', False)])
+
+
 def test_legends_stand_beside_the_data():
-    for name, fig in drawn([synthetic_run('a', True, 1), synthetic_run('b', True, 2)]).items():
+    runs = [with_machine(synthetic_run('a', True, 1), ('tau_L_applied', 'tau_R_applied', 'dp', 'F_ad')),
+            synthetic_run('b', True, 2)]
+    for name, fig in drawn(runs).items():
         renderer = fig.canvas.get_renderer()
         for ax in fig.axes:
             legend = ax.get_legend()

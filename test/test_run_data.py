@@ -8,6 +8,8 @@ import csv
 import numpy as np
 import pytest
 
+from cli_helpers import read_csv, simulate
+from wallbot_sim import paths
 from wallbot_sim.bag.headless import HeadlessBagWriter
 from wallbot_sim.rundata import format_summary, summarize
 from wallbot_sim.config import load_robot_parameters, load_scenario
@@ -205,3 +207,21 @@ def test_the_summary_holds_as_much_for_a_long_bag_as_for_a_short_one(tmp_path):
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     assert peaks[1] - peaks[0] < 3 * 2**20, peaks
+
+
+def test_a_csv_s_block_columns_are_the_run_s_machine_series(tmp_path):
+    """The example robot file's motor and vacuum blocks: load_run reads their columns as the machine series (what
+    plot draws), each against the CSV's own column, F_ad the chamber area times dp."""
+    out = tmp_path / 'climb.csv'
+    result = simulate('--scenario', 'rest', '--heading', 1.5707963267948966, '--torque', '3,3', '--robot',
+                      paths.config_dir() / 'climber.yaml', '--engine', 'python', '--duration', 0.05, '--csv', out,
+                      '--quiet')
+    assert result.returncode == 0, result.stderr
+    header, rows = read_csv(out)
+    run = load_run(out)
+    assert list(run.machine) == ['tau_L_applied', 'tau_R_applied', 'dp', 'F_ad']
+    for name, (t, values) in run.machine.items():
+        assert t.tolist() == [row[0] for row in rows]
+        assert values.tolist() == [row[header.index(name)] for row in rows]
+    assert run.machine['F_ad'][1] == pytest.approx(0.02 * run.machine['dp'][1], rel=1e-12)
+    assert run.machine['tau_L_applied'][1][0] == 3.0  # at rest the 4 N m envelope holds the command

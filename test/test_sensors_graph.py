@@ -10,6 +10,7 @@ from cli_helpers import wallbot
 from wallbot_msgs_py import topics
 from wallbot_sim import paths
 from wallbot_sim.model.vacuum import ATMOSPHERE
+from wallbot_sim.rundata import load_run
 
 SENSORS = """
 adhesion: {chamber_area: 0.02, chamber_volume: 0.002, pump_max_pressure: 12000.0, pump_max_flow: 0.01,
@@ -45,3 +46,6 @@ def test_a_run_records_the_sensors_at_their_rates_reading_the_recorded_states(tm
                    for angle, read in zip(exact, joints.position))
     pressures = [msg.fluid_pressure for msg in bag[topics.CHAMBER_PRESSURE.resolve()]]
     assert all(ATMOSPHERE - 12000.0 < pressure < ATMOSPHERE for pressure in pressures)
+    times, dp = load_run(out / 'bag').machine['dp']  # what plot draws: the chamber's pressure difference
+    assert times.tolist() == [stamp_ns(msg) * 1e-9 for msg in bag[topics.CHAMBER_PRESSURE.resolve()]]
+    assert dp.tolist() == [ATMOSPHERE - pressure for pressure in pressures]

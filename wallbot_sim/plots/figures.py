@@ -11,6 +11,7 @@
 | drive_forces.png | 18, 19, 26, 27: left and right drive (traction) forces, and the lateral force |
 | normal_loads.png | (wheel-wall contact) normal load of each wheel; below 0 a wheel lifts off |
 | friction_use.png | (wheel-wall contact) friction use of each wheel against the limit 1, its slides shaded (compared runs: a strip each, in its colour) |
+| machine.png | (a robot file's motor and adhesion blocks, docs/model.md 13) the side torques applied within the motors' envelope, the chamber's pressure difference dp and adhesion force F_ad: a panel for each a run has (only for such runs) |
 """
 
 from __future__ import annotations
@@ -26,8 +27,12 @@ from wallbot_sim.plots.errors import PlotError
 from wallbot_sim.rundata import RunData
 
 FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'constraint_forces', 'drive_forces',
-           'normal_loads', 'friction_use')
-"""Base names of the PNG files written, in this order (tracking_error only when a run has a reference)."""
+           'normal_loads', 'friction_use', 'machine')
+"""Base names of the PNG files written, in this order (tracking_error only when a run has a reference, machine
+only when one has a machine series)."""
+MACHINE_PANELS = ((('tau_L_applied', 'tau_R_applied'), 'applied side torque (N m)'),
+                  (('dp',), 'chamber pressure difference dp (Pa)'), (('F_ad',), 'adhesion force F_ad (N)'))
+"""The machine figure's panels: the series each shows (RunData.machine), its y axis."""
 
 WHEEL_OFFSETS = {  # body-frame axle centres in units of (a, b): x forward, y to the left
     'wheel_left_front': (1, 1), 'wheel_left_rear': (-1, 1),
@@ -95,9 +100,10 @@ def run_figures(plt: Any, runs: Sequence[RunData], half_wheelbase: float | None 
     drawn = {'path': figures.path, 'position': figures.position, 'tracking_error': figures.tracking_error,
              'attitude': figures.attitude, 'wheel_tracks': lambda: figures.wheel_tracks(half_wheelbase, half_track),
              'constraint_forces': figures.constraint_forces, 'drive_forces': figures.drive_forces,
-             'normal_loads': figures.normal_loads, 'friction_use': figures.friction_use}
+             'normal_loads': figures.normal_loads, 'friction_use': figures.friction_use, 'machine': figures.machine}
     for name in FIGURES:
-        if name == 'tracking_error' and not any(has_reference(run) for run in runs):
+        if ((name == 'tracking_error' and not any(has_reference(run) for run in runs))
+                or (name == 'machine' and not any(run.machine for run in runs))):
             continue
         fig = drawn[name]()
         fig.tight_layout()
@@ -269,6 +275,26 @@ class _Figures:
         if any(len(run.loads) and np.isfinite(run.loads).any() for run in self.runs):  # one legend, four wheels
             _legend(axes[0, 1], handles=list(entries.values()), labels=list(entries.keys()))
         fig.suptitle('Friction use |f_i| / (mu_s N_i) of each wheel' + self.title_suffix)
+        return fig
+
+    def machine(self) -> Any:
+        """A panel for each of MACHINE_PANELS some run has: each side a line style, each run a colour."""
+        panels = [(names, ylabel) for names, ylabel in MACHINE_PANELS
+                  if any(name in run.machine for run in self.runs for name in names)]
+        fig, axes = self.plt.subplots(len(panels), 1, sharex=True, figsize=(8.5, 2.6 * len(panels) + 1.0),
+                                      squeeze=False)
+        for ax, (names, ylabel) in zip(axes[:, 0], panels):
+            for run in self.runs:
+                for style, name in zip(('-', '--'), names):
+                    if name in run.machine:
+                        t, values = run.machine[name]
+                        ax.plot(t, values, style, lw=1.2, color=self.colour(run),
+                                label=self.label(run, name.replace('_applied', ' applied')))
+            ax.set(ylabel=ylabel)
+            ax.grid(True, alpha=0.3)
+            _legend(ax)
+        axes[-1, 0].set_xlabel('time (s)')
+        axes[0, 0].set_title('The machine: motors and vacuum chamber' + self.title_suffix)
         return fig
 
 

@@ -23,11 +23,14 @@ from typing import Any, Callable
 import numpy as np
 
 from wallbot_msgs_py import codec, topics
+from wallbot_sim.model.vacuum import ATMOSPHERE
 from wallbot_sim.rundata.csv_format import BLOCK_GROUPS, CSV_COLUMNS, block_columns
 from wallbot_sim.rundata.errors import RunDataError
 
 BLOCK_COLUMNS = set(block_columns(tuple(BLOCK_GROUPS.values())))
-"""The columns a robot file's blocks append (a run's data reads the common columns)."""
+"""The columns a robot file's blocks append (RunData.machine)."""
+MACHINE_SERIES = {'tau_L_applied': 'N m', 'tau_R_applied': 'N m', 'dp': 'Pa', 'F_ad': 'N'}
+"""The machine's series a run may have (docs/model.md 13), with their units."""
 
 
 @dataclass
@@ -72,6 +75,9 @@ class RunData:
     sensed: np.ndarray = field(default_factory=lambda: np.empty((0, 6)))
     """(N, 6) x, y, theta, vx, vy, omega as the noisy odometry reported them (a run with sensor
     noise; NaN where a stamp has none), empty when the odometry was the simulated state itself."""
+    machine: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    """The machine's series the run has (MACHINE_SERIES' names), each (times (s), values): a CSV's block columns
+    (``tau_L_applied, tau_R_applied``, ``dp, F_ad``), a bag's ``dp`` from its chamber_pressure."""
 
     def __len__(self) -> int:
         return len(self.t)
@@ -112,14 +118,16 @@ def _load_csv(path: Path, label: str) -> RunData:
             if header is None or tuple(header[:len(CSV_COLUMNS)]) != CSV_COLUMNS or not set(
                     header[len(CSV_COLUMNS):]) <= BLOCK_COLUMNS:
                 raise RunDataError(f'{path} is not a wallbot-sim simulate CSV (header differs)')
-            rows = np.array([[float(v) for v in row[:len(CSV_COLUMNS)]] for row in reader if row], dtype=float)
+            rows = np.array([[float(v) for v in row] for row in reader if row], dtype=float)
     except OSError as error:
         raise RunDataError(f'cannot read {path}: {error.strerror}') from None
     except ValueError:
         raise RunDataError(f'{path} has a non-numeric value') from None
     if rows.size == 0:
         raise RunDataError(f'{path} has no data rows')
-    return run_from_columns(rows, label)
+    run = run_from_columns(rows[:, :len(CSV_COLUMNS)], label)
+    run.machine = {name: (run.t, rows[:, i]) for i, name in enumerate(header) if name in MACHINE_SERIES}
+    return run
 
 
 def run_from_columns(rows: np.ndarray, label: str) -> RunData:
@@ -154,7 +162,7 @@ class _LastRun(dict):
 
 
 LEAVES = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'wheel_contact', 'reference', 'reference_path',
-          'reference_trajectory', 'diagnostics')
+          'reference_trajectory', 'diagnostics', 'chamber_pressure')
 """The topics a run is read from, by their last name component; ``ground_truth`` is ground_truth/odom."""
 
 
@@ -229,7 +237,7 @@ class _BagSeries:
 
     def __init__(self, namespace: str) -> None:
         self.namespace = namespace
-        self.tables = {leaf: _LastRun() for leaf in (*STAMPED_SERIES, 'diagnostics')}
+        self.tables = {leaf: _LastRun() for leaf in (*STAMPED_SERIES, 'diagnostics', 'chamber_pressure')}
         self.plan: dict[int, tuple] = {}
         self.path_xy: tuple[list[float], list[float]] = ([], [])
 
@@ -250,6 +258,9 @@ class _BagSeries:
             residual = residual_max(data, self.namespace)
             if residual is not None:
                 self.tables['diagnostics'].put(residual[0], (residual[1],))
+        elif leaf == 'chamber_pressure':  # its own sample times (the sensor's rate), as the pressure difference
+            pressure = codec.decode_fluid_pressure(data)
+            self.tables[leaf].put(pressure.stamp_ns, ATMOSPHERE - pressure.pressure)
 
 
 def _plan_reference(plan: dict):
@@ -303,7 +314,16 @@ def _run_data(series: _BagSeries, label: str, path: Path) -> RunData:
                    np.array(series.path_xy[0]), np.array(series.path_xy[1]), odom.restarts,
                    loads=k[:, 0:4], use=k[:, 4:8], slip=k[:, 8:12],
                    wheel_forces=np.stack((k[:, 12:16], k[:, 16:20]), axis=2),
-                   sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)))
+                   sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)),
+                   machine=_sampled(tables['chamber_pressure'], 'dp'))
+
+
+def _sampled(table: _LastRun, name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``{name: (times (s), values)}`` of a series at its own sample stamps; empty without samples."""
+    stamps = sorted(table)
+    if not stamps:
+        return {}
+    return {name: (np.array(stamps, dtype=float) * 1e-9, np.array([table[s] for s in stamps], dtype=float))}
 
 
 def _reference_at(t: np.ndarray, plan: dict, ref: _LastRun, exact: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
