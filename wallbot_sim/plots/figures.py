@@ -125,7 +125,8 @@ class _Figures:
         self.referenced = [run for run in runs if has_reference(run)]
 
     def colour(self, run: RunData) -> str:
-        return f'C{self.runs.index(run) % 10}'
+        index = next(k for k, known in enumerate(self.runs) if known is run)  # by identity: runs hold arrays
+        return f'C{index % 10}'
 
     def label(self, run: RunData, what: str = '') -> str:
         return f'{run.label}{": " + what if what else ""}' if self.many else (what or run.label)
