@@ -10,18 +10,17 @@ import numpy as np
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
 from wallbot_sim.model.contact import (
-    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, channel_slipping, check_contact_model)
+    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, check_contact_model, coulomb_table)
 from wallbot_sim.model.contact_kinematics import contact_velocities
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import (
-    ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces, wheel_force_sums)
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
-from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
+from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 from wallbot_sim.model.trajectories import LastSample, Reference
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
@@ -275,14 +274,8 @@ class Simulation:
         return SwitchReport(previous, selection, before, after)
 
     def _project(self, modules: Sequence[ConstraintModule], qd: np.ndarray) -> np.ndarray:
-        """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules``."""
-        q = self._y[:DOF]
-        rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
-        if not rows:
-            return qd
-        rows = np.vstack(rows)
-        weighted = self.robot.mass_matrix_inverse(q) @ rows.T
-        return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
+        """``impulsive_projection`` of ``qd`` at the current q."""
+        return impulsive_projection(self.robot, modules, self._y[:DOF], qd)
 
     def _build(self, selection: ConstraintSelection, reference: Reference | None,
                gains: BaumgarteGains) -> list[ConstraintModule]:
@@ -325,8 +318,7 @@ class Simulation:
                     self._held_torque = (self._y, torque)
                     q = self._y[:DOF]
                 self._active, self._friction, self._held_loads = solution.active, solution.friction, solution.loads
-                motion, drive = solution.motion, wheel_force_sums(solution.wheel_forces)
-                contact = self._coulomb_contact(q, qd, solution, drive)
+                motion, drive, contact = solution.motion, *self._coulomb_contact(q, qd, solution)
             else:
                 qd = self._y[DOF:]
                 compiled = self._compiled_now()
@@ -350,16 +342,18 @@ class Simulation:
         return ContactOutputs(loads, use, self._limits(loads), (False, False, False), None, wheels.forces[0],
                               wheels.use[0], (False, False, False, False), wheels.velocities[0])
 
-    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray, solution: ContactSolution,
-                         drive: DriveForces) -> ContactOutputs:
-        """Coulomb contact's outputs at a settled boundary: the channels as sums of the wheels' forces."""
-        loads, static = solution.loads, self.robot.params.wall_friction
-        layout = self._coulomb.layout(self._modules)
-        return ContactOutputs(
-            loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.wall_load, static),
-            self._limits(loads), channel_slipping(solution.sliding, layout.directions), solution.friction_force,
-            solution.wheel_forces, wheel_use(solution.wheel_forces[None], loads[None], self.robot.wheel_friction(q)[0])[0],
-            tuple(wheel in solution.sliding for wheel in range(4)),  # type: ignore[arg-type]
+    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray,
+                         solution: ContactSolution) -> tuple[DriveForces, ContactOutputs]:
+        """Coulomb contact's drive forces and outputs at a settled boundary (``coulomb_table``: the channels as sums
+        of the wheels' forces, each wheel's use against its own mu_s)."""
+        sliding = tuple(wheel in solution.sliding for wheel in range(4))
+        table = coulomb_table(solution.loads[None], solution.wheel_forces[None], np.array([sliding]),
+                              self._coulomb.layout(self._modules).directions, self.robot.params.wall_friction,
+                              self.robot.wall_load, self.robot.wheel_friction(q)[0][None])
+        return DriveForces(*table.drive[0].tolist()), ContactOutputs(
+            solution.loads, FrictionUse(*table.use[0].tolist()), tuple(table.limits[0].tolist()),  # type: ignore
+            tuple(table.slipping[0].tolist()), solution.friction_force, solution.wheel_forces,  # type: ignore
+            table.wheel_use[0], sliding,  # type: ignore[arg-type]
             contact_velocities(q[None, 2], qd[None], self.robot.wheel_offsets, self.robot.params.wheel_radius)[0])
 
     def _measure(self, motion: ConstrainedMotion, qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
@@ -531,6 +525,18 @@ def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q
         return force, np.empty((0, DOF)), np.empty(0)
     parts = [module.rows(t, q, qd) for module in modules]
     return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
+
+
+def impulsive_projection(robot: Robot, modules: Sequence[ConstraintModule], q: np.ndarray,
+                         qd: np.ndarray) -> np.ndarray:
+    """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules`` at q: the impulse of a
+    constraint switch, the least kinetic energy change that imposes them."""
+    rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
+    if not rows:
+        return qd
+    rows = np.vstack(rows)
+    weighted = robot.mass_matrix_inverse(q) @ rows.T
+    return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
 
 
 def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray,
