@@ -26,7 +26,7 @@ from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
 
 if TYPE_CHECKING:
-    from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
+    from wallbot_sim.model.compiled import CompiledCoulomb, CompiledDynamics, ReferenceRows
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
@@ -63,9 +63,8 @@ class Simulation:
     computes them), and a wheel lifting off raises DetachedError from ``step`` after the outputs
     of that instant were available.
 
-    ``engine`` 'numba' computes the motion and the RK4 step by the batch's compiled kernel
-    (``model.compiled``) with ideal contact, while no ``extra_modules`` are active; coulomb contact and
-    modules of your own stay on the Python path.
+    ``engine`` 'numba' computes the motion, the coulomb boundaries and the RK4 steps by the batch's compiled
+    kernel (``model.compiled``) while no ``extra_modules`` are active; modules of your own stay on the Python path.
     """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
@@ -96,6 +95,8 @@ class Simulation:
         if engine == NUMBA:
             refuse_compiled(robot)
         self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
+        self._compiled_coulomb: CompiledCoulomb | None = None
+        """The kernel's coulomb boundaries and steps (engine 'numba'), made at their first use."""
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         """The commanded side torques (N m); ``applied_torque`` is what acts."""
         self._held_torque: tuple[np.ndarray | None, tuple[float, float]] = (None, self.motor_torque)
@@ -308,7 +309,15 @@ class Simulation:
         """
         if self._cached is None:
             q = self._y[:DOF]
-            if self.coulomb_applies:
+            compiled_contact = self._compiled_contact()
+            if compiled_contact is not None:
+                boundary = compiled_contact.boundary(self._y, self.steps, self.motor_torque, self._coulomb)
+                self._y, q, qd = boundary.y, boundary.y[:DOF], boundary.y[DOF:]
+                layout = self._coulomb.layout(self._modules)
+                self._active = layout.active(layout.wheels - self._coulomb.sliding)
+                self._friction, self._held_loads = boundary.friction, self._coulomb.loads
+                motion, drive, contact = boundary.motion, boundary.drive, boundary.contact
+            elif self.coulomb_applies:
                 velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(self.robot, self._modules, self._t, q, velocities, self.dt,
                                                     self.applied_torque, self._project)
@@ -377,7 +386,7 @@ class Simulation:
             wheel = contact.detached_wheel
             if wheel is not None:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
-        compiled = self._compiled_now()
+        compiled = self._compiled_now() or self._compiled_contact()
         if compiled is not None:
             y = compiled.step(self._y, self.steps, self.motor_torque)
         else:
@@ -416,6 +425,15 @@ class Simulation:
         if self._compiled is None or self._extra_modules or self.coulomb_applies:
             return None
         return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
+
+    def _compiled_contact(self) -> CompiledCoulomb | None:
+        """The compiled coulomb boundaries and steps configured for what is active, when they cover it (engine
+        'numba', coulomb contact applying, no modules of your own)."""
+        if self._compiled is None or self._extra_modules or not self.coulomb_applies:
+            return None
+        if self._compiled_coulomb is None:
+            self._compiled_coulomb = _compiled_coulomb(self._initial[0], self.dt)
+        return self._compiled_coulomb.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
 
     def run(self, duration: float, on_step: Callable[[StepOutputs], None] | None = None) -> StepOutputs:
         """Step for ``duration`` seconds; ``on_step`` sees the outputs at every instant, both ends included."""
@@ -550,6 +568,11 @@ def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
     # imported here: model.compiled reaches the batch package, which imports this module
     from wallbot_sim.model.compiled import CompiledDynamics
     return CompiledDynamics(initial_time, dt)
+
+
+def _compiled_coulomb(initial_time: float, dt: float) -> CompiledCoulomb:
+    from wallbot_sim.model.compiled import CompiledCoulomb
+    return CompiledCoulomb(initial_time, dt)
 
 
 RowKey = tuple[str, tuple[int, int] | None]

@@ -10,26 +10,19 @@ the rows of the modules of ``BATCH_MODULES`` in stacking order, the Udwadia-Kala
 normal equations with the pivoted (rank-revealing) fallback per robot, and RK4's sums. The
 agreement tests run both.
 
-``constrained_accelerations`` and ``minimum_norm_solutions`` are the solve alone (the NumPy
-engine's ``batch_constrained_acceleration`` and ``minimum_norm_least_squares`` robot by robot), for
-what the fused step does not cover: the outputs step hooks see with ideal contact.
-
-``batch_contact_settle`` and ``batch_contact_step`` are a batch's coulomb boundary and step, robot by
-robot over the cores with the coulomb functions (below).
+``constrained_accelerations`` is the solve alone (the NumPy engine's ``batch_constrained_acceleration``
+robot by robot), for what the fused step does not cover: the outputs step hooks see with ideal contact.
 
 ``robot_run`` takes one robot's RK4 steps a chunk at a time, with the motion (qdd, Q, Q_c, residual) at
 each state, for ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``): the same
 derivative and RK4 step as the batch's fused loop.
 
-The coulomb functions (``_settle`` and what it calls) are the batch's contact model, per channel: the
-motion under the slipping set with the loads the kinetic friction holds (their fixed point solved at
-once while they move), slipping channels that stop sticking again when the solve with their rows
-restored keeps them within the limit (their slip projected away), sticking channels over the limit
-slipping, then the RK4 step with the slipping rows' kinetic friction in its stages (``_problem``). They
-know the kernel's modules: the non-lateral row is the lateral channel's, the nonslip rows of wheels 1-2
-and 3-4 the left and right traction's. They agree with the batch's NumPy engine within round-off
-(``test/test_batch_contact.py``). They live in this file because numba's cache of a function is
-invalidated by changes to its own file only, and they call this file's functions.
+Coulomb contact per wheel (docs/model.md 11.3): ``_settle`` is one robot's step boundary, ``CoulombContact.settle``
+of the Python model (its transitions, the solve of each stick/slip set with the friction and loads found by
+Newton's method, the split of the sticking wheels' force), and ``_held_step`` the RK4 step from it.
+``robot_contact_run`` takes one robot's boundaries and steps a chunk at a time (``Simulation(..., engine='numba',
+contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a batch's, robot by robot over the
+cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
 numba is optional: ``available()`` says whether it imported.
 """
@@ -56,8 +49,8 @@ except ImportError:  # the NumPy path needs nothing more
 MODULE_ORDER = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
 """The modules the kernel knows, in ``MODULES``' stacking order (its flags follow it)."""
 MODULE_ROWS = (2, 1, 2, 1, 4)
-MAX_ROWS = sum(MODULE_ROWS)
-"""The rows of every module at once."""
+MAX_ROWS = sum(MODULE_ROWS[:3]) + 8
+"""The rows of the tasks and the belt with every wheel's two contact rows (more than every module's at once)."""
 REFERENCE_FIELDS = 10
 """A reference instant: position, velocity, acceleration (2 each), has heading, angle, rate, its rate."""
 NO_HEADING = (0.0, 0.0, 0.0, 0.0)
@@ -219,45 +212,21 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
 
 
 def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                  torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
-                  factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
-                  scratch: np.ndarray, out: np.ndarray) -> None:
+                  torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
+                  rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+                  lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, out: np.ndarray) -> None:
     """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone (``_problem``, then
-    ``_solve``); Q, with the kinetic friction of slipping rows, is left in ``vectors`` row 0."""
-    count = _problem(q, qd, reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, vectors[0])
+    ``_solve``); Q, with the held friction of sliding wheels, is left in ``vectors`` row 0."""
+    count = _problem(q, qd, reference, flags, constants, torque, gains, contact, sticking, held, rows, rhs, factor,
+                     vectors[0])
     _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
 
 
-def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-             torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
-             factor: np.ndarray, force: np.ndarray) -> int:
-    """Q, the factor W of M^-1 and the rows A, b of the active modules of one robot at (q, qd); the row count.
-
-    ``slipping`` (left, right, lateral): a slipping channel's rows (docs/model.md 11.3) are left out, and
-    the kinetic friction bounds[k] v_k / sqrt(v_k^2 + eps^2) a_k of each of its rows k is added to Q
-    (k: 0 the non-lateral row, 1 + i wheel i's nonslip row; ``bounds`` -mu_k times the bounding load).
-    """
+def _factor_of(theta: float, constants: np.ndarray, factor: np.ndarray) -> None:
+    """W (7, 7), lower triangular, W W^T = M^-1 at heading theta: the chassis block's Cholesky factor in closed
+    form, 1/sqrt(J_w) on the spins (``RobotBatch.mass_inverse_factor``)."""
     mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
-    gravity, weight, radius, resistance, eps2 = constants[5], constants[6], constants[7], constants[8], constants[9]
-    alpha, beta = constants[10], constants[11]
-    # constants[12:16] lateral offsets s_i, [16:24] S d_i as (x, y) pairs
-    theta, thd = q[2], qd[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
-    thd2 = thd * thd
-    force[0] = thd2 * (cos_t * sx - sin_t * sy)
-    force[1] = thd2 * (sin_t * sx + cos_t * sy) - weight
-    force[2] = -gravity * (-sin_t * sy + cos_t * sx)
-    for wheel in range(4):
-        px, py = constants[16 + 2 * wheel], constants[17 + 2 * wheel]
-        arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py
-        vx, vy = qd[0] + thd * arm_x, qd[1] + thd * arm_y
-        scale = -resistance / math.sqrt(vx * vx + vy * vy + eps2)
-        force[0] += scale * vx
-        force[1] += scale * vy
-        force[2] += scale * (arm_x * vx + arm_y * vy)
-    force[3] = force[4] = 0.5 * torque[0]
-    force[5] = force[6] = 0.5 * torque[1]
-    # W: the chassis block's Cholesky factor of M^-1 in closed form, 1/sqrt(J_w) on the spins
     ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
     inv_schur = 1.0 / (yaw_inertia - (ux * ux + uy * uy) / mass)
     wx, wy = ux / mass, uy / mass
@@ -272,6 +241,42 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
     factor[2, 0], factor[2, 1], factor[2, 2] = l20, l21, math.sqrt(inv_schur - l20 * l20 - l21 * l21)
     factor[0, 1] = factor[0, 2] = factor[1, 2] = 0.0
     spin = math.sqrt(1.0 / spin_inertia)
+    for j in range(3, DOF):
+        factor[j, j] = spin
+
+
+def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+             torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
+             rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, force: np.ndarray) -> int:
+    """Q, the factor W of M^-1 and the rows A, b of the active modules of one robot at (q, qd); the row count.
+
+    ``gains`` (4,): each wheel's rolling resistance per unit speed, f_r N (section 4's f_r F_ad / 4 with ideal
+    contact). ``contact`` (coulomb contact, docs/model.md 11.3): the non-lateral and nonslip modules give each
+    ``sticking`` wheel its contact rows (lateral and longitudinal), J_i qdd = -c - gam v_i, in wheel order after
+    the other modules' rows, and ``held`` (8,), the sliding wheels' forces (f_x, f_y) in body axes wheel by wheel
+    (zero for the others), enters Q as sum_i J_i^T f_i (``HeldFriction``).
+    """
+    sx, sy = constants[3], constants[4]
+    gravity, weight, radius, eps2 = constants[5], constants[6], constants[7], constants[9]
+    alpha, beta = constants[10], constants[11]
+    # constants[12:16] lateral offsets s_i, [16:24] S d_i = (-s_i, a_i) pairs
+    theta, thd = q[2], qd[2]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    thd2 = thd * thd
+    force[0] = thd2 * (cos_t * sx - sin_t * sy)
+    force[1] = thd2 * (sin_t * sx + cos_t * sy) - weight
+    force[2] = -gravity * (-sin_t * sy + cos_t * sx)
+    for wheel in range(4):
+        px, py = constants[16 + 2 * wheel], constants[17 + 2 * wheel]
+        arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py
+        vx, vy = qd[0] + thd * arm_x, qd[1] + thd * arm_y
+        scale = -gains[wheel] / math.sqrt(vx * vx + vy * vy + eps2)
+        force[0] += scale * vx
+        force[1] += scale * vy
+        force[2] += scale * (arm_x * vx + arm_y * vy)
+    force[3] = force[4] = 0.5 * torque[0]
+    force[5] = force[6] = 0.5 * torque[1]
+    _factor_of(theta, constants, factor)
     # the rows of the active modules, in stacking order: their entries that are not written here stay
     # zero from the block's start (each module writes the same entries at every stage)
     gam = 2.0 * alpha
@@ -302,36 +307,50 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
         count += 2
     v_long = cos_t * qd[0] + sin_t * qd[1]
     v_lat = -sin_t * qd[0] + cos_t * qd[1]
-    # a slipping row leaves the rows below it one place up: each row clears the entries it does not write
+    if contact:
+        return _wheel_rows(qd, flags, constants, sticking, held, cos_t, sin_t, v_long, v_lat, gam, count, rows, rhs,
+                           force)
     if flags[3]:
-        if slipping[2]:
-            push = bounds[0] * v_lat / math.sqrt(v_lat * v_lat + eps2)
-            force[0] -= push * sin_t
-            force[1] += push * cos_t
-        else:
-            rows[count, 0], rows[count, 1] = -sin_t, cos_t
-            for j in range(2, DOF):
-                rows[count, j] = 0.0
-            rhs[count] = thd * v_long - gam * v_lat
-            count += 1
+        rows[count, 0], rows[count, 1] = -sin_t, cos_t
+        rhs[count] = thd * v_long - gam * v_lat
+        count += 1
     if flags[4]:
         for wheel in range(4):
             offset = constants[12 + wheel]
             violation = -cos_t * qd[0] - sin_t * qd[1] + offset * thd + radius * qd[3 + wheel]
-            if slipping[wheel // 2]:
-                push = bounds[1 + wheel] * violation / math.sqrt(violation * violation + eps2)
-                force[0] -= push * cos_t
-                force[1] -= push * sin_t
-                force[2] += push * offset
-                force[3 + wheel] += push * radius
-            else:
-                rows[count, 0], rows[count, 1], rows[count, 2] = -cos_t, -sin_t, offset
-                for j in range(3, DOF):
-                    rows[count, j] = radius if j == 3 + wheel else 0.0
-                rhs[count] = thd * v_lat - gam * violation
-                count += 1
-    for j in range(3, DOF):
-        factor[j, j] = spin
+            rows[count, 0], rows[count, 1], rows[count, 2] = -cos_t, -sin_t, offset
+            rows[count, 3 + wheel] = radius
+            rhs[count] = thd * v_lat - gam * violation
+            count += 1
+    return count
+
+
+def _wheel_rows(qd: np.ndarray, flags: np.ndarray, constants: np.ndarray, sticking: np.ndarray, held: np.ndarray,
+                cos_t: float, sin_t: float, v_long: float, v_lat: float, gam: float, count: int, rows: np.ndarray,
+                rhs: np.ndarray, force: np.ndarray) -> int:
+    """``_problem``'s contact rows of the sticking wheels after its first ``count`` rows (every entry written: the
+    sticking set changes between calls), and the held friction added to ``force``; the row count."""
+    thd, radius = qd[2], constants[7]
+    drift_x, drift_y = thd * v_lat, -thd * v_long  # c = (thd v_lat, -thd v_long)
+    for wheel in range(4):
+        offset, along = constants[12 + wheel], constants[17 + 2 * wheel]  # s_i, a_i
+        if sticking[wheel] and flags[4]:
+            rows[count, 0], rows[count, 1], rows[count, 2] = cos_t, sin_t, -offset
+            for j in range(3, DOF):
+                rows[count, j] = -radius if j == 3 + wheel else 0.0
+            rhs[count] = -drift_x - gam * (v_long - offset * thd - radius * qd[3 + wheel])
+            count += 1
+        if sticking[wheel] and flags[3]:
+            rows[count, 0], rows[count, 1], rows[count, 2] = -sin_t, cos_t, along
+            for j in range(3, DOF):
+                rows[count, j] = 0.0
+            rhs[count] = -drift_y - gam * (v_lat + along * thd)
+            count += 1
+        push_x, push_y = held[2 * wheel], held[2 * wheel + 1]
+        force[0] += push_x * cos_t - push_y * sin_t
+        force[1] += push_x * sin_t + push_y * cos_t
+        force[2] += -push_x * offset + push_y * along
+        force[3 + wheel] -= push_x * radius
     return count
 
 
@@ -441,23 +460,15 @@ def _accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs:
                out[robot])
 
 
-def _minimum_norms(matrix: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None:
-    """``_minimum_norm`` of every robot, on one thread (as ``_accelerations``)."""
-    count = matrix.shape[1]
-    _, gram, lower, vectors, scratch = _scratch(count)
-    for robot in range(matrix.shape[0]):
-        _minimum_norm(matrix[robot], rhs[robot], count, gram, lower, vectors, scratch, out[robot])
-
-
 def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
-         slipping: np.ndarray, bounds: np.ndarray, dt: float, known: bool, rows: np.ndarray, rhs: np.ndarray,
-         factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
-         scratch: np.ndarray, stage: np.ndarray, slopes: np.ndarray) -> bool:
+         gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray, dt: float, known: bool,
+         rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+         lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, stage: np.ndarray, slopes: np.ndarray) -> bool:
     """One RK4 step of one robot from ``state`` (14,) into ``stage`` (``rk4_step``); whether it is finite.
 
     ``references`` (3, 10): the reference at t, t + dt/2 and t + dt. ``known``: slopes[0, 7:] already
-    holds qdd at ``state`` (the outputs' solve, RK4's first stage). ``slipping``, ``bounds``: the
-    channels slipping over the step and their rows' friction bounds (``_problem``).
+    holds qdd at ``state`` (the outputs' solve, RK4's first stage). ``gains``, ``contact``, ``sticking``,
+    ``held``: ``_problem``'s, held over the step.
     """
     half, sixth = 0.5 * dt, dt / 6.0
     for k in range(4):
@@ -473,8 +484,8 @@ def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants
         if k == 0 and known:
             continue
         instant = 0 if k == 0 else (2 if k == 3 else 1)
-        _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, slipping, bounds,
-                      rows, rhs, factor, matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
+        _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, gains, contact,
+                      sticking, held, rows, rhs, factor, matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
     finite = True
     for i in range(2 * DOF):
         stage[i] = state[i] + sixth * (slopes[0, i] + 2.0 * (slopes[1, i] + slopes[2, i]) + slopes[3, i])
@@ -492,14 +503,16 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
     for block in prange((count + chunk - 1) // chunk):
         rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)  # zero once: see _problem
         factor, matrix, gram, lower, vectors, scratch = _workspace()
-        sticking, no_bounds = np.zeros(3, dtype=np.bool_), np.zeros(5)
+        gains, no_wheels, no_held = np.zeros(4), np.zeros(4, dtype=np.bool_), np.zeros(8)
         state, stage, slopes = np.zeros(2 * DOF), np.zeros(2 * DOF), np.zeros((4, 2 * DOF))
         for robot in range(block * chunk, min(count, (block + 1) * chunk)):
+            gains[:] = constants[robot, 8]
             for i in range(2 * DOF):
                 state[i] = y[robot, i]
             for step in range(steps):
-                if not _rk4(state, references[step], flags, constants[robot], torques[robot], sticking, no_bounds,
-                            dt, False, rows, rhs, factor, matrix, gram, lower, vectors, scratch, stage, slopes):
+                if not _rk4(state, references[step], flags, constants[robot], torques[robot], gains, False, no_wheels,
+                            no_held, dt, False, rows, rhs, factor, matrix, gram, lower, vectors, scratch, stage,
+                            slopes):
                     diverged[robot] = step
                     break
                 for i in range(2 * DOF):
@@ -515,18 +528,19 @@ def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
 
 
 def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
-            torque: np.ndarray, slipping: np.ndarray, bounds: np.ndarray, motion: np.ndarray, rows: np.ndarray,
-            rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
-            vectors: np.ndarray, scratch: np.ndarray) -> float:
-    """One robot at y (14,): motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual |A qdd - b|.
+            torque: np.ndarray, gains: np.ndarray, no_wheels: np.ndarray, no_held: np.ndarray, motion: np.ndarray,
+            rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+            lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
+    """One robot at y (14,) with ideal contact: motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual
+    |A qdd - b|.
 
     ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
-    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); ``slipping``, ``bounds``: ``_problem``'s;
-    the rest: the caller's workspace.
+    the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); ``gains``: ``_problem``'s; ``no_wheels``
+    (4,) False, ``no_held`` (8,) zeros; the rest: the caller's workspace.
     """
     acceleration, force = motion[0], motion[1]
-    _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, matrix,
-                  gram, lower, vectors, scratch, acceleration)
+    _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, gains, False, no_wheels, no_held, rows, rhs,
+                  factor, matrix, gram, lower, vectors, scratch, acceleration)
     for i in range(DOF):
         force[i] = vectors[0, i]  # Q: _acceleration leaves it in vectors row 0
     return _motion_of(y, constants, motion, rows, rhs, count)
@@ -567,16 +581,16 @@ def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, cou
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     slopes = np.zeros((4, 2 * DOF))
-    sticking, no_bounds = np.zeros(3, dtype=np.bool_), np.zeros(5)
+    gains, no_wheels, no_held = np.full(4, constants[8]), np.zeros(4, dtype=np.bool_), np.zeros(8)
     for k in range(motions.shape[0]):
-        residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, sticking, no_bounds,
+        residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, gains, no_wheels, no_held,
                                motions[k], rows, rhs, factor, matrix, gram, lower, vectors, scratch)
         if k == steps:
             return k
         for i in range(DOF):
             slopes[0, DOF + i] = motions[k, 0, i]
-        if not _rk4(states[k], references[k], flags, constants, torque, sticking, no_bounds, dt, True, rows, rhs,
-                    factor, matrix, gram, lower, vectors, scratch, states[k + 1], slopes):
+        if not _rk4(states[k], references[k], flags, constants, torque, gains, False, no_wheels, no_held, dt, True,
+                    rows, rhs, factor, matrix, gram, lower, vectors, scratch, states[k + 1], slopes):
             return k
     return steps
 
@@ -592,10 +606,11 @@ def tracking_force(y: np.ndarray, point: np.ndarray, flags: np.ndarray, constant
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     motion = np.zeros((3, DOF))
-    no_torque, sticking, no_bounds = np.zeros(2), np.zeros(3, dtype=np.bool_), np.zeros(5)
+    no_torque, gains = np.zeros(2), np.full(4, constants[8])
+    no_wheels, no_held = np.zeros(4, dtype=np.bool_), np.zeros(8)
     q, qd = y[:DOF], y[DOF:]
-    count = _problem(q, qd, np.zeros(REFERENCE_FIELDS), flags, constants, no_torque, sticking, no_bounds, rows, rhs,
-                     factor, vectors[0])
+    count = _problem(q, qd, np.zeros(REFERENCE_FIELDS), flags, constants, no_torque, gains, False, no_wheels, no_held,
+                     rows, rhs, factor, vectors[0])
     alpha, beta = constants[10], constants[11]
     cos_t, sin_t, thd = math.cos(q[2]), math.sin(q[2]), qd[2]
     heading = (cos_t, sin_t)
@@ -614,33 +629,99 @@ def tracking_force(y: np.ndarray, point: np.ndarray, flags: np.ndarray, constant
     for i in range(DOF):
         out[i] = motion[2, i]
 
-# --- coulomb contact: the stick/slip of one robot at each step boundary (docs/model.md 11.3) -------------
+# --- coulomb contact per wheel: each wheel's stick and slip at a step boundary (docs/model.md 11.3) ----------
+# The functions below are ``CoulombContact`` (settle, its solve), ``consistent_friction`` and ``split_contact_force``
+# of wallbot_sim.model for one robot, operation for operation where it can be, on the kernel's modules: the
+# non-lateral and nonslip flags give every wheel its lateral and longitudinal contact rows, the other modules
+# (the tasks, the belt) stay ideal. They live in this file because numba's cache of a function is invalidated
+# by changes to its own file only, and they call this file's functions.
 
 ADHESION, STATIC, KINETIC, STICK, HEIGHT, HALF_BASE, HALF_TRACK = range(7)
-"""``contact_constants``' fields; then the wheels' x_i (7-10) and y_i (11-14)."""
-LOAD_TOLERANCE = 1e-9
-"""Relative difference below which held loads are the loads they produce (``contact._LOAD_TOLERANCE``)."""
-SOLUTION_ROWS = 7
-"""A boundary's solution (7, 7): qdd, Q (with Q_f), Q_c, Q_f, then [N_1..N_4, use_L, use_R, use_lat],
-[F_L, F_R, F_lat, held N_1..N_4], [residual, singular]."""
-LOADS_ROW, DRIVE_ROW, STATUS_ROW = 4, 5, 6
-WORK_ROWS = 21
-CONSISTENT = 1e-9
-"""Relative misfit below which a dropped row agrees with the kept ones (``_responses``)."""
+ROLLING = 15
+"""``contact_constants``' fields: F_ad, mu_s, mu_k, v_st, h, a, b; then the wheels' x_i (7-10) and y_i (11-14),
+then f_r."""
+NEWTON_TOLERANCE = 1e-12
+"""Residual, relative to F_ad, at which the friction and loads are solved (``kinetic_friction._TOLERANCE``)."""
+NEWTON_ITERATIONS = 60
+"""``kinetic_friction._ITERATIONS``."""
+SETTLE_PASSES = 8
+"""Rounds of a boundary's transitions at most (``contact._SETTLE_PASSES``)."""
+AT_REST = 1e-12
+"""Contact speed (m/s) up to which a wheel is at rest (``contact._AT_REST``)."""
+SPLIT_CUT = 1e-12
+"""Relative pivot below which the split's weighted system has no more directions (``wheel_forces._SINGULAR``)."""
+SOLUTION_ROWS, SOLUTION_WIDTH = 8, 8
+QDD, CONSTRAINT, FRICTION, LOADS, FORCES, PREDICTED, VELOCITY, STATUS = range(SOLUTION_ROWS)
+"""A boundary's solution (8, 8), by row: qdd, Q_c = M qdd - Q, Q_f (the sliding wheels' friction), N_1..N_4,
+f_i (interleaved x, y, wheel by wheel: reshaped (4, 2)), the predicted slip w_i and the contact velocities v_i
+(likewise), then STATUS."""
+RESIDUAL, ERROR, NEWTON_RESIDUAL = range(3)
+"""The STATUS row: |A qdd - b|, an error code (``CONTACT_ERRORS``), the Newton residual it stopped at (N)."""
+SOLVED, SINGULAR, UNCONVERGED = range(3)
+CONTACT_ERRORS = ('', 'kinetic friction and normal loads have no consistent value (singular system)',
+                  'kinetic friction and normal loads did not converge (residual {:.3g} N)')
+"""What a boundary's error code means (``consistent_friction``'s ModelError messages)."""
+RAN, DETACHED, DIVERGED, FAILED = range(4)
+"""How a contact run ended (``robot_contact_run``'s outcome): as asked, a wheel lifted off, a state stopped being
+finite, a boundary had no solution."""
+COLUMNS = 1 + 8 + 4
+"""A boundary's right-hand sides at most: the forces, each sliding component's unit force, each wheel's unit load."""
+(JACOBIAN, TRIAL_JACOBIAN, LU, SLIP_ROWS, GAIN, SLIP_BY_FRICTION, SLIP_BY_LOAD, LOAD_BY_FRICTION, LOAD_BY_LOAD,
+ BY_SLIP, STUCK_ROWS, MADE, SPLIT, SPLIT_LOWER, NULL, NULL_LOWER, PROJECTION) = range(17)
+"""``_contact_workspace``'s matrices (16 x 16 each): the Newton Jacobian, its trial and LU factors; J_S, L, the
+constant blocks dt J_S D, dt J_S R, -L D, L R and the Newton step's d(f mu N w / s)/dw; the sticking rows, the
+split's V^T J^T, its weighted system and factor; the least squares' null basis and its Gram's factor; the rows of
+a projection."""
+(STATE, TRIAL_STATE, NEWTON_STEP, RESIDUALS, TRIAL_RESIDUALS, NEWTON_PREDICTED, TRIAL_PREDICTED, SIZES,
+ DIRECTIONS, PRESSED, SQUARES, SLIP, DRIFT, ORIGIN, ACCELERATION, TOTAL, REDUCED, SPLIT_X, ROW_LOADS, KEPT, ZERO,
+ NEGATIVE, SOLUTION, TRIAL_Y) = range(24)
+"""``_contact_workspace``'s vectors (16 each)."""
+WHEEL_OF, DIRECTION_OF, PIVOTS, SPLIT_PIVOTS = range(4)
+"""``_contact_workspace``'s integer rows (16 each): each sliding component's wheel and direction, LU's pivots, the
+split's pivots."""
+STICKING, TRIAL_SLIDING, STOPPED, REVERSING, CANDIDATES, HOLDING = range(6)
+"""``_contact_workspace``'s wheel sets (4 each)."""
+MATRICES, VECTORS, INTEGERS, SETS = PROJECTION + 1, TRIAL_Y + 1, SPLIT_PIVOTS + 1, HOLDING + 1
 
 
 def contact_constants(robot: Robot) -> np.ndarray:
-    """(15,) in the fields' order: F_ad, mu_s, mu_k, v_st, h, a, b, x_1..x_4, y_1..y_4."""
+    """(16,) in the fields' order: F_ad, mu_s, mu_k, v_st, h, a, b, x_1..x_4, y_1..y_4, f_r."""
     params = robot.params
     return np.array([robot.adsorption.applied_force, params.wall_friction, params.kinetic_friction,
                      params.stick_velocity, params.com_height, params.half_wheelbase, params.half_track,
-                     *robot.wheel_offsets[:, 0], *robot.wheel_offsets[:, 1]], dtype=float)
+                     *robot.wheel_offsets[:, 0], *robot.wheel_offsets[:, 1], params.rolling_resistance], dtype=float)
 
 
-def _normal_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-                  out: np.ndarray) -> None:
-    """N_1..N_4 at (q, qd, qdd) (``normal_loads``)."""
-    mass, sx, sy, gravity = constants[0], constants[3], constants[4], constants[5]
+def _contact_workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One robot's scratch for its boundaries beside ``_workspace``'s: matrices, vectors, integers, wheel sets, and
+    the columns and responses of a boundary's solve (COLUMNS x 7 each)."""
+    return (np.zeros((MATRICES, 16, 16)), np.zeros((VECTORS, 16)), np.zeros((INTEGERS, 16), dtype=np.int64),
+            np.zeros((SETS, 4), dtype=np.bool_), np.zeros((COLUMNS, DOF)), np.zeros((COLUMNS, DOF)))
+
+
+def _contact_row(cos_t: float, sin_t: float, constants: np.ndarray, wheel: int, direction: int,
+                 row: np.ndarray) -> None:
+    """J of wheel ``wheel``'s contact velocity along x_p (direction 0) or y_p (1) into ``row`` (7,)
+    (``ContactKinematics.jacobian``)."""
+    for j in range(DOF):
+        row[j] = 0.0
+    if direction == 0:
+        row[0], row[1], row[2], row[3 + wheel] = cos_t, sin_t, -constants[12 + wheel], -constants[7]
+    else:
+        row[0], row[1], row[2] = -sin_t, cos_t, constants[17 + 2 * wheel]
+
+
+def _dot(a: np.ndarray, b: np.ndarray, size: int) -> float:
+    value = 0.0
+    for j in range(size):
+        value += a[j] * b[j]
+    return value
+
+
+def _spin_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+                out: np.ndarray) -> None:
+    """N_1..N_4 at (q, qd, qdd) with the wheels' spin momentum (``normal_loads(..., spin_momentum=True)``)."""
+    mass, spin, sx, sy, gravity = constants[0], constants[2], constants[3], constants[4], constants[5]
     cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
     thd, thdd = qd[2], qdd[2]
     rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
@@ -649,448 +730,825 @@ def _normal_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.
     fx, fy = -inertial_x, -mass * gravity - inertial_y
     body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
     a, b, h = contact[HALF_BASE], contact[HALF_TRACK], contact[HEIGHT]
-    along, across = 0.25 * h * body_x / (a * a), 0.25 * h * body_y / (b * b)
+    moment_x = h * body_x - spin * (qdd[3] + qdd[4] + qdd[5] + qdd[6])
+    moment_y = h * body_y - spin * thd * (qd[3] + qd[4] + qd[5] + qd[6])
+    along, across = 0.25 * moment_x / (a * a), 0.25 * moment_y / (b * b)
     for wheel in range(4):
         out[wheel] = 0.25 * contact[ADHESION] + along * contact[7 + wheel] + across * contact[11 + wheel]
 
 
-def _ratio(force: float, limit: float) -> float:
-    if limit > 0.0:
-        return force / limit
-    return 0.0 if force == 0.0 else math.inf
-
-
-def _measure(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-             solution: np.ndarray) -> None:
-    """The loads, friction use and drive forces of the solution's motion (``Simulation._measure``)."""
-    loads = solution[LOADS_ROW]
-    _normal_loads(q, qd, solution[0], constants, contact, loads)
-    fx = solution[2, 0] + solution[3, 0]
-    fy = solution[2, 1] + solution[3, 1]
-    mz = solution[2, 2] + solution[3, 2]
-    cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
-    longitudinal, differential = cos_t * fx + sin_t * fy, mz / contact[HALF_TRACK]
-    drive = solution[DRIVE_ROW]
-    drive[0], drive[1] = 0.5 * (longitudinal - differential), 0.5 * (longitudinal + differential)
-    drive[2] = -sin_t * fx + cos_t * fy
-    static = contact[STATIC]
-    loads[4] = _ratio(abs(drive[0]), static * (loads[0] + loads[1]))
-    loads[5] = _ratio(abs(drive[1]), static * (loads[2] + loads[3]))
-    loads[6] = _ratio(abs(drive[2]), static * contact[ADHESION])
-
-
-def _contact_rows(theta: float, constants: np.ndarray, rows: np.ndarray) -> None:
-    """The velocity rows (5, 7) of the contact channels at heading theta: 0 the non-lateral row (lateral),
-    1 + i wheel i's nonslip row (left traction for wheels 1-2, right for 3-4)."""
+def _load_gain(theta: float, constants: np.ndarray, contact: np.ndarray, out: np.ndarray) -> None:
+    """L (4 x 7), N(qdd) = N(0) + L qdd with the spin momentum (``load_acceleration_gain``)."""
+    mass, spin, sx, sy = constants[0], constants[2], constants[3], constants[4]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
-    for k in range(5):
-        for j in range(DOF):
-            rows[k, j] = 0.0
-    rows[0, 0], rows[0, 1] = -sin_t, cos_t
-    for wheel in range(4):
-        row = rows[1 + wheel]
-        row[0], row[1], row[2], row[3 + wheel] = -cos_t, -sin_t, constants[12 + wheel], constants[7]
-
-
-def _slip_rows(q: np.ndarray, qd: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: np.ndarray,
-               rows: np.ndarray, slip: np.ndarray, present: np.ndarray) -> bool:
-    """Which contact rows (``_contact_rows``' order) are present and slipping; where any is, their velocity
-    rows a_k and slip velocities a_k qd too. Returns whether any is."""
-    any_present = False
-    for k in range(5):
-        present[k] = flags[3] and slipping[2] if k == 0 else flags[4] and slipping[(k - 1) // 2]
-        any_present = any_present or present[k]
-    if not any_present:
-        return False
-    _contact_rows(q[2], constants, rows)
-    for k in range(5):
-        value = 0.0
-        for j in range(DOF):
-            value += rows[k, j] * qd[j]
-        slip[k] = value
-    return True
-
-
-def _bounds(held: np.ndarray, kinetic: float, bounds: np.ndarray) -> None:
-    """-mu_k times each row's bounding load: F_ad = sum N_i for the lateral row, N_i for wheel i's."""
-    bounds[0] = -kinetic * (held[0] + held[1] + held[2] + held[3])
-    for wheel in range(4):
-        bounds[1 + wheel] = -kinetic * held[wheel]
-
-
-def _converged(loads: np.ndarray, held: np.ndarray) -> bool:
-    largest, total = 0.0, 0.0
-    for wheel in range(4):
-        largest = max(largest, abs(loads[wheel] - held[wheel]))
-        total += abs(loads[wheel])
-    return largest <= LOAD_TOLERANCE * total
-
-
-def _contact_solve(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                   contact: np.ndarray, torque: np.ndarray, slipping: np.ndarray, held: np.ndarray, moving: bool,
-                   rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-                   lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, work: np.ndarray,
-                   zero_rhs: np.ndarray, bounds: np.ndarray, present: np.ndarray, solution: np.ndarray) -> None:
-    """The motion at y with ``slipping`` channels slipping, and the loads their friction holds
-    (``CoulombContact._solve``), into ``solution``.
-
-    ``work`` (WORK_ROWS, 7): scratch for the slipping rows, their per-load friction, the responses and the
-    free motion; ``zero_rhs`` (MAX_ROWS,) zeros.
-    """
-    q, qd = y[:DOF], y[DOF:]
-    eps2 = constants[9]
-    force, friction, acceleration = solution[1], solution[3], solution[0]
-    for k in range(5):
-        bounds[k] = 0.0
-    count = _problem(q, qd, reference, flags, constants, torque, slipping, bounds, rows, rhs, factor, force)
-    held_out = solution[DRIVE_ROW, 3:]
-    for wheel in range(4):
-        held_out[wheel] = held[wheel]
-    for j in range(DOF):
-        friction[j] = 0.0
-    solution[STATUS_ROW, 1] = 0.0
-    slip_rows, slip, direction, total = work[0:5], work[5], work[6], work[7]
-    slipping_rows = _slip_rows(q, qd, flags, constants, slipping, slip_rows, slip, present)
-    dependent = False
-    for k in range(5):
-        if present[k]:
-            dependent = dependent or k > 0
-            direction[k] = slip[k] / math.sqrt(slip[k] * slip[k] + eps2)
-    solved = False
-    if not slipping_rows:
-        _solve(factor, force, rows, rhs, count, matrix, gram, lower, vectors, scratch, acceleration)
-        solved = True
-    elif not (dependent and moving):
-        _bounds(held, contact[KINETIC], bounds)
-        for k in range(5):
-            if present[k]:
-                for j in range(DOF):
-                    friction[j] += bounds[k] * direction[k] * slip_rows[k, j]
-        for j in range(DOF):
-            total[j] = force[j] + friction[j]
-        _solve(factor, total, rows, rhs, count, matrix, gram, lower, vectors, scratch, acceleration)
-        loads = solution[LOADS_ROW]
-        _normal_loads(q, qd, acceleration, constants, contact, loads)
-        if not dependent or _converged(loads, held):
-            for j in range(DOF):
-                force[j] = total[j]
-            solved = True
-    if not solved:
-        _consistent_loads(q, qd, constants, contact, rows, rhs, count, factor, matrix, gram, lower, vectors, scratch,
-                          work, zero_rhs, present, direction, solution)
-    residual = _motion_of(y, constants, solution[:3], rows, rhs, count)
-    _measure(q, qd, constants, contact, solution)
-    solution[STATUS_ROW, 0] = residual
-
-
-def _consistent_loads(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, contact: np.ndarray, rows: np.ndarray,
-                      rhs: np.ndarray, count: int, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-                      lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, work: np.ndarray,
-                      zero_rhs: np.ndarray, present: np.ndarray, direction: np.ndarray, solution: np.ndarray) -> None:
-    """The held loads h that are the loads the friction F h produces, and the motion (``contact._consistent_loads``).
-
-    qdd = qdd_0 + D h (D: the response to each wheel's per-load friction, rhs 0), N = N(qdd_0) + U B D[:3] h,
-    so h = N(qdd_0) + U (I_2 - C U)^-1 C N(qdd_0) with C = B D[:3]. Sets solution row 6's singular flag
-    when I_2 - C U is singular.
-    """
-    slip_rows, free, per_load, responses = work[0:5], work[8], work[9:13], work[13:17]
-    force, friction, acceleration = solution[1], solution[3], solution[0]
-    kinetic = contact[KINETIC]
-    for wheel in range(4):
-        column = per_load[wheel]
-        for j in range(DOF):
-            column[j] = 0.0
-        for k in range(5):
-            if present[k] and (k == 0 or k == 1 + wheel):  # the lateral row is bounded by every wheel's load
-                for j in range(DOF):
-                    column[j] -= kinetic * direction[k] * slip_rows[k, j]
-    if not _responses(factor, force, rhs, zero_rhs, per_load, rows, count, matrix, gram, lower, vectors[2], work,
-                      free, responses):
-        _solve(factor, force, rows, rhs, count, matrix, gram, lower, vectors, scratch, free)
-        for wheel in range(4):
-            _solve(factor, per_load[wheel], rows, zero_rhs, count, matrix, gram, lower, vectors, scratch,
-                   responses[wheel])
-    cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
-    mass, sx, sy = constants[0], constants[3], constants[4]
     rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
-    body = ((-cos_t * mass, -sin_t * mass, cos_t * rsy - sin_t * rsx),
-            (sin_t * mass, -cos_t * mass, -sin_t * rsy - cos_t * rsx))
     a, b, h = contact[HALF_BASE], contact[HALF_TRACK], contact[HEIGHT]
-    along, across = 0.25 * h / (a * a), 0.25 * h / (b * b)
-    coupling, unheld = work[17:19], work[20]
-    for i in range(2):
-        for wheel in range(4):
-            coupling[i, wheel] = (body[i][0] * responses[wheel, 0] + body[i][1] * responses[wheel, 1]
-                                  + body[i][2] * responses[wheel, 2])
-    _normal_loads(q, qd, free, constants, contact, unheld)
-    # (I_2 - C U) z = C N(qdd_0), U's columns the arms along x_i and across y_i
-    m00, m01, m10, m11 = 1.0, 0.0, 0.0, 1.0
-    v0, v1 = 0.0, 0.0
+    first = (h * (-cos_t * mass), h * (-sin_t * mass), h * (cos_t * rsy - sin_t * rsx))
+    second = (h * (sin_t * mass), h * (-cos_t * mass), h * (-sin_t * rsy - cos_t * rsx))
     for wheel in range(4):
-        arm_x, arm_y = along * contact[7 + wheel], across * contact[11 + wheel]
-        m00 -= coupling[0, wheel] * arm_x
-        m01 -= coupling[0, wheel] * arm_y
-        m10 -= coupling[1, wheel] * arm_x
-        m11 -= coupling[1, wheel] * arm_y
-        v0 += coupling[0, wheel] * unheld[wheel]
-        v1 += coupling[1, wheel] * unheld[wheel]
-    determinant = m00 * m11 - m01 * m10
-    if determinant == 0.0:
-        solution[STATUS_ROW, 1] = 1.0
-        determinant = math.nan
-    z0, z1 = (m11 * v0 - m01 * v1) / determinant, (m00 * v1 - m10 * v0) / determinant
-    held = solution[DRIVE_ROW, 3:]
-    for wheel in range(4):
-        held[wheel] = unheld[wheel] + along * contact[7 + wheel] * z0 + across * contact[11 + wheel] * z1
-    for j in range(DOF):
-        value, push = free[j], 0.0
-        for wheel in range(4):
-            value += responses[wheel, j] * held[wheel]
-            push += per_load[wheel, j] * held[wheel]
-        acceleration[j] = value
-        friction[j] = push
-        force[j] += push
+        along, across = contact[7 + wheel] * (0.25 / (a * a)), contact[11 + wheel] * (0.25 / (b * b))
+        for j in range(3):
+            out[wheel, j] = along * first[j] + across * second[j]
+        for j in range(3, DOF):
+            out[wheel, j] = along * -spin
 
 
-def _responses(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, zero_rhs: np.ndarray, per_load: np.ndarray,
-               rows: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
-               misfit: np.ndarray, work: np.ndarray, free: np.ndarray, responses: np.ndarray) -> bool:
-    """qdd under Q and b (``free``), and the response to each wheel's per-load friction with b = 0
-    (``responses``), from one factorization: qdd = W (s + B_K^T (B_K B_K^T)^-1 (b - B s)_K), s = W^T Q,
-    B = A W, K the independent rows a pivoted Cholesky of B B^T keeps (the nonslip rows of a side imply
-    its belt row).
-
-    That is the minimum-norm solution wherever the dropped rows agree with the kept ones, which the
-    responses (b = 0) always do. Returns False, leaving the work to ``_solve``'s least squares, where the
-    free motion's dropped rows disagree (an inconsistent set).
-    """
+def _prepare_least_squares(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray,
+                           lower: np.ndarray, scratch: np.ndarray, null: np.ndarray, null_lower: np.ndarray,
+                           kept: np.ndarray) -> int:
+    """B = A W into ``matrix`` and B^T B factored once for ``_apply_least_squares``' right-hand sides, as
+    ``_minimum_norm`` decides per right-hand side; the way: 0 no rows, 1 Cholesky (``lower``), 2 the pivoted
+    basis of ``_rank_revealing`` (``kept`` 1.0 on its columns, ``lower`` their block's factor, ``null`` the null
+    vectors, ``null_lower`` their Gram's factor), 3 ``_rank_revealing`` per right-hand side (a factor failed)."""
+    if count == 0:
+        return 0
     _scaled_rows(rows, factor, count, matrix)
-    if count > DOF:
-        return False
     largest = 0.0
-    for i in range(count):
+    for i in range(DOF):
         for j in range(i + 1):
             entry = 0.0
-            for k in range(DOF):
-                entry += matrix[i, k] * matrix[j, k]
+            for r in range(count):
+                entry += matrix[r, i] * matrix[r, j]
             gram[i, j] = gram[j, i] = entry
         largest = max(largest, gram[i, i])
-    # pivoted Cholesky of B B^T in place: gram becomes the Schur complement, lower[r, i] column r of L
-    # at row i, order[r] the row of pivot r
-    order = np.empty(DOF, dtype=np.int64)
-    kept = np.zeros(DOF, dtype=np.bool_)
-    rank = 0
+    if _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
+        return 1
+    schur = scratch[0]
+    for i in range(DOF):
+        kept[i] = 0.0
+        for j in range(DOF):
+            schur[i, j] = gram[i, j]
     cut = RANK_CUTOFF * largest
-    for rank_now in range(count):
-        best, pivot = -1, cut
-        for i in range(count):
-            if not kept[i] and gram[i, i] > pivot:
-                best, pivot = i, gram[i, i]
-        if best < 0:
+    for _ in range(DOF):
+        best, pivot = -1, -math.inf
+        for j in range(DOF):
+            if kept[j] == 0.0 and schur[j, j] > pivot:
+                best, pivot = j, schur[j, j]
+        if best < 0 or not pivot > cut:
             break
-        kept[best] = True
-        order[rank_now] = best
-        rank = rank_now + 1
+        kept[best] = 1.0
         scale = 1.0 / math.sqrt(pivot)
-        for i in range(count):
-            lower[rank_now, i] = gram[i, best] * scale
-        for i in range(count):
-            for j in range(count):
-                gram[i, j] -= lower[rank_now, i] * lower[rank_now, j]
-    scaled, solution = work[19], work[7]
-    for column in range(5):
-        _transposed_factor_times(factor, force if column == 0 else per_load[column - 1], scaled)
-        _misfits(matrix, rhs if column == 0 else zero_rhs, scaled, count, misfit)
-        for a in range(rank):  # L z = misfit_K, then L^T y = z, in pivot order
-            value = misfit[order[a]]
-            for r in range(a):
-                value -= lower[r, order[a]] * solution[r]
-            solution[a] = value / lower[a, order[a]]
-        for a in range(rank - 1, -1, -1):
-            value = solution[a]
-            for r in range(a + 1, rank):
-                value -= lower[a, order[r]] * solution[r]
-            solution[a] = value / lower[a, order[a]]
-        if column == 0:
-            for d in range(count):
-                if not kept[d]:
-                    reached, size = 0.0, abs(misfit[d])
-                    for a in range(rank):
-                        along = 0.0
-                        for k in range(DOF):
-                            along += matrix[d, k] * matrix[order[a], k]
-                        reached += along * solution[a]
-                        size += abs(along * solution[a])
-                    if abs(misfit[d] - reached) > CONSISTENT * (1.0 + size):
-                        return False
-        for k in range(DOF):
-            value = scaled[k]
-            for a in range(rank):
-                value += matrix[order[a], k] * solution[a]
-            scaled[k] = value
-        _factor_times(factor, scaled, free if column == 0 else responses[column - 1])
+        column = scratch[1, 0]
+        for i in range(DOF):
+            column[i] = schur[i, best] * scale
+        for i in range(DOF):
+            for j in range(DOF):
+                schur[i, j] -= column[i] * column[j]
+    reduced = scratch[2]
+    for i in range(DOF):
+        for j in range(DOF):
+            reduced[i, j] = gram[i, j] if kept[i] != 0.0 and kept[j] != 0.0 else (1.0 if i == j else 0.0)
+    if not _cholesky(reduced, DOF, lower) > 0.0:
+        return 3
+    column = scratch[1, 2]
+    for j in range(DOF):
+        if kept[j] != 0.0:
+            for i in range(DOF):
+                null[i, j] = 0.0
+        else:
+            for i in range(DOF):
+                column[i] = gram[i, j] if kept[i] != 0.0 else 0.0
+            _substitute(lower, DOF, column)
+            for i in range(DOF):
+                null[i, j] = (1.0 if i == j else 0.0) - column[i]
+    null_gram = scratch[4]
+    for i in range(DOF):
+        for j in range(DOF):
+            entry = 0.0
+            for k in range(DOF):
+                entry += null[k, i] * null[k, j]
+            null_gram[i, j] = entry + (1.0 if i == j and kept[i] != 0.0 else 0.0)
+    return 2 if _cholesky(null_gram, DOF, null_lower) > 0.0 else 3
+
+
+def _apply_least_squares(way: int, matrix: np.ndarray, count: int, misfit: np.ndarray, gram: np.ndarray,
+                         lower: np.ndarray, scratch: np.ndarray, null: np.ndarray, null_lower: np.ndarray,
+                         kept: np.ndarray, moment: np.ndarray, shift: np.ndarray, solution: np.ndarray) -> None:
+    """B+ misfit by ``_prepare_least_squares``' factors (``way``); ``moment`` and ``shift`` (7,) are scratch."""
+    for i in range(DOF):
+        value = 0.0
+        for r in range(count):
+            value += matrix[r, i] * misfit[r]
+        moment[i] = value
+    if way == 1:
+        for i in range(DOF):
+            solution[i] = moment[i]
+        _substitute(lower, DOF, solution)
+    elif way == 2:
+        for i in range(DOF):
+            solution[i] = moment[i] if kept[i] != 0.0 else 0.0
+        _substitute(lower, DOF, solution)
+        for i in range(DOF):
+            value = 0.0
+            for k in range(DOF):
+                value += null[k, i] * solution[k]
+            shift[i] = value
+        _substitute(null_lower, DOF, shift)
+        for i in range(DOF):
+            value = solution[i]
+            for j in range(DOF):
+                value -= null[i, j] * shift[j]
+            solution[i] = value
+    else:
+        _rank_revealing(gram, moment, scratch, lower, solution)
+
+
+def _constrained(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, way: int,
+                 matrix: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray, scratch: np.ndarray,
+                 null: np.ndarray, null_lower: np.ndarray, kept: np.ndarray, vectors: np.ndarray,
+                 solution: np.ndarray, out: np.ndarray) -> None:
+    """qdd = W (s + B+ (b - B s)), s = W^T Q, by the prepared least squares (b = 0 unless ``with_rhs``): one column
+    of ``constrained_acceleration``. ``vectors`` rows 1-4 and ``solution`` (7,) are scratch."""
+    scaled, misfit = vectors[1], vectors[2]
+    _transposed_factor_times(factor, force, scaled)
+    if way != 0:
+        for r in range(count):
+            value = rhs[r] if with_rhs else 0.0
+            for j in range(DOF):
+                value -= matrix[r, j] * scaled[j]
+            misfit[r] = value
+        _apply_least_squares(way, matrix, count, misfit, gram, lower, scratch, null, null_lower, kept, vectors[3],
+                             vectors[4], solution)
+        for i in range(DOF):
+            scaled[i] += solution[i]
+    _factor_times(factor, scaled, out)
+
+
+def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsilon: float, squares: np.ndarray,
+                  sizes: np.ndarray) -> None:
+    """sqrt(|w_i|^2 + eps^2) of each component's wheel (``kinetic_friction._wheel_speeds``)."""
+    for wheel in range(4):
+        squares[wheel] = 0.0
+    for k in range(count):
+        squares[wheel_of[k]] += predicted[k] * predicted[k]
+    for k in range(count):
+        sizes[k] = math.sqrt(squares[wheel_of[k]] + epsilon * epsilon)
+
+
+def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, wheel_of: np.ndarray,
+                       kinetic: float, epsilon: float, dt: float, state: np.ndarray, residual: np.ndarray,
+                       jacobian: np.ndarray, predicted: np.ndarray) -> float:
+    """The residual of z = (f, N) (count + 4), its Jacobian and the predicted slip w (``kinetic_friction._equations``);
+    returns the residual's largest magnitude.
+
+    r_f = f + mu_k max(N_i, 0) w / s,  r_N = N - N_0 - L qdd,  qdd = a + D f + R max(N, 0).
+    """
+    acceleration, pressed, sizes, direction = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES], vecs[DIRECTIONS]
+    for wheel in range(4):
+        pressed[wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
+    for j in range(DOF):
+        by_friction, by_load = 0.0, 0.0
+        for k in range(count):
+            by_friction += responses[1 + k, j] * state[k]
+        for wheel in range(4):
+            by_load += responses[1 + count + wheel, j] * pressed[wheel]
+        acceleration[j] = (responses[0, j] + by_friction) + by_load
+    gain, origin = mats[GAIN], vecs[ORIGIN]
+    load_by_friction, load_by_load = mats[LOAD_BY_FRICTION], mats[LOAD_BY_LOAD]
+    size = 0.0
+    for wheel in range(4):
+        row = count + wheel
+        residual[row] = (state[row] - origin[wheel]) - _dot(gain[wheel], acceleration, DOF)
+        size = max(size, abs(residual[row]))
+        for k in range(count):
+            jacobian[row, k] = load_by_friction[wheel, k]
+        for other in range(4):
+            positive = 1.0 if state[count + other] > 0.0 else 0.0
+            jacobian[row, count + other] = (1.0 if other == wheel else 0.0) - load_by_load[wheel, other] * positive
+    if count == 0:
+        return size
+    slip_rows, slip, drift = mats[SLIP_ROWS], vecs[SLIP], vecs[DRIFT]
+    for k in range(count):
+        predicted[k] = slip[k] + dt * (_dot(slip_rows[k], acceleration, DOF) + drift[k])
+    _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
+    by_slip = mats[BY_SLIP]
+    for k in range(count):
+        direction[k] = predicted[k] / sizes[k]
+    for k in range(count):
+        force = kinetic * pressed[wheel_of[k]]
+        residual[k] = state[k] + force * direction[k]
+        size = max(size, abs(residual[k]))
+        for p in range(count):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
+            same = wheel_of[k] == wheel_of[p]
+            by_slip[k, p] = force * ((((1.0 if k == p else 0.0) - direction[k] * direction[p]) if same else 0.0)
+                                     / sizes[k])
+    slip_by_friction, slip_by_load = mats[SLIP_BY_FRICTION], mats[SLIP_BY_LOAD]
+    for k in range(count):
+        for column in range(count):
+            value = 0.0
+            for p in range(count):
+                value += by_slip[k, p] * slip_by_friction[p, column]
+            jacobian[k, column] = (1.0 if k == column else 0.0) + value
+        for wheel in range(4):
+            positive = 1.0 if state[count + wheel] > 0.0 else 0.0
+            value = 0.0
+            for p in range(count):
+                value += by_slip[k, p] * (slip_by_load[p, wheel] * positive)
+            jacobian[k, count + wheel] = value
+        wheel = wheel_of[k]
+        if state[count + wheel] > 0.0:
+            jacobian[k, count + wheel] += kinetic * direction[k]
+    return size
+
+
+def _lu_solve(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.ndarray, rhs: np.ndarray,
+              out: np.ndarray) -> bool:
+    """out = matrix^-1 rhs by LU with partial pivoting (LAPACK's dgesv); False where a pivot is exactly 0 (singular)."""
+    for i in range(size):
+        out[i] = rhs[i]
+        for j in range(size):
+            factors[i, j] = matrix[i, j]
+    for k in range(size):
+        best, largest = k, abs(factors[k, k])
+        for i in range(k + 1, size):
+            if abs(factors[i, k]) > largest:
+                best, largest = i, abs(factors[i, k])
+        pivots[k] = best
+        if largest == 0.0:
+            return False
+        if best != k:
+            for j in range(size):
+                factors[k, j], factors[best, j] = factors[best, j], factors[k, j]
+            out[k], out[best] = out[best], out[k]
+        for i in range(k + 1, size):
+            scale = factors[i, k] / factors[k, k]
+            factors[i, k] = scale
+            for j in range(k + 1, size):
+                factors[i, j] -= scale * factors[k, j]
+            out[i] -= scale * out[k]
+    for i in range(size - 1, -1, -1):
+        value = out[i]
+        for j in range(i + 1, size):
+            value -= factors[i, j] * out[j]
+        out[i] = value / factors[i, i]
     return True
 
 
-def _project(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: np.ndarray,
-             factor: np.ndarray) -> None:
-    """qd <- qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity rows of the sticking modules (in place on y).
+def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
+             kinetic: float, epsilon: float, dt: float, start: np.ndarray, adhesion: float,
+             solution: np.ndarray) -> int:
+    """The sliding components' friction f (count) and the loads N (4) solving the boundary's equations, by Newton's
+    method with a halving line search from the ``start`` loads (``consistent_friction``): f and N into vecs[STATE],
+    the predicted slip into vecs[NEWTON_PREDICTED]; an error code (``CONTACT_ERRORS``), the residual it stopped
+    at in solution[STATUS, NEWTON_RESIDUAL]."""
+    size_of = count + 4
+    wheel_of = ints[WHEEL_OF]
+    slip_rows, gain = mats[SLIP_ROWS], mats[GAIN]
+    # the blocks of the Jacobian that do not change: dt J_S D, dt J_S R, -L D, L R
+    for k in range(count):
+        for column in range(count):
+            value = 0.0
+            for j in range(DOF):
+                value += slip_rows[k, j] * responses[1 + column, j]
+            mats[SLIP_BY_FRICTION, k, column] = dt * value
+        for wheel in range(4):
+            value = 0.0
+            for j in range(DOF):
+                value += slip_rows[k, j] * responses[1 + count + wheel, j]
+            mats[SLIP_BY_LOAD, k, wheel] = dt * value
+    for wheel in range(4):
+        for column in range(count):
+            value = 0.0
+            for j in range(DOF):
+                value += -gain[wheel, j] * responses[1 + column, j]
+            mats[LOAD_BY_FRICTION, wheel, column] = value
+        for other in range(4):
+            value = 0.0
+            for j in range(DOF):
+                value += gain[wheel, j] * responses[1 + count + other, j]
+            mats[LOAD_BY_LOAD, wheel, other] = value
+    state, predicted = vecs[STATE], vecs[NEWTON_PREDICTED]
+    for wheel in range(4):
+        state[count + wheel] = start[wheel]
+    if count:  # Newton's start: the friction opposing the slip predicted with no friction (``_friction_of``)
+        acceleration, pressed, sizes = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES]
+        for wheel in range(4):
+            pressed[wheel] = start[wheel] if start[wheel] > 0.0 else 0.0
+        for j in range(DOF):
+            value = 0.0
+            for wheel in range(4):
+                value += responses[1 + count + wheel, j] * pressed[wheel]
+            acceleration[j] = responses[0, j] + value
+        for k in range(count):
+            predicted[k] = vecs[SLIP, k] + dt * (_dot(slip_rows[k], acceleration, DOF) + vecs[DRIFT, k])
+        _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
+        for k in range(count):
+            state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
+    residual, jacobian = vecs[RESIDUALS], mats[JACOBIAN]
+    size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, state, residual, jacobian,
+                              predicted)
+    trial, trial_residual, trial_predicted = vecs[TRIAL_STATE], vecs[TRIAL_RESIDUALS], vecs[TRIAL_PREDICTED]
+    trial_jacobian, step, negative = mats[TRIAL_JACOBIAN], vecs[NEWTON_STEP], vecs[NEGATIVE]
+    for _ in range(NEWTON_ITERATIONS):
+        if size <= NEWTON_TOLERANCE * adhesion:
+            solution[STATUS, NEWTON_RESIDUAL] = size
+            for k in range(count):  # a lifted wheel (N_i <= 0) has no friction, not a remainder within the tolerance
+                if not state[count + wheel_of[k]] > 0.0:
+                    state[k] = 0.0
+            return SOLVED
+        for i in range(size_of):
+            negative[i] = -residual[i]
+        if not _lu_solve(jacobian, size_of, mats[LU], ints[PIVOTS], negative, step):
+            return SINGULAR
+        scale = 1.0
+        while True:
+            for i in range(size_of):
+                trial[i] = state[i] + scale * step[i]
+            trial_size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, trial,
+                                            trial_residual, trial_jacobian, trial_predicted)
+            if trial_size < size or scale < 1e-6:
+                break
+            scale *= 0.5
+        for i in range(size_of):
+            state[i], residual[i] = trial[i], trial_residual[i]
+            for j in range(size_of):
+                jacobian[i, j] = trial_jacobian[i, j]
+        for k in range(count):
+            predicted[k] = trial_predicted[k]
+        size = trial_size
+    solution[STATUS, NEWTON_RESIDUAL] = size
+    return UNCONVERGED
 
-    ``factor``: W at y's q (W W^T = M^-1), as ``_problem`` left it.
+
+def _reduce(flags: np.ndarray, vector: np.ndarray, out: np.ndarray) -> int:
+    """U^T v into ``out`` for U a basis of the velocities the other modules' rows annul (the tasks' unit rows, the
+    belt's pd1 = pd2 and pd3 = pd4); the basis' size. U need not be orthonormal: the split below is the same for
+    any basis of that space."""
+    size = 0
+    if not flags[0]:
+        out[0], out[1] = vector[0], vector[1]
+        size = 2
+    if not (flags[0] or flags[1]):
+        out[size] = vector[2]
+        size += 1
+    if flags[2]:
+        out[size], out[size + 1] = vector[3] + vector[4], vector[5] + vector[6]
+        return size + 2
+    for j in range(3, DOF):
+        out[size] = vector[j]
+        size += 1
+    return size
+
+
+def _split(count: int, flags: np.ndarray, force: np.ndarray, mats: np.ndarray, vecs: np.ndarray, pivots: np.ndarray,
+           out: np.ndarray) -> None:
+    """The sticking rows' forces f (count) minimizing sum f_k^2 / max(N_k, 0) with U^T J_T^T f = U^T Q_c
+    (``split_contact_force``): J_T in mats[STUCK_ROWS], each row's load in vecs[ROW_LOADS].
+
+    f = W G^T x for G = U^T J_T^T, W the weights and any solution x of (G W G^T) x = U^T Q_c: one on the pivots
+    a pivoted Cholesky keeps (a solution off them changes f by nothing, since G W G^T z = 0 gives W G^T z = 0).
     """
-    rows, contact_rows = np.zeros((7, DOF)), np.empty((5, DOF))
-    _contact_rows(y[2], constants, contact_rows)
+    made, system, lower = mats[MADE], mats[SPLIT], mats[SPLIT_LOWER]
+    rows, loads, target, x = mats[STUCK_ROWS], vecs[ROW_LOADS], vecs[REDUCED], vecs[SPLIT_X]
+    size = _reduce(flags, force, target)
+    for k in range(count):
+        _reduce(flags, rows[k], vecs[TOTAL])
+        for i in range(size):
+            made[i, k] = vecs[TOTAL, i]
+    largest = 0.0
+    for i in range(size):
+        for j in range(i + 1):
+            value = 0.0
+            for k in range(count):
+                weight = loads[k] if loads[k] > 0.0 else 0.0
+                value += made[i, k] * weight * made[j, k]
+            system[i, j] = system[j, i] = value
+        largest = max(largest, system[i, i])
+    # pivoted Cholesky of the system in place (as ``_responses``): lower[r, i] column r of L at row i
+    kept = vecs[KEPT]
+    rank = 0
+    for i in range(size):
+        kept[i] = 0.0
+    cut = SPLIT_CUT * largest
+    for r in range(size):
+        best, pivot = -1, cut
+        for i in range(size):
+            if kept[i] == 0.0 and system[i, i] > pivot:
+                best, pivot = i, system[i, i]
+        if best < 0:
+            break
+        kept[best] = 1.0
+        pivots[r] = best
+        rank = r + 1
+        scale = 1.0 / math.sqrt(pivot)
+        for i in range(size):
+            lower[r, i] = system[i, best] * scale
+        for i in range(size):
+            for j in range(size):
+                system[i, j] -= lower[r, i] * lower[r, j]
+    for a in range(rank):  # L z = target on the pivots, then L^T x = z
+        value = target[pivots[a]]
+        for r in range(a):
+            value -= lower[r, pivots[a]] * x[r]
+        x[a] = value / lower[a, pivots[a]]
+    for a in range(rank - 1, -1, -1):
+        value = x[a]
+        for r in range(a + 1, rank):
+            value -= lower[a, pivots[r]] * x[r]
+        x[a] = value / lower[a, pivots[a]]
+    for k in range(count):
+        weight = loads[k] if loads[k] > 0.0 else 0.0
+        value = 0.0
+        for a in range(rank):
+            value += made[pivots[a], k] * x[a]
+        out[k] = weight * value
+
+
+def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+              torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, rows: np.ndarray,
+              rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
+              vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
+              marks: np.ndarray, columns: np.ndarray, responses: np.ndarray, solution: np.ndarray) -> int:
+    """The motion at y with the ``sliding`` wheels sliding (``CoulombContact._solve``) into ``solution``: their
+    friction and every wheel's load solved together from the ``start`` loads, the motion under them, the sticking
+    wheels' split of the constraint force; an error code (``CONTACT_ERRORS``)."""
+    q, qd = y[:DOF], y[DOF:]
+    frictional = flags[3] or flags[4]
+    sticking, zero = marks[STICKING], vecs[ZERO]
+    for wheel in range(4):
+        sticking[wheel] = frictional and not sliding[wheel]
+    for i in range(16):
+        zero[i] = 0.0
+    unloaded = columns[0]  # Q with no rolling resistance, the rows of the others and of the sticking wheels
+    count = _problem(q, qd, reference, flags, constants, torque, zero, True, sticking, zero, rows, rhs, factor,
+                     unloaded)
+    theta, thd = q[2], qd[2]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    slip_rows, wheel_of, direction_of = mats[SLIP_ROWS], ints[WHEEL_OF], ints[DIRECTION_OF]
+    sliders = 0
+    for wheel in range(4):
+        for direction in range(2):
+            if frictional and sliding[wheel] and flags[4 - direction]:  # x_p: nonslip, y_p: non-lateral
+                wheel_of[sliders], direction_of[sliders] = wheel, direction
+                _contact_row(cos_t, sin_t, constants, wheel, direction, slip_rows[sliders])
+                for j in range(DOF):
+                    columns[1 + sliders, j] = slip_rows[sliders, j]
+                sliders += 1
+    eps2, rolling = constants[9], contact[ROLLING]
+    for wheel in range(4):  # the rolling resistance per newton of each wheel's load (Robot.rolling_resistance_per_load)
+        column = columns[1 + sliders + wheel]
+        for j in range(DOF):
+            column[j] = 0.0
+        px, py = constants[16 + 2 * wheel], constants[17 + 2 * wheel]
+        arm_x, arm_y = cos_t * px - sin_t * py, sin_t * px + cos_t * py
+        vx, vy = qd[0] + thd * arm_x, qd[1] + thd * arm_y
+        scale = -rolling / math.sqrt(vx * vx + vy * vy + eps2)
+        column[0], column[1], column[2] = scale * vx, scale * vy, scale * (arm_x * vx + arm_y * vy)
+    null, null_lower, kept = mats[NULL], mats[NULL_LOWER], vecs[KEPT]
+    way = _prepare_least_squares(rows, factor, count, matrix, gram, lower, scratch, null, null_lower, kept)
+    for column in range(1 + sliders + 4):
+        _constrained(factor, columns[column], rhs, column == 0, way, matrix, count, gram, lower, scratch, null,
+                     null_lower, kept, vectors, vecs[SOLUTION], responses[column])
+    _spin_loads(q, qd, zero, constants, contact, vecs[ORIGIN])
+    _load_gain(theta, constants, contact, mats[GAIN])
+    v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
+    for k in range(sliders):
+        vecs[SLIP, k] = _dot(slip_rows[k], qd, DOF)
+        vecs[DRIFT, k] = thd * v_lat if direction_of[k] == 0 else -thd * v_long
+    error = _kinetic(sliders, responses, mats, vecs, ints, contact[KINETIC], math.sqrt(eps2), dt, start,
+                     contact[ADHESION], solution)
+    solution[STATUS, ERROR] = error
+    if error != SOLVED:
+        return error
+    state = vecs[STATE]
+    loads, friction, total = solution[LOADS], solution[FRICTION], vecs[TOTAL]
+    for wheel in range(4):
+        loads[wheel] = state[sliders + wheel]
+    for j in range(DOF):
+        value = 0.0
+        for k in range(sliders):
+            value += state[k] * slip_rows[k, j]
+        friction[j] = value
+    for j in range(DOF):  # Q with each wheel's rolling resistance f_r max(N_i, 0), plus Q_f
+        value = unloaded[j]
+        for wheel in range(4):
+            if loads[wheel] > 0.0:
+                value += loads[wheel] * columns[1 + sliders + wheel, j]
+        total[j] = value + friction[j]
+    acceleration = solution[QDD]
+    _constrained(factor, total, rhs, True, way, matrix, count, gram, lower, scratch, null, null_lower, kept, vectors,
+                 vecs[SOLUTION], acceleration)
+    mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
+    ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
+    constraint = solution[CONSTRAINT]
+    constraint[0] = mass * acceleration[0] + ux * acceleration[2] - total[0]
+    constraint[1] = mass * acceleration[1] + uy * acceleration[2] - total[1]
+    constraint[2] = ux * acceleration[0] + uy * acceleration[1] + yaw_inertia * acceleration[2] - total[2]
+    for i in range(3, DOF):
+        constraint[i] = spin_inertia * acceleration[i] - total[i]
+    squares = 0.0
+    for r in range(count):
+        misfit = -rhs[r]
+        for j in range(DOF):
+            misfit += rows[r, j] * acceleration[j]
+        squares += misfit * misfit
+    solution[STATUS, RESIDUAL] = math.sqrt(squares)
+    forces, predicted, velocity = solution[FORCES], solution[PREDICTED], solution[VELOCITY]
+    for i in range(8):
+        forces[i] = predicted[i] = 0.0
+    for k in range(sliders):
+        forces[2 * wheel_of[k] + direction_of[k]] = state[k]
+        predicted[2 * wheel_of[k] + direction_of[k]] = vecs[NEWTON_PREDICTED, k]
+    row = vecs[TOTAL]
+    for wheel in range(4):
+        for direction in range(2):
+            _contact_row(cos_t, sin_t, constants, wheel, direction, row)
+            velocity[2 * wheel + direction] = _dot(row, qd, DOF)
+    stuck, stuck_rows, row_loads = 0, mats[STUCK_ROWS], vecs[ROW_LOADS]
+    for wheel in range(4):
+        for direction in range(2):
+            if sticking[wheel] and flags[4 - direction]:
+                _contact_row(cos_t, sin_t, constants, wheel, direction, stuck_rows[stuck])
+                row_loads[stuck] = loads[wheel]
+                stuck += 1
+    if stuck:
+        split = vecs[RESIDUALS]
+        _split(stuck, flags, constraint, mats, vecs, ints[SPLIT_PIVOTS], split)
+        stuck = 0
+        for wheel in range(4):
+            for direction in range(2):
+                if sticking[wheel] and flags[4 - direction]:
+                    forces[2 * wheel + direction] = split[stuck]
+                    stuck += 1
+    return SOLVED
+
+
+def _project_onto(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, sticking: np.ndarray, rows: np.ndarray,
+                  factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+                  scratch: np.ndarray) -> None:
+    """qd <- qd - M^-1 A^T (A M^-1 A^T)+ A qd = qd - W (A W)+ A qd over the belt's rows and the ``sticking`` wheels'
+    contact rows, in place on y (``Simulation._project``); ``rows`` (>= 10 x 7) is the caller's own scratch."""
+    theta = y[2]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
     count = 0
     if flags[2]:
+        for r in range(2):
+            for j in range(DOF):
+                rows[r, j] = 0.0
         rows[0, 3], rows[0, 4], rows[1, 5], rows[1, 6] = 1.0, -1.0, 1.0, -1.0
         count = 2
-    for k in range(5):
-        if flags[3] and not slipping[2] if k == 0 else flags[4] and not slipping[(k - 1) // 2]:
-            rows[count] = contact_rows[k]
-            count += 1
+    for wheel in range(4):
+        for direction in range(2):
+            if sticking[wheel] and flags[4 - direction]:
+                _contact_row(cos_t, sin_t, constants, wheel, direction, rows[count])
+                count += 1
     if count == 0:
         return
-    active = rows[:count]
-    inverse = factor @ factor.T
-    weighted = inverse @ active.T
-    velocities = y[DOF:].copy()
-    correction = weighted @ (np.linalg.pinv(active @ weighted) @ (active @ velocities))
+    _factor_of(theta, constants, factor)
+    _scaled_rows(rows, factor, count, matrix)
+    target = vectors[2]
+    for r in range(count):
+        target[r] = _dot(rows[r], y[DOF:], DOF)
+    _minimum_norm(matrix, target, count, gram, lower, vectors, scratch, vectors[4])
+    _factor_times(factor, vectors[4], vectors[1])
     for j in range(DOF):
-        y[DOF + j] = velocities[j] - correction[j]
+        y[DOF + j] -= vectors[1, j]
 
 
-def _stopping(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, slipping: np.ndarray,
-              solution: np.ndarray, dt: float, stick_velocity: float, work: np.ndarray, present: np.ndarray,
-              candidates: np.ndarray) -> bool:
-    """The slipping channels whose every row's slip is below v_st or changes sign by qd + dt qdd
-    (``KineticFriction.stopping``); whether there is one."""
-    predicted = work[7]
-    for j in range(DOF):
-        predicted[j] = y[DOF + j] + dt * solution[0, j]
-    slip_rows, slip = work[0:5], work[5]
-    _slip_rows(y[:DOF], y[DOF:], flags, constants, slipping, slip_rows, slip, present)
-    for channel in range(3):
-        candidates[channel] = False
-    seen = np.zeros(3, dtype=np.bool_)
-    for k in range(5):
-        if present[k]:
-            channel = 2 if k == 0 else (k - 1) // 2
-            then = 0.0
-            for j in range(DOF):
-                then += slip_rows[k, j] * predicted[j]
-            stops = abs(slip[k]) < stick_velocity or slip[k] * then < 0.0
-            candidates[channel] = stops if not seen[channel] else candidates[channel] and stops
-            seen[channel] = True
-    return candidates[0] or candidates[1] or candidates[2]
+def _speed(velocity: np.ndarray, wheel: int, flags: np.ndarray) -> float:
+    """|v| of a wheel's velocity (interleaved) over the directions that have friction (``contact._speed``)."""
+    along = velocity[2 * wheel] if flags[4] else 0.0
+    across = velocity[2 * wheel + 1] if flags[3] else 0.0
+    return math.sqrt(along * along + across * across)
+
+
+def _reverses(solution: np.ndarray, wheel: int, flags: np.ndarray) -> bool:
+    """Whether the step would reverse the wheel's slip, v_i . w_i < 0; never for a wheel at rest
+    (``contact._reverses``)."""
+    return ((solution[VELOCITY, 2 * wheel] * solution[PREDICTED, 2 * wheel]
+             + solution[VELOCITY, 2 * wheel + 1] * solution[PREDICTED, 2 * wheel + 1]) < 0.0
+            and _speed(solution[VELOCITY], wheel, flags) > AT_REST)
+
+
+def _holds(solution: np.ndarray, wheel: int, static: float) -> bool:
+    """Whether the wheel's force lies in its friction disc, |f_i| <= mu_s N_i (``contact._holds``)."""
+    return not math.hypot(solution[FORCES, 2 * wheel], solution[FORCES, 2 * wheel + 1]) > static * solution[LOADS, wheel]
 
 
 def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-            torque: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray, moving: np.ndarray,
-            rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-            lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, work: np.ndarray, zero_rhs: np.ndarray,
-            bounds: np.ndarray, present: np.ndarray, solution: np.ndarray, trial_solution: np.ndarray) -> None:
-    """The stick/slip transitions at y's boundary, then the solution of the step (``CoulombContact.settle``).
+            torque: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+            factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+            scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, marks: np.ndarray,
+            columns: np.ndarray, responses: np.ndarray, solution: np.ndarray, trial: np.ndarray) -> int:
+    """The stick/slip transitions at y's boundary, then the solution the step integrates (``CoulombContact.settle``,
+    one long function as numba compiles it best: a round of transitions shares its state, the sets, in registers).
 
-    ``slipping`` (3,), ``held`` (4,) and ``moving`` (1,) are the contact state before, updated in place; y's
-    velocities are projected in place where a channel sticks again.
+    In turn, until nothing changes: a sliding wheel the step would reverse is stopped by the switch projection and
+    slides on from rest; sliding wheels that are stopping stick again when the solve with their rows restored
+    holds them in their discs (their slip projected away); every sticking wheel whose force leaves its disc
+    slides. ``sliding`` (4,) and ``loads`` (4,) (held, Newton's start) are the contact state before, updated in
+    place, and y's velocities are projected in place, unless an error code is returned (``CONTACT_ERRORS``).
     """
-    channels = (flags[4], flags[4], flags[3])  # left, right, lateral: which channels have rows
-    for channel in range(3):
-        slipping[channel] = slipping[channel] and channels[channel]
-    _contact_solve(y, reference, flags, constants, contact, torque, slipping, held, moving[0], rows, rhs, factor,
-                   matrix, gram, lower, vectors, scratch, work, zero_rhs, bounds, present, solution)
-    candidates, trial, holding = np.zeros(3, dtype=np.bool_), np.zeros(3, dtype=np.bool_), np.zeros(3, dtype=np.bool_)
-    trial_y = np.empty(2 * DOF)
-    searching = (slipping[0] or slipping[1] or slipping[2]) and _stopping(
-        y, flags, constants, slipping, solution, dt, contact[STICK], work, present, candidates)
-    while searching:
-        for channel in range(3):
-            trial[channel] = slipping[channel] and not candidates[channel]
-        for i in range(2 * DOF):
-            trial_y[i] = y[i]
-        _project(trial_y, flags, constants, trial, factor)
-        _contact_solve(trial_y, reference, flags, constants, contact, torque, trial, held, moving[0], rows, rhs,
-                       factor, matrix, gram, lower, vectors, scratch, work, zero_rhs, bounds, present, trial_solution)
-        same, searching = True, False
-        for channel in range(3):
-            holding[channel] = candidates[channel] and not trial_solution[LOADS_ROW, 4 + channel] > 1.0
-            same = same and holding[channel] == candidates[channel]
-            searching = searching or holding[channel]
-        if same:
-            for channel in range(3):
-                slipping[channel] = trial[channel]
-            for i in range(2 * DOF):
-                y[i] = trial_y[i]
-            solution[:, :] = trial_solution
-            break
-        for channel in range(3):
-            candidates[channel] = holding[channel]
-    while True:
-        exceeded = False
-        for channel in range(3):
-            if channels[channel] and not slipping[channel] and solution[LOADS_ROW, 4 + channel] > 1.0:
-                slipping[channel] = exceeded = True
-        if not exceeded:
-            break
-        _contact_solve(y, reference, flags, constants, contact, torque, slipping, held, moving[0], rows, rhs, factor,
-                       matrix, gram, lower, vectors, scratch, work, zero_rhs, bounds, present, solution)
-    new_held = solution[DRIVE_ROW, 3:]
-    moving[0] = (slipping[0] or slipping[1] or slipping[2]) and not _converged(new_held, held)
+    frictional = flags[3] or flags[4]
+    static, stick = contact[STATIC], contact[STICK]
     for wheel in range(4):
-        held[wheel] = new_held[wheel]
+        sliding[wheel] = sliding[wheel] and frictional
+    error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor, matrix,
+                      gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, solution)
+    if error != SOLVED:
+        return error
+    sticking, trial_sliding, stopped = marks[STICKING], marks[TRIAL_SLIDING], marks[STOPPED]
+    reversing, candidates, holding = marks[REVERSING], marks[CANDIDATES], marks[HOLDING]
+    trial_y, projection = vecs[TRIAL_Y, :2 * DOF], mats[PROJECTION]
+    for wheel in range(4):
+        stopped[wheel] = False
+    for _ in range(SETTLE_PASSES):
+        any_reversing = False
+        for wheel in range(4):
+            reversing[wheel] = sliding[wheel] and not stopped[wheel] and _reverses(solution, wheel, flags)
+            any_reversing = any_reversing or reversing[wheel]
+        if any_reversing:
+            for wheel in range(4):
+                stopped[wheel] = stopped[wheel] or reversing[wheel]
+                sticking[wheel] = frictional and (not sliding[wheel] or reversing[wheel])
+            _project_onto(y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors, scratch)
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
+                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                              solution)
+            if error != SOLVED:
+                return error
+        searching = False
+        for wheel in range(4):
+            candidates[wheel] = sliding[wheel] and (_speed(solution[VELOCITY], wheel, flags) < stick
+                                                    or _speed(solution[PREDICTED], wheel, flags) < stick)
+            searching = searching or candidates[wheel]
+        while searching:
+            for wheel in range(4):
+                trial_sliding[wheel] = sliding[wheel] and not candidates[wheel]
+                sticking[wheel] = frictional and not trial_sliding[wheel]
+            for i in range(2 * DOF):
+                trial_y[i] = y[i]
+            _project_onto(trial_y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors,
+                          scratch)
+            error = _boundary(trial_y, reference, flags, constants, contact, torque, dt, trial_sliding,
+                              loads, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
+                              marks, columns, responses, trial)
+            if error != SOLVED:
+                return error
+            same, searching = True, False
+            for wheel in range(4):
+                holding[wheel] = candidates[wheel] and _holds(trial, wheel, static)
+                same = same and holding[wheel] == candidates[wheel]
+                searching = searching or holding[wheel]
+            if same:
+                for wheel in range(4):
+                    sliding[wheel] = trial_sliding[wheel]
+                for i in range(2 * DOF):
+                    y[i] = trial_y[i]
+                solution[:, :] = trial
+                break
+            for wheel in range(4):
+                candidates[wheel] = holding[wheel]
+        while True:
+            exceeded = False
+            for wheel in range(4):
+                if frictional and not sliding[wheel] and not _holds(solution, wheel, static):
+                    sliding[wheel] = exceeded = True
+            if not exceeded:
+                break
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
+                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                              solution)
+            if error != SOLVED:
+                return error
+        reversed_again = False
+        for wheel in range(4):
+            reversed_again = reversed_again or (sliding[wheel] and not stopped[wheel]
+                                                and _reverses(solution, wheel, flags))
+        if not reversed_again:
+            break
+    for wheel in range(4):
+        loads[wheel] = solution[LOADS, wheel]
+    return SOLVED
 
 
-def _contact_workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``_settle``'s scratch beside ``_workspace``'s: work, zero_rhs, bounds, present and a trial solution."""
-    return (np.zeros((WORK_ROWS, DOF)), np.zeros(MAX_ROWS), np.zeros(5), np.zeros(5, dtype=np.bool_),
-            np.zeros((SOLUTION_ROWS, DOF)))
+def _hold(solution: np.ndarray, sliding: np.ndarray, flags: np.ndarray, contact: np.ndarray, gains: np.ndarray,
+          sticking: np.ndarray, held: np.ndarray) -> None:
+    """What a step holds from its settled boundary (``_problem``'s gains, sticking and held): each wheel's rolling
+    resistance f_r max(N_i, 0), the sticking wheels, the sliding wheels' friction."""
+    frictional = flags[3] or flags[4]
+    for wheel in range(4):
+        load = solution[LOADS, wheel]
+        gains[wheel] = contact[ROLLING] * (load if load > 0.0 else 0.0)
+        sticking[wheel] = frictional and not sliding[wheel]
+        for direction in range(2):
+            held[2 * wheel + direction] = solution[FORCES, 2 * wheel + direction] if sliding[wheel] else 0.0
+
+
+def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+               contact: np.ndarray, torque: np.ndarray, dt: float, solution: np.ndarray, sliding: np.ndarray,
+               rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+               lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, vecs: np.ndarray, marks: np.ndarray,
+               out: np.ndarray, slopes: np.ndarray) -> bool:
+    """The RK4 step from a settled boundary (``Simulation.step``): the solution's qdd its first stage, the sticking
+    set, loads and sliding wheels' friction held; whether the state it gives (``out``) is finite."""
+    gains, held, sticking = vecs[PRESSED], vecs[TOTAL], marks[STICKING]
+    _hold(solution, sliding, flags, contact, gains, sticking, held)
+    for i in range(DOF):
+        slopes[0, DOF + i] = solution[QDD, i]
+    return _rk4(state, references, flags, constants, torque, gains, True, sticking, held, dt, True, rows, rhs, factor,
+                matrix, gram, lower, vectors, scratch, out, slopes)
+
+
+def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                      constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
+                      sliding: np.ndarray, loads: np.ndarray, solutions: np.ndarray, slid: np.ndarray,
+                      outcome: np.ndarray) -> None:
+    """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
+    step from it (``_held_step``).
+
+    ``states`` (T + 1, 14): row 0 the state at the first instant; ``settled`` (T, 14) gets each instant's state
+    with its velocities projected where a wheel stopped or stuck, ``solutions`` (T, 8, 8) its solution, ``slid``
+    (T, 4) its sliding wheels, and ``states`` row k + 1 the state one step later, for k < ``steps`` (at most T).
+    ``sliding`` (4,) and ``loads`` (4,): the contact state at the start, updated instant by instant.
+    ``outcome`` (4,): the instants settled, the steps taken, how the run ended (RAN, DETACHED at the last instant
+    settled, DIVERGED after it, FAILED at the next: its error code in outcome[3]).
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    mats, vecs, ints, marks, columns, responses = _contact_workspace()
+    trial, slopes = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF))
+    outcome[0], outcome[1], outcome[2], outcome[3] = 0, 0, RAN, SOLVED
+    for k in range(solutions.shape[0]):
+        for i in range(2 * DOF):
+            settled[k, i] = states[k, i]
+        error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, rows, rhs,
+                        factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                        solutions[k], trial)
+        if error != SOLVED:
+            outcome[2], outcome[3] = FAILED, error
+            return
+        outcome[0] = k + 1
+        for wheel in range(4):
+            slid[k, wheel] = sliding[wheel]
+        if min(loads[0], loads[1], loads[2], loads[3]) < 0.0:
+            outcome[2] = DETACHED
+            return
+        if k == steps:
+            return
+        if not _held_step(settled[k], references[k], flags, constants, contact, torque, dt, solutions[k], sliding,
+                          rows, rhs, factor, matrix, gram, lower, vectors, scratch, vecs, marks, states[k + 1],
+                          slopes):
+            outcome[2] = DIVERGED
+            return
+        outcome[1] = k + 1
 
 
 def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                  contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
-                  moving: np.ndarray, live: np.ndarray, solutions: np.ndarray, chunk: int) -> None:
-    """Every robot's boundary (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact`` (N, 15), ...):
-    the live ones settled (``_settle``), the others' motion under their slipping set, their state kept.
-    ``slipping`` (N, 3), ``held`` (N, 4), ``moving`` (N,) are updated in place, ``solutions`` (N, 7, 7) filled."""
-    count = states.shape[0]
-    for block in prange((count + chunk - 1) // chunk):
-        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-        factor, matrix, gram, lower, vectors, scratch = _workspace()
-        work, zero_rhs, bounds, present, trial_solution = _contact_workspace()
-        for robot in range(block * chunk, min(count, (block + 1) * chunk)):
-            if live[robot]:
-                _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot], dt,
-                        slipping[robot], held[robot], moving[robot:robot + 1], rows, rhs, factor, matrix, gram, lower,
-                        vectors, scratch, work, zero_rhs, bounds, present, solutions[robot], trial_solution)
-            else:
-                _contact_solve(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
-                               slipping[robot], held[robot], moving[robot], rows, rhs, factor, matrix, gram, lower,
-                               vectors, scratch, work, zero_rhs, bounds, present, solutions[robot])
+                  contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
+                  live: np.ndarray, solutions: np.ndarray, errors: np.ndarray, chunk: int) -> None:
+    """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
+    (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4) and the states updated in place,
+    ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left as they are.
+    The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
+    fastest around one call)."""
+    for block in prange((states.shape[0] + chunk - 1) // chunk):
+        _settle_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, reference, flags, constants,
+                      contact, torques, dt, sliding, loads, live, solutions, errors)
+
+
+def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarray, flags: np.ndarray,
+                  constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
+                  loads: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray) -> None:
+    """``_batch_settle`` of robots first..end - 1 on one core."""
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    mats, vecs, ints, marks, columns, responses = _contact_workspace()
+    trial = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH))
+    for robot in range(first, end):
+        if live[robot]:
+            errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
+                                    dt, sliding[robot], loads[robot], rows, rhs, factor, matrix, gram, lower, vectors,
+                                    scratch, mats, vecs, ints, marks, columns, responses, solutions[robot], trial)
 
 
 def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
-                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
-    """The RK4 step of every live robot from its settled boundary (``solutions``' qdd its first stage, the
-    kinetic friction of its slipping rows with ``held`` loads in every stage) into ``out``; the others keep
-    their state. ``finite`` (N,) says whether each new state is finite."""
-    count = states.shape[0]
-    for block in prange((count + chunk - 1) // chunk):
-        rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-        factor, matrix, gram, lower, vectors, scratch = _workspace()
-        slopes, step_bounds = np.zeros((4, 2 * DOF)), np.zeros(5)
-        for robot in range(block * chunk, min(count, (block + 1) * chunk)):
-            if not live[robot]:
-                for i in range(2 * DOF):
-                    out[robot, i] = states[robot, i]
-                finite[robot] = True
-                continue
-            for i in range(DOF):
-                slopes[0, DOF + i] = solutions[robot, 0, i]
-            _bounds(held[robot], contact[robot, KINETIC], step_bounds)
-            finite[robot] = _rk4(states[robot], references, flags, constants[robot], torques[robot], slipping[robot],
-                                 step_bounds, dt, True, rows, rhs, factor, matrix, gram, lower, vectors, scratch,
-                                 out[robot], slopes)
+                contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
+                solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
+    """The RK4 step of every ``live`` robot from its settled boundary (``_held_step``) into ``out``; the others keep
+    their state. ``finite`` (N,) says whether each new state is finite. Over the cores as ``_batch_settle``."""
+    for block in prange((states.shape[0] + chunk - 1) // chunk):
+        _step_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, references, flags, constants,
+                    contact, torques, dt, sliding, live, solutions, out, finite)
+
+
+def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
+                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray) -> None:
+    """``_batch_step`` of robots first..end - 1 on one core."""
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    vecs, marks = np.zeros((VECTORS, 16)), np.zeros((SETS, 4), dtype=np.bool_)
+    slopes = np.zeros((4, 2 * DOF))
+    for robot in range(first, end):
+        if live[robot]:
+            finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
+                                       torques[robot], dt, solutions[robot], sliding[robot], rows, rhs, factor, matrix,
+                                       gram, lower, vectors, scratch, vecs, marks, out[robot], slopes)
+        else:
+            for i in range(2 * DOF):
+                out[robot, i] = states[robot, i]
+            finite[robot] = True
 
 
 _cholesky = _compile(_cholesky, inline="always")
@@ -1108,7 +1566,6 @@ _scratch = _compile(_scratch)
 _problem = _compile(_problem, inline="always")
 _acceleration = _compile(_acceleration, inline="always")
 _accelerations = _compile(_accelerations)
-_minimum_norms = _compile(_minimum_norms)
 _rk4 = _compile(_rk4, inline="always")
 _steps = _compile(_steps, parallel=True)
 _workspace = _compile(_workspace, inline="always")
@@ -1116,20 +1573,33 @@ _motion_of = _compile(_motion_of, inline="always")
 _motion = _compile(_motion, inline="always")
 robot_run = _compile(robot_run)
 tracking_force = _compile(tracking_force)
-_normal_loads = _compile(_normal_loads, inline="always")
-_ratio = _compile(_ratio, inline="always")
-_measure = _compile(_measure, inline="always")
-_contact_rows = _compile(_contact_rows, inline="always")
-_slip_rows = _compile(_slip_rows, inline="always")
-_bounds = _compile(_bounds, inline="always")
-_converged = _compile(_converged, inline="always")
-_responses = _compile(_responses)
-_consistent_loads = _compile(_consistent_loads)
-_contact_solve = _compile(_contact_solve)
-_project = _compile(_project)
-_stopping = _compile(_stopping)
-_settle = _compile(_settle)
+_factor_of = _compile(_factor_of, inline="always")
+_wheel_rows = _compile(_wheel_rows, inline="always")
 _contact_workspace = _compile(_contact_workspace, inline="always")
+_contact_row = _compile(_contact_row, inline="always")
+_dot = _compile(_dot, inline="always")
+_spin_loads = _compile(_spin_loads, inline="always")
+_load_gain = _compile(_load_gain, inline="always")
+_prepare_least_squares = _compile(_prepare_least_squares)
+_apply_least_squares = _compile(_apply_least_squares, inline="always")
+_constrained = _compile(_constrained)
+_wheel_speeds = _compile(_wheel_speeds, inline="always")
+_kinetic_equations = _compile(_kinetic_equations)
+_lu_solve = _compile(_lu_solve)
+_kinetic = _compile(_kinetic)
+_reduce = _compile(_reduce, inline="always")
+_split = _compile(_split)
+_boundary = _compile(_boundary)
+_project_onto = _compile(_project_onto)
+_speed = _compile(_speed, inline="always")
+_reverses = _compile(_reverses, inline="always")
+_holds = _compile(_holds, inline="always")
+_settle = _compile(_settle)
+_hold = _compile(_hold, inline="always")
+_held_step = _compile(_held_step)
+robot_contact_run = _compile(robot_contact_run)
+_settle_block = _compile(_settle_block)
+_step_block = _compile(_step_block)
 _batch_settle = _compile(_batch_settle, parallel=True)
 _batch_step = _compile(_batch_step, parallel=True)
 
@@ -1139,13 +1609,6 @@ def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.nd
     out = np.empty(force.shape)
     _accelerations(np.ascontiguousarray(factor), np.ascontiguousarray(force), np.ascontiguousarray(rows),
                    np.ascontiguousarray(rhs), out)
-    return out
-
-
-def minimum_norm_solutions(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``minimum_norm_least_squares`` compiled robot by robot, for B (N, k, 7)."""
-    out = np.empty((matrix.shape[0], DOF))
-    _minimum_norms(np.ascontiguousarray(matrix), np.ascontiguousarray(rhs), out)
     return out
 
 
@@ -1174,23 +1637,24 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
 
 
 def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
-                         contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
-                         moving: np.ndarray, live: np.ndarray, chunk: int = 64) -> np.ndarray:
-    """Every robot's coulomb boundary, robot by robot over the cores: ``_batch_settle``; returns the solutions
-    (N, 7, 7). ``states`` (velocities projected), ``slipping``, ``held`` and ``moving`` change in place."""
+                         contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
+                         live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """Every live robot's coulomb boundary, robot by robot over the cores (``_batch_settle``): ``states`` (velocities
+    projected), ``sliding``, ``loads`` and ``solutions`` (N, 8, 8) change in place; returns each robot's error code
+    (``CONTACT_ERRORS``)."""
     flags, _ = module_flags(active)
-    solutions = np.empty((states.shape[0], SOLUTION_ROWS, DOF))
-    _batch_settle(states, reference, flags, constants, contact, torques, dt, slipping, held, moving, live, solutions,
+    errors = np.zeros(states.shape[0], dtype=np.int64)
+    _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, live, solutions, errors,
                   chunk)
-    return solutions
+    return errors
 
 
 def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
-                       contact: np.ndarray, torques: np.ndarray, dt: float, slipping: np.ndarray, held: np.ndarray,
-                       live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+                       contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
+                       solutions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
     """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite."""
     flags, _ = module_flags(active)
     out, finite = np.empty_like(states), np.ones(states.shape[0], dtype=np.bool_)
-    _batch_step(states, references, flags, constants, contact, torques, dt, slipping, held, live, solutions, out,
-                finite, chunk)
+    _batch_step(states, references, flags, constants, contact, torques, dt, sliding, live, solutions, out, finite,
+                chunk)
     return out, finite
