@@ -201,33 +201,36 @@ def minimum_norm_motion(factor: np.ndarray, force: np.ndarray, rows: np.ndarray,
     return factor @ (scaled + np.linalg.lstsq(matrix, rhs - matrix @ scaled, rcond=None)[0])
 
 
-@pytest.mark.parametrize('rank', [7, 6, 4])
-def test_one_factorization_solves_every_right_hand_side_of_a_boundary(rank):
-    """``_prepare_least_squares`` then ``_constrained`` per column: with rows of full rank, and with rows that repeat
-    others (as a side's contact rows repeat its belt row) so that B^T B is singular, each motion is the
-    minimum-norm one numpy's SVD least squares gives (the boundary's b for the first column, 0 for the others)."""
-    rng = np.random.default_rng(5 + rank)
-    robots = RobotBatch(random_robots(rng, 1))
-    factor = robots.mass_inverse_factor(rng.normal(size=(1, DOF)))[0]
-    count = 10
-    rows = rng.normal(size=(count, rank)) @ rng.normal(size=(rank, DOF))
-    rhs = rows @ rng.normal(size=DOF)  # consistent, as the contact rows' Baumgarte terms are
-    forces = rng.normal(size=(4, DOF))
+@pytest.mark.parametrize('consistent', [True, False])
+def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing_ones(consistent):
+    """``_prepare_rows`` then ``_row_space_solve``: with rows that repeat others (as a side's contact rows repeat its
+    belt row), each motion is the minimum-norm one numpy's SVD least squares gives (the rows' b for the first,
+    0 for the others); where a repeated row's b disagrees, the first is left to the least squares (False)."""
+    rng = np.random.default_rng(5)
+    factor = RobotBatch(random_robots(rng, 1)).mass_inverse_factor(rng.normal(size=(1, DOF)))[0]
+    independent = rng.normal(size=(6, DOF))
+    rows = np.vstack((independent, rng.normal(size=(4, 6)) @ independent))
+    rhs = rows @ rng.normal(size=DOF)
+    rhs[9] += 0.0 if consistent else 0.5
+    count = len(rows)
     padded_rows, padded_rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
     padded_rows[:count], padded_rhs[:count] = rows, rhs
-    _, matrix, gram, lower, vectors, scratch = kernel._workspace()
-    mats, vecs, *_ = kernel._contact_workspace()
-    null, null_lower, kept = mats[kernel.NULL], mats[kernel.NULL_LOWER], vecs[kernel.KEPT]
-    way = kernel._prepare_least_squares(padded_rows, factor, count, matrix, gram, lower, scratch, null, null_lower,
-                                        kept)
-    assert way == (1 if rank == DOF else 2)
-    for column, force in enumerate(forces):
-        out = np.zeros(DOF)
-        kernel._constrained(factor, force, padded_rhs, column == 0, way, matrix, count, gram, lower, scratch, null,
-                            null_lower, kept, vectors, vecs[kernel.SOLUTION], out)
-        expected = minimum_norm_motion(factor, force, rows, rhs if column == 0 else np.zeros(count))
-        scale = np.max(np.abs(factor @ (factor.T @ force)))  # the free motion (all rows held: qdd = 0 for b = 0)
-        assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * max(scale, np.max(np.abs(expected))))
+    _, matrix, _, _, vectors, _ = kernel._workspace()
+    mats, _, ints, *_ = kernel._contact_workspace()
+    order, kept, lower = ints[kernel.ROW_ORDER], ints[kernel.ROW_KEPT], mats[kernel.ROW_FACTOR]
+    rank = kernel._prepare_rows(padded_rows, factor, count, matrix, mats[kernel.ROW_SYSTEM], lower, order, kept)
+    assert rank == 6
+    for column, force in enumerate(rng.normal(size=(4, DOF))):
+        out = np.full(DOF, np.nan)
+        solved = kernel._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
+                                         lower, vectors, out)
+        assert solved == (consistent or column > 0)
+        if solved:
+            expected = minimum_norm_motion(factor, force, rows, rhs if column == 0 else np.zeros(count))
+            scale = np.max(np.abs(factor @ (factor.T @ force)))  # the free motion (all rows held: qdd = 0 for b = 0)
+            assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * max(scale, np.max(np.abs(expected))))
+        else:
+            assert np.all(np.isnan(out))
 
 
 def test_the_kernels_tolerances_are_the_python_models():

@@ -214,11 +214,19 @@ def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, l
 def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                   torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
                   rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-                  lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, out: np.ndarray) -> None:
+                  lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, ints: np.ndarray,
+                  out: np.ndarray) -> None:
     """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone (``_problem``, then
-    ``_solve``); Q, with the held friction of sliding wheels, is left in ``vectors`` row 0."""
+    ``_solve``); Q, with the held friction of sliding wheels, is left in ``vectors`` row 0. With ``contact`` the
+    solve goes through the rows' own space first (``_row_space_solve``, ``mats`` and ``ints`` its scratch)."""
     count = _problem(q, qd, reference, flags, constants, torque, gains, contact, sticking, held, rows, rhs, factor,
                      vectors[0])
+    if contact:
+        rank = _prepare_rows(rows, factor, count, matrix, mats[ROW_SYSTEM], mats[ROW_FACTOR], ints[ROW_ORDER],
+                             ints[ROW_KEPT])
+        if _row_space_solve(factor, vectors[0], rhs, True, matrix, count, rank, ints[ROW_ORDER], ints[ROW_KEPT],
+                            mats[ROW_FACTOR], vectors, out):
+            return
     _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
 
 
@@ -463,12 +471,13 @@ def _accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs:
 def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray, torque: np.ndarray,
          gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray, dt: float, known: bool,
          rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-         lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, stage: np.ndarray, slopes: np.ndarray) -> bool:
+         lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, ints: np.ndarray,
+         stage: np.ndarray, slopes: np.ndarray) -> bool:
     """One RK4 step of one robot from ``state`` (14,) into ``stage`` (``rk4_step``); whether it is finite.
 
     ``references`` (3, 10): the reference at t, t + dt/2 and t + dt. ``known``: slopes[0, 7:] already
     holds qdd at ``state`` (the outputs' solve, RK4's first stage). ``gains``, ``contact``, ``sticking``,
-    ``held``: ``_problem``'s, held over the step.
+    ``held``: ``_problem``'s, held over the step; ``mats``, ``ints``: ``_acceleration``'s.
     """
     half, sixth = 0.5 * dt, dt / 6.0
     for k in range(4):
@@ -485,7 +494,8 @@ def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants
             continue
         instant = 0 if k == 0 else (2 if k == 3 else 1)
         _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, gains, contact,
-                      sticking, held, rows, rhs, factor, matrix, gram, lower, vectors, scratch, slopes[k, DOF:])
+                      sticking, held, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, ints,
+                      slopes[k, DOF:])
     finite = True
     for i in range(2 * DOF):
         stage[i] = state[i] + sixth * (slopes[0, i] + 2.0 * (slopes[1, i] + slopes[2, i]) + slopes[3, i])
@@ -504,6 +514,7 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
         rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)  # zero once: see _problem
         factor, matrix, gram, lower, vectors, scratch = _workspace()
         gains, no_wheels, no_held = np.zeros(4), np.zeros(4, dtype=np.bool_), np.zeros(8)
+        no_mats, no_ints = np.zeros((1, 1, 1)), np.zeros((1, 1), dtype=np.int64)  # contact mode's only
         state, stage, slopes = np.zeros(2 * DOF), np.zeros(2 * DOF), np.zeros((4, 2 * DOF))
         for robot in range(block * chunk, min(count, (block + 1) * chunk)):
             gains[:] = constants[robot, 8]
@@ -511,8 +522,8 @@ def _steps(y: np.ndarray, steps: int, dt: float, references: np.ndarray, flags: 
                 state[i] = y[robot, i]
             for step in range(steps):
                 if not _rk4(state, references[step], flags, constants[robot], torques[robot], gains, False, no_wheels,
-                            no_held, dt, False, rows, rhs, factor, matrix, gram, lower, vectors, scratch, stage,
-                            slopes):
+                            no_held, dt, False, rows, rhs, factor, matrix, gram, lower, vectors, scratch, no_mats,
+                            no_ints, stage, slopes):
                     diverged[robot] = step
                     break
                 for i in range(2 * DOF):
@@ -528,19 +539,20 @@ def _workspace() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nda
 
 
 def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
-            torque: np.ndarray, gains: np.ndarray, no_wheels: np.ndarray, no_held: np.ndarray, motion: np.ndarray,
-            rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-            lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
+            torque: np.ndarray, gains: np.ndarray, no_wheels: np.ndarray, no_held: np.ndarray, no_mats: np.ndarray,
+            no_ints: np.ndarray, motion: np.ndarray, rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray,
+            matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray) -> float:
     """One robot at y (14,) with ideal contact: motion (3, 7) gets qdd, Q and Q_c = M qdd - Q; returns the residual
     |A qdd - b|.
 
     ``reference`` (10,): the reference at this instant; ``flags``, ``count``: ``module_flags``; ``constants``:
     the robot's row of ``robot_constants``; ``torque``: (tau_L, tau_R); ``gains``: ``_problem``'s; ``no_wheels``
-    (4,) False, ``no_held`` (8,) zeros; the rest: the caller's workspace.
+    (4,) False, ``no_held`` (8,) zeros, ``no_mats`` and ``no_ints`` any (contact mode's); the rest: the caller's
+    workspace.
     """
     acceleration, force = motion[0], motion[1]
     _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, gains, False, no_wheels, no_held, rows, rhs,
-                  factor, matrix, gram, lower, vectors, scratch, acceleration)
+                  factor, matrix, gram, lower, vectors, scratch, no_mats, no_ints, acceleration)
     for i in range(DOF):
         force[i] = vectors[0, i]  # Q: _acceleration leaves it in vectors row 0
     return _motion_of(y, constants, motion, rows, rhs, count)
@@ -582,15 +594,16 @@ def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, cou
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     slopes = np.zeros((4, 2 * DOF))
     gains, no_wheels, no_held = np.full(4, constants[8]), np.zeros(4, dtype=np.bool_), np.zeros(8)
+    no_mats, no_ints = np.zeros((1, 1, 1)), np.zeros((1, 1), dtype=np.int64)
     for k in range(motions.shape[0]):
         residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, gains, no_wheels, no_held,
-                               motions[k], rows, rhs, factor, matrix, gram, lower, vectors, scratch)
+                               no_mats, no_ints, motions[k], rows, rhs, factor, matrix, gram, lower, vectors, scratch)
         if k == steps:
             return k
         for i in range(DOF):
             slopes[0, DOF + i] = motions[k, 0, i]
         if not _rk4(states[k], references[k], flags, constants, torque, gains, False, no_wheels, no_held, dt, True,
-                    rows, rhs, factor, matrix, gram, lower, vectors, scratch, states[k + 1], slopes):
+                    rows, rhs, factor, matrix, gram, lower, vectors, scratch, no_mats, no_ints, states[k + 1], slopes):
             return k
     return steps
 
@@ -667,21 +680,23 @@ finite, a boundary had no solution."""
 COLUMNS = 1 + 8 + 4
 """A boundary's right-hand sides at most: the forces, each sliding component's unit force, each wheel's unit load."""
 (JACOBIAN, TRIAL_JACOBIAN, LU, SLIP_ROWS, GAIN, SLIP_BY_FRICTION, SLIP_BY_LOAD, LOAD_BY_FRICTION, LOAD_BY_LOAD,
- BY_SLIP, STUCK_ROWS, MADE, SPLIT, SPLIT_LOWER, NULL, NULL_LOWER, PROJECTION) = range(17)
+ BY_SLIP, STUCK_ROWS, MADE, SPLIT, SPLIT_LOWER, ROW_SYSTEM, ROW_FACTOR, PROJECTION) = range(17)
 """``_contact_workspace``'s matrices (16 x 16 each): the Newton Jacobian, its trial and LU factors; J_S, L, the
 constant blocks dt J_S D, dt J_S R, -L D, L R and the Newton step's d(f mu N w / s)/dw; the sticking rows, the
-split's V^T J^T, its weighted system and factor; the least squares' null basis and its Gram's factor; the rows of
-a projection."""
+split's U^T J^T, its weighted system and factor; B B^T of the rows and its pivoted factor (``_prepare_rows``); the
+rows of a projection."""
 (STATE, TRIAL_STATE, NEWTON_STEP, RESIDUALS, TRIAL_RESIDUALS, NEWTON_PREDICTED, TRIAL_PREDICTED, SIZES,
  DIRECTIONS, PRESSED, SQUARES, SLIP, DRIFT, ORIGIN, ACCELERATION, TOTAL, REDUCED, SPLIT_X, ROW_LOADS, KEPT, ZERO,
- NEGATIVE, SOLUTION, TRIAL_Y) = range(24)
+ NEGATIVE, TRIAL_Y) = range(23)
 """``_contact_workspace``'s vectors (16 each)."""
-WHEEL_OF, DIRECTION_OF, PIVOTS, SPLIT_PIVOTS = range(4)
+WHEEL_OF, DIRECTION_OF, PIVOTS, SPLIT_PIVOTS, ROW_ORDER, ROW_KEPT = range(6)
 """``_contact_workspace``'s integer rows (16 each): each sliding component's wheel and direction, LU's pivots, the
-split's pivots."""
+split's pivots, the rows ``_prepare_rows`` keeps (in pivot order, and 1 on each)."""
 STICKING, TRIAL_SLIDING, STOPPED, REVERSING, CANDIDATES, HOLDING = range(6)
 """``_contact_workspace``'s wheel sets (4 each)."""
-MATRICES, VECTORS, INTEGERS, SETS = PROJECTION + 1, TRIAL_Y + 1, SPLIT_PIVOTS + 1, HOLDING + 1
+MATRICES, VECTORS, INTEGERS, SETS = PROJECTION + 1, TRIAL_Y + 1, ROW_KEPT + 1, HOLDING + 1
+CONSISTENT = 1e-9
+"""Relative misfit up to which a row ``_prepare_rows`` drops agrees with the rows it keeps."""
 
 
 def contact_constants(robot: Robot) -> np.ndarray:
@@ -753,125 +768,85 @@ def _load_gain(theta: float, constants: np.ndarray, contact: np.ndarray, out: np
             out[wheel, j] = along * -spin
 
 
-def _prepare_least_squares(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray,
-                           lower: np.ndarray, scratch: np.ndarray, null: np.ndarray, null_lower: np.ndarray,
-                           kept: np.ndarray) -> int:
-    """B = A W into ``matrix`` and B^T B factored once for ``_apply_least_squares``' right-hand sides, as
-    ``_minimum_norm`` decides per right-hand side; the way: 0 no rows, 1 Cholesky (``lower``), 2 the pivoted
-    basis of ``_rank_revealing`` (``kept`` 1.0 on its columns, ``lower`` their block's factor, ``null`` the null
-    vectors, ``null_lower`` their Gram's factor), 3 ``_rank_revealing`` per right-hand side (a factor failed)."""
-    if count == 0:
-        return 0
+def _prepare_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, system: np.ndarray,
+                  lower: np.ndarray, order: np.ndarray, kept: np.ndarray) -> int:
+    """B = A W into ``matrix``, and the independent rows K of B a pivoted Cholesky of B B^T keeps with its factor,
+    for ``_row_space_solve``: ``order`` the kept rows in pivot order, ``kept`` 1 on each, ``lower[r, i]`` column r
+    of the factor at row i; returns the rank. (The cut is the normal equations' of ``_minimum_norm``.)"""
     _scaled_rows(rows, factor, count, matrix)
     largest = 0.0
-    for i in range(DOF):
+    for i in range(count):
+        kept[i] = 0
         for j in range(i + 1):
-            entry = 0.0
-            for r in range(count):
-                entry += matrix[r, i] * matrix[r, j]
-            gram[i, j] = gram[j, i] = entry
-        largest = max(largest, gram[i, i])
-    if _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
-        return 1
-    schur = scratch[0]
-    for i in range(DOF):
-        kept[i] = 0.0
-        for j in range(DOF):
-            schur[i, j] = gram[i, j]
-    cut = RANK_CUTOFF * largest
-    for _ in range(DOF):
-        best, pivot = -1, -math.inf
-        for j in range(DOF):
-            if kept[j] == 0.0 and schur[j, j] > pivot:
-                best, pivot = j, schur[j, j]
-        if best < 0 or not pivot > cut:
-            break
-        kept[best] = 1.0
-        scale = 1.0 / math.sqrt(pivot)
-        column = scratch[1, 0]
-        for i in range(DOF):
-            column[i] = schur[i, best] * scale
-        for i in range(DOF):
-            for j in range(DOF):
-                schur[i, j] -= column[i] * column[j]
-    reduced = scratch[2]
-    for i in range(DOF):
-        for j in range(DOF):
-            reduced[i, j] = gram[i, j] if kept[i] != 0.0 and kept[j] != 0.0 else (1.0 if i == j else 0.0)
-    if not _cholesky(reduced, DOF, lower) > 0.0:
-        return 3
-    column = scratch[1, 2]
-    for j in range(DOF):
-        if kept[j] != 0.0:
-            for i in range(DOF):
-                null[i, j] = 0.0
-        else:
-            for i in range(DOF):
-                column[i] = gram[i, j] if kept[i] != 0.0 else 0.0
-            _substitute(lower, DOF, column)
-            for i in range(DOF):
-                null[i, j] = (1.0 if i == j else 0.0) - column[i]
-    null_gram = scratch[4]
-    for i in range(DOF):
-        for j in range(DOF):
-            entry = 0.0
-            for k in range(DOF):
-                entry += null[k, i] * null[k, j]
-            null_gram[i, j] = entry + (1.0 if i == j and kept[i] != 0.0 else 0.0)
-    return 2 if _cholesky(null_gram, DOF, null_lower) > 0.0 else 3
-
-
-def _apply_least_squares(way: int, matrix: np.ndarray, count: int, misfit: np.ndarray, gram: np.ndarray,
-                         lower: np.ndarray, scratch: np.ndarray, null: np.ndarray, null_lower: np.ndarray,
-                         kept: np.ndarray, moment: np.ndarray, shift: np.ndarray, solution: np.ndarray) -> None:
-    """B+ misfit by ``_prepare_least_squares``' factors (``way``); ``moment`` and ``shift`` (7,) are scratch."""
-    for i in range(DOF):
-        value = 0.0
-        for r in range(count):
-            value += matrix[r, i] * misfit[r]
-        moment[i] = value
-    if way == 1:
-        for i in range(DOF):
-            solution[i] = moment[i]
-        _substitute(lower, DOF, solution)
-    elif way == 2:
-        for i in range(DOF):
-            solution[i] = moment[i] if kept[i] != 0.0 else 0.0
-        _substitute(lower, DOF, solution)
-        for i in range(DOF):
             value = 0.0
             for k in range(DOF):
-                value += null[k, i] * solution[k]
-            shift[i] = value
-        _substitute(null_lower, DOF, shift)
-        for i in range(DOF):
-            value = solution[i]
-            for j in range(DOF):
-                value -= null[i, j] * shift[j]
-            solution[i] = value
-    else:
-        _rank_revealing(gram, moment, scratch, lower, solution)
+                value += matrix[i, k] * matrix[j, k]
+            system[i, j] = system[j, i] = value
+        largest = max(largest, system[i, i])
+    cut = RANK_CUTOFF * largest
+    rank = 0
+    for r in range(count):
+        best, pivot = -1, cut
+        for i in range(count):
+            if kept[i] == 0 and system[i, i] > pivot:
+                best, pivot = i, system[i, i]
+        if best < 0:
+            break
+        kept[best], order[r], rank = 1, best, r + 1
+        scale = 1.0 / math.sqrt(pivot)
+        for i in range(count):
+            lower[r, i] = system[i, best] * scale
+        for i in range(count):
+            for j in range(count):
+                system[i, j] -= lower[r, i] * lower[r, j]
+    return rank
 
 
-def _constrained(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, way: int,
-                 matrix: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray, scratch: np.ndarray,
-                 null: np.ndarray, null_lower: np.ndarray, kept: np.ndarray, vectors: np.ndarray,
-                 solution: np.ndarray, out: np.ndarray) -> None:
-    """qdd = W (s + B+ (b - B s)), s = W^T Q, by the prepared least squares (b = 0 unless ``with_rhs``): one column
-    of ``constrained_acceleration``. ``vectors`` rows 1-4 and ``solution`` (7,) are scratch."""
-    scaled, misfit = vectors[1], vectors[2]
+def _row_space_solve(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
+                     count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
+                     vectors: np.ndarray, out: np.ndarray) -> bool:
+    """qdd = W (s + B_K^T (B_K B_K^T)^-1 (b - B s)_K), s = W^T Q, by ``_prepare_rows``' factor (b = 0 unless
+    ``with_rhs``): the minimum-norm least-squares solution wherever the rows off K agree with those on it, which
+    the contact rows and the belt do (a side's contact rows repeat its belt row); where they do not (an
+    inconsistent set: the heading task beside the sticking wheels' lateral rows) returns False, ``out`` untouched,
+    for the caller's least squares. Cheaper than the normal equations of ``_solve`` with few rows. ``vectors``
+    rows 1-3 are scratch."""
+    scaled, misfit, solution = vectors[1], vectors[2], vectors[3]
     _transposed_factor_times(factor, force, scaled)
-    if way != 0:
-        for r in range(count):
-            value = rhs[r] if with_rhs else 0.0
-            for j in range(DOF):
-                value -= matrix[r, j] * scaled[j]
-            misfit[r] = value
-        _apply_least_squares(way, matrix, count, misfit, gram, lower, scratch, null, null_lower, kept, vectors[3],
-                             vectors[4], solution)
-        for i in range(DOF):
-            scaled[i] += solution[i]
+    for r in range(count):
+        value = rhs[r] if with_rhs else 0.0
+        for j in range(DOF):
+            value -= matrix[r, j] * scaled[j]
+        misfit[r] = value
+    for a in range(rank):  # L z = misfit_K, then L^T y = z, in pivot order
+        value = misfit[order[a]]
+        for r in range(a):
+            value -= lower[r, order[a]] * solution[r]
+        solution[a] = value / lower[a, order[a]]
+    for a in range(rank - 1, -1, -1):
+        value = solution[a]
+        for r in range(a + 1, rank):
+            value -= lower[a, order[r]] * solution[r]
+        solution[a] = value / lower[a, order[a]]
+    if with_rhs:  # b - B s lies in B's range when b = 0
+        for d in range(count):
+            if kept[d] == 0:
+                reached, size = 0.0, abs(misfit[d])
+                for a in range(rank):
+                    along = 0.0
+                    for k in range(DOF):
+                        along += matrix[d, k] * matrix[order[a], k]
+                    reached += along * solution[a]
+                    size += abs(along * solution[a])
+                if abs(misfit[d] - reached) > CONSISTENT * (1.0 + size):
+                    return False
+    for k in range(DOF):
+        value = scaled[k]
+        for a in range(rank):
+            value += matrix[order[a], k] * solution[a]
+        scaled[k] = value
     _factor_times(factor, scaled, out)
+    return True
 
 
 def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsilon: float, squares: np.ndarray,
@@ -1154,6 +1129,16 @@ def _split(count: int, flags: np.ndarray, force: np.ndarray, mats: np.ndarray, v
         out[k] = weight * value
 
 
+def _responded(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, count: int, rank: int,
+               rows: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+               scratch: np.ndarray, mats: np.ndarray, ints: np.ndarray, zero: np.ndarray, out: np.ndarray) -> None:
+    """qdd under ``force`` and the rows (b = 0 unless ``with_rhs``) by ``_row_space_solve`` after ``_prepare_rows``,
+    or by ``_solve``'s least squares where the rows disagree: one column of ``constrained_acceleration``."""
+    if not _row_space_solve(factor, force, rhs, with_rhs, matrix, count, rank, ints[ROW_ORDER], ints[ROW_KEPT],
+                            mats[ROW_FACTOR], vectors, out):
+        _solve(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch, out)
+
+
 def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
               torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, rows: np.ndarray,
               rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
@@ -1194,11 +1179,11 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
         vx, vy = qd[0] + thd * arm_x, qd[1] + thd * arm_y
         scale = -rolling / math.sqrt(vx * vx + vy * vy + eps2)
         column[0], column[1], column[2] = scale * vx, scale * vy, scale * (arm_x * vx + arm_y * vy)
-    null, null_lower, kept = mats[NULL], mats[NULL_LOWER], vecs[KEPT]
-    way = _prepare_least_squares(rows, factor, count, matrix, gram, lower, scratch, null, null_lower, kept)
+    order, kept, system = ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_SYSTEM]
+    rank = _prepare_rows(rows, factor, count, matrix, system, mats[ROW_FACTOR], order, kept)
     for column in range(1 + sliders + 4):
-        _constrained(factor, columns[column], rhs, column == 0, way, matrix, count, gram, lower, scratch, null,
-                     null_lower, kept, vectors, vecs[SOLUTION], responses[column])
+        _responded(factor, columns[column], rhs, column == 0, count, rank, rows, matrix, gram, lower, vectors,
+                   scratch, mats, ints, zero, responses[column])
     _spin_loads(q, qd, zero, constants, contact, vecs[ORIGIN])
     _load_gain(theta, constants, contact, mats[GAIN])
     v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
@@ -1226,8 +1211,8 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
                 value += loads[wheel] * columns[1 + sliders + wheel, j]
         total[j] = value + friction[j]
     acceleration = solution[QDD]
-    _constrained(factor, total, rhs, True, way, matrix, count, gram, lower, scratch, null, null_lower, kept, vectors,
-                 vecs[SOLUTION], acceleration)
+    _responded(factor, total, rhs, True, count, rank, rows, matrix, gram, lower, vectors, scratch, mats, ints, zero,
+               acceleration)
     mass, yaw_inertia, spin_inertia, sx, sy = constants[0], constants[1], constants[2], constants[3], constants[4]
     ux, uy = -cos_t * sy - sin_t * sx, -sin_t * sy + cos_t * sx
     constraint = solution[CONSTRAINT]
@@ -1438,8 +1423,8 @@ def _hold(solution: np.ndarray, sliding: np.ndarray, flags: np.ndarray, contact:
 def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                contact: np.ndarray, torque: np.ndarray, dt: float, solution: np.ndarray, sliding: np.ndarray,
                rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
-               lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, vecs: np.ndarray, marks: np.ndarray,
-               out: np.ndarray, slopes: np.ndarray) -> bool:
+               lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray,
+               ints: np.ndarray, marks: np.ndarray, out: np.ndarray, slopes: np.ndarray) -> bool:
     """The RK4 step from a settled boundary (``Simulation.step``): the solution's qdd its first stage, the sticking
     set, loads and sliding wheels' friction held; whether the state it gives (``out``) is finite."""
     gains, held, sticking = vecs[PRESSED], vecs[TOTAL], marks[STICKING]
@@ -1447,7 +1432,7 @@ def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, con
     for i in range(DOF):
         slopes[0, DOF + i] = solution[QDD, i]
     return _rk4(state, references, flags, constants, torque, gains, True, sticking, held, dt, True, rows, rhs, factor,
-                matrix, gram, lower, vectors, scratch, out, slopes)
+                matrix, gram, lower, vectors, scratch, mats, ints, out, slopes)
 
 
 def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
@@ -1487,8 +1472,8 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
         if k == steps:
             return
         if not _held_step(settled[k], references[k], flags, constants, contact, torque, dt, solutions[k], sliding,
-                          rows, rhs, factor, matrix, gram, lower, vectors, scratch, vecs, marks, states[k + 1],
-                          slopes):
+                          rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks,
+                          states[k + 1], slopes):
             outcome[2] = DIVERGED
             return
         outcome[1] = k + 1
@@ -1538,13 +1523,13 @@ def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray
     """``_batch_step`` of robots first..end - 1 on one core."""
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
-    vecs, marks = np.zeros((VECTORS, 16)), np.zeros((SETS, 4), dtype=np.bool_)
+    mats, vecs, ints, marks, _, _ = _contact_workspace()
     slopes = np.zeros((4, 2 * DOF))
     for robot in range(first, end):
         if live[robot]:
             finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
                                        torques[robot], dt, solutions[robot], sliding[robot], rows, rhs, factor, matrix,
-                                       gram, lower, vectors, scratch, vecs, marks, out[robot], slopes)
+                                       gram, lower, vectors, scratch, mats, vecs, ints, marks, out[robot], slopes)
         else:
             for i in range(2 * DOF):
                 out[robot, i] = states[robot, i]
@@ -1580,9 +1565,9 @@ _contact_row = _compile(_contact_row, inline="always")
 _dot = _compile(_dot, inline="always")
 _spin_loads = _compile(_spin_loads, inline="always")
 _load_gain = _compile(_load_gain, inline="always")
-_prepare_least_squares = _compile(_prepare_least_squares)
-_apply_least_squares = _compile(_apply_least_squares, inline="always")
-_constrained = _compile(_constrained)
+_prepare_rows = _compile(_prepare_rows)
+_row_space_solve = _compile(_row_space_solve)
+_responded = _compile(_responded)
 _wheel_speeds = _compile(_wheel_speeds, inline="always")
 _kinetic_equations = _compile(_kinetic_equations)
 _lu_solve = _compile(_lu_solve)
