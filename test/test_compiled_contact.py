@@ -19,6 +19,7 @@ from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutput
 from wallbot_sim.model import contact as python_contact
 from wallbot_sim.model import kinetic_friction, wheel_forces
 from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.batch.kernel import dynamics, layout, linalg
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.contact import CoulombContact, DetachedError
 from wallbot_sim.model.robot import DOF
@@ -215,14 +216,14 @@ def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing
     count = len(rows)
     padded_rows, padded_rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
     padded_rows[:count], padded_rhs[:count] = rows, rhs
-    _, matrix, _, _, vectors, _ = kernel._workspace()
-    mats, _, ints, *_ = kernel._contact_workspace()
-    order, kept, lower = ints[kernel.ROW_ORDER], ints[kernel.ROW_KEPT], mats[kernel.ROW_FACTOR]
-    rank = kernel._prepare_rows(padded_rows, factor, count, matrix, mats[kernel.ROW_SYSTEM], lower, order, kept)
+    _, matrix, _, _, vectors, _ = dynamics._workspace()
+    mats, _, ints, *_ = layout._contact_workspace()
+    order, kept, lower = ints[layout.ROW_ORDER], ints[layout.ROW_KEPT], mats[layout.ROW_FACTOR]
+    rank = linalg._prepare_rows(padded_rows, factor, count, matrix, mats[layout.ROW_SYSTEM], lower, order, kept)
     assert rank == 6
     for column, force in enumerate(rng.normal(size=(4, DOF))):
         out = np.full(DOF, np.nan)
-        solved = kernel._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
+        solved = linalg._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
                                          lower, vectors, out)
         assert solved == (consistent or column > 0)
         if solved:
@@ -235,11 +236,11 @@ def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing
 
 def test_the_kernels_tolerances_are_the_python_models():
     """The kernel keeps its own copies (numba's cache sees changes to its own file only)."""
-    assert kernel.NEWTON_TOLERANCE == kinetic_friction._TOLERANCE
-    assert kernel.NEWTON_ITERATIONS == kinetic_friction._ITERATIONS
-    assert kernel.SETTLE_PASSES == python_contact._SETTLE_PASSES
-    assert kernel.AT_REST == python_contact._AT_REST
-    assert kernel.SPLIT_CUT == wheel_forces._SINGULAR
+    assert layout.NEWTON_TOLERANCE == kinetic_friction._TOLERANCE
+    assert layout.NEWTON_ITERATIONS == kinetic_friction._ITERATIONS
+    assert layout.SETTLE_PASSES == python_contact._SETTLE_PASSES
+    assert layout.AT_REST == python_contact._AT_REST
+    assert layout.SPLIT_CUT == wheel_forces._SINGULAR
 
 
 def test_contact_constants_are_in_the_order_the_kernel_reads_them():
@@ -251,4 +252,4 @@ def test_contact_constants_are_in_the_order_the_kernel_reads_them():
                                       params.half_wheelbase, params.half_track]
     assert constants[7:11].tolist() == robot.wheel_offsets[:, 0].tolist()
     assert constants[11:15].tolist() == robot.wheel_offsets[:, 1].tolist()
-    assert constants[kernel.ROLLING] == 0.02
+    assert constants[layout.ROLLING] == 0.02

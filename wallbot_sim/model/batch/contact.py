@@ -3,7 +3,7 @@
 Each function reads like its single-robot counterpart (``normal_loads``, ``drive_forces``,
 ``friction_use``) with the robot index first. ``BatchCoulomb`` is every robot's coulomb contact per wheel
 (``CoulombContact``): its state is each robot's sliding wheels (N, 4) and held loads (N, 4), and each
-step boundary is settled robot by robot, by the compiled kernel (engine 'numba', ``kernel._settle``) or by
+step boundary is settled robot by robot, by the compiled kernel (engine 'numba', ``kernel.settle``) or by
 the model's own ``CoulombContact`` (engine 'numpy'), into the kernel's solution layout.
 """
 
