@@ -26,7 +26,8 @@ from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
 
 if TYPE_CHECKING:
-    from wallbot_sim.model.compiled import CompiledCoulomb, CompiledDynamics, ReferenceRows
+    from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
+    from wallbot_sim.model.compiled_contact import CompiledCoulomb
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
@@ -571,7 +572,7 @@ def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
 
 
 def _compiled_coulomb(initial_time: float, dt: float) -> CompiledCoulomb:
-    from wallbot_sim.model.compiled import CompiledCoulomb
+    from wallbot_sim.model.compiled_contact import CompiledCoulomb
     return CompiledCoulomb(initial_time, dt)
 
 
