@@ -167,7 +167,7 @@ class CompiledCoulomb(Configured):
         sliding = run.sliding[:shown]
         robot = self._robot
         table = coulomb_table(loads, forces, sliding, self._directions, robot.params.wall_friction,
-                              robot.adsorption.applied_force)
+                              robot.wall_load)
         velocities = contact_velocities(settled[:, 2], settled[:, DOF:], robot.wheel_offsets, robot.params.wheel_radius)
         masks = (sliding @ (1 << np.arange(4))).tolist()
         motion = list(zip(solutions[:, kernel.QDD, :DOF], solutions[:, kernel.CONSTRAINT, :DOF],
