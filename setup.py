@@ -60,7 +60,7 @@ setup(
         'pyyaml',
         'rosbags>=0.11,<0.12',  # BagWriter writes MCAP records and chunks in rosbags' own layout
         'matplotlib',
-        'numba',
+        'numba>=0.68',  # the kernel's cache locators (wallbot_sim/model/batch/kernel/compiling.py) by their public names
         'dask[distributed]',
     ],
     extras_require={

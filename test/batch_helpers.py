@@ -37,8 +37,9 @@ def perturbed_starts(rng: np.random.Generator, robots: list[Robot], scenario) ->
     return q0, qd0
 
 
-def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray) -> None:
-    """|batch - single| within TOLERANCE of the single robot's largest magnitude of that quantity."""
-    scale = np.max(np.abs(single_values))
+def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray, floor: float = 0.0) -> None:
+    """|batch - single| within TOLERANCE of the single robot's largest magnitude of that quantity, or of ``floor`` in
+    its unit where that is larger (a quantity that is round-off, such as a sticking wheel's slip velocity)."""
+    scale = max(float(np.max(np.abs(single_values))), floor)
     error = np.max(np.abs(batch_values - single_values))
     assert error <= TOLERANCE * scale, f'{name}: batch differs by {error:.3g}, {error / scale:.3g} relative'

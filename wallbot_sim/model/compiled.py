@@ -6,12 +6,12 @@ stacking order and the same normal-equation solve as the numba batch engine (whi
 Python model to 1e-9). The loads, friction use and drive forces of a chunk are measured at once with
 the batch's array functions; the reference at the RK4 instants is sampled in Python for the chunk.
 
-Coulomb contact (per wheel) stays on the Python path of ``Simulation``.
+With coulomb contact the same is done by ``wallbot_sim.model.compiled_contact``.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import NamedTuple, Self
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.constraints.look_ahead import PointReference
-from wallbot_sim.model.contact import IDEAL
+from wallbot_sim.model.contact import COULOMB
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepTable
@@ -43,20 +43,23 @@ def require_numba() -> None:
 
 
 def compile_kernel() -> None:
-    """Compile the kernel's run and the tracking controller's inverse dynamics, or load them from numba's cache
+    """Compile the kernel's runs and the tracking controller's inverse dynamics, or load them from numba's cache
     (which the first compilation on a machine writes, 20-60 s), so that no first numba step waits for them."""
-    compile_run(IDEAL)
+    compile_run(COULOMB)
     compile_inverse_dynamics()
 
 
 def compile_run(contact: str) -> None:
     """Compile what a numba ``Simulation`` under ``contact`` steps by, or load it from numba's cache: the kernel's
-    run, which takes the steps under the trajectory task whatever the contact model (a driven robot's coulomb
-    contact runs on the Python model)."""
+    run, which takes the steps under the trajectory task whatever the contact model, and with coulomb contact
+    its contact run, which takes a driven robot's."""
     still = np.zeros(DOF)
     simulation = Simulation(Robot(RobotParameters()), Circle(1.0, 20.0), ConstraintSelection.parse('belt'),
                             still, still, contact=contact, engine=NUMBA)
     simulation.step()
+    if contact == COULOMB:
+        simulation.set_constraints(ConstraintSelection.structural(trajectory=False))
+        simulation.step()
 
 
 def compile_inverse_dynamics() -> None:
@@ -146,19 +149,11 @@ class CompiledRun(NamedTuple):
         return min(self.taken + 1, len(self.residuals))
 
 
-class CompiledDynamics:
-    """The motion, outputs and RK4 steps of one robot, for what a ``Simulation`` has active now.
+class Configured:
+    """The kernel's constants for what a ``Simulation`` has active now: the robot's, the module flags, the reference.
 
     ``configure`` is cheap when nothing changed (it compares identities), so the simulation calls it
-    before each use.
-
-    The kernel takes steps ahead, a chunk per call (``robot_run``), and ``measured`` and ``step``
-    answer from the chunk while the simulation goes on from the state handed out last, under the
-    same configuration and motor torque (the same objects): the states and motions one kernel step
-    at a time gives, to the bit, with the chunk's loads, friction use and drive forces measured at
-    once. Any other state starts a new chunk there. A chunk used to its end doubles the next, up to
-    AHEAD_MOST; a change starts again at AHEAD_FIRST (a driven run's commands change the torque
-    every control period.
+    before each use; what changed drops the steps taken ahead (``_forget``).
     """
 
     def __init__(self, initial_time: float, dt: float) -> None:
@@ -172,6 +167,53 @@ class CompiledDynamics:
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
         self._torque_pair: tuple[float, float] | None = None
         self._torque = np.zeros(2)
+
+    def configure(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
+                  reference: Reference | None, dt: float) -> Self:
+        """Take the simulation's robot, gains, active set and reference (rebuilding what changed); returns self."""
+        if robot is not self._robot or gains is not self._gains:
+            self._robot, self._gains = robot, gains
+            self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
+                                                     np.array([gains.beta]))[0]
+            self._forget(robot_changed=True)
+        if selection is not self._selection:
+            self._selection = selection
+            self._flags, self._rows = kernel.module_flags(selection.active_names())
+            self._forget()
+        if reference is not self._reference or dt != self._dt:
+            self._reference, self._dt = reference, dt
+            self._forget()
+        return self
+
+    def _forget(self, robot_changed: bool = False) -> None:
+        """Drop what was computed for the configuration before."""
+
+    def reference_rows(self, step: int, instants: int) -> ReferenceRows:
+        """The reference at the RK4 instants of ``instants`` steps from the simulation's ``step``-th: the Python
+        part of a ``run``, which can be done beforehand."""
+        return ReferenceRows((self._reference, self._initial_time, self._dt, step),
+                             kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt))
+
+    def _torque_array(self, torque: tuple[float, float]) -> np.ndarray:
+        if torque is not self._torque_pair:
+            self._torque_pair, self._torque = torque, np.array(torque, dtype=float)
+        return self._torque
+
+
+class CompiledDynamics(Configured):
+    """The motion, outputs and RK4 steps of one robot with ideal contact, for what a ``Simulation`` has active now.
+
+    The kernel takes steps ahead, a chunk per call (``robot_run``), and ``measured`` and ``step``
+    answer from the chunk while the simulation goes on from the state handed out last, under the
+    same configuration and motor torque (the same objects): the states and motions one kernel step
+    at a time gives, to the bit, with the chunk's loads, friction use and drive forces measured at
+    once. Any other state starts a new chunk there. A chunk used to its end doubles the next, up to
+    AHEAD_MOST; a change starts again at AHEAD_FIRST (a driven run's commands change the torque
+    every control period).
+    """
+
+    def __init__(self, initial_time: float, dt: float) -> None:
+        super().__init__(initial_time, dt)
         self._batches: dict[int, RobotBatch] = {}
         """RobotBatch of that many copies of the robot, by size (the chunks' sizes are few)."""
         self._ahead: CompiledRun | None = None
@@ -182,23 +224,10 @@ class CompiledDynamics:
         self._ahead_size = AHEAD_FIRST
         self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray, WheelOutputs] | None = None
 
-    def configure(self, robot: Robot, gains: BaumgarteGains, selection: ConstraintSelection,
-                  reference: Reference | None, dt: float) -> CompiledDynamics:
-        """Take the simulation's robot, gains, active set and reference (rebuilding what changed); returns self."""
-        if robot is not self._robot or gains is not self._gains:
-            self._robot, self._gains = robot, gains
-            self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
-                                                     np.array([gains.beta]))[0]
+    def _forget(self, robot_changed: bool = False) -> None:
+        if robot_changed:
             self._batches = {}
-            self._ahead = None
-        if selection is not self._selection:
-            self._selection = selection
-            self._flags, self._rows = kernel.module_flags(selection.active_names())
-            self._ahead = None
-        if reference is not self._reference or dt != self._dt:
-            self._reference, self._dt = reference, dt
-            self._ahead = None
-        return self
+        self._ahead = None
 
     def measured(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> Measured:
         """The motion, normal loads, friction use, drive forces and outputs per wheel at y (14,), the simulation's
@@ -236,12 +265,6 @@ class CompiledDynamics:
         self._ahead_step, self._ahead_row, self._ahead_torque = step, 0, torque
         self._ahead_measured = None
         return 0
-
-    def reference_rows(self, step: int, instants: int) -> ReferenceRows:
-        """The reference at the RK4 instants of ``instants`` steps from the simulation's ``step``-th: the Python
-        part of a ``run``, which can be done beforehand."""
-        return ReferenceRows((self._reference, self._initial_time, self._dt, step),
-                             kernel.reference_samples(self._reference, self._initial_time, step, instants, self._dt))
 
     def run(self, y: np.ndarray, step: int, torque: tuple[float, float], instants: int, steps: int,
             sampled: ReferenceRows | None = None) -> CompiledRun:
@@ -283,8 +306,3 @@ class CompiledDynamics:
         drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)
         wheels = ideal_wheel_outputs(self._robot, q[:, :DOF], q[:, DOF:], run.motions[:shown, 2, :3], loads)
         return loads, friction_use(robots, drive, loads), drive, wheels
-
-    def _torque_array(self, torque: tuple[float, float]) -> np.ndarray:
-        if torque is not self._torque_pair:
-            self._torque_pair, self._torque = torque, np.array(torque, dtype=float)
-        return self._torque

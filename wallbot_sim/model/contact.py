@@ -28,7 +28,7 @@ from wallbot_sim.model.normal_loads import load_acceleration_gain, normal_loads
 from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.robot import Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
-from wallbot_sim.model.wheel_forces import split_contact_force
+from wallbot_sim.model.wheel_forces import split_contact_force, wheel_use
 
 IDEAL, COULOMB = 'ideal', 'coulomb'
 CONTACT_MODELS = (IDEAL, COULOMB)
@@ -38,6 +38,9 @@ WHEELS = frozenset(range(4))
 _ROW_OF_DIRECTION = {LONGITUDINAL: LONGITUDINAL_ROW, LATERAL: LATERAL_ROW}
 _SETTLE_PASSES = 8
 """Rounds of a boundary's transitions at most (each round stops a reversing wheel for good)."""
+_AT_REST = 1e-12
+"""Contact speed (m/s) up to which a wheel is at rest: the round-off a projection leaves, with no direction that a
+step could reverse."""
 
 
 def check_contact_model(name: str) -> str:
@@ -187,7 +190,7 @@ class CoulombContact:
         stopped: set[int] = set()
         for _ in range(_SETTLE_PASSES):
             reversing = {wheel for wheel in solution.sliding - stopped
-                         if float(solution.velocities[wheel] @ solution.predicted[wheel]) < 0.0}
+                         if _reverses(solution, wheel, layout.directions)}
             if reversing:
                 stopped |= reversing
                 qd = project(layout.active(layout.wheels - sliding | frozenset(reversing)), qd)
@@ -208,8 +211,7 @@ class CoulombContact:
                                if not _holds(solution, wheel, static[wheel])}:
                 sliding = sliding | exceeded
                 solution = self._solve(robot, layout, sliding, t, q, qd, dt, motor_torque, kinetic)
-            if not any(float(solution.velocities[wheel] @ solution.predicted[wheel]) < 0.0
-                       for wheel in solution.sliding - stopped):
+            if not any(_reverses(solution, wheel, layout.directions) for wheel in solution.sliding - stopped):
                 break
         self.sliding, self.loads = sliding, solution.loads
         return qd, solution
@@ -269,19 +271,60 @@ def _speed(velocity: np.ndarray, directions: Sequence[int]) -> float:
     return float(np.linalg.norm(velocity[list(directions)]))
 
 
+def _reverses(solution: ContactSolution, wheel: int, directions: Sequence[int]) -> bool:
+    """Whether the step would reverse the wheel's slip, v_i . w_i < 0; never for a wheel at rest (|v_i| up to
+    _AT_REST), whose velocity's direction is round-off."""
+    velocity = solution.velocities[wheel]
+    return float(velocity @ solution.predicted[wheel]) < 0.0 and _speed(velocity, directions) > _AT_REST
+
+
 def _holds(solution: ContactSolution, wheel: int, static_friction: np.floating) -> bool:
     """Whether the wheel's force lies in its friction disc, |f_i| <= mu_s N_i."""
     force = solution.wheel_forces[wheel]
     return not float(np.hypot(force[0], force[1])) > static_friction * float(solution.loads[wheel])
 
 
-def channel_slipping(sliding: frozenset[int], directions: Sequence[int]) -> tuple[bool, bool, bool]:
-    """The paper's channels (left, right, lateral) that a sliding wheel belongs to: a side's traction when a wheel
-    of that side slides with longitudinal friction, the lateral channel when any wheel slides with lateral
-    friction."""
+class CoulombTable(NamedTuple):
+    """What coulomb contact's outputs derive from settled boundaries, at consecutive instants or robots (rows)."""
+
+    drive: np.ndarray
+    """(F_L, F_R, F_lat) (T, 3): the channels as sums of the wheels' forces (each side's longitudinal forces, every
+    lateral one)."""
+    use: np.ndarray
+    """The channels' friction use (T, 3) (``friction_use``)."""
+    limits: np.ndarray
+    """mu_s (N_1 + N_2), mu_s (N_3 + N_4), mu_s F_ad (T, 3)."""
+    slipping: np.ndarray
+    """(T, 3) bool: the channels a sliding wheel belongs to (a side's traction when a wheel of that side slides with
+    longitudinal friction, the lateral channel when any wheel slides with lateral friction)."""
+    wheel_use: np.ndarray
+    """|f_i| / (mu_s N_i) (T, 4) (``wheel_use``)."""
+
+
+def coulomb_table(loads: np.ndarray, wheel_forces: np.ndarray, sliding: np.ndarray, directions: Sequence[int],
+                  static_friction: float | np.ndarray, wall_load: float | np.ndarray,
+                  wheel_static_friction: np.ndarray | None = None) -> CoulombTable:
+    """The outputs of settled boundaries from their loads (T, 4), wheel forces (T, 4, 2) and sliding wheels (T, 4):
+    one definition for the single robot's engines and the batch's, the lift-off instant's (a lifted wheel slides
+    with no force) included. ``static_friction`` (the channels') and ``wall_load`` (F_ad + m_t g cos i, bounding
+    the lateral channel): one value, or one per row; ``wheel_static_friction`` (T, 4) each wheel's mu_s where it
+    is on a patch of its own (None: ``static_friction``)."""
+    static, adhesion = np.asarray(static_friction, dtype=float), np.asarray(wall_load, dtype=float)
+    along, across = wheel_forces[..., 0], wheel_forces[..., 1]
+    drive = np.stack((along[:, 0] + along[:, 1], along[:, 2] + along[:, 3],
+                      across[:, 0] + across[:, 1] + across[:, 2] + across[:, 3]), axis=1)
+    bounding = np.stack((loads[:, 0] + loads[:, 1], loads[:, 2] + loads[:, 3],
+                         np.broadcast_to(adhesion, loads[:, 0].shape)), axis=1)
+    limits = static[..., None] * bounding
+    magnitude = np.abs(drive)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        ratio = magnitude / limits
+    use = np.where(limits > 0.0, ratio, np.where(magnitude == 0.0, 0.0, np.inf))
     longitudinal, lateral = LONGITUDINAL_ROW in directions, LATERAL_ROW in directions
-    return (longitudinal and bool(sliding & {0, 1}), longitudinal and bool(sliding & {2, 3}),
-            lateral and bool(sliding))
+    slipping = np.stack((longitudinal & (sliding[:, 0] | sliding[:, 1]), longitudinal & (sliding[:, 2] | sliding[:, 3]),
+                         lateral & np.any(sliding, axis=1)), axis=1)
+    wheel_static = static[..., None] if wheel_static_friction is None else wheel_static_friction
+    return CoulombTable(drive, use, limits, slipping, wheel_use(wheel_forces, loads, wheel_static))
 
 
 def unheld_slip(robot: Robot, selection: ConstraintSelection, out: StepOutputs) -> dict[str, float]:

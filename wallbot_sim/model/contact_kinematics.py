@@ -57,11 +57,13 @@ class ContactKinematics:
         return np.array([thd * (-sin_t * xd + cos_t * yd), -thd * (cos_t * xd + sin_t * yd)])
 
 
-def contact_velocities(theta: np.ndarray, qd: np.ndarray, offsets: np.ndarray, radius: float) -> np.ndarray:
-    """v (T, 4, 2) of consecutive instants (theta (T,), qd (T, 7)): what the outputs report as slip velocity."""
+def contact_velocities(theta: np.ndarray, qd: np.ndarray, offsets: np.ndarray,
+                       radius: float | np.ndarray) -> np.ndarray:
+    """v (T, 4, 2) of consecutive instants or robots (theta (T,), qd (T, 7)): what the outputs report as slip
+    velocity. ``offsets``: d_i (4, 2), or (T, 4, 2) with ``radius`` (T, 1) for robots of their own."""
     cos_t, sin_t = np.cos(theta), np.sin(theta)
     xd, yd, thd = qd[:, 0], qd[:, 1], qd[:, 2]
     v_long, v_lat = cos_t * xd + sin_t * yd, -sin_t * xd + cos_t * yd
-    along = v_long[:, None] - offsets[:, 1] * thd[:, None] - radius * qd[:, 3:]
-    across = v_lat[:, None] + offsets[:, 0] * thd[:, None]
+    along = v_long[:, None] - offsets[..., 1] * thd[:, None] - radius * qd[:, 3:]
+    across = v_lat[:, None] + offsets[..., 0] * thd[:, None]
     return np.stack((along, across), axis=2)

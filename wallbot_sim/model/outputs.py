@@ -35,12 +35,6 @@ def drive_forces(theta: float, chassis_wrench: np.ndarray, half_track: float) ->
                        -sin_t * fx + cos_t * fy)
 
 
-def wheel_force_sums(forces: np.ndarray) -> DriveForces:
-    """The channels as sums of the wheels' forces f_i (4, 2): each side's longitudinal forces, every lateral one."""
-    (left_front, lateral_1), (left_rear, lateral_2), (right_front, lateral_3), (right_rear, lateral_4) = forces.tolist()
-    return DriveForces(left_front + left_rear, right_front + right_rear, lateral_1 + lateral_2 + lateral_3 + lateral_4)
-
-
 def side_motor_torques(drive: DriveForces, wheel_torques: Sequence[float], wheel_radius: float) -> tuple[float, float]:
     """(tau_L, tau_R): what each side's motor delivers, or would have to deliver.
 
@@ -66,7 +60,7 @@ class ContactOutputs:
     limits: tuple[float, float, float]
     """Friction limit per channel: mu_s (N_1 + N_2), mu_s (N_3 + N_4), mu_s F_ad (N)."""
     slipping: tuple[bool, bool, bool]
-    """Whether each channel (left, right, lateral) has a sliding wheel (``channel_slipping``); never with ideal
+    """Whether each channel (left, right, lateral) has a sliding wheel (``coulomb_table``); never with ideal
     contact."""
     friction_force: np.ndarray | None
     """Q_f (7,), the kinetic friction of the sliding wheels; None while none slides."""

@@ -10,24 +10,24 @@ import numpy as np
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
 from wallbot_sim.model.contact import (
-    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, channel_slipping, check_contact_model)
+    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, check_contact_model, coulomb_table)
 from wallbot_sim.model.contact_kinematics import contact_velocities
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import (
-    ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces, wheel_force_sums)
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
-from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs, wheel_use
+from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 from wallbot_sim.model.trajectories import LastSample, Reference
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
 
 if TYPE_CHECKING:
     from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
+    from wallbot_sim.model.compiled_contact import CompiledCoulomb
 
 DEFAULT_STEP = 1e-3
 """The paper's fixed RK4 step (s)."""
@@ -64,9 +64,8 @@ class Simulation:
     computes them), and a wheel lifting off raises DetachedError from ``step`` after the outputs
     of that instant were available.
 
-    ``engine`` 'numba' computes the motion and the RK4 step by the batch's compiled kernel
-    (``model.compiled``) with ideal contact, while no ``extra_modules`` are active; coulomb contact and
-    modules of your own stay on the Python path.
+    ``engine`` 'numba' computes the motion, the coulomb boundaries and the RK4 steps by the batch's compiled
+    kernel (``model.compiled``) while no ``extra_modules`` are active; modules of your own stay on the Python path.
     """
 
     def __init__(self, robot: Robot, reference: Reference | None, selection: ConstraintSelection,
@@ -97,6 +96,8 @@ class Simulation:
         if engine == NUMBA:
             refuse_compiled(robot)
         self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
+        self._compiled_coulomb: CompiledCoulomb | None = None
+        """The kernel's coulomb boundaries and steps (engine 'numba'), made at their first use."""
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
         """The commanded side torques (N m); ``applied_torque`` is what acts."""
         self._held_torque: tuple[np.ndarray | None, tuple[float, float]] = (None, self.motor_torque)
@@ -275,14 +276,8 @@ class Simulation:
         return SwitchReport(previous, selection, before, after)
 
     def _project(self, modules: Sequence[ConstraintModule], qd: np.ndarray) -> np.ndarray:
-        """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules``."""
-        q = self._y[:DOF]
-        rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
-        if not rows:
-            return qd
-        rows = np.vstack(rows)
-        weighted = self.robot.mass_matrix_inverse(q) @ rows.T
-        return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
+        """``impulsive_projection`` of ``qd`` at the current q."""
+        return impulsive_projection(self.robot, modules, self._y[:DOF], qd)
 
     def _build(self, selection: ConstraintSelection, reference: Reference | None,
                gains: BaumgarteGains) -> list[ConstraintModule]:
@@ -315,7 +310,15 @@ class Simulation:
         """
         if self._cached is None:
             q = self._y[:DOF]
-            if self.coulomb_applies:
+            compiled_contact = self._compiled_contact()
+            if compiled_contact is not None:
+                boundary = compiled_contact.boundary(self._y, self.steps, self.motor_torque, self._coulomb)
+                self._y, q, qd = boundary.y, boundary.y[:DOF], boundary.y[DOF:]
+                layout = self._coulomb.layout(self._modules)
+                self._active = layout.active(layout.wheels - self._coulomb.sliding)
+                self._friction, self._held_loads = boundary.friction, self._coulomb.loads
+                motion, drive, contact = boundary.motion, boundary.drive, boundary.contact
+            elif self.coulomb_applies:
                 velocities = self._y[DOF:]
                 qd, solution = self._coulomb.settle(self.robot, self._modules, self._t, q, velocities, self.dt,
                                                     self.applied_torque, self._project)
@@ -325,8 +328,7 @@ class Simulation:
                     self._held_torque = (self._y, torque)
                     q = self._y[:DOF]
                 self._active, self._friction, self._held_loads = solution.active, solution.friction, solution.loads
-                motion, drive = solution.motion, wheel_force_sums(solution.wheel_forces)
-                contact = self._coulomb_contact(q, qd, solution, drive)
+                motion, drive, contact = solution.motion, *self._coulomb_contact(q, qd, solution)
             else:
                 qd = self._y[DOF:]
                 compiled = self._compiled_now()
@@ -350,16 +352,18 @@ class Simulation:
         return ContactOutputs(loads, use, self._limits(loads), (False, False, False), None, wheels.forces[0],
                               wheels.use[0], (False, False, False, False), wheels.velocities[0])
 
-    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray, solution: ContactSolution,
-                         drive: DriveForces) -> ContactOutputs:
-        """Coulomb contact's outputs at a settled boundary: the channels as sums of the wheels' forces."""
-        loads, static = solution.loads, self.robot.params.wall_friction
-        layout = self._coulomb.layout(self._modules)
-        return ContactOutputs(
-            loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.wall_load, static),
-            self._limits(loads), channel_slipping(solution.sliding, layout.directions), solution.friction_force,
-            solution.wheel_forces, wheel_use(solution.wheel_forces[None], loads[None], self.robot.wheel_friction(q)[0])[0],
-            tuple(wheel in solution.sliding for wheel in range(4)),  # type: ignore[arg-type]
+    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray,
+                         solution: ContactSolution) -> tuple[DriveForces, ContactOutputs]:
+        """Coulomb contact's drive forces and outputs at a settled boundary (``coulomb_table``: the channels as sums
+        of the wheels' forces, each wheel's use against its own mu_s)."""
+        sliding = tuple(wheel in solution.sliding for wheel in range(4))
+        table = coulomb_table(solution.loads[None], solution.wheel_forces[None], np.array([sliding]),
+                              self._coulomb.layout(self._modules).directions, self.robot.params.wall_friction,
+                              self.robot.wall_load, self.robot.wheel_friction(q)[0][None])
+        return DriveForces(*table.drive[0].tolist()), ContactOutputs(
+            solution.loads, FrictionUse(*table.use[0].tolist()), tuple(table.limits[0].tolist()),  # type: ignore
+            tuple(table.slipping[0].tolist()), solution.friction_force, solution.wheel_forces,  # type: ignore
+            table.wheel_use[0], sliding,  # type: ignore[arg-type]
             contact_velocities(q[None, 2], qd[None], self.robot.wheel_offsets, self.robot.params.wheel_radius)[0])
 
     def _measure(self, motion: ConstrainedMotion, qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
@@ -383,7 +387,7 @@ class Simulation:
             wheel = contact.detached_wheel
             if wheel is not None:
                 raise DetachedError(wheel, float(contact.loads[wheel - 1]), self._t)
-        compiled = self._compiled_now()
+        compiled = self._compiled_now() or self._compiled_contact()
         if compiled is not None:
             y = compiled.step(self._y, self.steps, self.motor_torque)
         else:
@@ -422,6 +426,15 @@ class Simulation:
         if self._compiled is None or self._extra_modules or self.coulomb_applies:
             return None
         return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
+
+    def _compiled_contact(self) -> CompiledCoulomb | None:
+        """The compiled coulomb boundaries and steps configured for what is active, when they cover it (engine
+        'numba', coulomb contact applying, no modules of your own)."""
+        if self._compiled is None or self._extra_modules or not self.coulomb_applies:
+            return None
+        if self._compiled_coulomb is None:
+            self._compiled_coulomb = _compiled_coulomb(self._initial[0], self.dt)
+        return self._compiled_coulomb.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
 
     def run(self, duration: float, on_step: Callable[[StepOutputs], None] | None = None) -> StepOutputs:
         """Step for ``duration`` seconds; ``on_step`` sees the outputs at every instant, both ends included."""
@@ -533,6 +546,18 @@ def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q
     return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
 
 
+def impulsive_projection(robot: Robot, modules: Sequence[ConstraintModule], q: np.ndarray,
+                         qd: np.ndarray) -> np.ndarray:
+    """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules`` at q: the impulse of a
+    constraint switch, the least kinetic energy change that imposes them."""
+    rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
+    if not rows:
+        return qd
+    rows = np.vstack(rows)
+    weighted = robot.mass_matrix_inverse(q) @ rows.T
+    return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
+
+
 def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray,
                        qd: np.ndarray, motor_torque: tuple[float, float] = (0.0, 0.0)) -> ConstrainedMotion:
     """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
@@ -544,6 +569,11 @@ def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
     # imported here: model.compiled reaches the batch package, which imports this module
     from wallbot_sim.model.compiled import CompiledDynamics
     return CompiledDynamics(initial_time, dt)
+
+
+def _compiled_coulomb(initial_time: float, dt: float) -> CompiledCoulomb:
+    from wallbot_sim.model.compiled_contact import CompiledCoulomb
+    return CompiledCoulomb(initial_time, dt)
 
 
 RowKey = tuple[str, tuple[int, int] | None]

@@ -26,8 +26,8 @@ _SINGULAR = 1e-12
 
 
 def split_chassis_wrench(theta: np.ndarray, wrench: np.ndarray, loads: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """f (T, 4, 2), body axes, of consecutive instants: theta (T,), wrench (F_X, F_Y, M_Z) (T, 3) in the wall frame,
-    loads (T, 4), offsets d_i (4, 2).
+    """f (T, 4, 2), body axes, of consecutive instants or robots: theta (T,), wrench (F_X, F_Y, M_Z) (T, 3) in the
+    wall frame, loads (T, 4), offsets d_i (4, 2), or (T, 4, 2) for robots of their own.
 
     With weights n_i = max(N_i, 0), f_i = n_i (l_x - s_i l_m, l_y + a_i l_m), the multipliers solving
     sum f_x = F_bx, sum f_y = F_by, sum (a_i f_y - s_i f_x) = M_Z in closed form:
@@ -45,14 +45,16 @@ def _split(theta: np.ndarray, wrench: np.ndarray, loads: np.ndarray, offsets: np
     force_y = -sin_t * wrench[:, 0] + cos_t * wrench[:, 1]
     moment = wrench[:, 2]
     weights = np.maximum(loads, 0.0)
-    along, across = offsets[:, 0], offsets[:, 1]
+    along, across = offsets[..., 0], offsets[..., 1]
     radii = along * along + across * across
     # sums written out: the same operations at every table size (a reduction's order may depend on its length)
     total = weights[:, 0] + weights[:, 1] + weights[:, 2] + weights[:, 3]
-    sum_a = weights[:, 0] * along[0] + weights[:, 1] * along[1] + weights[:, 2] * along[2] + weights[:, 3] * along[3]
-    sum_s = (weights[:, 0] * across[0] + weights[:, 1] * across[1] + weights[:, 2] * across[2]
-             + weights[:, 3] * across[3])
-    sum_r = weights[:, 0] * radii[0] + weights[:, 1] * radii[1] + weights[:, 2] * radii[2] + weights[:, 3] * radii[3]
+    sum_a = (weights[:, 0] * along[..., 0] + weights[:, 1] * along[..., 1] + weights[:, 2] * along[..., 2]
+             + weights[:, 3] * along[..., 3])
+    sum_s = (weights[:, 0] * across[..., 0] + weights[:, 1] * across[..., 1] + weights[:, 2] * across[..., 2]
+             + weights[:, 3] * across[..., 3])
+    sum_r = (weights[:, 0] * radii[..., 0] + weights[:, 1] * radii[..., 1] + weights[:, 2] * radii[..., 2]
+             + weights[:, 3] * radii[..., 3])
     spread = total * sum_r - sum_s * sum_s - sum_a * sum_a
     loaded = total > 0.0
     turning = loaded & (spread > _SINGULAR * total * sum_r)

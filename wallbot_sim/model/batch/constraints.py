@@ -12,7 +12,8 @@ from typing import Callable, Protocol
 import numpy as np
 
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
-from wallbot_sim.model.constraints import LATERAL, LEFT, RIGHT
+from wallbot_sim.model.constraints import LATERAL, LONGITUDINAL
+from wallbot_sim.model.contact_kinematics import LATERAL_ROW, LONGITUDINAL_ROW
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import stacked_product
@@ -42,8 +43,9 @@ class BatchGains:
 class BatchConstraint(Protocol):
     """One constraint of every robot of the batch.
 
-    A wheel-wall contact module also has ``channels`` and ``row_wheels``: the friction channel of each row
-    and the wheels bounding it (the batch's coulomb contact limits friction per channel).
+    A wheel-wall contact module also has ``direction``, the direction of the wheels' contact velocity its
+    friction holds (``ContactConstraint.direction``): with coulomb contact its place goes to every wheel's
+    contact row in that direction (``BatchWheelContact``).
     """
 
     name: str
@@ -51,13 +53,6 @@ class BatchConstraint(Protocol):
     def rows(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A_k (N, k, 7) and b_k (N, k) at time t and states (q, qd), each (N, 7)."""
         ...
-
-
-_ALL_WHEELS = np.ones((1, 4))
-"""Lateral friction is bounded by the whole adhesion force, the sum of the four loads."""
-_OWN_WHEEL = np.eye(4)
-"""Each nonslip row's friction is bounded by its own wheel's load."""
-_ALL_WHEELS.flags.writeable = _OWN_WHEEL.flags.writeable = False
 
 
 def _unit_rows(size: int, columns: tuple[int, ...]) -> np.ndarray:
@@ -85,8 +80,7 @@ class BatchNonLateral:
     """Row [-sin th, cos th, 0, ...], b = thd v_long - gam v_lat."""
 
     name = 'non_lateral'
-    channels = (LATERAL,)
-    row_wheels = _ALL_WHEELS
+    direction = LATERAL
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains
@@ -105,8 +99,7 @@ class BatchNonslip:
     """One row per wheel: [-cos th, -sin th, s_i, r at column 3+i], b = thd v_lat - gam h_i."""
 
     name = 'nonslip'
-    channels = (LEFT, LEFT, RIGHT, RIGHT)
-    row_wheels = _OWN_WHEEL
+    direction = LONGITUDINAL
 
     def __init__(self, robots: RobotBatch, gains: BatchGains) -> None:
         self.gains = gains
@@ -177,6 +170,45 @@ BATCH_MODULES: dict[str, BatchBuilder] = {
     'nonslip': lambda robots, reference, gains: BatchNonslip(robots, gains),
 }
 """The batched form of every module of ``wallbot_sim.model.constraint_set.MODULES``, by the same name."""
+
+
+class BatchWheelContact:
+    """The contact rows of every robot's sticking wheels (``WheelContact`` over a batch), and the held friction of
+    its sliding ones: J_i qdd = -c - gam v_i per wheel and direction with friction, wheel by wheel; a wheel that
+    does not stick has its rows zero (a zero row with a zero right side leaves the minimum-norm least-squares
+    solution as removing it does)."""
+
+    def __init__(self, robots: RobotBatch, gains: BatchGains, directions: tuple[int, ...]) -> None:
+        """``directions``: the rows of the contact velocity that have friction (0 along x_p, 1 along y_p)."""
+        self.gains = gains
+        self.directions = directions
+        self._template = np.zeros((robots.size, 4, 2, DOF))
+        self._template[:, :, LONGITUDINAL_ROW, 2] = -robots.wheel_offsets[:, :, 1]
+        self._template[:, :, LONGITUDINAL_ROW, 3:] = -robots.wheel_radius[:, None, None] * np.eye(4)
+        self._template[:, :, LATERAL_ROW, 2] = robots.wheel_offsets[:, :, 0]
+
+    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        """J (N, 4, 2, 7): each wheel's contact velocity v_i = J_i qd (``ContactKinematics.jacobian``)."""
+        cos_t, sin_t = np.cos(theta)[:, None], np.sin(theta)[:, None]
+        jacobian = self._template.copy()
+        jacobian[:, :, LONGITUDINAL_ROW, 0], jacobian[:, :, LONGITUDINAL_ROW, 1] = cos_t, sin_t
+        jacobian[:, :, LATERAL_ROW, 0], jacobian[:, :, LATERAL_ROW, 1] = -sin_t, cos_t
+        return jacobian
+
+    def rows(self, q: np.ndarray, qd: np.ndarray, sticking: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A (N, 4 d, 7) and b (N, 4 d) of the ``sticking`` (N, 4) wheels' rows, d the directions with friction."""
+        jacobian = self.jacobian(q[:, 2])[:, :, self.directions]
+        cos_t, sin_t = np.cos(q[:, 2]), np.sin(q[:, 2])
+        xd, yd, thd = qd[:, 0], qd[:, 1], qd[:, 2]
+        drift = np.stack((thd * (-sin_t * xd + cos_t * yd), -thd * (cos_t * xd + sin_t * yd)), axis=1)
+        velocity = np.einsum('nwdc,nc->nwd', jacobian, qd)
+        rhs = -drift[:, None, self.directions] - self.gains.velocity_gain[:, None, None] * velocity
+        rows = jacobian * sticking[:, :, None, None]
+        return rows.reshape(len(q), -1, DOF), (rhs * sticking[:, :, None]).reshape(len(q), -1)
+
+    def friction(self, q: np.ndarray, forces: np.ndarray) -> np.ndarray:
+        """Q_f (N, 7) = sum_i J_i^T f_i of the wheels' forces (N, 4, 2) in body axes (``HeldFriction``)."""
+        return np.einsum('nwd,nwdc->nc', forces, self.jacobian(q[:, 2]))
 
 
 def build_batch_modules(selection: ConstraintSelection, robots: RobotBatch, reference: Reference | None,

@@ -34,6 +34,8 @@ class RobotBatch:
         """s_i (N, 4)."""
         self.perpendicular_offsets = np.array([robot.wheel_offsets[:, ::-1] * (-1.0, 1.0) for robot in self.robots])
         """S d_i = (-d_iy, d_ix) (N, 4, 2)."""
+        self.rolling_resistance = np.array([p.rolling_resistance for p in params])
+        """f_r (N,)."""
         self.resistance_gain = np.array([p.rolling_resistance * robot.adsorption.normal_force_per_wheel
                                          for p, robot in zip(params, self.robots)])
         self.velocity_epsilon2 = np.array([p.velocity_epsilon for p in params]) ** 2
@@ -85,8 +87,15 @@ class RobotBatch:
         factor[:, range(3, DOF), range(3, DOF)] = np.sqrt(1.0 / self.spin_inertia)[:, None]
         return factor
 
-    def applied_force(self, q: np.ndarray, qd: np.ndarray, motor_torque: np.ndarray) -> np.ndarray:
-        """Q (N, 7): offset-CoM centripetal term, gravity, rolling resistance and the (N, 2) motor torques."""
+    def applied_force(self, q: np.ndarray, qd: np.ndarray, motor_torque: np.ndarray,
+                      loads: np.ndarray | None = None) -> np.ndarray:
+        """Q (N, 7): offset-CoM centripetal term, gravity, rolling resistance and the (N, 2) motor torques.
+
+        Rolling resistance f_r N at each wheel with N = F_ad / 4, or each wheel's own load where ``loads`` (N, 4)
+        are given (coulomb contact: f_r max(N_i, 0), ``Robot.applied_force``).
+        """
+        gains = (self.resistance_gain[:, None] if loads is None
+                 else self.rolling_resistance[:, None] * np.maximum(loads, 0.0))
         theta = q[:, 2]
         cos_t, sin_t = np.cos(theta), np.sin(theta)
         sx, sy = self.first_moment[:, 0], self.first_moment[:, 1]
@@ -101,7 +110,7 @@ class RobotBatch:
         arm_y = sin_t[:, None] * px + cos_t[:, None] * py
         vx = qd[:, 0:1] + thd[:, None] * arm_x
         vy = qd[:, 1:2] + thd[:, None] * arm_y
-        scale = -self.resistance_gain[:, None] / np.sqrt(vx * vx + vy * vy + self.velocity_epsilon2[:, None])
+        scale = -gains / np.sqrt(vx * vx + vy * vy + self.velocity_epsilon2[:, None])
         force[:, 0] += np.sum(scale * vx, axis=1)
         force[:, 1] += np.sum(scale * vy, axis=1)
         force[:, 2] += np.sum(scale * (arm_x * vx + arm_y * vy), axis=1)

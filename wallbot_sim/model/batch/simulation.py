@@ -7,13 +7,14 @@ from typing import Callable, NamedTuple, Sequence
 import numpy as np
 
 from wallbot_sim.model.batch import kernel
-from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, build_batch_modules
+from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, BatchWheelContact, build_batch_modules
 from wallbot_sim.model.batch.contact import (
-    BatchCoulomb, BatchMotion, ContactRows, detached_wheels, drive_forces, friction_use, normal_loads)
+    BatchCoulomb, BatchMotion, detached_wheels, drive_forces, friction_use, normal_loads)
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.batch.solver import batch_constrained_acceleration, minimum_norm_least_squares, stacked_product
+from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model
+from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model, coulomb_table
+from wallbot_sim.model.contact_kinematics import contact_velocities
 from wallbot_sim.model.errors import ModelError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
@@ -21,6 +22,7 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
 from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError
 from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample, Vec2
+from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
 
 
 class BatchOutputs(NamedTuple):
@@ -46,12 +48,20 @@ class BatchOutputs(NamedTuple):
     use: np.ndarray
     """Friction use of the channels (left, right, lateral) (N, 3)."""
     slipping: np.ndarray
-    """(N, 3) bool: the slipping channels (never with ideal contact)."""
+    """(N, 3) bool: the channels a sliding wheel belongs to (never with ideal contact)."""
     friction_force: np.ndarray
-    """Q_f (N, 7), zero while none of a robot's channels slips."""
+    """Q_f (N, 7): the sliding wheels' kinetic friction, zero while none of a robot's wheels slides."""
     detached: np.ndarray
-    """(N,) bool: the robots stopped by a lifted wheel (their state is the one they detached at)."""
+    """(N,) bool: the robots stopped by a lifted wheel (their state and outputs the ones they detached at)."""
     reference: ReferenceSample | None
+    wheel_forces: np.ndarray
+    """f_i (N, 4, 2): each wheel's tangential contact force in body axes (``ContactOutputs.wheel_forces``)."""
+    wheel_use: np.ndarray
+    """|f_i| / (mu_s N_i) (N, 4)."""
+    wheel_slipping: np.ndarray
+    """(N, 4) bool: the sliding wheels (never with ideal contact)."""
+    slip_velocity: np.ndarray
+    """v_i (N, 4, 2): each wheel's contact-point velocity in body axes."""
 
     @property
     def size(self) -> int:
@@ -89,9 +99,9 @@ class BatchSimulation:
     """N robots, one reference and one set of active constraints, advanced together by RK4 at a fixed step.
 
     ``contact`` 'ideal': every constraint held, whatever force it takes. 'coulomb' (without the
-    trajectory task, as ``Simulation``): each robot's friction channels stick or slip on their own;
+    trajectory task, as ``Simulation``): each robot's wheels stick or slide on their own (``BatchCoulomb``);
     a robot one of whose wheels lifts off stops where it detached (``detached``, ``t_detached``,
-    ``detached_wheel``) while the others go on.
+    ``detached_wheel``; its outputs stay those of that instant) while the others go on.
     """
 
     def __init__(self, robots: Sequence[Robot], reference: Reference | None, selection: ConstraintSelection,
@@ -100,8 +110,10 @@ class BatchSimulation:
         """``q0``, ``qd0``: (N, 7), row i the initial state of ``robots[i]``; ``gains``: default each robot's own.
 
         ``engine``: 'numpy', or 'numba' for the compiled step (``kernel``): fused over the steps with ideal
-        contact, a step per call with coulomb contact (each robot's stick/slip settled in the kernel), and
-        the compiled solve for the outputs step hooks see with ideal contact.
+        contact, a step per call with coulomb contact (each robot's boundary settled and stepped in the kernel),
+        and the compiled solve for the outputs step hooks see with ideal contact. With coulomb contact the
+        NumPy engine settles each robot's boundary by the model's ``CoulombContact``, one robot at a time, and
+        takes the batch's RK4 step from them.
         """
         POSITIVE.check('time step', dt)
         check_contact_model(contact)
@@ -113,7 +125,6 @@ class BatchSimulation:
         compiled = engine == NUMBA
         self._accelerations = kernel.constrained_accelerations if compiled else batch_constrained_acceleration
         """The batch's solve: the compiled one robot by robot for engine 'numba' (the outputs of ideal contact)."""
-        self._least_squares = kernel.minimum_norm_solutions if compiled else minimum_norm_least_squares
         self.robots = RobotBatch(robots)
         self.dt = dt
         self.gains = gains or BatchGains.of(self.robots)
@@ -126,12 +137,13 @@ class BatchSimulation:
         self._y = _state_matrix(self.robots.size, q0, qd0)
         self.motor_torque = np.zeros((self.robots.size, 2))
         self.steps = 0
-        counts = [module.rows(t0, self._y[:, :DOF], self._y[:, DOF:])[0].shape[1] for module in self.modules]
-        self._coulomb = BatchCoulomb(self.robots, ContactRows(self.modules, counts)) if contact == COULOMB else None
-        self._slipping_rows: np.ndarray | None = None
-        """(N, k) rows out of the solve over this step, or None while no robot slips."""
-        self._bounds: np.ndarray | None = None
-        """mu_k N_k of the slipping rows over this step (N, k)."""
+        self._coulomb = (BatchCoulomb(self.robots, selection, reference, self.gains) if contact == COULOMB
+                         else None)
+        self._others = [module for module in self.modules if not hasattr(module, 'direction')]
+        """The modules no friction holds (coulomb contact puts the wheels' contact rows in the others' place)."""
+        self._wheels = BatchWheelContact(self.robots, self.gains, self._coulomb.directions) if self._coulomb else None
+        self._held: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        """What the NumPy engine's coulomb step holds (``BatchCoulomb.held``)."""
         self.detached = np.zeros(self.size, dtype=bool)
         self.t_detached = np.full(self.size, np.nan)
         """When each detached robot's wheel lifted off (s); NaN for the others."""
@@ -140,12 +152,8 @@ class BatchSimulation:
         self._cached: BatchOutputs | None = None
         self._constants: np.ndarray | None = None
         """The compiled engine's per-robot constants, made on its first step."""
-        self._contact_constants: np.ndarray | None = None
-        """The compiled engine's per-robot contact constants (coulomb contact), made on first use."""
-        self._solutions: np.ndarray | None = None
-        """The compiled coulomb boundary's solutions (N, 7, 7) the cached outputs came from."""
         self._step_references = np.zeros((3, kernel.REFERENCE_FIELDS))
-        """The reference at the RK4 instants of the step from those outputs (``kernel.reference_samples``)."""
+        """The reference at the RK4 instants of the step from the coulomb outputs (``kernel.reference_samples``)."""
 
     @classmethod
     def from_scenario(cls, robots: Sequence[Robot], scenario: Scenario, selection: ConstraintSelection,
@@ -197,111 +205,84 @@ class BatchSimulation:
         return (force, np.concatenate([part[0] for part in parts], axis=1),
                 np.concatenate([part[1] for part in parts], axis=1))
 
-    def _contact_problem(self, t: float, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray | None,
-                         bounds: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Q + Q_f, A and b without the slipping rows (zeroed), and Q_f; the modules' rows are their velocity rows."""
-        force, rows, rhs = self._problem(t, q, qd)
-        if slipping_rows is None or self._coulomb is None:
-            return force, rows, rhs, np.zeros_like(force)
-        friction = self._coulomb.friction(rows, qd, bounds)
-        keep = ~slipping_rows
-        return force + friction, rows * keep[:, :, None], rhs * keep, friction
-
     def _derivative(self, t: float, y: np.ndarray) -> np.ndarray:
         q, qd = y[:, :DOF], y[:, DOF:]
-        force, rows, rhs, _ = self._contact_problem(t, q, qd, self._slipping_rows, self._bounds)
+        if self._held is None:
+            force, rows, rhs = self._problem(t, q, qd)
+        else:
+            force, rows, rhs = self._held_problem(t, q, qd)
         acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         return np.concatenate((qd, acceleration), axis=1)
 
-    def _motion(self, t: float, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray | None,
-                friction: np.ndarray | None) -> BatchMotion:
-        """qdd, Q_c and residual at (t, q, qd) with the slipping rows out and Q_f (N, 7) added."""
+    def _held_problem(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Q + Q_f, A and b of coulomb contact over a step (``Simulation._problem``): the rolling resistance of the
+        held loads and the held friction of the sliding wheels; the others' rows, then the sticking wheels'."""
+        assert self._held is not None and self._wheels is not None
+        sticking, loads, forces = self._held
+        force = self.robots.applied_force(q, qd, self.motor_torque, loads) + self._wheels.friction(q, forces)
+        parts = [module.rows(t, q, qd) for module in self._others] + [self._wheels.rows(q, qd, sticking)]
+        return (force, np.concatenate([part[0] for part in parts], axis=1),
+                np.concatenate([part[1] for part in parts], axis=1))
+
+    def _motion(self, t: float, q: np.ndarray, qd: np.ndarray) -> BatchMotion:
+        """qdd, Q_c and residual at (t, q, qd) with ideal contact."""
         force, rows, rhs = self._problem(t, q, qd)
-        if slipping_rows is not None:
-            keep = ~slipping_rows
-            rows, rhs = rows * keep[:, :, None], rhs * keep
-        if friction is not None:
-            force = force + friction
         acceleration = self._accelerations(self.robots.mass_inverse_factor(q), force, rows, rhs)
         misfit = stacked_product(rows, acceleration) - rhs
         return BatchMotion(acceleration, stacked_product(self.robots.mass_matrix(q), acceleration) - force,
                            np.sqrt(np.sum(misfit * misfit, axis=1)))
-
-    def _project(self, q: np.ndarray, qd: np.ndarray, slipping_rows: np.ndarray) -> np.ndarray:
-        """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the rows that do not slip (= qd - W B+ A qd)."""
-        rows = self._problem(self.t, q, qd)[1] * ~slipping_rows[:, :, None]
-        factor = self.robots.mass_inverse_factor(q)
-        return qd - stacked_product(factor, self._least_squares(rows @ factor, stacked_product(rows, qd)))
-
-    def _measure(self, q: np.ndarray, qd: np.ndarray, motion: BatchMotion,
-                 friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        loads = normal_loads(self.robots, q, qd, motion.acceleration)
-        drive = drive_forces(q[:, 2], motion.constraint_force[:, :3] + friction[:, :3], self.robots.half_track)
-        return loads, friction_use(self.robots, drive, loads)
 
     def outputs(self) -> BatchOutputs:
         """Every robot's outputs at the current state (computed once; the next step reuses their solve).
 
         With coulomb contact this is where each robot's stick/slip transitions of the boundary are made.
         """
-        if self._cached is not None:
-            return self._cached
-        t, q, qd = self.t, self._y[:, :DOF], self._y[:, DOF:]
-        if self.coulomb_applies and self.engine == NUMBA:
-            return self._compiled_contact_outputs()
-        if self.coulomb_applies:
-            assert self._coulomb is not None
-            qd, solution = self._coulomb.settle(
-                ~self.detached, qd, self.dt,
-                lambda velocities: self._problem(t, q, velocities)[1],
-                lambda slipping_rows, friction, velocities: self._motion(t, q, velocities, slipping_rows, friction),
-                lambda slipping_rows, velocities: self._project(q, velocities, slipping_rows),
-                lambda motion, friction, velocities: self._measure(q, velocities, motion, friction))
-            self._y = np.concatenate((q, qd), axis=1)
-            q = self._y[:, :DOF]
-            slipping = self._coulomb.slipping.copy()
-            if slipping.any():
-                self._slipping_rows = self._coulomb.rows.slipping_rows(slipping)
-                self._bounds = self._coulomb.bounds(slipping, self._coulomb.loads)
-            else:
-                self._slipping_rows = self._bounds = None
-            motion, friction, loads, use = solution.motion, solution.friction, solution.loads, solution.use
-        else:
-            motion = self._motion(t, q, qd, None, None)
-            friction = np.zeros_like(qd)
-            loads, use = self._measure(q, qd, motion, friction)
-            slipping = np.zeros((self.size, 3), dtype=bool)
-        drive = drive_forces(q[:, 2], motion.constraint_force[:, :3] + friction[:, :3], self.robots.half_track)
-        reference = self.reference.sample(t) if self.reference is not None else None
-        self._cached = BatchOutputs(t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force,
-                                    motion.residual, self.motor_torque.copy(), drive, loads, use, slipping, friction,
-                                    self.detached.copy(), reference)
+        if self._cached is None:
+            self._cached = self._coulomb_outputs() if self.coulomb_applies else self._ideal_outputs()
         return self._cached
 
-    def _compiled_contact_outputs(self) -> BatchOutputs:
-        """Every robot's coulomb boundary settled by the kernel, robot by robot (``kernel.batch_contact_settle``)."""
+    def _ideal_outputs(self) -> BatchOutputs:
+        t, q, qd = self.t, self._y[:, :DOF], self._y[:, DOF:]
+        motion = self._motion(t, q, qd)
+        loads = normal_loads(self.robots, q, qd, motion.acceleration)
+        wrench = motion.constraint_force[:, :3]
+        drive = drive_forces(q[:, 2], wrench, self.robots.half_track)
+        forces = split_chassis_wrench(q[:, 2], wrench, loads, self.robots.wheel_offsets)
+        return BatchOutputs(t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
+                            self.motor_torque.copy(), drive, loads, friction_use(self.robots, drive, loads),
+                            np.zeros((self.size, 3), dtype=bool), np.zeros_like(qd), self.detached.copy(),
+                            self.reference.sample(t) if self.reference is not None else None, forces,
+                            wheel_use(forces, loads, self.robots.static_friction[:, None]),
+                            np.zeros((self.size, 4), dtype=bool), self._slip_velocities(q, qd))
+
+    def _coulomb_outputs(self) -> BatchOutputs:
+        """Every live robot's boundary settled (``BatchCoulomb``), and the outputs of all (``coulomb_table``)."""
         coulomb = self._coulomb
         assert coulomb is not None
-        if self._contact_constants is None:
-            self._contact_constants = np.array([kernel.contact_constants(robot) for robot in self.robots.robots])
-        coulomb.slipping, coulomb.loads = np.ascontiguousarray(coulomb.slipping), np.ascontiguousarray(coulomb.loads)
-        self._step_references = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1, self.dt)[0]
-        solutions = kernel.batch_contact_settle(self._y, self._step_references[0], tuple(self.selection.active_names()),
-                                                self._kernel_constants(), self._contact_constants, self.motor_torque,
-                                                self.dt, coulomb.slipping, coulomb.loads, coulomb.loads_moving,
-                                                ~self.detached)
-        singular = np.flatnonzero(solutions[:, kernel.STATUS_ROW, 1])
-        if len(singular):
-            raise ModelError(f'normal loads and kinetic friction have no consistent value for robot(s) '
-                             f'{singular[:5].tolist()} (singular coupling)')
-        self._solutions = solutions
-        loads = solutions[:, kernel.LOADS_ROW]
-        self._cached = BatchOutputs(
-            self.t, self._y[:, :DOF].copy(), self._y[:, DOF:].copy(), solutions[:, 0], solutions[:, 2],
-            solutions[:, kernel.STATUS_ROW, 0], self.motor_torque.copy(), solutions[:, kernel.DRIVE_ROW, :3],
-            loads[:, :4], loads[:, 4:], coulomb.slipping.copy(), solutions[:, 3], self.detached.copy(),
-            self.reference.sample(self.t) if self.reference is not None else None)
-        return self._cached
+        live = ~self.detached
+        if self.engine == NUMBA:
+            self._step_references = kernel.reference_samples(self.reference, self.initial_time, self.steps, 1,
+                                                             self.dt)[0]
+            coulomb.settle_compiled(self._y, self._step_references, self._kernel_constants(), self.motor_torque,
+                                    self.dt, live)
+        else:
+            coulomb.settle_each(self.t, self._y, self.motor_torque, self.dt, live)
+            self._held = coulomb.held()
+        q, qd = self._y[:, :DOF], self._y[:, DOF:]
+        solutions, loads = coulomb.solutions, coulomb.solutions[:, kernel.LOADS, :4]
+        forces = solutions[:, kernel.FORCES].reshape(self.size, 4, 2)
+        table = coulomb_table(loads, forces, coulomb.sliding, coulomb.directions, self.robots.static_friction,
+                              self.robots.adhesion_force)
+        return BatchOutputs(
+            self.t, q.copy(), qd.copy(), solutions[:, kernel.QDD, :DOF].copy(),
+            solutions[:, kernel.CONSTRAINT, :DOF].copy(), solutions[:, kernel.STATUS, kernel.RESIDUAL].copy(),
+            self.motor_torque.copy(), table.drive, loads.copy(), table.use, table.slipping,
+            solutions[:, kernel.FRICTION, :DOF].copy(), self.detached.copy(),
+            self.reference.sample(self.t) if self.reference is not None else None, forces.copy(), table.wheel_use,
+            coulomb.sliding.copy(), self._slip_velocities(q, qd))
+
+    def _slip_velocities(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return contact_velocities(q[:, 2], qd, self.robots.wheel_offsets, self.robots.wheel_radius[:, None])
 
     def _kernel_constants(self) -> np.ndarray:
         if self._constants is None:
@@ -372,11 +353,10 @@ class BatchSimulation:
     def _compiled_contact_step(self) -> None:
         """Every live robot's RK4 step from its settled boundary by the kernel (``kernel.batch_contact_step``)."""
         coulomb = self._coulomb
-        assert coulomb is not None and self._solutions is not None and self._contact_constants is not None
+        assert coulomb is not None
         y, finite = kernel.batch_contact_step(self._y, self._step_references, tuple(self.selection.active_names()),
-                                              self._kernel_constants(), self._contact_constants, self.motor_torque,
-                                              self.dt, coulomb.slipping, coulomb.loads, ~self.detached,
-                                              self._solutions)
+                                              self._kernel_constants(), coulomb.contact, self.motor_torque,
+                                              self.dt, coulomb.sliding, ~self.detached, coulomb.solutions)
         self._advance(y, finite)
 
     def run(self, steps: int, on_step: StepHook | None = None) -> BatchOutputs | None:

@@ -1,0 +1,111 @@
+"""The batch compiled with numba: the RK4 steps robot by robot, ideal contact fused, coulomb contact settled.
+
+The NumPy path (``BatchSimulation`` with ``engine='numpy'``) spends its time in whole-batch
+array passes: every operation of a derivative reads and writes (N, k, 7) arrays, so a step is
+bound by memory traffic and ~200 NumPy calls. This kernel computes the same derivative robot by
+robot in registers and small scratch arrays, all the steps of a ``run`` at once (the reference
+sampled beforehand, shared by all robots), the robots split over the cores. It is the same
+computation as the NumPy path, operation for operation where it can be: the model's forces,
+the rows of the modules of ``BATCH_MODULES`` in stacking order, the Udwadia-Kalaba solve by
+normal equations with the pivoted (rank-revealing) fallback per robot, and RK4's sums. The
+agreement tests run both.
+
+``constrained_accelerations`` is the solve alone (the NumPy engine's ``batch_constrained_acceleration``
+robot by robot), for what the fused step does not cover: the outputs step hooks see with ideal contact.
+
+``robot_run`` takes one robot's RK4 steps a chunk at a time, with the motion (qdd, Q, Q_c, residual) at
+each state, for ``Simulation(..., engine='numba')`` (``wallbot_sim.model.compiled``): the same
+derivative and RK4 step as the batch's fused loop.
+
+Coulomb contact per wheel (docs/model.md 11.3): ``_settle`` is one robot's step boundary, ``CoulombContact.settle``
+of the Python model (its transitions, the solve of each stick/slip set with the friction and loads found by
+Newton's method, the split of the sticking wheels' force), and ``_held_step`` the RK4 step from it.
+``robot_contact_run`` takes one robot's boundaries and steps a chunk at a time (``Simulation(..., engine='numba',
+contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a batch's, robot by robot over the
+cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
+
+The package is split by concern: ``dynamics`` (the derivative and RK4 step with ideal contact, ``robot_run``,
+``tracking_force``), ``linalg`` (the solves), ``layout`` (the contact arrays' layout and tolerances), ``friction``
+(the contact rows, loads and Newton's kinetic friction), ``boundary`` (one stick/slip set's solve and split) and
+``settle`` (the transitions, the steps from a boundary, the runs); ``compiling`` compiles them into numba's cache
+under one stamp of the whole package. numba is optional: ``available()`` says whether it imported.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from wallbot_sim.model.batch.kernel.compiling import available, numba
+from wallbot_sim.model.batch.kernel.dynamics import (
+    MAX_ROWS, MODULE_ORDER, MODULE_ROWS, REFERENCE_FIELDS, _steps, reference_samples, robot_run, tracking_force)
+from wallbot_sim.model.batch.kernel.layout import (
+    CONSTRAINT, CONTACT_ERRORS, FAILED, FORCES, FRICTION, LOADS, NEWTON_RESIDUAL, PREDICTED, QDD,
+    RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY, contact_constants)
+from wallbot_sim.model.batch.kernel.linalg import _accelerations
+from wallbot_sim.model.batch.kernel.settle import _batch_settle, _batch_step, robot_contact_run
+from wallbot_sim.model.batch.robots import RobotBatch
+
+__all__ = [
+    'available', 'numba', 'MAX_ROWS', 'MODULE_ORDER', 'MODULE_ROWS', 'REFERENCE_FIELDS', 'reference_samples',
+    'robot_run', 'tracking_force', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES', 'FRICTION', 'LOADS',
+    'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
+    'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',
+    'batch_contact_settle', 'batch_contact_step']
+
+
+def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``batch_constrained_acceleration`` compiled robot by robot, for the robots' own factors W (N, 7, 7)."""
+    out = np.empty(force.shape)
+    _accelerations(np.ascontiguousarray(factor), np.ascontiguousarray(force), np.ascontiguousarray(rows),
+                   np.ascontiguousarray(rhs), out)
+    return out
+
+
+def robot_constants(robots: RobotBatch, alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """(N, 24) per robot, in ``_acceleration``'s order, from a ``RobotBatch`` and the Baumgarte gains."""
+    return np.ascontiguousarray(np.column_stack((
+        robots.total_mass, robots.yaw_inertia, robots.spin_inertia, robots.first_moment, robots.gravity,
+        robots.weight, robots.wheel_radius, robots.resistance_gain, robots.velocity_epsilon2, alpha, beta,
+        robots.lateral_offsets, robots.perpendicular_offsets.reshape(len(alpha), 8))))
+
+
+def module_flags(active: Sequence[str]) -> tuple[np.ndarray, int]:
+    """The kernel's flags (in MODULE_ORDER) of the modules named ``active``, and their row count."""
+    flags = np.array([name in active for name in MODULE_ORDER], dtype=np.bool_)
+    return flags, sum(rows for name, rows in zip(MODULE_ORDER, MODULE_ROWS) if name in active)
+
+
+def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active: tuple[str, ...],
+            constants: np.ndarray, torques: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """y after ``steps`` steps (a new array), and (N,) the step each robot diverged at (-1: none)."""
+    flags, _ = module_flags(active)
+    advanced = np.array(y, dtype=float, order='C')
+    diverged = np.full(len(y), -1, dtype=np.int64)
+    _steps(advanced, steps, dt, references, flags, constants, np.ascontiguousarray(torques), chunk, diverged)
+    return advanced, diverged
+
+
+def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
+                         contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
+                         live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> np.ndarray:
+    """Every live robot's coulomb boundary, robot by robot over the cores (``_batch_settle``): ``states`` (velocities
+    projected), ``sliding``, ``loads`` and ``solutions`` (N, 8, 8) change in place; returns each robot's error code
+    (``CONTACT_ERRORS``)."""
+    flags, _ = module_flags(active)
+    errors = np.zeros(states.shape[0], dtype=np.int64)
+    _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, live, solutions, errors,
+                  chunk)
+    return errors
+
+
+def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
+                       contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
+                       solutions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite."""
+    flags, _ = module_flags(active)
+    out, finite = np.empty_like(states), np.ones(states.shape[0], dtype=np.bool_)
+    _batch_step(states, references, flags, constants, contact, torques, dt, sliding, live, solutions, out, finite,
+                chunk)
+    return out, finite

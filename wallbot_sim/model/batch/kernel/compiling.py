@@ -1,0 +1,68 @@
+"""numba for the kernel's modules, with a cache that one stamp of the whole package invalidates.
+
+numba's cache of a function is checked against its own file only, while a kernel function compiles the functions it
+calls from the package's other files into its own code: a change to a callee in another file would leave its
+callers' cached code in use. The kernel's functions are therefore cached under a stamp of every source file of the
+package (a digest of their contents, taken at import, as the code that runs is the code imported), so that any
+change recompiles them all. numba is optional: without it ``jit`` returns the function as written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any, Callable
+
+try:
+    import numba
+    from numba import prange
+    from numba.core import caching
+except ImportError:  # the NumPy path needs nothing more
+    numba = None
+    prange = range
+
+PACKAGE = Path(__file__).resolve().parent
+"""The kernel's package directory."""
+
+
+def package_stamp() -> str:
+    """A digest of every source file of the package, by name and contents."""
+    digest = hashlib.sha256()
+    for path in sorted(PACKAGE.glob('*.py')):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def available() -> bool:
+    """Whether numba imported (the compiled engine can run)."""
+    return numba is not None
+
+
+def _stamped(locator: type) -> type:
+    """numba's cache locator ``locator`` for the package's functions alone, stamped by ``package_stamp``."""
+
+    class PackageStamped(locator):
+        def get_source_stamp(self) -> str:
+            return STAMP
+
+        @classmethod
+        def from_function(cls, py_func: Callable, py_file: str) -> Any:
+            if Path(py_file).resolve().parent != PACKAGE:
+                return None
+            return super().from_function(py_func, py_file)
+
+    PackageStamped.__name__ = PackageStamped.__qualname__ = f'PackageStamped{locator.__name__}'
+    return PackageStamped
+
+
+if numba is not None:
+    STAMP = package_stamp()
+    caching.CacheImpl._locator_classes[:0] = [_stamped(locator) for locator in (
+        caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)]
+
+
+def jit(function: Any, **options: Any) -> Any:
+    """``function`` compiled by numba, cached; as written without numba."""
+    # error_model 'numpy': a division by zero gives inf or NaN as in NumPy, unchecked (the caller checks the results)
+    return numba.njit(cache=True, error_model='numpy', **options)(function) if numba is not None else function

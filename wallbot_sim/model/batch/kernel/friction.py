@@ -1,0 +1,238 @@
+"""Coulomb contact per wheel (docs/model.md 11.3): a wheel's contact rows, the loads' dependence on the motion
+(with the wheels' spin momentum), and the sliding wheels' kinetic friction solved with the loads it holds by
+Newton's method (``consistent_friction`` of the Python model)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.kernel.layout import (
+    ACCELERATION, ADHESION, BY_SLIP, DIRECTIONS, DRIFT, GAIN, HALF_BASE, HALF_TRACK, HEIGHT, JACOBIAN, LOAD_BY_FRICTION,
+    LOAD_BY_LOAD, LU, NEGATIVE, NEWTON_ITERATIONS, NEWTON_PREDICTED, NEWTON_RESIDUAL, NEWTON_STEP, NEWTON_TOLERANCE,
+    ORIGIN, PIVOTS, PRESSED, RESIDUALS, SINGULAR, SIZES, SLIP, SLIP_BY_FRICTION, SLIP_BY_LOAD, SLIP_ROWS, SOLVED,
+    SQUARES, STATE, STATUS, TRIAL_JACOBIAN, TRIAL_PREDICTED, TRIAL_RESIDUALS, TRIAL_STATE, UNCONVERGED, WHEEL_OF)
+from wallbot_sim.model.batch.kernel.linalg import _dot, _lu_solve
+from wallbot_sim.model.robot import DOF
+
+
+def _contact_row(cos_t: float, sin_t: float, constants: np.ndarray, wheel: int, direction: int,
+                 row: np.ndarray) -> None:
+    """J of wheel ``wheel``'s contact velocity along x_p (direction 0) or y_p (1) into ``row`` (7,)
+    (``ContactKinematics.jacobian``)."""
+    for j in range(DOF):
+        row[j] = 0.0
+    if direction == 0:
+        row[0], row[1], row[2], row[3 + wheel] = cos_t, sin_t, -constants[12 + wheel], -constants[7]
+    else:
+        row[0], row[1], row[2] = -sin_t, cos_t, constants[17 + 2 * wheel]
+
+
+def _spin_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+                out: np.ndarray) -> None:
+    """N_1..N_4 at (q, qd, qdd) with the wheels' spin momentum (``normal_loads(..., spin_momentum=True)``)."""
+    mass, spin, sx, sy, gravity = constants[0], constants[2], constants[3], constants[4], constants[5]
+    cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
+    thd, thdd = qd[2], qdd[2]
+    rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
+    inertial_x = mass * qdd[0] - thdd * rsy - thd * thd * rsx
+
+
+    inertial_y = mass * qdd[1] + thdd * rsx - thd * thd * rsy
+    fx, fy = -inertial_x, -mass * gravity - inertial_y
+    body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
+    a, b, h = contact[HALF_BASE], contact[HALF_TRACK], contact[HEIGHT]
+    moment_x = h * body_x - spin * (qdd[3] + qdd[4] + qdd[5] + qdd[6])
+    moment_y = h * body_y - spin * thd * (qd[3] + qd[4] + qd[5] + qd[6])
+    along, across = 0.25 * moment_x / (a * a), 0.25 * moment_y / (b * b)
+    for wheel in range(4):
+        out[wheel] = 0.25 * contact[ADHESION] + along * contact[7 + wheel] + across * contact[11 + wheel]
+
+
+def _load_gain(theta: float, constants: np.ndarray, contact: np.ndarray, out: np.ndarray) -> None:
+    """L (4 x 7), N(qdd) = N(0) + L qdd with the spin momentum (``load_acceleration_gain``)."""
+    mass, spin, sx, sy = constants[0], constants[2], constants[3], constants[4]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
+    a, b, h = contact[HALF_BASE], contact[HALF_TRACK], contact[HEIGHT]
+    first = (h * (-cos_t * mass), h * (-sin_t * mass), h * (cos_t * rsy - sin_t * rsx))
+    second = (h * (sin_t * mass), h * (-cos_t * mass), h * (-sin_t * rsy - cos_t * rsx))
+    for wheel in range(4):
+        along, across = contact[7 + wheel] * (0.25 / (a * a)), contact[11 + wheel] * (0.25 / (b * b))
+        for j in range(3):
+            out[wheel, j] = along * first[j] + across * second[j]
+        for j in range(3, DOF):
+            out[wheel, j] = along * -spin
+
+
+def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsilon: float, squares: np.ndarray,
+                  sizes: np.ndarray) -> None:
+    """sqrt(|w_i|^2 + eps^2) of each component's wheel (``kinetic_friction._wheel_speeds``)."""
+    for wheel in range(4):
+        squares[wheel] = 0.0
+    for k in range(count):
+        squares[wheel_of[k]] += predicted[k] * predicted[k]
+    for k in range(count):
+        sizes[k] = math.sqrt(squares[wheel_of[k]] + epsilon * epsilon)
+
+
+def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, wheel_of: np.ndarray,
+                       kinetic: float, epsilon: float, dt: float, state: np.ndarray, residual: np.ndarray,
+                       jacobian: np.ndarray, predicted: np.ndarray) -> float:
+    """The residual of z = (f, N) (count + 4), its Jacobian and the predicted slip w (``kinetic_friction._equations``);
+    returns the residual's largest magnitude.
+
+    r_f = f + mu_k max(N_i, 0) w / s,  r_N = N - N_0 - L qdd,  qdd = a + D f + R max(N, 0).
+    """
+    acceleration, pressed, sizes, direction = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES], vecs[DIRECTIONS]
+    for wheel in range(4):
+        pressed[wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
+    for j in range(DOF):
+        by_friction, by_load = 0.0, 0.0
+        for k in range(count):
+            by_friction += responses[1 + k, j] * state[k]
+        for wheel in range(4):
+            by_load += responses[1 + count + wheel, j] * pressed[wheel]
+        acceleration[j] = (responses[0, j] + by_friction) + by_load
+    gain, origin = mats[GAIN], vecs[ORIGIN]
+    load_by_friction, load_by_load = mats[LOAD_BY_FRICTION], mats[LOAD_BY_LOAD]
+    size = 0.0
+    for wheel in range(4):
+        row = count + wheel
+        residual[row] = (state[row] - origin[wheel]) - _dot(gain[wheel], acceleration, DOF)
+        size = max(size, abs(residual[row]))
+        for k in range(count):
+            jacobian[row, k] = load_by_friction[wheel, k]
+        for other in range(4):
+            positive = 1.0 if state[count + other] > 0.0 else 0.0
+            jacobian[row, count + other] = (1.0 if other == wheel else 0.0) - load_by_load[wheel, other] * positive
+    if count == 0:
+        return size
+    slip_rows, slip, drift = mats[SLIP_ROWS], vecs[SLIP], vecs[DRIFT]
+    for k in range(count):
+        predicted[k] = slip[k] + dt * (_dot(slip_rows[k], acceleration, DOF) + drift[k])
+    _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
+    by_slip = mats[BY_SLIP]
+    for k in range(count):
+        direction[k] = predicted[k] / sizes[k]
+    for k in range(count):
+        force = kinetic * pressed[wheel_of[k]]
+        residual[k] = state[k] + force * direction[k]
+        size = max(size, abs(residual[k]))
+        for p in range(count):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
+            same = wheel_of[k] == wheel_of[p]
+            by_slip[k, p] = force * ((((1.0 if k == p else 0.0) - direction[k] * direction[p]) if same else 0.0)
+                                     / sizes[k])
+    slip_by_friction, slip_by_load = mats[SLIP_BY_FRICTION], mats[SLIP_BY_LOAD]
+    for k in range(count):
+        for column in range(count):
+            value = 0.0
+            for p in range(count):
+                value += by_slip[k, p] * slip_by_friction[p, column]
+            jacobian[k, column] = (1.0 if k == column else 0.0) + value
+        for wheel in range(4):
+            positive = 1.0 if state[count + wheel] > 0.0 else 0.0
+            value = 0.0
+            for p in range(count):
+                value += by_slip[k, p] * (slip_by_load[p, wheel] * positive)
+            jacobian[k, count + wheel] = value
+        wheel = wheel_of[k]
+        if state[count + wheel] > 0.0:
+            jacobian[k, count + wheel] += kinetic * direction[k]
+    return size
+
+
+def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
+             kinetic: float, epsilon: float, dt: float, start: np.ndarray, adhesion: float,
+             solution: np.ndarray) -> int:
+    """The sliding components' friction f (count) and the loads N (4) solving the boundary's equations, by Newton's
+    method with a halving line search from the ``start`` loads (``consistent_friction``): f and N into vecs[STATE],
+    the predicted slip into vecs[NEWTON_PREDICTED]; an error code (``CONTACT_ERRORS``), the residual it stopped
+    at in solution[STATUS, NEWTON_RESIDUAL]."""
+    size_of = count + 4
+    wheel_of = ints[WHEEL_OF]
+    slip_rows, gain = mats[SLIP_ROWS], mats[GAIN]
+    # the blocks of the Jacobian that do not change: dt J_S D, dt J_S R, -L D, L R
+    for k in range(count):
+        for column in range(count):
+            value = 0.0
+            for j in range(DOF):
+                value += slip_rows[k, j] * responses[1 + column, j]
+            mats[SLIP_BY_FRICTION, k, column] = dt * value
+        for wheel in range(4):
+            value = 0.0
+            for j in range(DOF):
+                value += slip_rows[k, j] * responses[1 + count + wheel, j]
+            mats[SLIP_BY_LOAD, k, wheel] = dt * value
+    for wheel in range(4):
+        for column in range(count):
+            value = 0.0
+            for j in range(DOF):
+                value += -gain[wheel, j] * responses[1 + column, j]
+            mats[LOAD_BY_FRICTION, wheel, column] = value
+        for other in range(4):
+            value = 0.0
+            for j in range(DOF):
+                value += gain[wheel, j] * responses[1 + count + other, j]
+            mats[LOAD_BY_LOAD, wheel, other] = value
+    state, predicted = vecs[STATE], vecs[NEWTON_PREDICTED]
+    for wheel in range(4):
+        state[count + wheel] = start[wheel]
+    if count:  # Newton's start: the friction opposing the slip predicted with no friction (``_friction_of``)
+        acceleration, pressed, sizes = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES]
+        for wheel in range(4):
+            pressed[wheel] = start[wheel] if start[wheel] > 0.0 else 0.0
+        for j in range(DOF):
+            value = 0.0
+            for wheel in range(4):
+                value += responses[1 + count + wheel, j] * pressed[wheel]
+            acceleration[j] = responses[0, j] + value
+        for k in range(count):
+            predicted[k] = vecs[SLIP, k] + dt * (_dot(slip_rows[k], acceleration, DOF) + vecs[DRIFT, k])
+        _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
+        for k in range(count):
+            state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
+    residual, jacobian = vecs[RESIDUALS], mats[JACOBIAN]
+    size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, state, residual, jacobian,
+                              predicted)
+    trial, trial_residual, trial_predicted = vecs[TRIAL_STATE], vecs[TRIAL_RESIDUALS], vecs[TRIAL_PREDICTED]
+    trial_jacobian, step, negative = mats[TRIAL_JACOBIAN], vecs[NEWTON_STEP], vecs[NEGATIVE]
+    for _ in range(NEWTON_ITERATIONS):
+        if size <= NEWTON_TOLERANCE * adhesion:
+            solution[STATUS, NEWTON_RESIDUAL] = size
+            for k in range(count):  # a lifted wheel (N_i <= 0) has no friction, not a remainder within the tolerance
+                if not state[count + wheel_of[k]] > 0.0:
+                    state[k] = 0.0
+            return SOLVED
+        for i in range(size_of):
+            negative[i] = -residual[i]
+        if not _lu_solve(jacobian, size_of, mats[LU], ints[PIVOTS], negative, step):
+            return SINGULAR
+        scale = 1.0
+        while True:
+            for i in range(size_of):
+                trial[i] = state[i] + scale * step[i]
+            trial_size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, trial,
+                                            trial_residual, trial_jacobian, trial_predicted)
+            if trial_size < size or scale < 1e-6:
+                break
+            scale *= 0.5
+        for i in range(size_of):
+            state[i], residual[i] = trial[i], trial_residual[i]
+            for j in range(size_of):
+                jacobian[i, j] = trial_jacobian[i, j]
+        for k in range(count):
+            predicted[k] = trial_predicted[k]
+        size = trial_size
+    solution[STATUS, NEWTON_RESIDUAL] = size
+    return UNCONVERGED
+
+
+_contact_row = jit(_contact_row, inline="always")
+_spin_loads = jit(_spin_loads, inline="always")
+_load_gain = jit(_load_gain, inline="always")
+_wheel_speeds = jit(_wheel_speeds, inline="always")
+_kinetic_equations = jit(_kinetic_equations)
+_kinetic = jit(_kinetic)

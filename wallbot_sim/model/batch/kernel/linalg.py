@@ -1,0 +1,401 @@
+"""Small dense linear algebra for one robot: Cholesky factors, the Udwadia-Kalaba solve by normal equations with its
+rank-revealing fallback, the solve in the rows' own space, and LU with partial pivoting."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.solver import RANK_CUTOFF, WELL_CONDITIONED
+from wallbot_sim.model.robot import DOF
+
+
+def _cholesky(matrix: np.ndarray, size: int, lower: np.ndarray) -> float:
+    """L L^T = M for M (size x size); returns the smallest pivot L_jj^2 (not positive: L is not valid)."""
+    smallest = math.inf
+    for j in range(size):
+        for i in range(j, size):
+            value = matrix[i, j]
+            for k in range(j):
+                value -= lower[j, k] * lower[i, k]
+            if i == j:
+                smallest = min(smallest, value)
+                if not value > 0.0:
+                    return value
+                lower[j, j] = math.sqrt(value)
+            else:
+                lower[i, j] = value / lower[j, j]
+    return smallest
+
+
+def _substitute(lower: np.ndarray, size: int, vector: np.ndarray) -> None:
+    """vector <- (L L^T)^-1 vector, in place."""
+    for j in range(size):
+        value = vector[j]
+        for k in range(j):
+            value -= lower[j, k] * vector[k]
+        vector[j] = value / lower[j, j]
+    for j in range(size - 1, -1, -1):
+        value = vector[j]
+
+
+        for k in range(j + 1, size):
+            value -= lower[k, j] * vector[k]
+        vector[j] = value / lower[j, j]
+
+
+def _solve_positive(matrix: np.ndarray, size: int, lower: np.ndarray, vector: np.ndarray) -> None:
+    """vector <- M^-1 vector for a positive definite M (LU when round-off leaves a pivot <= 0)."""
+    _solve_factored(matrix, size, _cholesky(matrix, size, lower) > 0.0, lower, vector)
+
+
+def _solve_factored(matrix: np.ndarray, size: int, factored: bool, lower: np.ndarray, vector: np.ndarray) -> None:
+    """vector <- M^-1 vector with M's Cholesky factor in ``lower`` if ``factored``, else by LU."""
+    if factored:
+        _substitute(lower, size, vector)
+    elif np.all(np.isfinite(matrix[:size, :size])):
+        vector[:size] = np.linalg.solve(matrix[:size, :size], vector[:size].copy())
+    else:  # from a state gone non-finite: so is the result (the caller stops there), not numba's LinAlgError
+        vector[:size] = np.nan
+
+
+def _rank_revealing(gram: np.ndarray, moment: np.ndarray, scratch: np.ndarray, lower: np.ndarray,
+                    result: np.ndarray) -> None:
+    """Minimum-norm least squares from B^T B and B^T r of a B not safely of full rank.
+
+    ``minimum_norm_least_squares`` for one robot: pivoted Cholesky, basic solution, null space removed.
+    """
+    size = DOF
+    schur = scratch[0]
+    kept = np.zeros(size, dtype=np.bool_)
+    largest = 0.0
+    for j in range(size):
+        largest = max(largest, gram[j, j])
+        for i in range(size):
+            schur[i, j] = gram[i, j]
+    cut = RANK_CUTOFF * largest
+    for _ in range(size):
+        best, pivot = -1, -math.inf
+        for j in range(size):
+            if not kept[j] and schur[j, j] > pivot:
+                best, pivot = j, schur[j, j]
+        if best < 0 or not pivot > cut:
+            break
+        kept[best] = True
+        scale = 1.0 / math.sqrt(pivot)
+        column = scratch[1, 0]
+        for i in range(size):
+            column[i] = schur[i, best] * scale
+        for i in range(size):
+            for j in range(size):
+                schur[i, j] -= column[i] * column[j]
+    reduced = scratch[2]
+    for i in range(size):
+        for j in range(size):
+            reduced[i, j] = gram[i, j] if kept[i] and kept[j] else (1.0 if i == j else 0.0)
+    # the basic solution (zero on the skipped columns), then each skipped column from the kept ones
+    basic = scratch[1, 1]
+    for i in range(size):
+        basic[i] = moment[i] if kept[i] else 0.0
+    factored = _cholesky(reduced, size, lower) > 0.0  # one factorization for the basic solution and the columns
+    _solve_factored(reduced, size, factored, lower, basic)
+    null = scratch[3]
+    column = scratch[1, 2]
+    for j in range(size):
+        if kept[j]:
+            for i in range(size):
+                null[i, j] = 0.0
+        else:
+            for i in range(size):
+                column[i] = gram[i, j] if kept[i] else 0.0
+            _solve_factored(reduced, size, factored, lower, column)
+            for i in range(size):
+                null[i, j] = (1.0 if i == j else 0.0) - column[i]
+    null_gram = scratch[4]
+    shift = scratch[1, 3]
+    for i in range(size):
+        value = 0.0
+        for k in range(size):
+            value += null[k, i] * basic[k]
+        shift[i] = value
+        for j in range(size):
+            entry = 0.0
+            for k in range(size):
+                entry += null[k, i] * null[k, j]
+            null_gram[i, j] = entry + (1.0 if i == j and kept[i] else 0.0)
+    _solve_positive(null_gram, size, lower, shift)
+    for i in range(size):
+        value = basic[i]
+        for j in range(size):
+            value -= null[i, j] * shift[j]
+        result[i] = value
+
+
+def _solve(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray, count: int,
+           matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray,
+           out: np.ndarray) -> None:
+    """qdd = W (W^T Q + B+ (b - B W^T Q)), B = A W, of one robot (``batch_constrained_acceleration``).
+
+    W is the robot's factor of M^-1: lower triangular, its off-diagonal entries in the 3 x 3 chassis
+    block. ``vectors`` rows 1-4 are scratch (row 0 may hold Q).
+    """
+    scaled = vectors[1]
+    _transposed_factor_times(factor, force, scaled)
+    if count > 0:
+        misfit = vectors[2]
+        _scaled_rows(rows, factor, count, matrix)
+        _misfits(matrix, rhs, scaled, count, misfit)
+        _minimum_norm(matrix, misfit, count, gram, lower, vectors, scratch, vectors[4])
+        for i in range(DOF):
+            scaled[i] += vectors[4, i]
+    _factor_times(factor, scaled, out)
+
+
+def _transposed_factor_times(factor: np.ndarray, vector: np.ndarray, out: np.ndarray) -> None:
+    """out = W^T vector, W lower triangular with its off-diagonal entries in the 3 x 3 chassis block."""
+    for i in range(3):
+        value = 0.0
+        for k in range(i, 3):
+            value += factor[k, i] * vector[k]
+        out[i] = value
+    for i in range(3, DOF):
+        out[i] = factor[i, i] * vector[i]
+
+
+def _factor_times(factor: np.ndarray, vector: np.ndarray, out: np.ndarray) -> None:
+    """out = W vector (W as ``_transposed_factor_times``)."""
+    for i in range(3):
+        value = 0.0
+        for k in range(i + 1):
+            value += factor[i, k] * vector[k]
+        out[i] = value
+    for i in range(3, DOF):
+        out[i] = factor[i, i] * vector[i]
+
+
+def _scaled_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray) -> None:
+    """B = A W into matrix's first ``count`` rows."""
+    for r in range(count):
+        for j in range(3):
+            value = 0.0
+            for k in range(j, 3):
+                value += rows[r, k] * factor[k, j]
+            matrix[r, j] = value
+        for j in range(3, DOF):
+            matrix[r, j] = rows[r, j] * factor[j, j]
+
+
+def _misfits(matrix: np.ndarray, rhs: np.ndarray, scaled: np.ndarray, count: int, misfit: np.ndarray) -> None:
+    """misfit = b - B s over the first ``count`` rows."""
+    for r in range(count):
+        value = rhs[r]
+        for j in range(DOF):
+            value -= matrix[r, j] * scaled[j]
+        misfit[r] = value
+
+
+def _minimum_norm(matrix: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray,
+                  vectors: np.ndarray, scratch: np.ndarray, solution: np.ndarray) -> None:
+    """B+ r for one robot's B (count x 7): normal equations, or the pivoted fallback (``minimum_norm_least_squares``).
+
+    Uses ``vectors`` row 3 as scratch.
+    """
+    moment = vectors[3]
+    largest = 0.0
+    for i in range(DOF):
+        value = 0.0
+        for r in range(count):
+            value += matrix[r, i] * rhs[r]
+        moment[i] = value
+        for j in range(i + 1):
+            entry = 0.0
+            for r in range(count):
+                entry += matrix[r, i] * matrix[r, j]
+            gram[i, j] = gram[j, i] = entry
+        largest = max(largest, gram[i, i])
+    if _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
+        for i in range(DOF):
+            solution[i] = moment[i]
+        _substitute(lower, DOF, solution)
+    else:
+        _rank_revealing(gram, moment, scratch, lower, solution)
+
+
+def _scratch(rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """matrix, gram, lower, vectors and the fallback's scratch for problems of up to ``rows`` rows."""
+    return (np.zeros((max(rows, 1), DOF)), np.zeros((DOF, DOF)), np.zeros((DOF, DOF)),
+            np.zeros((5, max(rows, DOF))), np.zeros((5, DOF, DOF)))
+
+
+def _accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray, out: np.ndarray) -> None:
+    """``_solve`` of every robot, on one thread: called several times a step, a solve is too short to pay
+    for waking the others (on a machine others load, that costs more than it gains)."""
+    count = rows.shape[1]
+    matrix, gram, lower, vectors, scratch = _scratch(count)
+    for robot in range(rows.shape[0]):
+        _solve(factor[robot], force[robot], rows[robot], rhs[robot], count, matrix, gram, lower, vectors, scratch,
+               out[robot])
+
+
+CONSISTENT = 1e-9
+
+
+"""Relative misfit up to which a row ``_prepare_rows`` drops agrees with the rows it keeps."""
+
+
+def _dot(a: np.ndarray, b: np.ndarray, size: int) -> float:
+    value = 0.0
+    for j in range(size):
+        value += a[j] * b[j]
+    return value
+
+
+def _prepare_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, system: np.ndarray,
+                  lower: np.ndarray, order: np.ndarray, kept: np.ndarray) -> int:
+    """B = A W into ``matrix``, and the independent rows K of B a pivoted Cholesky of B B^T keeps with its factor,
+    for ``_row_space_solve``: ``order`` the kept rows in pivot order, ``kept`` 1 on each, ``lower[r, i]`` column r
+    of the factor at row i; returns the rank. (The cut is the normal equations' of ``_minimum_norm``.)"""
+    _scaled_rows(rows, factor, count, matrix)
+    largest = 0.0
+    for i in range(count):
+        for j in range(i + 1):
+            value = 0.0
+            for k in range(DOF):
+                value += matrix[i, k] * matrix[j, k]
+            system[i, j] = system[j, i] = value
+        largest = max(largest, system[i, i])
+    return _pivoted_cholesky(system, count, RANK_CUTOFF * largest, order, kept, lower)
+
+
+def _pivoted_cholesky(system: np.ndarray, size: int, cut: float, order: np.ndarray, kept: np.ndarray,
+                      lower: np.ndarray) -> int:
+    """The pivoted Cholesky factor L of the symmetric ``system`` (size x size; left with its Schur complement):
+    the largest remaining diagonal first while it exceeds ``cut``; ``order`` the pivots in turn, ``kept`` 1 on each,
+    ``lower[r, i]`` column r of L at row i. Returns the rank."""
+    for i in range(size):
+        kept[i] = 0
+    rank = 0
+    for r in range(size):
+        best, pivot = -1, cut
+        for i in range(size):
+            if kept[i] == 0 and system[i, i] > pivot:
+                best, pivot = i, system[i, i]
+        if best < 0:
+            break
+        kept[best], order[r], rank = 1, best, r + 1
+        scale = 1.0 / math.sqrt(pivot)
+        for i in range(size):
+            lower[r, i] = system[i, best] * scale
+        for i in range(size):
+            for j in range(size):
+                system[i, j] -= lower[r, i] * lower[r, j]
+    return rank
+
+
+def _pivoted_solve(lower: np.ndarray, order: np.ndarray, rank: int, target: np.ndarray, x: np.ndarray) -> None:
+    """x (rank,) with L L^T x = target on the pivots of ``_pivoted_cholesky``: L z = target in pivot order, then
+    L^T x = z."""
+    for a in range(rank):
+        value = target[order[a]]
+        for r in range(a):
+            value -= lower[r, order[a]] * x[r]
+        x[a] = value / lower[a, order[a]]
+    for a in range(rank - 1, -1, -1):
+        value = x[a]
+        for r in range(a + 1, rank):
+            value -= lower[a, order[r]] * x[r]
+        x[a] = value / lower[a, order[a]]
+
+
+def _row_space_solve(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
+                     count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
+                     vectors: np.ndarray, out: np.ndarray) -> bool:
+    """qdd = W (s + B_K^T (B_K B_K^T)^-1 (b - B s)_K), s = W^T Q, by ``_prepare_rows``' factor (b = 0 unless
+    ``with_rhs``): the minimum-norm least-squares solution wherever the rows off K agree with those on it, which
+    the contact rows and the belt do (a side's contact rows repeat its belt row); where they do not (an
+    inconsistent set: the heading task beside the sticking wheels' lateral rows) returns False, ``out`` untouched,
+    for the caller's least squares. Cheaper than the normal equations of ``_solve`` with few rows. ``vectors``
+    rows 1-3 are scratch."""
+    scaled, misfit, solution = vectors[1], vectors[2], vectors[3]
+    _transposed_factor_times(factor, force, scaled)
+    for r in range(count):
+        value = rhs[r] if with_rhs else 0.0
+        for j in range(DOF):
+            value -= matrix[r, j] * scaled[j]
+        misfit[r] = value
+    _pivoted_solve(lower, order, rank, misfit, solution)
+    if with_rhs:  # b - B s lies in B's range when b = 0
+        for d in range(count):
+            if kept[d] == 0:
+                reached, size = 0.0, abs(misfit[d])
+                for a in range(rank):
+                    along = 0.0
+                    for k in range(DOF):
+                        along += matrix[d, k] * matrix[order[a], k]
+                    reached += along * solution[a]
+                    size += abs(along * solution[a])
+                if abs(misfit[d] - reached) > CONSISTENT * (1.0 + size):
+                    return False
+    for k in range(DOF):
+        value = scaled[k]
+        for a in range(rank):
+            value += matrix[order[a], k] * solution[a]
+        scaled[k] = value
+    _factor_times(factor, scaled, out)
+    return True
+
+
+def _lu_solve(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.ndarray, rhs: np.ndarray,
+              out: np.ndarray) -> bool:
+    """out = matrix^-1 rhs by LU with partial pivoting (LAPACK's dgesv); False where a pivot is exactly 0 (singular)."""
+    for i in range(size):
+        out[i] = rhs[i]
+        for j in range(size):
+            factors[i, j] = matrix[i, j]
+    for k in range(size):
+        best, largest = k, abs(factors[k, k])
+        for i in range(k + 1, size):
+            if abs(factors[i, k]) > largest:
+                best, largest = i, abs(factors[i, k])
+        pivots[k] = best
+        if largest == 0.0:
+            return False
+        if best != k:
+            for j in range(size):
+                factors[k, j], factors[best, j] = factors[best, j], factors[k, j]
+            out[k], out[best] = out[best], out[k]
+        for i in range(k + 1, size):
+            scale = factors[i, k] / factors[k, k]
+            factors[i, k] = scale
+            for j in range(k + 1, size):
+                factors[i, j] -= scale * factors[k, j]
+            out[i] -= scale * out[k]
+    for i in range(size - 1, -1, -1):
+        value = out[i]
+        for j in range(i + 1, size):
+            value -= factors[i, j] * out[j]
+        out[i] = value / factors[i, i]
+    return True
+
+
+_cholesky = jit(_cholesky, inline="always")
+_substitute = jit(_substitute, inline="always")
+_solve_factored = jit(_solve_factored)
+_solve_positive = jit(_solve_positive)
+_rank_revealing = jit(_rank_revealing)
+_minimum_norm = jit(_minimum_norm, inline="always")
+_transposed_factor_times = jit(_transposed_factor_times, inline="always")
+_factor_times = jit(_factor_times, inline="always")
+_scaled_rows = jit(_scaled_rows, inline="always")
+_misfits = jit(_misfits, inline="always")
+_solve = jit(_solve, inline="always")
+_scratch = jit(_scratch)
+_accelerations = jit(_accelerations)
+_dot = jit(_dot, inline="always")
+_pivoted_cholesky = jit(_pivoted_cholesky, inline="always")
+_pivoted_solve = jit(_pivoted_solve, inline="always")
+_prepare_rows = jit(_prepare_rows)
+_row_space_solve = jit(_row_space_solve)
+_lu_solve = jit(_lu_solve)

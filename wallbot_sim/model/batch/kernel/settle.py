@@ -1,0 +1,278 @@
+"""Coulomb contact's step boundaries and the steps from them: one robot's transitions until its stick/slip set
+holds (``CoulombContact.settle``), the RK4 step with the held friction and loads, a robot's chunk of instants
+(``robot_contact_run``) and a batch's, robot by robot over the cores."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
+from wallbot_sim.model.batch.kernel.compiling import jit, prange
+from wallbot_sim.model.batch.kernel.dynamics import MAX_ROWS, _rk4, _workspace
+from wallbot_sim.model.batch.kernel.layout import (
+    AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, PREDICTED, PRESSED, PROJECTION, QDD, RAN,
+    REVERSING, ROLLING, SETTLE_PASSES, SOLUTION_ROWS, SOLUTION_WIDTH, SOLVED, STATIC, STICK, STICKING, STOPPED, TOTAL,
+    TRIAL_SLIDING, TRIAL_Y, VELOCITY, _contact_workspace)
+from wallbot_sim.model.robot import DOF
+
+
+def _speed(velocity: np.ndarray, wheel: int, flags: np.ndarray) -> float:
+    """|v| of a wheel's velocity (interleaved) over the directions that have friction (``contact._speed``)."""
+    along = velocity[2 * wheel] if flags[4] else 0.0
+    across = velocity[2 * wheel + 1] if flags[3] else 0.0
+    return math.sqrt(along * along + across * across)
+
+
+def _reverses(solution: np.ndarray, wheel: int, flags: np.ndarray) -> bool:
+    """Whether the step would reverse the wheel's slip, v_i . w_i < 0; never for a wheel at rest
+    (``contact._reverses``)."""
+    return ((solution[VELOCITY, 2 * wheel] * solution[PREDICTED, 2 * wheel]
+             + solution[VELOCITY, 2 * wheel + 1] * solution[PREDICTED, 2 * wheel + 1]) < 0.0
+            and _speed(solution[VELOCITY], wheel, flags) > AT_REST)
+
+
+def _holds(solution: np.ndarray, wheel: int, static: float) -> bool:
+    """Whether the wheel's force lies in its friction disc, |f_i| <= mu_s N_i (``contact._holds``)."""
+    size = math.hypot(solution[FORCES, 2 * wheel], solution[FORCES, 2 * wheel + 1])
+    return not size > static * solution[LOADS, wheel]
+
+
+def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+            torque: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
+            factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+            scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, marks: np.ndarray,
+            columns: np.ndarray, responses: np.ndarray, solution: np.ndarray, trial: np.ndarray) -> int:
+    """The stick/slip transitions at y's boundary, then the solution the step integrates (``CoulombContact.settle``,
+    one long function as numba compiles it best: a round of transitions shares its state, the sets, in registers).
+
+    In turn, until nothing changes: a sliding wheel the step would reverse is stopped by the switch projection and
+    slides on from rest; sliding wheels that are stopping stick again when the solve with their rows restored
+    holds them in their discs (their slip projected away); every sticking wheel whose force leaves its disc
+    slides. ``sliding`` (4,) and ``loads`` (4,) (held, Newton's start) are the contact state before, updated in
+    place, and y's velocities are projected in place, unless an error code is returned (``CONTACT_ERRORS``).
+    """
+    frictional = flags[3] or flags[4]
+    static, stick = contact[STATIC], contact[STICK]
+    for wheel in range(4):
+        sliding[wheel] = sliding[wheel] and frictional
+    error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor, matrix,
+                      gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, solution)
+    if error != SOLVED:
+        return error
+    sticking, trial_sliding, stopped = marks[STICKING], marks[TRIAL_SLIDING], marks[STOPPED]
+    reversing, candidates, holding = marks[REVERSING], marks[CANDIDATES], marks[HOLDING]
+    trial_y, projection = vecs[TRIAL_Y, :2 * DOF], mats[PROJECTION]
+    for wheel in range(4):
+        stopped[wheel] = False
+    for _ in range(SETTLE_PASSES):
+        any_reversing = False
+        for wheel in range(4):
+            reversing[wheel] = sliding[wheel] and not stopped[wheel] and _reverses(solution, wheel, flags)
+            any_reversing = any_reversing or reversing[wheel]
+        if any_reversing:
+            for wheel in range(4):
+                stopped[wheel] = stopped[wheel] or reversing[wheel]
+                sticking[wheel] = frictional and (not sliding[wheel] or reversing[wheel])
+            _project_onto(y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors, scratch)
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
+                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                              solution)
+            if error != SOLVED:
+                return error
+        searching = False
+        for wheel in range(4):
+            candidates[wheel] = sliding[wheel] and (_speed(solution[VELOCITY], wheel, flags) < stick
+                                                    or _speed(solution[PREDICTED], wheel, flags) < stick)
+            searching = searching or candidates[wheel]
+        while searching:
+            for wheel in range(4):
+                trial_sliding[wheel] = sliding[wheel] and not candidates[wheel]
+                sticking[wheel] = frictional and not trial_sliding[wheel]
+            for i in range(2 * DOF):
+                trial_y[i] = y[i]
+            _project_onto(trial_y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors,
+                          scratch)
+            error = _boundary(trial_y, reference, flags, constants, contact, torque, dt, trial_sliding,
+                              loads, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
+                              marks, columns, responses, trial)
+            if error != SOLVED:
+                return error
+            same, searching = True, False
+            for wheel in range(4):
+                holding[wheel] = candidates[wheel] and _holds(trial, wheel, static)
+                same = same and holding[wheel] == candidates[wheel]
+                searching = searching or holding[wheel]
+            if same:
+                for wheel in range(4):
+                    sliding[wheel] = trial_sliding[wheel]
+                for i in range(2 * DOF):
+                    y[i] = trial_y[i]
+                solution[:, :] = trial
+                break
+            for wheel in range(4):
+                candidates[wheel] = holding[wheel]
+        while True:
+            exceeded = False
+            for wheel in range(4):
+                if frictional and not sliding[wheel] and not _holds(solution, wheel, static):
+                    sliding[wheel] = exceeded = True
+            if not exceeded:
+                break
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
+                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                              solution)
+            if error != SOLVED:
+                return error
+        reversed_again = False
+        for wheel in range(4):
+            reversed_again = reversed_again or (sliding[wheel] and not stopped[wheel]
+                                                and _reverses(solution, wheel, flags))
+        if not reversed_again:
+            break
+    for wheel in range(4):
+        loads[wheel] = solution[LOADS, wheel]
+    return SOLVED
+
+
+def _hold(solution: np.ndarray, sliding: np.ndarray, flags: np.ndarray, contact: np.ndarray, gains: np.ndarray,
+          sticking: np.ndarray, held: np.ndarray) -> None:
+    """What a step holds from its settled boundary (``_problem``'s gains, sticking and held): each wheel's rolling
+    resistance f_r max(N_i, 0), the sticking wheels, the sliding wheels' friction."""
+    frictional = flags[3] or flags[4]
+    for wheel in range(4):
+        load = solution[LOADS, wheel]
+        gains[wheel] = contact[ROLLING] * (load if load > 0.0 else 0.0)
+        sticking[wheel] = frictional and not sliding[wheel]
+        for direction in range(2):
+            held[2 * wheel + direction] = solution[FORCES, 2 * wheel + direction] if sliding[wheel] else 0.0
+
+
+def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+               contact: np.ndarray, torque: np.ndarray, dt: float, solution: np.ndarray, sliding: np.ndarray,
+               rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+               lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray,
+               ints: np.ndarray, marks: np.ndarray, out: np.ndarray, slopes: np.ndarray) -> bool:
+    """The RK4 step from a settled boundary (``Simulation.step``): the solution's qdd its first stage, the sticking
+    set, loads and sliding wheels' friction held; whether the state it gives (``out``) is finite."""
+    gains, held, sticking = vecs[PRESSED], vecs[TOTAL], marks[STICKING]
+    _hold(solution, sliding, flags, contact, gains, sticking, held)
+    for i in range(DOF):
+        slopes[0, DOF + i] = solution[QDD, i]
+    return _rk4(state, references, flags, constants, torque, gains, True, sticking, held, dt, True, rows, rhs, factor,
+                matrix, gram, lower, vectors, scratch, mats, ints, out, slopes)
+
+
+def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                      constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
+                      sliding: np.ndarray, loads: np.ndarray, solutions: np.ndarray, slid: np.ndarray,
+                      outcome: np.ndarray) -> None:
+    """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
+    step from it (``_held_step``).
+
+    ``states`` (T + 1, 14): row 0 the state at the first instant; ``settled`` (T, 14) gets each instant's state
+    with its velocities projected where a wheel stopped or stuck, ``solutions`` (T, 8, 8) its solution, ``slid``
+    (T, 4) its sliding wheels, and ``states`` row k + 1 the state one step later, for k < ``steps`` (at most T).
+    ``sliding`` (4,) and ``loads`` (4,): the contact state at the start, updated instant by instant.
+    ``outcome`` (4,): the instants settled, the steps taken, how the run ended (RAN, DETACHED at the last instant
+    settled, DIVERGED after it, FAILED at the next: its error code in outcome[3]).
+    """
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    mats, vecs, ints, marks, columns, responses = _contact_workspace()
+    trial, slopes = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF))
+    outcome[0], outcome[1], outcome[2], outcome[3] = 0, 0, RAN, SOLVED
+    for k in range(solutions.shape[0]):
+        for i in range(2 * DOF):
+            settled[k, i] = states[k, i]
+        error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, rows, rhs,
+                        factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                        solutions[k], trial)
+        if error != SOLVED:
+            outcome[2], outcome[3] = FAILED, error
+            return
+        outcome[0] = k + 1
+        for wheel in range(4):
+            slid[k, wheel] = sliding[wheel]
+        if min(loads[0], loads[1], loads[2], loads[3]) < 0.0:
+            outcome[2] = DETACHED
+            return
+        if k == steps:
+            return
+        if not _held_step(settled[k], references[k], flags, constants, contact, torque, dt, solutions[k], sliding,
+                          rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks,
+                          states[k + 1], slopes):
+            outcome[2] = DIVERGED
+            return
+        outcome[1] = k + 1
+
+
+def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                  contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
+                  live: np.ndarray, solutions: np.ndarray, errors: np.ndarray, chunk: int) -> None:
+    """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
+    (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4) and the states updated in place,
+    ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left as they are.
+    The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
+    fastest around one call)."""
+    for block in prange((states.shape[0] + chunk - 1) // chunk):
+        _settle_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, reference, flags, constants,
+                      contact, torques, dt, sliding, loads, live, solutions, errors)
+
+
+def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarray, flags: np.ndarray,
+                  constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
+                  loads: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray) -> None:
+    """``_batch_settle`` of robots first..end - 1 on one core."""
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    mats, vecs, ints, marks, columns, responses = _contact_workspace()
+    trial = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH))
+    for robot in range(first, end):
+        if live[robot]:
+            errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
+                                    dt, sliding[robot], loads[robot], rows, rhs, factor, matrix, gram, lower, vectors,
+                                    scratch, mats, vecs, ints, marks, columns, responses, solutions[robot], trial)
+
+
+def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
+                solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
+    """The RK4 step of every ``live`` robot from its settled boundary (``_held_step``) into ``out``; the others keep
+    their state. ``finite`` (N,) says whether each new state is finite. Over the cores as ``_batch_settle``."""
+    for block in prange((states.shape[0] + chunk - 1) // chunk):
+        _step_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, references, flags, constants,
+                    contact, torques, dt, sliding, live, solutions, out, finite)
+
+
+def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
+                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray) -> None:
+    """``_batch_step`` of robots first..end - 1 on one core."""
+    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
+    factor, matrix, gram, lower, vectors, scratch = _workspace()
+    mats, vecs, ints, marks, _, _ = _contact_workspace()
+    slopes = np.zeros((4, 2 * DOF))
+    for robot in range(first, end):
+        if live[robot]:
+            finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
+                                       torques[robot], dt, solutions[robot], sliding[robot], rows, rhs, factor, matrix,
+                                       gram, lower, vectors, scratch, mats, vecs, ints, marks, out[robot], slopes)
+        else:
+            for i in range(2 * DOF):
+                out[robot, i] = states[robot, i]
+            finite[robot] = True
+
+
+_speed = jit(_speed, inline="always")
+_reverses = jit(_reverses, inline="always")
+_holds = jit(_holds, inline="always")
+_settle = jit(_settle)
+_hold = jit(_hold, inline="always")
+_held_step = jit(_held_step)
+robot_contact_run = jit(robot_contact_run)
+_settle_block = jit(_settle_block)
+_step_block = jit(_step_block)
+_batch_settle = jit(_batch_settle, parallel=True)
+_batch_step = jit(_batch_step, parallel=True)
