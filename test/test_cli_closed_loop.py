@@ -82,8 +82,6 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
     pytest.importorskip('rclpy')
     if engine == 'numba':
         pytest.importorskip('numba')
-        from wallbot_sim.model.compiled import compile_kernel
-        compile_kernel()  # so that the nodes load it from numba's cache instead of compiling it for up to a minute
     duration = 1.0
     adhesion = ['--adhesion-force', '250'] if contact == 'coulomb' else []
     graph = wallbot('run', 'circle', '--controller', '--contact', contact, '--engine', engine, *pacing, *adhesion,

@@ -382,8 +382,6 @@ def test_a_composed_run_records_the_bytes_a_separate_recorder_does(tmp_path, eng
         from wallbot_sim.model.batch import kernel
         if not kernel.available():
             pytest.skip('numba is not installed')
-        from wallbot_sim.model.compiled import compile_kernel
-        compile_kernel()  # so that the node loads it from numba's cache instead of compiling it for up to a minute
 
     bags = {}
     for label, extra in (('composed', ['--compose', '--real-time-factor', '0']),
