@@ -228,3 +228,11 @@ def test_every_node_module_has_its_console_script():
     setup = (LAUNCH_FILE.parents[1] / 'setup.py').read_text()
     for module, executable in EXECUTABLES.items():
         assert f"'{executable} = {module}:main'" in setup
+
+
+def test_a_world_file_reaches_the_viewer_as_it_reaches_the_dynamics():
+    world, selection = Path('/walls/wet.yaml'), ConstraintSelection.parse('belt')
+    specs = {s.name: s for s in describe_graph(load_scenario('circle'), selection, viewer=True, world_file=world)}
+    assert specs['viewer'].parameters['world_file'] == specs['dynamics'].parameters['world_file'] == str(world)
+    plain = {s.name: s for s in describe_graph(load_scenario('circle'), selection, viewer=True)}
+    assert 'world_file' not in plain['viewer'].parameters

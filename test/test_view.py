@@ -318,3 +318,28 @@ def test_the_foxglove_layout_plots_what_a_recorded_bag_holds(tmp_path):
         if label in PLOTTED:
             index = int(re.search(r'\[(\d+)\]$', path).group(1))
             assert first[topic].name[index] == PLOTTED[label], value
+
+
+def test_a_world_s_patches_and_seams_are_drawn_on_the_wall(params):
+    """The example world's wet patch is a flat box covering its rectangle, more opaque the lower its friction;
+    its seam a line between its ends as wide as the gap (at least a path line's width); none without a world."""
+    from wallbot_sim.config import load_world
+    from wallbot_sim.view import LINE_WIDTH
+    world = load_world(Path(__file__).resolve().parents[1] / 'config' / 'world.yaml')
+    scene = Scene(params, world=world)
+    scene.update_pose(pose(0.0, 0.0, 0.0, 0.0))
+    drawn = scene.markers()
+    [patch] = [m for m in drawn if m.ns == 'friction_patches']
+    (x0, x1), (y0, y1) = world.patches[0].x, world.patches[0].y
+    assert patch.position[:2] == pytest.approx(((x0 + x1) / 2, (y0 + y1) / 2)) and patch.position[2] < 0.0
+    assert patch.scale[:2] == pytest.approx((x1 - x0, y1 - y0))
+    drier = Scene(params.replace(wall_friction=0.35, kinetic_friction=0.3), world=world)
+    drier.update_pose(pose(0.0, 0.0, 0.0, 0.0))
+    [less_slippery] = [m for m in drier.markers() if m.ns == 'friction_patches']
+    assert less_slippery.color[3] < patch.color[3]  # 0.3 on a 0.35 wall stands out less than on a 0.7 one
+    [seam] = [m for m in drawn if m.ns == 'seams']
+    assert seam.points.tolist() == [[-5.0, 1.0, 0.0], [5.0, 1.0, 0.0]]
+    assert seam.scale[0] == max(world.seams[0].width, LINE_WIDTH)
+    plain = Scene(params)
+    plain.update_pose(pose(0.0, 0.0, 0.0, 0.0))
+    assert not {m.ns for m in plain.markers()} & {'friction_patches', 'seams'}

@@ -133,7 +133,7 @@ def describe_graph(scenario: Scenario, selection: ConstraintSelection, *, durati
         specs.append(node(CONTROLLER, 'wallbot_sim.nodes.controller', CONTROLLER_SETTINGS, {
             'mass_scale': float(controller_mass_scale), 'engine': engine, 'wait_for_recorder': bag is not None,
             **SIM_TIME}, CONTROLLER_REMAPS))
-    specs += _viewer(viewer, foxglove_port, foxglove_host, robot, frames)
+    specs += _viewer(viewer, foxglove_port, foxglove_host, {**robot, **_world(world_file)}, frames)
     dynamics = _dynamics(pose, duration, real_time_factor, bag is not None, realtime_priority,
                          {**robot, **_world(world_file)}, contact_model,
                          adhesion_force, CONTROL_STEPS if closed_loop else None, engine, frames, domain_clock)
@@ -170,7 +170,7 @@ def describe_driven_graph(drive: str, *, duration: float = 0.0, real_time_factor
         # also the run's commander: the dynamics waits for it)
         node(name, module, table, {**robot, **SIM_TIME, **({'wait_for_recorder': True} if bag is not None else {})},
              CONTROLLER_REMAPS if drive == 'cmd_vel' else ()),
-        *_viewer(viewer, foxglove_port, foxglove_host, robot, frames),
+        *_viewer(viewer, foxglove_port, foxglove_host, {**robot, **_world(world_file)}, frames),
     ]
     dynamics = _dynamics(REST, duration, real_time_factor, bag is not None, realtime_priority,
                          {**robot, **_world(world_file)}, contact_model,
@@ -257,7 +257,7 @@ def launch_name(spec: NodeSpec) -> dict[str, str]:
 
 
 def _world(world_file: Path | None) -> dict[str, str]:
-    """The dynamics' world_file parameter (none for a vertical, uniform wall)."""
+    """The world_file parameter of the dynamics and the viewer (none for a vertical, uniform wall)."""
     return {'world_file': str(world_file)} if world_file is not None else {}
 
 
@@ -266,13 +266,14 @@ def _frames(frame_prefix: str) -> dict[str, str]:
     return {'frame_prefix': frame_prefix} if frame_prefix else {}
 
 
-def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, robot: dict[str, str],
+def _viewer(viewer: bool, foxglove_port: int, foxglove_host: str, files: dict[str, str],
             frames: dict[str, str]) -> list[NodeSpec]:
-    """The viewer node if asked for (``viewer``, or a Foxglove port), else nothing."""
+    """The viewer node if asked for (``viewer``, or a Foxglove port), else nothing; ``files`` its robot and world
+    file parameters."""
     if not (viewer or foxglove_port):
         return []
     foxglove = {'foxglove_port': int(foxglove_port), 'foxglove_host': foxglove_host} if foxglove_port else {}
-    return [node(VIEWER, 'wallbot_sim.nodes.viewer', VIEWER_SETTINGS, {**robot, **frames, **foxglove, **SIM_TIME})]
+    return [node(VIEWER, 'wallbot_sim.nodes.viewer', VIEWER_SETTINGS, {**files, **frames, **foxglove, **SIM_TIME})]
 
 
 def _dynamics(pose: InitialPose, duration: float, real_time_factor: float, recorded: bool, realtime_priority: int,

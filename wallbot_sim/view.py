@@ -16,7 +16,9 @@ Markers, all in the odometry's frame (``wall``), so a viewer needs no tf tree:
   newest ``trail_points`` points, one every ``TRAIL_SPACING`` metres or more;
 * ``contact_forces``: the tangential force the wall exerts on the robot at each wheel (``wheel_contact``,
   docs/model.md 11.2), an arrow from the wheel's contact point, green while the wheel sticks, red while it
-  slides.
+  slides;
+* ``friction_patches`` and ``seams`` of a world file (docs/model.md 13.1): each patch a flat box on the
+  wall, the more opaque the lower its friction against the robot file's, each seam a line as wide as the gap.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ import numpy as np
 from wallbot_msgs_py import topics
 from wallbot_msgs_py.view_cdr import ARROW, CUBE, CYLINDER, DELETE, LINE_STRIP, MarkerSpec, Quaternion, TransformSpec
 from wallbot_sim.model import RobotParameters
+from wallbot_sim.model.world import World
 from wallbot_sim.urdf import WHEEL_WIDTH_PER_RADIUS, wheel_link
 
 TRAIL_SPACING = 0.002
@@ -37,7 +40,11 @@ TRAIL_SPACING = 0.002
 FORCE_SCALE = 0.002
 """Metres of arrow per newton of contact force."""
 LINE_WIDTH = 0.004
-"""Metres: width of the path lines and of the force arrows' shafts."""
+"""Metres: width of the path lines and of the force arrows' shafts (and the least of a seam's line)."""
+PATCH_DEPTH = 0.001
+"""Metres: thickness of a friction patch's box, drawn just under the wall's surface."""
+PATCH_COLOR = (0.2, 0.4, 1.0)
+SEAM_COLOR = (0.1, 0.1, 0.1, 1.0)
 STICKING = (0.1, 0.8, 0.1, 1.0)
 SLIPPING = (0.9, 0.1, 0.1, 1.0)
 WHEEL_COLOR = (0.15, 0.15, 0.15, 1.0)
@@ -65,6 +72,21 @@ def axis_rotation(axis: int, angle: float) -> Quaternion:
 
 CYLINDER_ALONG_AXLE = axis_rotation(0, 0.5 * math.pi)
 """A marker cylinder lies along z; turned a quarter about x it lies along the axle (as in the URDF)."""
+
+
+def world_markers(world: World, wall_friction: float) -> list[MarkerSpec]:
+    """The friction patches (flat boxes just under the wall's surface, alpha growing as their static friction
+    falls below ``wall_friction``) and the seams (lines as wide as their gap) of ``world``."""
+    markers = []
+    for k, patch in enumerate(world.patches):
+        (x0, x1), (y0, y1) = patch.x, patch.y
+        slippery = max(0.0, min(1.0, 1.0 - patch.wall_friction / wall_friction))
+        markers.append(MarkerSpec('friction_patches', k, CUBE, (0.5 * (x0 + x1), 0.5 * (y0 + y1), -PATCH_DEPTH),
+                                  scale=(x1 - x0, y1 - y0, PATCH_DEPTH), color=(*PATCH_COLOR, 0.2 + 0.6 * slippery)))
+    for k, seam in enumerate(world.seams):
+        markers.append(MarkerSpec('seams', k, LINE_STRIP, scale=(max(seam.width, LINE_WIDTH), 0.0, 0.0),
+                                  color=SEAM_COLOR, points=np.array([(*seam.start, 0.0), (*seam.end, 0.0)])))
+    return markers
 
 
 def margin_color(margin: float) -> tuple[float, float, float, float]:
@@ -135,8 +157,11 @@ class Trail:
 class Scene:
     """The newest state of the graph as the viewer knows it; markers and transforms of it."""
 
-    def __init__(self, params: RobotParameters, trail_points: int = 3000, frame_prefix: str = '') -> None:
+    def __init__(self, params: RobotParameters, trail_points: int = 3000, frame_prefix: str = '',
+                 world: World | None = None) -> None:
         a, b, r = params.half_wheelbase, params.half_track, params.wheel_radius
+        self.surface = world_markers(world, params.wall_friction) if world is not None else []
+        """The world's patches and seams (fixed)."""
         self.wheel_links = tuple(wheel_link(joint, frame_prefix) for joint in topics.WHEEL_JOINTS)
         """The wheels' tf frames, the URDF's wheel links after the robot's ``frame_prefix``."""
         self.radius = r
@@ -242,7 +267,7 @@ class Scene:
                                                                               4 * LINE_WIDTH),
                                       color=SLIPPING if self.slipping[wheel] else STICKING,
                                       points=np.array([start, end])))
-        return markers
+        return markers + self.surface
 
     @staticmethod
     def _line(ns: str, points: np.ndarray, color: tuple[float, float, float, float]) -> MarkerSpec:

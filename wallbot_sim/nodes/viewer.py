@@ -28,7 +28,7 @@ from visualization_msgs.msg import MarkerArray
 
 from wallbot_msgs_py import codec, topics, view_cdr
 from wallbot_msgs_py.qos import qos_profile
-from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.live_view import FoxgloveRelay
 from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
@@ -76,7 +76,8 @@ class ViewerNode(Node):
         reasons = RobotFrames(prefix=frame_prefix).reasons()
         if reasons:
             raise ValueError('; '.join(reasons))
-        self.scene = Scene(load_robot_parameters(settings.robot_file or None), settings.trail_points, frame_prefix)
+        self.scene = Scene(load_robot_parameters(settings.robot_file or None), settings.trail_points, frame_prefix,
+                           load_world(settings.world_file or None))
         self.relay = None
         if port:
             self.relay = FoxgloveRelay(host, port, self.get_namespace(),

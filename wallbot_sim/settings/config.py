@@ -54,6 +54,8 @@ class ViewerSettings:
                                 NumberRange(2, 1_000_000))
     robot_file: str = setting('', 'robot parameter YAML ("" = the installed config/robot.yaml): the sizes drawn',
                               read_only=True)
+    world_file: str = setting('', 'world YAML ("" = a vertical, uniform wall): its friction patches and seams drawn',
+                              read_only=True)
     frame_prefix: str = setting('', FRAME_PREFIX_HELP, read_only=True)
     foxglove_port: int = setting(0, 'serve the topics over the Foxglove WebSocket protocol on this port (0 = off)',
                                  NumberRange(0, 65535), read_only=True)
