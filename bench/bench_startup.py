@@ -85,7 +85,7 @@ class Process:
     @property
     def module(self) -> str:
         match = re.search(r' -m (\S+)', self.command)
-        return match.group(1) if match else self.command.split()[0]
+        return match.group(1) if match else self.command.split(' ')[0]
 
 
 @dataclass
@@ -127,7 +127,8 @@ def timed(command: Sequence[str], env: dict[str, str], poll: float = 0.02) -> Ti
             try:
                 if pid not in seen:
                     seen[pid] = Process(line.strip(), process_start(pid, booted))
-                seen[pid].command = line.strip()  # a first look may come between its fork and its exec
+                if line.strip():  # a first look may come between its fork and its exec; a zombie has none
+                    seen[pid].command = line.strip()
                 seen[pid].cpu = cpu_seconds(pid)
             except (OSError, IndexError, ValueError):  # gone meanwhile
                 continue
