@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import threading
 import time
-from typing import Callable, Mapping
+from typing import Callable, Iterator, Mapping
 
 import numpy as np
 
@@ -130,6 +131,15 @@ class DynamicsLoop:
         return self.diverged or self.gave_up is not None
 
     # --- loop thread --------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def loading_kernel(self) -> Iterator[None]:
+        """The status says the compiled kernel is loading while the node loads it (before :meth:`run`)."""
+        self.status = Status(RunState.LOADING_KERNEL)
+        try:
+            yield
+        finally:
+            self.status = Status(RunState.WAITING_CONSTRAINTS)
+
     def run(self) -> None:
         """Tick until :meth:`stop`."""
         while not self.stopping.is_set():
