@@ -98,14 +98,28 @@ def run_label(path: Path | str) -> str:
     return bag.parent.name if bag.name == RUN_BAG and bag.parent.name else bag.name
 
 
+BAG_FILES = ('.mcap', '.db3', 'metadata.yaml')
+"""How the files inside a bag directory that name it end."""
+
+
+def is_csv(path: Path) -> bool:
+    """Whether the existing ``path`` is a run's CSV (else a bag); RunDataError naming both kinds if it is neither
+    (the verbs reading a run take either)."""
+    if not path.exists():
+        raise RunDataError(f'{path} does not exist')
+    if path.is_dir() or path.name.endswith(BAG_FILES):
+        return False
+    if path.suffix.lower() == '.csv':
+        return True
+    raise RunDataError(f'{path} is neither a simulate CSV (.csv) nor a rosbag2 bag (a bag directory, or its .mcap)')
+
+
 def load_run(path: Path | str, label: str | None = None) -> RunData:
     """A bag directory (or its .mcap) or a simulate CSV; RunDataError / BagError otherwise. Labelled
     ``label`` or by ``run_label``."""
     path = Path(path)
     label = label or run_label(path)
-    if not path.exists():
-        raise RunDataError(f'{path} does not exist')
-    if path.is_file() and path.suffix.lower() == '.csv':
+    if is_csv(path):
         return _load_csv(path, label)
     return _load_bag(path, label)
 

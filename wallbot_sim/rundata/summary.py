@@ -16,8 +16,7 @@ from typing import Callable
 import numpy as np
 
 from wallbot_sim.model.contact import WHEEL_POSITIONS
-from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.load import RunData, load_run
+from wallbot_sim.rundata.load import RunData, is_csv, load_run
 
 
 @dataclass(frozen=True)
@@ -59,9 +58,7 @@ def summarize(path: Path | str, progress: Callable[[float, float], None] | None 
     been read (log time, s), every few thousand messages."""
     from wallbot_sim.rundata.streaming import summarize_bag
     path = Path(path)
-    if not path.exists():
-        raise RunDataError(f'{path} does not exist')
-    if path.is_file() and path.suffix.lower() == '.csv':
+    if is_csv(path):
         return summarize_run(load_run(path), path)
     return summarize_bag(path, progress)
 
