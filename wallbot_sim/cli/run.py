@@ -33,16 +33,15 @@ from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER, RECORDER, VIEWER,
                                            GraphDescriptionError, describe_driven_graph, describe_graph)
 from wallbot_sim.graph_monitor import Monitor
-from wallbot_sim.graph_options import option
+from wallbot_sim.graph_options import ALL_STRUCTURAL, option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
-from wallbot_sim.model import STRUCTURAL, ConstraintSelection, ParameterError, Robot
+from wallbot_sim.model import ConstraintSelection, ParameterError, Robot
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.simulation import NUMBA
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
 """The scenario of a run driven by the user (--drive): no trajectory, at rest at the origin."""
-ALL_STRUCTURAL = ','.join(STRUCTURAL)
 OPTIONAL = {CONTROLLER: 'the dynamics falls back to zero torque after command_timeout',
             VIEWER: 'no markers or live view from now on'}
 """Nodes whose exit does not end the run, and what follows: without its controller the dynamics falls
