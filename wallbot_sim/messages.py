@@ -9,6 +9,7 @@ use it, so a headless bag holds the graph's messages. No ROS import.
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 from typing import Mapping, Sequence
@@ -251,8 +252,16 @@ def slipping_wheels(contact: ContactOutputs) -> list[str]:
     return [wheel for wheel, flag in zip(WHEEL_POSITIONS, contact.wheel_slipping) if flag]
 
 
+def settled_residual(largest: float, residual: float, t: float) -> float:
+    """``largest`` (the largest residual of a window's states after the start, nan while none) with the state at
+    simulation time ``t``'s ``residual`` counted if ``t`` is ``topics.RESIDUAL_SETTLED_AFTER`` or later."""
+    if t < topics.RESIDUAL_SETTLED_AFTER - 1e-9:
+        return largest
+    return residual if math.isnan(largest) else max(largest, residual)
+
+
 def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,
-                      residual: float, residual_max: float, constraints_label: str,
+                      residual: float, residual_max: float, residual_settled: float, constraints_label: str,
                       adsorption: Adsorption, *, detached: bool = False,
                       contact: Sequence[tuple[str, object]] = (), sliding: Mapping[str, float] | None = None,
                       slipping: Sequence[str] = (), motor: Sequence[tuple[str, object]] = (),
@@ -273,6 +282,7 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
         ('lateness max (ms)', loop.lateness_max_ms), ('late steps (> 2 ms)', loop.late_steps),
         ('loop priority', loop.loop_priority),
         ('constraint residual', residual), (topics.DIAGNOSTIC_RESIDUAL_MAX, residual_max),
+        (topics.DIAGNOSTIC_RESIDUAL_SETTLED, residual_settled),
         ('active constraints', constraints_label),
         ('command', command),
         ('adsorption force (N)', float(adsorption.applied_force)),

@@ -456,7 +456,7 @@ class DynamicsLoop:
             every = snapshot_every(self.settings.snapshot_period, sim.dt)
             if every > 0 and sim.steps % every == 0:
                 self.snapshot()
-        self.statistics.note_residual(out.residual)
+        self.statistics.note_residual(out.residual, out.t)
         self.last_outputs = out
 
     def waits_next(self) -> bool:
@@ -475,7 +475,7 @@ class DynamicsLoop:
     def publish(self, out: StepOutputs) -> None:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
-        self.statistics.note_residual(out.residual)
+        self.statistics.note_residual(out.residual, out.t)
         self.saturation.note(out.t, self.sim.motor_torque, out.motor_torque)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
         self.lockstep.mark_sync(self.commander_hears())
