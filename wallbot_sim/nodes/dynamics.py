@@ -47,7 +47,8 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
-                              PumpCommand, RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
+                              PumpCommand, RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
+                              TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
 from wallbot_sim.loop.faults import FaultChange, faults_on
 from wallbot_sim.model import ModelError, ParameterError, SampledReference, StepOutputs
@@ -107,6 +108,8 @@ class DynamicsNode(Node):
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         steady_timer(self, 1.0, self._publish_diagnostics)
+        self._stop_reported = False
+        steady_timer(self, STOP_POLL, self._report_stop)
         self.loop_thread = threading.Thread(target=self._run_loop, name='simulation', daemon=True)
         self.loop_thread.start()
 
@@ -386,6 +389,14 @@ class DynamicsNode(Node):
             self.exit_status = 1
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
+    def _report_stop(self) -> None:
+        """The diagnostics of a stop (stop_at reached) at once, not up to a second later: they close the run's last
+        window of residuals, which ``wallbot-sim run`` waits for before it ends the graph."""
+        stopped = self.loop.status.state is RunState.STOPPED
+        if stopped and not self._stop_reported:
+            self._publish_diagnostics()
+        self._stop_reported = stopped
+
     def _publish_diagnostics(self) -> None:
         loop = self.loop
         window = loop.statistics.take()
@@ -423,6 +434,8 @@ def main(args: list[str] | None = None) -> None:
     sys.exit(run(started_node, args))
 
 
+STOP_POLL = 0.05
+"""Wall seconds between looks for a stop to report on /diagnostics."""
 FINAL_DIAGNOSTICS_WAIT = 5.0
 """Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (at the writer's
 heartbeat: 0.1 s with the nodes' profile, 3 s with Fast DDS's default under a user's profile that sets none)."""
