@@ -298,8 +298,8 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
     outcome: dict[tuple[str, str], str] = {}
     for round_ in range(rounds):
         for tree in trees:
-            for name, command in variants.items():
-                out = work / f'sweep-{tree.label}-{len(walls)}'
+            for index, (name, command) in enumerate(variants.items()):
+                out = work / f'sweep-{tree.label}-{round_}-{index}'  # a fresh directory: a used one would resume
                 timing = timed(command(out), tree.env())
                 walls.setdefault((tree.label, name), []).append(timing.wall)
                 lines = [line for line in timing.stderr.splitlines() if line.strip() and not line.startswith('  ')]
