@@ -115,3 +115,21 @@ def test_on_the_numba_engine_the_kernel_is_loaded_at_start_and_frozen_with_it(pr
     assert proc.wait(timeout=120) == 0, process_runner.output('probe')
     loaded, tracked, stepped = process_runner.output('probe').split()[-3:]
     assert int(loaded) >= 1 and int(tracked) == 0 and stepped == 'False', process_runner.output('probe')
+
+
+def test_a_stop_is_reported_on_diagnostics_once_when_the_loop_stops():
+    """The diagnostics of a stop close the run's last window of residuals, which ``wallbot-sim run`` waits for:
+    the node publishes them when it sees the loop stopped, once per stop (again after a run that went on stops)."""
+    from types import SimpleNamespace
+
+    from wallbot_sim.loop.status import RunState, Status
+    from wallbot_sim.nodes.dynamics import DynamicsNode
+    published = []
+    node = SimpleNamespace(loop=SimpleNamespace(status=Status(RunState.RUNNING)), _stop_reported=False,
+                           _publish_diagnostics=lambda: published.append(str(node.loop.status)))
+    looks = [RunState.RUNNING, RunState.STOPPED, RunState.STOPPED, RunState.STOPPED, RunState.RUNNING,
+             RunState.STOPPED, RunState.STOPPED]
+    for state in looks:
+        node.loop.status = Status(state, t=1.0)
+        DynamicsNode._report_stop(node)
+    assert published == [str(Status(RunState.STOPPED, t=1.0))] * 2
