@@ -11,7 +11,6 @@ from typing import Mapping
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot
 from wallbot_sim import messages
-from wallbot_sim.loop.status import RunState
 
 PARAMETER_TIMEOUT = 10.0
 """Wall seconds a parameter set waits for the dynamics' answer."""
@@ -104,7 +103,7 @@ class Monitor:
 
     def kernel_loading(self) -> bool:
         """Whether the dynamics' latest diagnostics say it is loading its compiled kernel."""
-        return self.status == RunState.LOADING_KERNEL.value
+        return self.status == messages.LOADING_KERNEL
 
     def reference_heard(self) -> bool:
         """Whether the trajectory node's reference reaches the monitor (the poses sent before do not)."""

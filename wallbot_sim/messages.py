@@ -209,6 +209,8 @@ def applied_command(tau_left: float, tau_right: float) -> str:
     return f'applied ({tau_left:.4g}, {tau_right:.4g}) N m'
 
 
+LOADING_KERNEL = "loading the compiled kernel (a machine's first start compiles it into numba's cache, about a minute)"
+"""The dynamics' status while it loads the compiled kernel its steps take, before its first step."""
 STOPPED = 'stopped at t = {t:.3f} s (stop_at)'
 """The dynamics' status once simulation time ``t`` reached its stop (a format string)."""
 

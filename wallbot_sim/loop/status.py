@@ -19,8 +19,7 @@ class RunState(Enum):
     """The loop's run state; the value is the diagnostics' ``status`` text ({t}: simulation time,
     {reason}: why the robot left the wall)."""
 
-    LOADING_KERNEL = ("loading the compiled kernel (a machine's first start compiles it into numba's cache, about a "
-                      'minute)')
+    LOADING_KERNEL = messages.LOADING_KERNEL
     WAITING_CONSTRAINTS = 'waiting for constraints'
     WAITING_RECORDER = 'waiting for a recorder'
     WAITING_KEEPER = 'waiting for a kept snapshot to resume from (resume_state)'
