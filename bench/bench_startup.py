@@ -113,12 +113,12 @@ def process_start(pid: int, booted: float) -> float:
     return booted + int(fields[19]) / os.sysconf('SC_CLK_TCK')
 
 
-def timed(command: Sequence[str], env: dict[str, str], poll: float = 0.02) -> Timing:
-    """Run ``command`` to its end, looking at its children every ``poll`` s."""
+def timed(command: Sequence[str], env: dict[str, str], cwd: Path, poll: float = 0.02) -> Timing:
+    """Run ``command`` in ``cwd`` to its end, looking at its children every ``poll`` s."""
     booted = boot_time()
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started, t0 = time.time(), time.monotonic()
-    process = subprocess.Popen(command, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(command, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     seen: dict[int, Process] = {}
     stderr: list[str] = []
     reader = _drain(process, stderr)
@@ -163,7 +163,9 @@ def first_line(lines: list[tuple[float, str, str]], logger: str, begins: str) ->
 
 @dataclass(frozen=True)
 class Tree:
-    """A checkout whose package the commands run (first on PYTHONPATH)."""
+    """A checkout whose package the commands run (first on PYTHONPATH). They run in the bench's scratch directory:
+    ``python -m`` and ``-c`` put the working directory first on sys.path, which in a checkout would run its package
+    instead of the tree's."""
 
     label: str
     path: Path
@@ -229,7 +231,7 @@ def measure_run(trees: Sequence[Tree], rounds: int, work: Path, report: Report) 
     for round_ in range(rounds):
         for tree, engine in variants:
             out = work / f'run-{tree.label}-{engine}-{round_}'
-            timing = timed(wallbot(*RUN, '--engine', engine, '--out', str(out)), tree.env())
+            timing = timed(wallbot(*RUN, '--engine', engine, '--out', str(out)), tree.env(), work)
             figures[tree, engine].add(timing, out)
             print(f'run {tree.label} {engine} round {round_ + 1}: {timing.wall:.2f} s wall, {timing.cpu:.2f} s CPU '
                   f'(load {os.getloadavg()[0]:.1f})', flush=True)
@@ -259,13 +261,13 @@ def measure_run(trees: Sequence[Tree], rounds: int, work: Path, report: Report) 
 
 
 # --- imports -------------------------------------------------------------------------------------------
-def measure_imports(trees: Sequence[Tree], rounds: int, report: Report) -> None:
+def measure_imports(trees: Sequence[Tree], rounds: int, work: Path, report: Report) -> None:
     walls: dict[tuple[str, str], list[float]] = {}
     for round_ in range(rounds):
         for tree in trees:
             for name, code in IMPORTS.items():
                 t0 = time.monotonic()
-                subprocess.run([sys.executable, '-c', code], env=tree.env(), check=True)
+                subprocess.run([sys.executable, '-c', code], env=tree.env(), cwd=work, check=True)
                 walls.setdefault((tree.label, name), []).append(time.monotonic() - t0)
         print(f'imports round {round_ + 1} (load {os.getloadavg()[0]:.1f})', flush=True)
     header = ['what a process loads', *(f'{tree.label}: wall s' for tree in trees)]
@@ -300,14 +302,15 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
         for tree in trees:
             for index, (name, command) in enumerate(variants.items()):
                 out = work / f'sweep-{tree.label}-{round_}-{index}'  # a fresh directory: a used one would resume
-                timing = timed(command(out), tree.env())
+                timing = timed(command(out), tree.env(), work)
                 walls.setdefault((tree.label, name), []).append(timing.wall)
                 lines = [line for line in timing.stderr.splitlines() if line.strip() and not line.startswith('  ')]
                 unexpected = [line for line in lines if not line.startswith(('sweep:', 'wrote ', 'wallbot-sim sweep'))]
                 outcome[tree.label, name] = (f'exit {timing.status}, {len(unexpected)} other lines'
                                              + (', output left behind' if out.exists() and timing.status else ''))
+                said = ''.join(f'\n    {line}' for line in (unexpected or lines[-1:] if timing.status else unexpected))
                 print(f'sweep {tree.label} {name} round {round_ + 1}: {timing.wall:.2f} s '
-                      f'({outcome[tree.label, name]}; load {os.getloadavg()[0]:.1f})', flush=True)
+                      f'({outcome[tree.label, name]}; load {os.getloadavg()[0]:.1f}){said}', flush=True)
     header = ['`wallbot-sim sweep`', *(f'{tree.label}: wall s' for tree in trees),
               *(f'{tree.label}: outcome' for tree in trees)]
     if len(trees) == 2:
@@ -340,7 +343,7 @@ def main() -> int:
     print(f'{os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}', flush=True)
     with tempfile.TemporaryDirectory(prefix='bench_startup-') as work:
         if 'imports' in parts:
-            measure_imports(trees, args.rounds, report)
+            measure_imports(trees, args.rounds, Path(work), report)
         if 'run' in parts:
             measure_run(trees, args.rounds, Path(work), report)
         if 'sweep' in parts:
