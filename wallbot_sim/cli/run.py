@@ -138,12 +138,13 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
     exception, Ctrl-C's KeyboardInterrupt), and stop it (also when interrupted); NodeDied if an
     essential node exits. ``reference``: the graph has a trajectory node, whose last reference
     pose is waited for."""
-    monitor: Monitor | None = None
+    # the monitor first: made once the nodes run, it may discover the trajectory node only after its last
+    # reference pose under load (seen: the final wait then ran out)
+    monitor = Monitor()
     reported: set[str] = set()
     try:
         for spec in specs:  # at once: they load in parallel, each holding back until the recorder hears it
             graph.start_node(spec)
-        monitor = Monitor()
         wait_for_start(graph, monitor, reported, specs[0].name)
         while duration == 0 or monitor.recorded < duration - 1e-9:
             check_nodes(graph, reported)
@@ -171,8 +172,7 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         # endpoints go away can deadlock in DomainParticipant::set_listener, spinning a core for ever
         # (seen once: run hung there after the graph's signal, a discovery callback waiting for the lock
         # the deletion held); with the graph still up no endpoint is being removed meanwhile
-        if monitor is not None:
-            monitor.close()
+        monitor.close()
         # the recorder last, its bag ending at its signal: every other node has delivered what it published
         # before it left DDS (a message a starved recorder lost in transit is repaired only meanwhile)
         graph.stop_all(last=(RECORDER, DYNAMICS_RECORDER))
