@@ -263,8 +263,8 @@ def settled_residual(largest: float, residual: float, t: float) -> float:
 
 
 def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,
-                      residual: float, residual_max: float, residual_settled: float, constraints_label: str,
-                      adsorption: Adsorption, *, detached: bool = False,
+                      residual: float, residual_max: float, constraints_label: str,
+                      adsorption: Adsorption, *, residual_settled: float = math.nan, detached: bool = False,
                       contact: Sequence[tuple[str, object]] = (), sliding: Mapping[str, float] | None = None,
                       slipping: Sequence[str] = (), motor: Sequence[tuple[str, object]] = (),
                       saturated: str = '') -> codec.Status:

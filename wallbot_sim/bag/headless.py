@@ -160,7 +160,7 @@ class HeadlessBagWriter:
         motor, saturated = self._saturation.report()
         diagnostics = messages.simulation_status(
             self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max,
-            self._residual_settled, selection.label(), sim.robot.adsorption,
+            selection.label(), sim.robot.adsorption, residual_settled=self._residual_settled,
             contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
             sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_wheels(out.contact),
             motor=motor, saturated=saturated)

@@ -412,9 +412,9 @@ class DynamicsNode(Node):
             loop.pacer.policy)
         report = messages.simulation_status(
             self.get_fully_qualified_name(), str(status), loop.in_error, loop.command_state(), t, figures,
-            float(out.residual) if out is not None else math.nan, window.residual_max, window.residual_settled,
+            float(out.residual) if out is not None else math.nan, window.residual_max,
             sim.selection.label() if sim is not None else 'none yet', loop.robot.adsorption,
-            detached=loop.detached is not None,
+            residual_settled=window.residual_settled, detached=loop.detached is not None,
             contact=messages.contact_values(self.settings.contact_model, sim is None or sim.coulomb_applies,
                                             out.contact if out is not None else None),
             sliding=unheld_slip(loop.robot, sim.selection, out) if sim is not None and out is not None else {},
