@@ -51,6 +51,7 @@ def diagnostics_without_wall_clock(msg: Any, same_moments: bool) -> Any:
     left_out = set(WALL_CLOCK_KEYS)
     if not same_moments:
         left_out |= {'simulation time', 'status', 'constraint residual', 'constraint residual max',
+                     'constraint residual max after 0.1 s',
                      'normal loads (N)', 'friction use (left front, left rear, right front, right rear)',
                      'slipping wheels'}
     return tuple((status.level, status.name, status.hardware_id, tuple(kv.key for kv in status.values),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import signal
@@ -201,42 +202,30 @@ def test_bad_arguments_give_one_line(args, message):
 
 
 def test_the_default_engine_without_numba_names_the_package_and_the_other_engine(monkeypatch):
+    from wallbot_sim.cli import engine
     from wallbot_sim.cli.errors import CliError
-    from wallbot_sim.cli.engine import require_compiled_engine
-    from wallbot_sim.model.batch import kernel
-    monkeypatch.setattr(kernel, 'available', lambda: False)
+    monkeypatch.setattr(engine, 'find_spec', lambda name: None if name == 'numba' else object())
     with pytest.raises(CliError, match=r"^engine 'numba' needs the numba package \(pip install numba\), or --engine "
                                        r'python$'):
-        require_compiled_engine()
+        engine.require_compiled_engine()
 
 
-def test_loading_the_kernel_says_it_is_compiling_only_when_it_takes_long(monkeypatch):
-    """A load slower than COMPILE_NOTICE (a machine's first run compiles for up to a minute) is said on
-    stderr while it lasts; a load from numba's cache says nothing."""
-    import io
-    from wallbot_sim.cli import engine as run
-    from wallbot_sim.model import compiled
-    stderr = io.StringIO()
-    monkeypatch.setattr(sys, 'stderr', stderr)
-    loaded = []
-
-    def slow_compile(contact: str) -> None:
-        deadline = time.monotonic() + 30
-        while 'compiling the numba kernel' not in stderr.getvalue():
-            assert time.monotonic() < deadline, 'no notice while compiling'
-            time.sleep(0.01)
-        loaded.append(contact)
-    monkeypatch.setattr(compiled, 'compile_run', slow_compile)
-    monkeypatch.setattr(compiled, 'compile_inverse_dynamics', lambda: loaded.append('law'))
-    monkeypatch.setattr(run, 'COMPILE_NOTICE', 0.0)
-    run.load_compiled_kernel('coulomb', inverse_dynamics=True)
-    assert loaded == ['coulomb', 'law'] and stderr.getvalue().count('\n') == 1
-
-    stderr.truncate(0)
-    monkeypatch.setattr(compiled, 'compile_run', loaded.append)
-    monkeypatch.setattr(run, 'COMPILE_NOTICE', 60.0)
-    run.load_compiled_kernel('ideal', inverse_dynamics=False)
-    assert loaded[-1] == 'ideal' and stderr.getvalue() == ''
+def test_the_start_clock_leaves_the_kernels_load_out_and_says_once_when_it_takes_long():
+    """run's start timeouts do not count the time the dynamics says it loads its compiled kernel (a machine's
+    first run compiles it for about a minute), up to COMPILE_LIMIT; past COMPILE_NOTICE of it, the terminal is
+    told once why the start takes long. A load from numba's cache, shorter, says nothing."""
+    from wallbot_sim.cli.engine import COMPILE_LIMIT, COMPILE_NOTICE, StartClock
+    clock = StartClock(100.0)
+    assert not clock.tick(101.0, loading=False) and clock.waited() == pytest.approx(1.0)
+    assert not clock.tick(101.0 + COMPILE_NOTICE / 2, loading=True)  # a load from the cache: nothing said
+    assert clock.waited() == pytest.approx(1.0)
+    said = [clock.tick(101.0 + COMPILE_NOTICE / 2 + seconds, loading=True) for seconds in range(1, 60)]
+    assert said.count(True) == 1 and said.index(True) == math.ceil(COMPILE_NOTICE / 2) - 1
+    assert not clock.tick(170.0, loading=False)
+    assert clock.waited() == pytest.approx(1.0 + 170.0 - (101.0 + COMPILE_NOTICE / 2 + 59))
+    endless = StartClock(0.0)
+    endless.tick(COMPILE_LIMIT + 50.0, loading=True)
+    assert endless.waited() == pytest.approx(50.0)  # a load that never ends is not waited for for ever
 
 
 def test_an_existing_bag_is_never_overwritten(tmp_path):

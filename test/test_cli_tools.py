@@ -55,7 +55,8 @@ def test_bad_inputs_get_one_line_errors(runs, tmp_path):
     blocker.write_text('x')
     assert_one_line_error(wallbot('info', tmp_path / 'missing'), 'does not exist')
     assert_one_line_error(wallbot('info', not_a_bag), 'not a rosbag2 bag')
-    assert_one_line_error(wallbot('plot', blocker), 'not a rosbag2 bag')
+    for verb in ('plot', 'motors'):  # verbs that read a run take a CSV too, and say so
+        assert_one_line_error(wallbot(verb, blocker), 'neither a simulate CSV (.csv) nor a rosbag2 bag')
     assert_one_line_error(wallbot('play', runs['traj'], '--rate', '-1'), 'argument --rate: must be > 0, got -1.0')
     assert_one_line_error(wallbot('play', runs['traj'], '--topics', 'no_such_topic'), 'no_such_topic')
     assert_one_line_error(wallbot('play', tmp_path / 'missing'), 'does not exist')
@@ -71,9 +72,12 @@ def test_missing_metadata_points_at_reindex_and_reindex_repairs(runs, tmp_path):
     shutil.copytree(runs['traj'], bag)
     (bag / 'metadata.yaml').unlink()
     assert_one_line_error(wallbot('info', bag), 'bag reindex')
+    old_names = sorted(path.name for path in bag.glob('*.mcap'))
     result = wallbot('bag', 'reindex', bag)
     assert result.returncode == 0, result.stderr
     assert wallbot('info', bag).returncode == 0
+    new_names = sorted(path.name for path in bag.iterdir())
+    assert result.stdout.strip().endswith(f'{", ".join(old_names)} replaced by {", ".join(new_names)}')
 
 
 def test_info_rates_each_topic_over_its_own_span(tmp_path):

@@ -80,9 +80,10 @@ def level(name: str) -> bytes:
 
 
 FROZEN_KERNEL_PROBE = '''
-import gc, sys
+import gc, sys, time
 import rclpy
 from rclpy.parameter import Parameter
+from wallbot_sim.loop.status import RunState
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.nodes.dynamics import started_node
 context = rclpy.Context()
@@ -91,6 +92,10 @@ contact = sys.argv[1]
 node = started_node(context=context, parameter_overrides=[Parameter('engine', value='numba'),
                                                           Parameter('contact_model', value=contact)])
 run = kernel.robot_run
+deadline = time.monotonic() + 100
+while not (run.overloads and node.loop.status.state is not RunState.LOADING_KERNEL):  # loaded by the loop thread
+    assert time.monotonic() < deadline, 'the kernel did not load'
+    time.sleep(0.01)
 loaded = list(run.overloads.values())
 tracked = {id(o) for o in gc.get_objects()}
 print(len(loaded), sum(id(o) in tracked for o in loaded), node.loop.stepped)
@@ -100,8 +105,9 @@ print(len(loaded), sum(id(o) in tracked for o in loaded), node.loop.stepped)
 @pytest.mark.parametrize('contact', ['ideal', 'coulomb'])
 def test_on_the_numba_engine_the_kernel_is_loaded_at_start_and_frozen_with_it(process_runner, contact):
     """Loading the kernel makes many objects; loaded by the first step, they cost the loop thread a full
-    collection of 12 ms seconds later. The node loads it while it starts, so they are frozen
-    (``gc.freeze``) with the rest of the start-up's: out of every collection's reach."""
+    collection of 12 ms seconds later. The node's loop thread loads it before its first tick (the executor
+    meanwhile discovers the graph) and freezes them (``gc.freeze``) as the start-up's: out of every
+    collection's reach."""
     pytest.importorskip('numba')
     from wallbot_sim.model.compiled import compile_run
     compile_run(contact)  # numba's cache: the node loads instead of compiling for up to a minute
@@ -109,3 +115,21 @@ def test_on_the_numba_engine_the_kernel_is_loaded_at_start_and_frozen_with_it(pr
     assert proc.wait(timeout=120) == 0, process_runner.output('probe')
     loaded, tracked, stepped = process_runner.output('probe').split()[-3:]
     assert int(loaded) >= 1 and int(tracked) == 0 and stepped == 'False', process_runner.output('probe')
+
+
+def test_a_stop_is_reported_on_diagnostics_once_when_the_loop_stops():
+    """The diagnostics of a stop close the run's last window of residuals, which ``wallbot-sim run`` waits for:
+    the node publishes them when it sees the loop stopped, once per stop (again after a run that went on stops)."""
+    from types import SimpleNamespace
+
+    from wallbot_sim.loop.status import RunState, Status
+    from wallbot_sim.nodes.dynamics import DynamicsNode
+    published = []
+    node = SimpleNamespace(loop=SimpleNamespace(status=Status(RunState.RUNNING)), _stop_reported=False,
+                           _publish_diagnostics=lambda: published.append(str(node.loop.status)))
+    looks = [RunState.RUNNING, RunState.STOPPED, RunState.STOPPED, RunState.STOPPED, RunState.RUNNING,
+             RunState.STOPPED, RunState.STOPPED]
+    for state in looks:
+        node.loop.status = Status(state, t=1.0)
+        DynamicsNode._report_stop(node)
+    assert published == [str(Status(RunState.STOPPED, t=1.0))] * 2

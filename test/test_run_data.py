@@ -4,6 +4,8 @@ figures from every step, short runs."""
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -61,6 +63,26 @@ def test_summary_figures_come_from_every_step(tmp_path):
     residual_of_bag = load_run(bag).residual
     assert np.nanmax(residual_of_bag) == pytest.approx(peak, rel=1e-5)
     assert np.isfinite(residual_of_bag[-1])  # the steps after the last 10 Hz message are reported too
+    times = np.array([float(row['t']) for row in rows])
+    settled = residuals[times >= 0.1 - 1e-9].max()  # the start's peak, 14 ms in, left out
+    assert settled < 0.9 * peak
+    assert summarize(table).max_residual_settled == settled
+    assert summarize(bag).max_residual_settled == pytest.approx(settled, rel=1e-5)
+    assert np.nanmax(load_run(bag).residual_settled) == pytest.approx(settled, rel=1e-5)
+    line = next(line for line in format_summary(summarize(table)).splitlines() if line.startswith('constraint residual'))
+    assert f'max {peak:.3e}, after 0.1 s max {settled:.3e} (' in line and 'least-squares misfit' in line
+
+
+def test_a_consistent_run_s_residual_is_not_explained_and_simulate_says_it_has_no_reference(tmp_path):
+    """A driven run at rest holds every constraint: its residual is rounding, said without the start's
+    explanation, and simulate's last line says it has no reference rather than a tracking error of nan."""
+    table = tmp_path / 'rest.csv'
+    result = subprocess.run([sys.executable, '-m', 'wallbot_sim.cli.main', 'simulate', '--scenario', 'rest',
+                             '--duration', '0.2', '--csv', str(table)], capture_output=True, text=True, check=True)
+    last = result.stderr.strip().splitlines()[-1]
+    assert 'no reference' in last and 'nan' not in last
+    line = next(line for line in format_summary(summarize(table)).splitlines() if line.startswith('constraint residual'))
+    assert 'after 0.1 s max' in line and '(' not in line
 
 
 def test_a_run_shorter_than_five_seconds_says_so(tmp_path):

@@ -46,8 +46,20 @@ def test_every_option_typed_by_a_setting_is_checked_below():
     typed_options = {(verb, action.option_strings[0]) for verb in ('run', 'simulate')
                      for action in verb_parser(verb)._actions
                      if action.option_strings and getattr(action.type, '__qualname__', '').startswith('setting_type')}
-    assert typed_options - covered <= {('run', '--constraints')}  # the graph's own option, no node's parameter
+    assert typed_options - covered <= {('run', '--constraints'), ('simulate', '--constraints')}  # no node's parameter
     assert len(covered) >= 14
+
+
+def test_run_and_simulate_start_with_the_same_constraints():
+    """Both verbs default to every structural constraint with the trajectory task (the heading task along the
+    path, non_lateral being among them)."""
+    from wallbot_sim.cli.simulate import build_simulation
+    from wallbot_sim.model import STRUCTURAL
+    run_args = build_parser().parse_args(['run', 'circle'])
+    simulate_args = build_parser().parse_args(['simulate', '--csv', '-'])
+    assert run_args.constraints == simulate_args.constraints
+    simulation, _ = build_simulation(simulate_args)
+    assert simulation.selection.label().split('+') == ['trajectory', 'tangent_heading', *STRUCTURAL]
 
 
 @pytest.mark.parametrize('verb, flag, node, parameter', mapped_options(), ids=lambda x: str(x))

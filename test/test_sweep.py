@@ -9,8 +9,10 @@ import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Callable
@@ -275,6 +277,51 @@ def test_bad_spec_file_is_one_line_on_the_command_line(tmp_path):
     spec = write_spec(tmp_path, {**BATCH_SPEC, 'grid': {'wheel_count': [4]}})
     assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'out'), 'spec.yaml', "'wheel_count'")
     assert not (tmp_path / 'out').exists()
+
+
+def test_an_unreachable_scheduler_is_one_line_and_leaves_no_output(tmp_path):
+    """A port nothing listens on is refused at once, before the output directory is made (Dask's client would
+    retry it for CONNECT_TIMEOUT)."""
+    spec = write_spec(tmp_path, BATCH_SPEC)
+    with socket.socket() as held:  # bound, never listening: connections to it are refused
+        held.bind(('127.0.0.1', 0))
+        address = f'tcp://127.0.0.1:{held.getsockname()[1]}'
+        assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'out', '--quiet', '--scheduler', address),
+                              f'cannot reach the Dask scheduler at {address}: Connection refused')
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_port_answering_otherwise_than_dask_is_one_line_and_leaves_no_output(tmp_path):
+    """Dask's client may fail on anything in a handshake with a port that is no scheduler (seen: a MemoryError
+    for a length it read): one line, and the output directory it made is removed."""
+    spec = write_spec(tmp_path, BATCH_SPEC)
+    with socket.socket() as server:
+        server.bind(('127.0.0.1', 0))
+        server.listen()
+        address = f'tcp://127.0.0.1:{server.getsockname()[1]}'
+
+        def answer() -> None:
+            while True:  # every connection, the sweep's reachability check's and Dask's
+                peer, _ = server.accept()
+                peer.sendall(b'\xff' * 64)
+                threading.Thread(target=peer.recv, args=(1,), daemon=True).start()  # open until the client leaves
+        threading.Thread(target=answer, daemon=True).start()
+        assert_one_line_error(wallbot('sweep', spec, '--out', tmp_path / 'out', '--quiet', '--scheduler', address),
+                              address, 'Dask scheduler')  # which error depends on what Dask reads
+    assert not (tmp_path / 'out').exists()
+
+
+def test_a_single_chunk_is_computed_without_starting_a_cluster(monkeypatch):
+    """One chunk is computed in this process whatever the number of workers: a local cluster (seconds to start)
+    could only run it on one of them."""
+    from wallbot_sim.sweep.cluster import run_chunks
+    monkeypatch.setitem(sys.modules, 'dask.distributed', None)  # importing it fails
+    spec = parse_spec({**BATCH_SPEC, 'chunk_size': 4, 'duration': 0.01})
+    done = {}
+    run_chunks(spec, [0], done.__setitem__, workers=2)
+    assert list(done) == [0] and len(done[0]) == 4
+    with pytest.raises(ImportError):
+        run_chunks(parse_spec(BATCH_SPEC), [0, 1], done.__setitem__, workers=2)
 
 
 def start_dask(process_runner, folder: Path, *options: object, host: str = '127.0.0.1',

@@ -180,6 +180,12 @@ DRIVE_JOINTS = ('drive_left', 'drive_right', 'lateral')
 DIAGNOSTIC_RESIDUAL_MAX = 'constraint residual max'
 """Key of the dynamics' /diagnostics value: the largest constraint residual |A qdd - b| of every
 state published since the previous diagnostics message (so a run's peak is never missed)."""
+RESIDUAL_SETTLED_AFTER = 0.1
+"""Simulation seconds after which a state counts into DIAGNOSTIC_RESIDUAL_SETTLED: a start off the
+constraints is pulled onto them over about this time, with a large residual meanwhile."""
+DIAGNOSTIC_RESIDUAL_SETTLED = f'constraint residual max after {RESIDUAL_SETTLED_AFTER:g} s'
+"""Key of the dynamics' /diagnostics value: DIAGNOSTIC_RESIDUAL_MAX of the states at or after
+RESIDUAL_SETTLED_AFTER of simulation time (nan when the window has none)."""
 
 NODE_DYNAMICS = 'dynamics'
 NODE_TRAJECTORY = 'trajectory'

@@ -101,6 +101,10 @@ class Monitor:
         """Whether the dynamics' latest diagnostics say it has stopped (so they cover every step)."""
         return self.status.startswith('stopped')
 
+    def kernel_loading(self) -> bool:
+        """Whether the dynamics' latest diagnostics say it is loading its compiled kernel."""
+        return self.status == messages.LOADING_KERNEL
+
     def reference_heard(self) -> bool:
         """Whether the trajectory node's reference reaches the monitor (the poses sent before do not)."""
         return self.reference_subscription.get_publisher_count() > 0

@@ -47,9 +47,11 @@ DRIVE_HELP = (f'{" or ".join(DRIVES)}: the robot at rest at the origin driven by
               'loop for teleop_twist_keyboard; or joint_bridge_node, the ros2_control topics joint_states and '
               'joint_commands), its command topics recorded; scenario, constraints and controller stay at their '
               'defaults; empty: the scenario')
+ALL_STRUCTURAL = ','.join(STRUCTURAL)
+"""The constraint set a run and a simulation start with unless told otherwise: every structural constraint."""
 OPTIONS = (
     GraphOption(Setting('scenario', 'circle', 'circle, figure8, or a scenario YAML path')),
-    GraphOption(Setting('constraints', ','.join(STRUCTURAL), SELECTION_SYNTAX), '--constraints'),
+    GraphOption(Setting('constraints', ALL_STRUCTURAL, SELECTION_SYNTAX), '--constraints'),
     node_option('dynamics', DYNAMICS, 'stop_at', '--duration', 'duration',
                 'simulated seconds before the dynamics stops; 0 = until stopped'),
     node_option('dynamics', DYNAMICS, 'real_time_factor', '--real-time-factor'),

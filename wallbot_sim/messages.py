@@ -9,6 +9,7 @@ use it, so a headless bag holds the graph's messages. No ROS import.
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 from typing import Mapping, Sequence
@@ -208,6 +209,8 @@ def applied_command(tau_left: float, tau_right: float) -> str:
     return f'applied ({tau_left:.4g}, {tau_right:.4g}) N m'
 
 
+LOADING_KERNEL = "loading the compiled kernel (a machine's first start compiles it into numba's cache, about a minute)"
+"""The dynamics' status while it loads the compiled kernel its steps take, before its first step."""
 STOPPED = 'stopped at t = {t:.3f} s (stop_at)'
 """The dynamics' status once simulation time ``t`` reached its stop (a format string)."""
 
@@ -251,9 +254,17 @@ def slipping_wheels(contact: ContactOutputs) -> list[str]:
     return [wheel for wheel, flag in zip(WHEEL_POSITIONS, contact.wheel_slipping) if flag]
 
 
+def settled_residual(largest: float, residual: float, t: float) -> float:
+    """``largest`` (the largest residual of a window's states after the start, nan while none) with the state at
+    simulation time ``t``'s ``residual`` counted if ``t`` is ``topics.RESIDUAL_SETTLED_AFTER`` or later."""
+    if t < topics.RESIDUAL_SETTLED_AFTER - 1e-9:
+        return largest
+    return residual if math.isnan(largest) else max(largest, residual)
+
+
 def simulation_status(node_name: str, status: str, diverged: bool, command: str, t: float, loop: LoopFigures,
                       residual: float, residual_max: float, constraints_label: str,
-                      adsorption: Adsorption, *, detached: bool = False,
+                      adsorption: Adsorption, *, residual_settled: float = math.nan, detached: bool = False,
                       contact: Sequence[tuple[str, object]] = (), sliding: Mapping[str, float] | None = None,
                       slipping: Sequence[str] = (), motor: Sequence[tuple[str, object]] = (),
                       saturated: str = '') -> codec.Status:
@@ -273,6 +284,7 @@ def simulation_status(node_name: str, status: str, diverged: bool, command: str,
         ('lateness max (ms)', loop.lateness_max_ms), ('late steps (> 2 ms)', loop.late_steps),
         ('loop priority', loop.loop_priority),
         ('constraint residual', residual), (topics.DIAGNOSTIC_RESIDUAL_MAX, residual_max),
+        (topics.DIAGNOSTIC_RESIDUAL_SETTLED, residual_settled),
         ('active constraints', constraints_label),
         ('command', command),
         ('adsorption force (N)', float(adsorption.applied_force)),

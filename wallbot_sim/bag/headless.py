@@ -23,6 +23,7 @@ and once at the end, with this process's wall-clock figures.
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -65,6 +66,7 @@ class HeadlessBagWriter:
         self._next_diagnostics = simulation.t
         self._residual_max = 0.0
         self._saturation = MotorSaturation(simulation.robot.params.motor is not None)
+        self._residual_settled = math.nan
         self._unreported: StepOutputs | None = None
         t = simulation.t
         selection = simulation.selection
@@ -141,6 +143,7 @@ class HeadlessBagWriter:
         self._last_write = now
         self._window_steps += 1
         self._residual_max = max(self._residual_max, out.residual)
+        self._residual_settled = messages.settled_residual(self._residual_settled, out.residual, out.t)
         self._unreported = out
         self._saturation.note(out.t, self.simulation.motor_torque, out.motor_torque)
         if out.t >= self._next_diagnostics - 1e-12:
@@ -156,14 +159,15 @@ class HeadlessBagWriter:
         sim = self.simulation
         motor, saturated = self._saturation.report()
         diagnostics = messages.simulation_status(
-            self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max, selection.label(),
-            sim.robot.adsorption, contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
+            self._node_name, status, False, command, out.t, loop, out.residual, self._residual_max,
+            selection.label(), sim.robot.adsorption, residual_settled=self._residual_settled,
+            contact=messages.contact_values(sim.contact_model, sim.coulomb_applies, out.contact),
             sliding=unheld_slip(sim.robot, selection, out), slipping=messages.slipping_wheels(out.contact),
             motor=motor, saturated=saturated)
         self._put(topics.DIAGNOSTICS, out.t, codec.diagnostics(out.t, [diagnostics]))
         self._next_diagnostics = out.t + DIAGNOSTICS_PERIOD
         self._window_start, self._window_steps, self._step_time_max = time.perf_counter(), 0, 0.0
-        self._residual_max = 0.0
+        self._residual_max, self._residual_settled = 0.0, math.nan
         self._unreported = None
 
     def close(self) -> None:

@@ -34,6 +34,10 @@ class ReindexReport:
     truncated: bool
     """True if a record at the end was incomplete (the kill cut it)."""
     duration: float
+    replaced: tuple[str, ...] = ()
+    """The names of the .mcap files rebuilt (removed)."""
+    written: tuple[str, ...] = ()
+    """The names of the files written in their place (the .mcap and metadata.yaml)."""
 
 
 class _Cursor:
@@ -257,8 +261,9 @@ def reindex(path: Path | str) -> ReindexReport:
         for source in sources:
             source.unlink()
         (directory / 'metadata.yaml').unlink(missing_ok=True)
-        for produced in target.iterdir():
-            produced.replace(directory / produced.name)
+        written = tuple(sorted(produced.name for produced in target.iterdir()))
+        for name in written:
+            (target / name).replace(directory / name)
     except BagError:
         raise
     except (OSError, struct.error, UnicodeDecodeError, ValueError) as error:
@@ -266,7 +271,8 @@ def reindex(path: Path | str) -> ReindexReport:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     duration = (copy.last - copy.first) * 1e-9 if copy.first is not None else 0.0
-    return ReindexReport(directory, writer.count, chunks, truncated, duration)
+    return ReindexReport(directory, writer.count, chunks, truncated, duration, tuple(source.name for source in sources),
+                         written)
 
 
 def repair_unclosed(bag: Path) -> str:

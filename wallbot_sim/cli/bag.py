@@ -21,5 +21,5 @@ def main(args: argparse.Namespace) -> int:
     report = reindex(args.bag)
     note = ' (the end was cut: its last partial chunk is dropped)' if report.truncated else ''
     print(f'reindexed {report.path}: {report.messages} messages, {report.duration:.3f} s, '
-          f'{report.chunks} chunks{note}')
+          f'{report.chunks} chunks{note}; {", ".join(report.replaced)} replaced by {", ".join(report.written)}')
     return 0

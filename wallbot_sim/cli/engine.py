@@ -1,39 +1,47 @@
-"""The compiled engine for the verbs that compute on it: numba present (``run``, ``simulate``), its kernel loaded
-(``run``, before its nodes start)."""
+"""The compiled engine for the verbs that compute on it: numba installed (``run``, ``simulate``), and ``run``'s patience
+while its dynamics loads the kernel (a machine's first run compiles it into numba's cache)."""
 
 from __future__ import annotations
 
-import sys
-import threading
+from importlib.util import find_spec
 
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.model.errors import ParameterError
 
-COMPILE_NOTICE = 2.0
-"""Seconds the compiled kernel may take to load from numba's cache before ``run`` says it is compiling."""
+COMPILE_NOTICE = 5.0
+"""Wall seconds the dynamics may say it is loading its compiled kernel before ``run`` says why that takes long (a
+load from numba's cache takes one to three seconds, compiling about a minute)."""
+COMPILE_LIMIT = 600.0
+"""Most wall seconds of a kernel's load that ``run`` does not count against its start timeouts."""
 
 
 def require_compiled_engine() -> None:
-    """CliError unless numba imports, naming the package and the other engine."""
-    from wallbot_sim.model.compiled import require_numba
-    try:
-        require_numba()
-    except ParameterError as error:
-        raise CliError(f'{error}, or --engine python') from None
+    """CliError unless numba is installed, naming the package and the other engine. Looked up, not imported:
+    importing numba takes about a second, which only the processes computing on it pay."""
+    if find_spec('numba') is None:
+        raise CliError("engine 'numba' needs the numba package (pip install numba), or --engine python")
 
 
-def load_compiled_kernel(contact: str, inverse_dynamics: bool) -> None:
-    """Load the compiled kernel the nodes step by (under ``contact``; and the controller's law) from numba's
-    cache, or compile it there (a machine's first run: about a minute, said), before any node starts: the nodes
-    then load it in a second, well within the graph's start timeouts."""
-    from wallbot_sim.model.compiled import compile_inverse_dynamics, compile_run
-    notice = threading.Timer(COMPILE_NOTICE, print, ['wallbot-sim run: compiling the numba kernel into its cache '
-                                                     "(a machine's first run: about a minute)..."],
-                             {'file': sys.stderr, 'flush': True})
-    notice.start()
-    try:
-        compile_run(contact)
-        if inverse_dynamics:
-            compile_inverse_dynamics()
-    finally:
-        notice.cancel()
+class StartClock:
+    """Wall time a starting graph has taken, not counting (up to COMPILE_LIMIT) the time its dynamics said it was
+    loading its compiled kernel, which a machine's first run spends compiling it (about a minute)."""
+
+    def __init__(self, now: float) -> None:
+        self.start = self.last = now
+        self.loading = 0.0
+        """Wall seconds the dynamics has said it is loading."""
+        self.said = False
+
+    def tick(self, now: float, loading: bool) -> bool:
+        """Count the time since the last tick (as loading if ``loading``); True once, when the load has taken
+        COMPILE_NOTICE: the moment to say why the start takes long."""
+        if loading:
+            self.loading += now - self.last
+        self.last = now
+        if loading and self.loading > COMPILE_NOTICE and not self.said:
+            self.said = True
+            return True
+        return False
+
+    def waited(self) -> float:
+        """Wall seconds since the start, the kernel's load left out."""
+        return self.last - self.start - min(self.loading, COMPILE_LIMIT)

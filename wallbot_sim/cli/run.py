@@ -3,7 +3,8 @@
 Starts constraint_config, trajectory, and the dynamics and the recorder in one process (the per-step
 topics recorded in process; ``--no-compose``: as separate processes), the dynamics on the compiled
 engine (``--engine python``: the model as written), with a ROS_DOMAIN_ID of their own (localhost
-discovery only; the first line on stdout is the ``export`` that attaches another terminal), shows
+discovery only; the first line on stdout is the ``export`` that attaches another terminal), all at
+once (each node holds back what it publishes until the recorder hears it), shows
 simulation time and real-time factor while they run, stops the graph once the recorder holds the
 whole duration (``--duration 0``: at Ctrl-C), then prints a summary and writes the paper's figures.
 A node that dies ends the run with its status and log named; Ctrl-C or SIGTERM stops the graph
@@ -21,7 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.engine import load_compiled_kernel, require_compiled_engine
+from wallbot_sim.cli.engine import StartClock, require_compiled_engine
 from wallbot_sim.cli.options import add_graph_option
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
@@ -32,23 +33,23 @@ from wallbot_sim.graph import Graph, NodeDied, NodeSpec
 from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER, RECORDER, VIEWER,
                                            GraphDescriptionError, describe_driven_graph, describe_graph)
 from wallbot_sim.graph_monitor import Monitor
-from wallbot_sim.graph_options import option
+from wallbot_sim.graph_options import ALL_STRUCTURAL, option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
-from wallbot_sim.model import STRUCTURAL, ConstraintSelection, ParameterError, Robot
+from wallbot_sim.model import ConstraintSelection, ParameterError, Robot
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.simulation import NUMBA
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
 """The scenario of a run driven by the user (--drive): no trajectory, at rest at the origin."""
-ALL_STRUCTURAL = ','.join(STRUCTURAL)
 OPTIONAL = {CONTROLLER: 'the dynamics falls back to zero torque after command_timeout',
             VIEWER: 'no markers or live view from now on'}
 """Nodes whose exit does not end the run, and what follows: without its controller the dynamics falls
 back to zero torque after command_timeout, which is a run worth recording (and a test of that
 fallback); the viewer only shows the run."""
 START_TIMEOUT = 30.0
-"""Seconds to wait for the graph to come up (recorder discovered, first clock recorded)."""
+"""Wall seconds to wait for the graph to come up (the recorder discovered; twice that for the first clock recorded),
+the time the dynamics says it loads its compiled kernel left out (``StartClock``)."""
 FINAL_WAIT = 10.0
 """Wall seconds to wait, after the last step is recorded, for the other nodes' last messages: the
 dynamics' diagnostics of the stop (published once a second) and the trajectory node's reference
@@ -137,23 +138,16 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
     exception, Ctrl-C's KeyboardInterrupt), and stop it (also when interrupted); NodeDied if an
     essential node exits. ``reference``: the graph has a trajectory node, whose last reference
     pose is waited for."""
+    # the monitor first: made once the nodes run, it may discover the trajectory node only after its last
+    # reference pose under load (seen: the final wait then ran out)
     monitor = Monitor()
     reported: set[str] = set()
     try:
-        graph.start_node(specs[0])
-        deadline = time.monotonic() + START_TIMEOUT
-        while not monitor.recorder_ready():
-            check_nodes(graph, reported)
-            if time.monotonic() > deadline:
-                raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: '
-                               f'{graph.log(specs[0].name)}')
-            monitor.spin(0.05)
-        for spec in specs[1:]:
+        for spec in specs:  # at once: they load in parallel, each holding back until the recorder hears it
             graph.start_node(spec)
+        wait_for_start(graph, monitor, reported, specs[0].name)
         while duration == 0 or monitor.recorded < duration - 1e-9:
             check_nodes(graph, reported)
-            if monitor.recorded < 0 and time.monotonic() > deadline + START_TIMEOUT:
-                raise CliError(f'no simulation time recorded after {2 * START_TIMEOUT:.0f} s; logs in {graph.log_dir}')
             monitor.spin(0.1)
             if monitor.recorded > 0:
                 progress.update(monitor.recorded)
@@ -182,6 +176,23 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
         # the recorder last, its bag ending at its signal: every other node has delivered what it published
         # before it left DDS (a message a starved recorder lost in transit is repaired only meanwhile)
         graph.stop_all(last=(RECORDER, DYNAMICS_RECORDER))
+
+
+def wait_for_start(graph: Graph, monitor: Monitor, reported: set[str], recorder: str) -> None:
+    """Return once the recorder has recorded simulation time; CliError if the recorder (the process ``recorder``)
+    is not discovered within START_TIMEOUT, or nothing is recorded within twice that, not counting the time the
+    dynamics says it loads its compiled kernel (said on the terminal when that takes long: ``StartClock``)."""
+    clock = StartClock(time.monotonic())
+    while monitor.recorded < 0:
+        check_nodes(graph, reported)
+        if clock.tick(time.monotonic(), monitor.kernel_loading()):
+            print("wallbot-sim run: the dynamics is still loading its compiled kernel: a machine's first run "
+                  "compiles it into numba's cache (about a minute)...", file=sys.stderr, flush=True)
+        if not monitor.recorder_ready() and clock.waited() > START_TIMEOUT:
+            raise CliError(f'the recorder did not come up within {START_TIMEOUT:.0f} s; its log: {graph.log(recorder)}')
+        if clock.waited() > 2 * START_TIMEOUT:
+            raise CliError(f'no simulation time recorded after {2 * START_TIMEOUT:.0f} s; logs in {graph.log_dir}')
+        monitor.spin(0.05)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -291,8 +302,6 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
                   file=sys.stderr)
         progress = Progress(duration, sys.stderr)
         try:
-            if args.engine == NUMBA:
-                load_compiled_kernel(args.contact, inverse_dynamics=args.controller)
             run_graph(graph, specs, duration, progress, reference)
         except NodeDied as died:
             from wallbot_sim.bag.reindex import repair_unclosed
@@ -310,11 +319,14 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
     """Print the summary of the recorded run and write its figures."""
-    from wallbot_sim.bag.reader import info
     from wallbot_sim.plots.figures import write_figures
     from wallbot_sim.rundata import format_summary, load_run, summarize
-    reading = Progress(info(bag).duration, sys.stderr, label='summary: bag read to ', rate='bag seconds per second')
-    summary = summarize(bag, lambda done, _total: reading.update(done))
+    reading = Progress(0.0, sys.stderr, label='summary: bag read to ', rate='bag seconds per second')
+
+    def read_to(done: float, total: float) -> None:
+        reading.duration = total  # the bag's length, which the summary reads from its metadata once
+        reading.update(done)
+    summary = summarize(bag, read_to)
     if reading.shown:
         reading.update(reading.duration, force=True)
     adsorption = robot.adsorption

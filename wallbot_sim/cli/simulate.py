@@ -19,7 +19,8 @@ from wallbot_sim.config import load_robot_parameters, load_scenario, load_world
 from wallbot_sim.control import TrackingController
 from wallbot_sim.control.sampling import SampledController, TorqueCommand, close_loop, controller_robot
 from wallbot_sim.control.tracking import DRIVEN
-from wallbot_sim.model import SELECTION_SYNTAX, STRUCTURAL, TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
+from wallbot_sim.graph_options import ALL_STRUCTURAL
+from wallbot_sim.model import TIME_STEP, ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.outputs import StepTable
@@ -33,7 +34,6 @@ HELP = 'run a scenario headless (no ROS) and write a CSV of every step'
 REST = 'rest'
 """The scenario with no trajectory task: at rest at the origin, constant motor torques."""
 REST_DURATION = 1.0
-DRIVEN_CONSTRAINTS = ','.join(STRUCTURAL)
 DETACHED_STATUS = 3
 
 
@@ -44,9 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_setting(parser, '--heading', DYNAMICS['initial_theta'], default=None,
                 help_suffix=' (with --scenario rest; default 0)')
     parser.add_argument('--torque', help='with --scenario rest: side motor torques TL,TR in N m (default 0,0)')
-    parser.add_argument('--constraints',
-                        help=f'{SELECTION_SYNTAX} (default: none, the trajectory '
-                             f'task only; {DRIVEN_CONSTRAINTS} for rest)')
+    add_graph_option(parser, 'constraints', help_suffix=' (default: all of them, as run; none: the trajectory task '
+                                                        'only)')
     add_graph_option(parser, 'contact', help_suffix=' (coulomb needs a run without the trajectory task: rest, or '
                                                     '--controller; default ideal)')
     parser.add_argument('--controller', action='store_true',
@@ -83,15 +82,15 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     if args.controller:
         if rest:
             raise CliError('--controller follows a trajectory scenario (circle, figure8, a YAML): rest has none')
-        if args.constraints is not None or args.tangent_heading is not None:
+        if args.constraints != ALL_STRUCTURAL or args.tangent_heading is not None:
             raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
                            'drop --constraints and --tangent-heading')
         selection = DRIVEN
     else:
         if args.controller_mass_scale != 1.0:
             raise CliError('--controller-mass-scale needs --controller')
-        selection = ConstraintSelection.parse(args.constraints or (DRIVEN_CONSTRAINTS if rest else 'none'),
-                                              trajectory=not rest, tangent_heading=args.tangent_heading)
+        selection = ConstraintSelection.parse(args.constraints, trajectory=not rest,
+                                              tangent_heading=args.tangent_heading)
     if args.contact == 'coulomb' and selection.trajectory:
         raise CliError(f'--contact coulomb with the trajectory task of scenario {args.scenario!r}: the task\'s force '
                        'is a virtual actuator, not friction; use --controller, or --scenario rest (driven by --torque)')
@@ -196,8 +195,9 @@ def main(args: argparse.Namespace) -> int:
     progress.update(final.t, force=True)
     if not args.quiet:
         loop = ' under the tracking controller' if controller is not None else ''
-        print(f'{simulation.selection.label()}{loop}: final tracking error {final.tracking_error:.3e} m, '
-              f'residual {final.residual:.3e}', file=sys.stderr)
+        tracking = ('no reference' if simulation.reference is None else
+                    f'final tracking error {final.tracking_error:.3e} m')
+        print(f'{simulation.selection.label()}{loop}: {tracking}, residual {final.residual:.3e}', file=sys.stderr)
     return 0
 
 

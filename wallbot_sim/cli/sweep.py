@@ -55,7 +55,8 @@ class SweepProgress:
 
 def main(args: argparse.Namespace) -> int:
     from wallbot_sim.sweep import load_spec
-    from wallbot_sim.sweep.cluster import run_chunks
+    from wallbot_sim.sweep.cluster import reach_scheduler, run_chunks
+    from wallbot_sim.sweep.errors import SweepError
     from wallbot_sim.sweep.figures import write_sweep_figures
     from wallbot_sim.sweep.store import SweepDirectory, parameter_columns, read_results
 
@@ -67,8 +68,10 @@ def main(args: argparse.Namespace) -> int:
         raise CliError('--security is for a tls:// scheduler')
     security = _security(args.security) if args.security else None
     spec = load_spec(args.spec)
+    if args.scheduler is not None:  # before the output directory is made: a wrong address leaves nothing behind
+        reach_scheduler(args.scheduler)
     directory = SweepDirectory(args.out, spec)
-    directory.open()
+    created = directory.open()
     pending = directory.pending()
     chunks = spec.chunks()
     done = len(spec.robots) - sum(len(chunks[index]) for index in pending)
@@ -82,7 +85,12 @@ def main(args: argparse.Namespace) -> int:
         directory.write_chunk(index, rows)
         progress.update(len(rows), force=len(directory.pending()) == 0)
 
-    run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
+    try:
+        run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
+    except SweepError:
+        if created:
+            directory.remove_unused()
+        raise
     results = directory.assemble()
     figures = []
     if not args.no_figures:

@@ -262,7 +262,7 @@ class Blocks:
         count_step(window, ahead.step_time, lateness)
         state.send(clock, max(-lateness, 0.0))
         loop.lockstep.mark_sync(loop.commander_hears())
-        loop.statistics.note_residual(float(ahead.block.table.residual[row]))
+        loop.statistics.note_residual(float(ahead.block.table.residual[row]), float(ahead.block.table.t[row]))
         ahead.published += 1
         return early, woke, last
 

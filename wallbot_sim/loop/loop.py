@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import queue
 import threading
 import time
-from typing import Callable, Mapping
+from typing import Callable, Iterator, Mapping
 
 import numpy as np
 
@@ -130,6 +131,15 @@ class DynamicsLoop:
         return self.diverged or self.gave_up is not None
 
     # --- loop thread --------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def loading_kernel(self) -> Iterator[None]:
+        """The status says the compiled kernel is loading while the node loads it (before :meth:`run`)."""
+        self.status = Status(RunState.LOADING_KERNEL)
+        try:
+            yield
+        finally:
+            self.status = Status(RunState.WAITING_CONSTRAINTS)
+
     def run(self) -> None:
         """Tick until :meth:`stop`."""
         while not self.stopping.is_set():
@@ -446,7 +456,7 @@ class DynamicsLoop:
             every = snapshot_every(self.settings.snapshot_period, sim.dt)
             if every > 0 and sim.steps % every == 0:
                 self.snapshot()
-        self.statistics.note_residual(out.residual)
+        self.statistics.note_residual(out.residual, out.t)
         self.last_outputs = out
 
     def waits_next(self) -> bool:
@@ -465,7 +475,7 @@ class DynamicsLoop:
     def publish(self, out: StepOutputs) -> None:
         """Publish the messages of the current state (start, reset)."""
         self.last_outputs = out
-        self.statistics.note_residual(out.residual)
+        self.statistics.note_residual(out.residual, out.t)
         self.saturation.note(out.t, self.sim.motor_torque, out.motor_torque)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
         self.lockstep.mark_sync(self.commander_hears())

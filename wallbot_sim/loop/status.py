@@ -3,6 +3,7 @@ statistics of the steps since the last diagnostics message."""
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -18,6 +19,7 @@ class RunState(Enum):
     """The loop's run state; the value is the diagnostics' ``status`` text ({t}: simulation time,
     {reason}: why the robot left the wall)."""
 
+    LOADING_KERNEL = messages.LOADING_KERNEL
     WAITING_CONSTRAINTS = 'waiting for constraints'
     WAITING_RECORDER = 'waiting for a recorder'
     WAITING_KEEPER = 'waiting for a kept snapshot to resume from (resume_state)'
@@ -85,6 +87,8 @@ class Window:
     late: int = 0
     residual_max: float = 0.0
     """Largest constraint residual of every state of the window (not a sample of one)."""
+    residual_settled: float = math.nan
+    """Largest constraint residual of the window's states at or after ``topics.RESIDUAL_SETTLED_AFTER``."""
 
 
 class Statistics:
@@ -101,9 +105,11 @@ class Statistics:
             window, self.window = self.window, Window()
         return window
 
-    def note_residual(self, residual: float) -> None:
+    def note_residual(self, residual: float, t: float) -> None:
+        """The residual of the state at simulation time ``t``."""
         with self._lock:  # the diagnostics swap windows on the executor thread: lose no step
             self.window.residual_max = max(self.window.residual_max, residual)
+            self.window.residual_settled = messages.settled_residual(self.window.residual_settled, residual, t)
 
 
 def count_step(window: Window, step_time: float, lateness: float) -> None:

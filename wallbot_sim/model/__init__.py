@@ -1,22 +1,40 @@
-"""The wall-climbing robot model of docs/model.md: pure NumPy, no ROS, no I/O."""
+"""The wall-climbing robot model of docs/model.md: pure NumPy, no ROS, no I/O.
 
-from wallbot_sim.model.constraint_set import SELECTION_SYNTAX, STRUCTURAL, ConstraintSelection, build_modules
-from wallbot_sim.model.constraints import BaumgarteGains
-from wallbot_sim.model.errors import ModelError, ParameterError
-from wallbot_sim.model.outputs import DriveForces, StepOutputs, drive_forces
-from wallbot_sim.model.parameters import RobotParameters
-from wallbot_sim.model.robot import DOF, Adsorption, Robot, adsorption_analysis
-from wallbot_sim.model.scenario import Scenario, make_reference
-from wallbot_sim.model.simulation import DEFAULT_STEP, TIME_STEP, DivergedError, Simulation, SwitchReport
-from wallbot_sim.model.solver import ConstrainedMotion, solve, solve_with_factor
-from wallbot_sim.model.trajectories import (
-    Circle, FigureEight, Reference, ReferenceSample, SampledReference, SmoothStop, tangent_heading)
+The names below are loaded from their modules when first used: a process that needs the constraint set's names
+(the trajectory and constraint_config nodes, the CLI's argument parsing) does not pay for the solver's SciPy.
+"""
 
-__all__ = [
-    'DEFAULT_STEP', 'DOF', 'SELECTION_SYNTAX', 'STRUCTURAL', 'Adsorption', 'BaumgarteGains', 'Circle',
-    'ConstrainedMotion', 'ConstraintSelection', 'DivergedError', 'DriveForces', 'FigureEight',
-    'ModelError', 'ParameterError', 'Reference', 'ReferenceSample', 'Robot', 'RobotParameters',
-    'SampledReference', 'Scenario', 'Simulation', 'SmoothStop', 'StepOutputs', 'SwitchReport', 'TIME_STEP',
-    'adsorption_analysis', 'build_modules', 'drive_forces', 'make_reference', 'solve',
-    'solve_with_factor', 'tangent_heading',
-]
+from __future__ import annotations
+
+import importlib
+
+EXPORTS = {
+    'constraint_set': ('SELECTION_SYNTAX', 'STRUCTURAL', 'ConstraintSelection', 'build_modules'),
+    'constraints': ('BaumgarteGains',),
+    'errors': ('ModelError', 'ParameterError'),
+    'outputs': ('DriveForces', 'StepOutputs', 'drive_forces'),
+    'parameters': ('RobotParameters',),
+    'robot': ('DOF', 'Adsorption', 'Robot', 'adsorption_analysis'),
+    'scenario': ('Scenario', 'make_reference'),
+    'simulation': ('DEFAULT_STEP', 'TIME_STEP', 'DivergedError', 'Simulation', 'SwitchReport'),
+    'solver': ('ConstrainedMotion', 'solve', 'solve_with_factor'),
+    'trajectories': ('Circle', 'FigureEight', 'Reference', 'ReferenceSample', 'SampledReference', 'SmoothStop',
+                     'tangent_heading'),
+}
+"""The package's names, by the module that defines them."""
+_MODULE_OF = {name: module for module, names in EXPORTS.items() for name in names}
+
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> object:
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(importlib.import_module(f'{__name__}.{module}'), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -11,12 +11,11 @@ least-squares compromise on an inconsistent set and ignore redundant rows.
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy.linalg.lapack import dgelsy as _least_squares
-from scipy.linalg.lapack import dgelsy_lwork as _least_squares_lwork
 
 _RELATIVE_CUTOFF = 1e-10
 """Rank cut of A M^-1/2: directions whose pivoted-QR diagonal falls below this fraction of the
@@ -25,6 +24,15 @@ the robot's independent rows stay far above the cut.
 """
 _lwork: dict[tuple[int, int], int] = {}
 """LAPACK workspace size of dgelsy by row count and right-hand sides (n = 7 columns)."""
+
+
+@functools.cache
+def _lapack() -> tuple[Callable, Callable]:
+    """SciPy's dgelsy and its workspace query, imported at the first solve: SciPy's linear algebra takes a third
+    of a second to import, which a process that only names the model's parts (the launcher, the trajectory and
+    constraint_config nodes) does not pay."""
+    from scipy.linalg.lapack import dgelsy, dgelsy_lwork
+    return dgelsy, dgelsy_lwork
 
 
 class ConstrainedMotion(NamedTuple):
@@ -75,11 +83,12 @@ def constrained_acceleration(inverse_factor: np.ndarray, force: np.ndarray, rows
     if count < size:
         misfit = np.concatenate((misfit, np.zeros((size - count, *misfit.shape[1:]))))
     columns = 1 if misfit.ndim == 1 else misfit.shape[1]
+    least_squares, least_squares_lwork = _lapack()
     work = _lwork.get((count, columns))
     if work is None:
-        work = _lwork[count, columns] = int(_least_squares_lwork(count, size, columns, _RELATIVE_CUTOFF)[0])
-    _, solution, _, _, info = _least_squares(rows @ inverse_factor, misfit, np.zeros(size, dtype=np.int32),
-                                             _RELATIVE_CUTOFF, work)
+        work = _lwork[count, columns] = int(least_squares_lwork(count, size, columns, _RELATIVE_CUTOFF)[0])
+    _, solution, _, _, info = least_squares(rows @ inverse_factor, misfit, np.zeros(size, dtype=np.int32),
+                                            _RELATIVE_CUTOFF, work)
     if info != 0:
         raise np.linalg.LinAlgError(f'least-squares solve of A M^-1/2 failed (LAPACK info {info})')
     return free + inverse_factor @ solution[:size]

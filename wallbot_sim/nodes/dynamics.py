@@ -47,10 +47,11 @@ from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
-                              PumpCommand, RecordProgress, Reset, ResumeSnapshot, Step, Teleport, TorqueCommand)
+                              PumpCommand, RecordProgress, Reset, ResumeSnapshot, RunState, Step, Teleport,
+                              TorqueCommand)
 from wallbot_sim.loop.commands import THROTTLE
 from wallbot_sim.loop.faults import FaultChange, faults_on
-from wallbot_sim.model import ModelError, SampledReference, StepOutputs
+from wallbot_sim.model import ModelError, ParameterError, SampledReference, StepOutputs
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import NUMBA
@@ -90,8 +91,6 @@ class DynamicsNode(Node):
         frames = RobotFrames(self.settings.odom_frame_id, self.settings.base_frame_id, self.settings.frame_prefix)
         if frames.reasons():
             raise ValueError('; '.join(frames.reasons()))
-        if self.settings.engine == NUMBA:
-            self._load_kernel()
         self._warn_lockstep_unseen()
         self.exit_status: int | None = None
         """Set once the node cannot go on (its start gave up, or a strict lockstep's answer did not come):
@@ -109,18 +108,32 @@ class DynamicsNode(Node):
         self.add_on_set_parameters_callback(self._on_set)
         self.add_post_set_parameters_callback(self._after_set)
         steady_timer(self, 1.0, self._publish_diagnostics)
+        self._stop_reported = False
+        steady_timer(self, STOP_POLL, self._report_stop)
         self.loop_thread = threading.Thread(target=self._run_loop, name='simulation', daemon=True)
         self.loop_thread.start()
 
-    def _load_kernel(self) -> None:
-        # imported only here: numba takes about 0.4 s to import, which the python engine need not pay
+    def _kernel_loaded(self) -> bool:
+        """Load the compiled kernel the steps take, or compile it into numba's cache (a machine's first start, about
+        a minute), in the loop thread while the executor discovers the graph and takes its first messages; False if
+        numba is missing (said on one line; the node then exits with status 1)."""
+        # imported only here: numba takes about a second to import, which the python engine need not pay
         from wallbot_sim.model.compiled import compile_run, require_numba
-        require_numba()  # a missing package is said at start, not by a failing loop thread
-        self.get_logger().info("engine numba: loading the compiled kernel (a machine's first start compiles "
-                               "it into numba's cache, about a minute)")
-        # loaded here, not by the first step: the objects loading makes are then frozen with the rest of
-        # the start-up's (started_node), where in the loop thread they cost a 12 ms collection seconds later
-        compile_run(self.settings.contact_model)
+        try:
+            require_numba()
+        except ParameterError as error:
+            self.get_logger().error(f'{error}; exiting')
+            self.exit_status = 1
+            return False
+        self.get_logger().info("engine numba: loading the compiled kernel (a machine's first start compiles it into "
+                               "numba's cache, about a minute)")
+        with self.loop.loading_kernel():
+            compile_run(self.settings.contact_model)
+            # the objects the load made live for the whole run: frozen with the start-up's (started_node), out of
+            # every collection's reach (left to the collector, they cost the loop a full collection of 12 ms later)
+            gc.collect()
+            gc.freeze()
+        return True
 
     def _create_publishers(self, frames: RobotFrames) -> None:
         """The per-step topics' publishers (and ground_truth/odom with sensor noise), control_odom, diagnostics,
@@ -359,6 +372,8 @@ class DynamicsNode(Node):
 
     def _run_loop(self) -> None:
         try:
+            if self.settings.engine == NUMBA and not self._kernel_loaded():
+                return
             self.loop.run()
         except Exception:  # noqa: BLE001 - a loop crash must be visible, not a silent thread death
             if self.loop.stopping.is_set() or not self.context.ok():
@@ -374,6 +389,14 @@ class DynamicsNode(Node):
             self.exit_status = 1
 
     # --- diagnostics (executor, 1 Hz wall) --------------------------------------------------
+    def _report_stop(self) -> None:
+        """The diagnostics of a stop (stop_at reached) at once, not up to a second later: they close the run's last
+        window of residuals, which ``wallbot-sim run`` waits for before it ends the graph."""
+        stopped = self.loop.status.state is RunState.STOPPED
+        if stopped and not self._stop_reported:
+            self._publish_diagnostics()
+        self._stop_reported = stopped
+
     def _publish_diagnostics(self) -> None:
         loop = self.loop
         window = loop.statistics.take()
@@ -391,7 +414,7 @@ class DynamicsNode(Node):
             self.get_fully_qualified_name(), str(status), loop.in_error, loop.command_state(), t, figures,
             float(out.residual) if out is not None else math.nan, window.residual_max,
             sim.selection.label() if sim is not None else 'none yet', loop.robot.adsorption,
-            detached=loop.detached is not None,
+            residual_settled=window.residual_settled, detached=loop.detached is not None,
             contact=messages.contact_values(self.settings.contact_model, sim is None or sim.coulomb_applies,
                                             out.contact if out is not None else None),
             sliding=unheld_slip(loop.robot, sim.selection, out) if sim is not None and out is not None else {},
@@ -411,6 +434,8 @@ def main(args: list[str] | None = None) -> None:
     sys.exit(run(started_node, args))
 
 
+STOP_POLL = 0.05
+"""Wall seconds between looks for a stop to report on /diagnostics."""
 FINAL_DIAGNOSTICS_WAIT = 5.0
 """Most wall seconds a node that gives up waits for its last /diagnostics to be acknowledged (at the writer's
 heartbeat: 0.1 s with the nodes' profile, 3 s with Fast DDS's default under a user's profile that sets none)."""

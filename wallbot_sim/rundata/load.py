@@ -7,7 +7,9 @@ recorded plan (``reference_trajectory``, quintic Hermite as the dynamics node fo
 present, else the ``reference`` topic (exact stamps, or linear interpolation between them). The
 residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: the largest residual
 of every step since the previous diagnostics message), NaN at the other stamps: of the dynamics in
-the odometry's namespace only (``/diagnostics`` is one topic for every robot of a domain). When simulation time jumps back on a topic (the
+the odometry's namespace only (``/diagnostics`` is one topic for every robot of a domain); the residual after the
+start likewise (key ``topics.DIAGNOSTIC_RESIDUAL_SETTLED``), from a CSV the residual of the rows at or after
+``topics.RESIDUAL_SETTLED_AFTER``. When simulation time jumps back on a topic (the
 dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
 several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
@@ -59,6 +61,9 @@ class RunData:
     F_right: np.ndarray
     F_lateral: np.ndarray
     residual: np.ndarray
+    residual_settled: np.ndarray
+    """The residual of the states at or after ``topics.RESIDUAL_SETTLED_AFTER`` (NaN elsewhere; from a bag, the
+    largest of each diagnostics window, as ``residual``)."""
     path_x: np.ndarray = field(default_factory=lambda: np.empty(0))
     path_y: np.ndarray = field(default_factory=lambda: np.empty(0))
     """The full reference path if recorded (reference_path), else empty."""
@@ -98,14 +103,28 @@ def run_label(path: Path | str) -> str:
     return bag.parent.name if bag.name == RUN_BAG and bag.parent.name else bag.name
 
 
+BAG_FILES = ('.mcap', '.db3', 'metadata.yaml')
+"""How the files inside a bag directory that name it end."""
+
+
+def is_csv(path: Path) -> bool:
+    """Whether the existing ``path`` is a run's CSV (else a bag); RunDataError naming both kinds if it is neither
+    (the verbs reading a run take either)."""
+    if not path.exists():
+        raise RunDataError(f'{path} does not exist')
+    if path.is_dir() or path.name.endswith(BAG_FILES):
+        return False
+    if path.suffix.lower() == '.csv':
+        return True
+    raise RunDataError(f'{path} is neither a simulate CSV (.csv) nor a rosbag2 bag (a bag directory, or its .mcap)')
+
+
 def load_run(path: Path | str, label: str | None = None) -> RunData:
     """A bag directory (or its .mcap) or a simulate CSV; RunDataError / BagError otherwise. Labelled
     ``label`` or by ``run_label``."""
     path = Path(path)
     label = label or run_label(path)
-    if not path.exists():
-        raise RunDataError(f'{path} does not exist')
-    if path.is_file() and path.suffix.lower() == '.csv':
+    if is_csv(path):
         return _load_csv(path, label)
     return _load_bag(path, label)
 
@@ -141,6 +160,7 @@ def run_from_columns(rows: np.ndarray, label: str) -> RunData:
                    wheels('phi'), wheels('dphi'), wheels('tau'),
                    col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
                    col['F_left'], col['F_right'], col['F_lateral'], col['residual'],
+                   np.where(col['t'] >= topics.RESIDUAL_SETTLED_AFTER - 1e-9, col['residual'], math.nan),
                    loads=wheels('N'), use=wheels('use'), slip=wheels('slip'),
                    wheel_forces=np.stack((wheels('fx'), wheels('fy')), axis=2))
 
@@ -185,13 +205,16 @@ def namespace_of(topic: str) -> str:
     return topic.rsplit('/', 1)[0] or '/'
 
 
-def residual_max(data: bytes, namespace: str) -> tuple[int, float] | None:
-    """(stamp, residual max) of a ``/diagnostics`` message from the dynamics in ``namespace``, or None."""
+def residual_max(data: bytes, namespace: str) -> tuple[int, float, float] | None:
+    """(stamp, residual max, residual max after the start) of a ``/diagnostics`` message from the dynamics in
+    ``namespace``, or None (the latter NaN when the message lacks it)."""
     diagnostics = codec.decode_diagnostics(data)
     status = codec.simulation_status(diagnostics.statuses, namespace)
-    value = None if status is None else status.value_map().get(topics.DIAGNOSTIC_RESIDUAL_MAX)
+    values = {} if status is None else status.value_map()
+    value = values.get(topics.DIAGNOSTIC_RESIDUAL_MAX)
     try:
-        return None if value is None else (diagnostics.stamp_ns, float(value))
+        return None if value is None else (diagnostics.stamp_ns, float(value),
+                                           float(values.get(topics.DIAGNOSTIC_RESIDUAL_SETTLED, math.nan)))
     except ValueError:
         return None
 
@@ -257,7 +280,7 @@ class _BagSeries:
         elif leaf == 'diagnostics':
             residual = residual_max(data, self.namespace)
             if residual is not None:
-                self.tables['diagnostics'].put(residual[0], (residual[1],))
+                self.tables['diagnostics'].put(residual[0], residual[1:])
         elif leaf == 'chamber_pressure':  # its own sample times (the sensor's rate), as the pressure difference
             pressure = codec.decode_fluid_pressure(data)
             self.tables[leaf].put(pressure.stamp_ns, ATMOSPHERE - pressure.pressure)
@@ -310,7 +333,7 @@ def _run_data(series: _BagSeries, label: str, path: Path) -> RunData:
     ref_x, ref_y = _reference_at(t, series.plan, tables['reference'], matched('reference', 2))
     return RunData(label, t, o[:, 1], o[:, 2], o[:, 3], o[:, 4], o[:, 5], o[:, 6],
                    w[:, 0:4], w[:, 4:8], w[:, 8:12], ref_x, ref_y, np.hypot(o[:, 1] - ref_x, o[:, 2] - ref_y),
-                   c[:, 0], c[:, 1], c[:, 2], d[:, 0], d[:, 1], d[:, 2], matched('diagnostics', 1)[:, 0],
+                   c[:, 0], c[:, 1], c[:, 2], d[:, 0], d[:, 1], d[:, 2], *matched('diagnostics', 2).T,
                    np.array(series.path_xy[0]), np.array(series.path_xy[1]), odom.restarts,
                    loads=k[:, 0:4], use=k[:, 4:8], slip=k[:, 8:12],
                    wheel_forces=np.stack((k[:, 12:16], k[:, 16:20]), axis=2),

@@ -218,12 +218,12 @@ class _Residual(_PeakStream):
     """The largest residual the dynamics in ``namespace`` reported over its last run."""
 
     def __init__(self, namespace: str) -> None:
-        super().__init__(self._residual, 1)
+        super().__init__(self._residual, 2)
         self.namespace = namespace
 
     def _residual(self, data: bytes) -> tuple[int, tuple[float, ...]]:
         found = residual_max(data, self.namespace)
-        return (self.stream.latest, ()) if found is None else (found[0], (found[1],))
+        return (self.stream.latest, ()) if found is None else (found[0], found[1:])
 
 
 def summarize_bag(path: Path, progress: Callable[[float, float], None] | None = None):
@@ -260,5 +260,5 @@ def summarize_bag(path: Path, progress: Callable[[float, float], None] | None = 
         tracking.compare(every=True)
     return RunSummary(Path(path), (tracking.last_ns - tracking.first_ns) * 1e-9, tracking.count, tracking.final,
                       tracking.peak, tracking.peak_after_5s, *wrench.peaks.values, *drive.peaks.values,
-                      residual.peaks.values[0], tracking.stream.restarts, contact.first_slip, contact.lift_off,
+                      *residual.peaks.values, tracking.stream.restarts, contact.first_slip, contact.lift_off,
                       tuple(contact.use.values))

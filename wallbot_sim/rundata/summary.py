@@ -15,9 +15,9 @@ from typing import Callable
 
 import numpy as np
 
+from wallbot_msgs_py.topics import RESIDUAL_SETTLED_AFTER
 from wallbot_sim.model.contact import WHEEL_POSITIONS
-from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.load import RunData, load_run
+from wallbot_sim.rundata.load import RunData, is_csv, load_run
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,8 @@ class RunSummary:
     peak_drive_force_right: float
     peak_lateral_force: float
     max_residual: float
+    max_residual_settled: float
+    """The largest residual at or after ``topics.RESIDUAL_SETTLED_AFTER`` (a start off the constraints left out)."""
     restarts: int = 0
     """Times simulation time jumped back in the bag; the figures are of the last run."""
     first_slip: tuple[float, str] | None = None
@@ -59,9 +61,7 @@ def summarize(path: Path | str, progress: Callable[[float, float], None] | None 
     been read (log time, s), every few thousand messages."""
     from wallbot_sim.rundata.streaming import summarize_bag
     path = Path(path)
-    if not path.exists():
-        raise RunDataError(f'{path} does not exist')
-    if path.is_file() and path.suffix.lower() == '.csv':
+    if is_csv(path):
         return summarize_run(load_run(path), path)
     return summarize_bag(path, progress)
 
@@ -75,7 +75,7 @@ def summarize_run(run: RunData, path: Path | str) -> RunSummary:
         Path(path), float(run.t[-1] - run.t[0]), len(run.t),
         float(finite_err[-1]) if finite_err.size else math.nan, _peak(err), _peak(late),
         _peak(run.Fx), _peak(run.Fy), _peak(run.Mz), _peak(run.F_left), _peak(run.F_right), _peak(run.F_lateral),
-        _peak(run.residual), run.restarts, _first_slip(run), _lift_off(run),
+        _peak(run.residual), _peak(run.residual_settled), run.restarts, _first_slip(run), _lift_off(run),
         tuple(_peak(use) for use in run.use.T) if len(run.use) else (math.nan,) * 4)
 
 
@@ -102,6 +102,23 @@ def _lift_off(run) -> tuple[float, int, float] | None:
     return float(run.t[rows[0]]), wheel + 1, float(run.loads[rows[0], wheel])
 
 
+RESIDUAL_EXPLAINED = 1e-6
+"""A residual above this in a run with a reference is explained beside it (a consistent set's is rounding)."""
+
+
+def format_residual(s: RunSummary) -> str:
+    """The largest residual, and after the start (``topics.RESIDUAL_SETTLED_AFTER``); why it is large when the run
+    tracks a reference."""
+    text = f'max {s.max_residual:.3e}'
+    if not math.isnan(s.max_residual_settled):
+        text += f', after {RESIDUAL_SETTLED_AFTER:g} s max {s.max_residual_settled:.3e}'
+    if s.max_residual > RESIDUAL_EXPLAINED and not math.isnan(s.peak_tracking_error):
+        text += (' (|A qdd - b|, the least-squares misfit of a set that cannot all hold: off its reference, the '
+                 "trajectory task pulls the robot onto it in directions the wheels' constraints forbid; it falls as "
+                 'the robot joins its path)')
+    return text
+
+
 def format_summary(summary: RunSummary) -> str:
     """Lines for the terminal."""
     s = summary
@@ -115,7 +132,7 @@ def format_summary(summary: RunSummary) -> str:
         f'|M_Z| {s.peak_constraint_torque_z:.4f} N m',
         f'drive forces:        peak |F_L| {s.peak_drive_force_left:.3f} N, |F_R| {s.peak_drive_force_right:.3f} N, '
         f'|F_lat| {s.peak_lateral_force:.3f} N',
-        f'constraint residual: max {s.max_residual:.3e}',
+        'constraint residual: ' + format_residual(s),
         'wheel-wall contact:  ' + ('' if all(math.isnan(use) for use in s.peak_wheel_use) else
                                    'peak friction use ' + ', '.join(f'{name} {use:.3f}' for name, use in
                                                                     zip(WHEEL_POSITIONS, s.peak_wheel_use)) + '; ')

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import socket
 import uuid
 from contextlib import ExitStack
 from typing import Callable, Sequence
@@ -23,6 +24,26 @@ RETRIES = 2
 LOCAL_HOST = '127.0.0.1'
 """The local cluster listens on the loopback interface only: nothing outside this machine reaches it."""
 CONNECT_TIMEOUT = '20s'
+"""How long the Dask client may take to join a scheduler that accepted its connection."""
+REACH_TIMEOUT = 3.0
+"""Seconds a scheduler's port may take to accept a TCP connection (Dask's client retries a refused one until its
+timeout, which would keep a mistyped address waiting)."""
+
+
+def reach_scheduler(address: str) -> None:
+    """SweepError unless the host and port of ``address`` (tcp:// or tls://) accept a TCP connection within
+    REACH_TIMEOUT; other protocols are left to Dask."""
+    protocol, _, location = address.rpartition('://')
+    if protocol not in ('', 'tcp', 'tls'):
+        return
+    host, _, port = location.rpartition(':')
+    if not port.isdigit():
+        raise SweepError(f'cannot reach the Dask scheduler at {address}: expected tcp://HOST:PORT')
+    try:
+        socket.create_connection((host.strip('[]') or LOCAL_HOST, int(port)), timeout=REACH_TIMEOUT).close()
+    except OSError as error:
+        reason = 'no answer' if isinstance(error, TimeoutError) else error.strerror or str(error)
+        raise SweepError(f'cannot reach the Dask scheduler at {address}: {reason}') from None
 
 
 def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, list[list[float]]], None],
@@ -30,10 +51,11 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     """Compute ``chunks`` (indices into ``spec.chunks()``) and give each one's rows to ``on_done`` as it
     finishes. ``scheduler``: an existing cluster's address (tcp://HOST:PORT, or tls://... with
     ``security``, a ``distributed.Security``); None: a local cluster of ``workers`` processes
-    (default: one per core; 1: the chunks one after the other in this process, without Dask)."""
+    (default: one per core), at most one per chunk: one chunk, or ``workers`` 1, is computed in this process,
+    without Dask (a local cluster takes seconds to start)."""
     if not chunks:
         return
-    count = workers or os.cpu_count() or 1
+    count = min(workers or os.cpu_count() or 1, len(chunks))
     if scheduler is None and count == 1:  # one worker: this process, no cluster to start
         for index in chunks:
             on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
@@ -52,6 +74,9 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
                 client = stack.enter_context(Client(scheduler, timeout=CONNECT_TIMEOUT, security=security))
             except (OSError, TimeoutError, ValueError) as error:
                 raise SweepError(f'cannot reach the Dask scheduler at {scheduler}: {error}') from None
+            except Exception as error:  # noqa: BLE001 - whatever Dask makes of a port that answers otherwise
+                raise SweepError(f'{scheduler} did not answer as a Dask scheduler '
+                                 f'({type(error).__name__} in the handshake)') from None
         # settings go with every task (small): scattered data would die with the workers holding it,
         # and a worker that joins later would not have it
         settings = spec.settings

@@ -53,8 +53,8 @@ class SweepDirectory:
         self.chunk_dir = self.path / 'chunks'
         self.results = self.path / RESULTS
 
-    def open(self) -> None:
-        """Create the directory, or check that it holds this sweep; SweepError if another."""
+    def open(self) -> bool:
+        """Create the directory, or check that it holds this sweep; SweepError if another. Whether it was created."""
         identity = {'fingerprint': fingerprint(self.spec), 'robots': len(self.spec.robots),
                     'chunk_size': self.spec.chunk_size, 'varied': list(self.spec.varied)}
         marker = self.path / 'sweep.json'
@@ -64,15 +64,26 @@ class SweepDirectory:
                 if held.get('fingerprint') != identity['fingerprint']:
                     raise SweepError(f'{self.path} holds another sweep (its spec differs): give another --out, '
                                      'or remove it')
-                return
+                return False
             if self.path.exists() and any(self.path.iterdir()):
                 raise SweepError(f'{self.path} is not empty and holds no sweep: give another --out')
+            created = not self.path.exists()
             self.chunk_dir.mkdir(parents=True, exist_ok=True)
             _write_atomically(marker, json.dumps(identity, indent=2) + '\n')
+            return created
         except OSError as error:
             raise SweepError(f'cannot use {self.path}: {error.strerror}') from None
         except ValueError:
             raise SweepError(f'{marker} is not a sweep marker (not JSON): give another --out') from None
+
+    def remove_unused(self) -> None:
+        """Remove the directory :meth:`open` created if no chunk was written into it (a sweep that could not
+        start leaves nothing behind)."""
+        if any(self.chunk_dir.iterdir()):
+            return
+        self.chunk_dir.rmdir()
+        (self.path / 'sweep.json').unlink()
+        self.path.rmdir()
 
     def chunk_path(self, index: int) -> Path:
         return self.chunk_dir / f'{index:06d}.csv'
