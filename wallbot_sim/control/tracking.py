@@ -23,7 +23,8 @@ from wallbot_sim.model.constraints import LookAheadPointTask
 from wallbot_sim.model.constraints.look_ahead import point_reference
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.outputs import drive_forces, side_motor_torques
-from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON, constrained_motion
+from wallbot_sim.model.constrained_problem import constrained_motion
+from wallbot_sim.model.simulation import ENGINES, NUMBA, PYTHON
 from wallbot_sim.model.trajectories import ReferenceSample
 
 DRIVEN = ConstraintSelection.structural(trajectory=False)

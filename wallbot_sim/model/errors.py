@@ -7,3 +7,7 @@ class ModelError(Exception):
 
 class ParameterError(ModelError, ValueError):
     """A robot or scenario parameter is missing, unknown, of the wrong type or out of range."""
+
+
+class DivergedError(ModelError):
+    """The state stopped being finite."""

@@ -8,25 +8,27 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
+from wallbot_sim.model.constrained_problem import (constrained_motion, constrained_rows, impulsive_projection, row_keys,
+                                                   stack_problem)
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
 from wallbot_sim.model.contact import (
     IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, check_contact_model, coulomb_table)
 from wallbot_sim.model.contact_kinematics import contact_velocities
-from wallbot_sim.model.errors import ModelError, ParameterError
+from wallbot_sim.model.errors import DivergedError, ParameterError
 from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepBlock, StepOutputs, StepTable, drive_forces
+from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
 from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 from wallbot_sim.model.trajectories import LastSample, Reference
 from wallbot_sim.model.python_only import refuse_compiled
+from wallbot_sim.model.tabulated import CompiledSteps, compiled_dynamics
 from wallbot_sim.model.vacuum import PUMP_COMMAND, Chamber
 
 if TYPE_CHECKING:
-    from wallbot_sim.model.compiled import CompiledDynamics, ReferenceRows
     from wallbot_sim.model.compiled_contact import CompiledCoulomb
 
 DEFAULT_STEP = 1e-3
@@ -36,12 +38,6 @@ TIME_STEP = NumberRange(0.0, 0.1, low_open=True)
 PYTHON, NUMBA = 'python', 'numba'
 ENGINES = (PYTHON, NUMBA)
 """How the motion and steps are computed: the model's Python, or the batch's compiled kernel."""
-TABLE_CHUNK = 1000
-"""Instants ``Simulation.run_table`` computes per call of the compiled kernel (a second at 1 kHz)."""
-
-
-class DivergedError(ModelError):
-    """The state stopped being finite."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +52,7 @@ class SwitchReport:
     """The same after the impulsive projection."""
 
 
-class Simulation:
+class Simulation(CompiledSteps):
     """A robot, a reference and a set of active constraints, advanced by RK4 at a fixed step.
 
     With ``contact`` 'coulomb' (docs/model.md 11.3) and no trajectory task, each wheel sticks or
@@ -95,7 +91,7 @@ class Simulation:
         self._initial = (t0, _state_vector(q0, qd0))
         if engine == NUMBA:
             refuse_compiled(robot)
-        self._compiled = None if engine == PYTHON else _compiled_dynamics(t0, dt)
+        self._compiled = None if engine == PYTHON else compiled_dynamics(t0, dt)
         self._compiled_coulomb: CompiledCoulomb | None = None
         """The kernel's coulomb boundaries and steps (engine 'numba'), made at their first use."""
         self.motor_torque: tuple[float, float] = (0.0, 0.0)
@@ -247,7 +243,7 @@ class Simulation:
         With coulomb contact a wheel that has been moving at v_st or faster in a direction that gets
         friction slides instead: its rows are not imposed.
         """
-        previous, was_constrained = self._selection, _constrained_rows(self._active)
+        previous, was_constrained = self._selection, constrained_rows(self._active)
         new_modules = self._build(selection, self._reference, gains or self.gains)
         if gains is not None:
             self.gains = gains
@@ -264,7 +260,7 @@ class Simulation:
             self._active = new_modules
         self._friction = self._held_loads = None
         velocity_rows = [row for module in self._active if isinstance(module, VelocityConstraint)
-                         for row, key in zip(module.velocity_rows(q), _row_keys(module)) if key not in was_constrained]
+                         for row, key in zip(module.velocity_rows(q), row_keys(module)) if key not in was_constrained]
         before = after = 0.0
         if velocity_rows:
             new_rows = np.vstack(velocity_rows)
@@ -420,22 +416,6 @@ class Simulation:
         end = rk4_step(derivative, self._t, start, self.dt, first)
         return end[:-1], float(end[-1])
 
-    def _compiled_now(self) -> CompiledDynamics | None:
-        """The compiled dynamics configured for what is active, when they cover it (ideal contact, no modules of
-        your own)."""
-        if self._compiled is None or self._extra_modules or self.coulomb_applies:
-            return None
-        return self._compiled.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
-
-    def _compiled_contact(self) -> CompiledCoulomb | None:
-        """The compiled coulomb boundaries and steps configured for what is active, when they cover it (engine
-        'numba', coulomb contact applying, no modules of your own)."""
-        if self._compiled is None or self._extra_modules or not self.coulomb_applies:
-            return None
-        if self._compiled_coulomb is None:
-            self._compiled_coulomb = _compiled_coulomb(self._initial[0], self.dt)
-        return self._compiled_coulomb.configure(self.robot, self.gains, self._selection, self._reference, self.dt)
-
     def run(self, duration: float, on_step: Callable[[StepOutputs], None] | None = None) -> StepOutputs:
         """Step for ``duration`` seconds; ``on_step`` sees the outputs at every instant, both ends included."""
         count = round(duration / self.dt)
@@ -446,149 +426,6 @@ class Simulation:
         if on_step is not None:
             on_step(self.outputs())
         return self.outputs()
-
-    @property
-    def tabulates(self) -> bool:
-        """Whether ``run_table`` can run now: the compiled engine computes the steps, with ideal contact."""
-        return self._compiled_now() is not None
-
-    def run_table(self, duration: float, on_table: Callable[[StepTable], None],
-                  chunk: int = TABLE_CHUNK) -> StepOutputs:
-        """``run`` a chunk of up to ``chunk`` instants at a time, under constant motor torques: ``on_table``
-        gets their outputs as arrays, both ends of the run included, where ``tabulates``.
-
-        Every output is the one ``run`` gives on the compiled engine, to the bit: the same kernel
-        steps and motions, and the same array functions for the loads, friction use and drive forces.
-        """
-        count = round(duration / self.dt)
-        done = 0
-        while True:
-            compiled = self._tabulating('run_table')
-            instants = min(chunk, count - done + 1)
-            steps = min(instants, count - done)
-            run = compiled.run(self._y, self.steps, self.motor_torque, instants, steps)
-            on_table(compiled.table(run, self._initial[0], self.steps))
-            self.steps += run.taken
-            self._t = self._initial[0] + self.steps * self.dt
-            self._y = run.states[run.taken].copy()
-            self._cached = None
-            done += run.taken
-            if run.taken < steps:
-                raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
-            if steps < instants:  # this chunk ended at the run's last instant
-                return self.outputs()
-
-    def advance(self, count: int) -> StepBlock | None:
-        """``count`` steps at once, under the current motor torques, where ``tabulates``: the outputs of the
-        ``count`` instants after the current one, each what ``step`` then ``outputs`` give there, to the bit.
-
-        None, the simulation unchanged, if a state or output among them is not finite: ``step`` one at a
-        time to meet the divergence where it happens.
-        """
-        block = self.compute_block(count)
-        if block is not None:
-            self.take(block)
-        return block
-
-    def sample_reference(self, count: int) -> ReferenceRows:
-        """The reference at the RK4 instants of the ``count`` steps from here, for a ``compute_block`` of up to
-        ``count`` steps from here: the Python part of its work, which a caller with deadlines can do at another
-        time. A block from elsewhere, or after the reference changed, samples its own."""
-        return self._tabulating('sample_reference').reference_rows(self.steps, count + 1)
-
-    def compute_block(self, count: int, sampled: ReferenceRows | None = None) -> StepBlock | None:
-        """``advance``'s block, the simulation left where it is: ``take`` moves it to the block's end, unless
-        something changed it in between (then the block is of no use). ``sampled``: ``sample_reference``'s."""
-        compiled = self._tabulating('advance')
-        run = compiled.run(self._y, self.steps, self.motor_torque, count + 1, count, sampled)
-        if run.taken < count:
-            return None
-        table = StepTable(*(None if column is None else column[1:]
-                            for column in compiled.table(run, self._initial[0], self.steps)))
-        if not (np.all(np.isfinite(table.constraint_force)) and np.all(np.isfinite(table.residual))):
-            return None
-        return StepBlock(table, table.wheel_torques(self.motor_torque))
-
-    def _tabulating(self, what: str) -> CompiledDynamics:
-        compiled = self._compiled_now()
-        if compiled is None:
-            raise ModelError(f'{what} needs the numba engine with ideal contact (Simulation.tabulates)')
-        return compiled
-
-    def take(self, block: StepBlock) -> None:
-        """Continue from the last instant of ``block``, which ``compute_block`` gave from the current state."""
-        self.steps += len(block.t)
-        self._t = self._initial[0] + self.steps * self.dt
-        self._y = np.concatenate((block.q[-1], block.qd[-1]))
-        self._cached = self._last_outputs(block)
-
-    def _last_outputs(self, block: StepBlock) -> StepOutputs:
-        """The outputs at the last instant of ``block`` (the current one), as ``outputs`` builds them."""
-        table = block.table
-        loads = table.loads[-1]
-        reference = self._reference.sample(self._t) if self._reference is not None else None
-        return StepOutputs(self._t, table.q[-1].copy(), table.qd[-1].copy(), table.acceleration[-1],
-                           table.constraint_force[-1], float(table.residual[-1]), self.motor_torque,
-                           DriveForces(*table.drive[-1].tolist()), reference,
-                           self._ideal_contact(loads, FrictionUse(*table.use[-1].tolist()),
-                                               WheelOutputs(table.wheel_forces[-1:], table.wheel_use[-1:],
-                                                            table.slip_velocity[-1:])))
-
-
-def stack_problem(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray, qd: np.ndarray,
-                  motor_torque: tuple[float, float] = (0.0, 0.0),
-                  loads: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Q and the rows A, b of ``modules`` stacked in order, at (t, q, qd) (``loads``: ``Robot.applied_force``'s)."""
-    force = robot.applied_force(q, qd, motor_torque, loads)
-    if not modules:
-        return force, np.empty((0, DOF)), np.empty(0)
-    parts = [module.rows(t, q, qd) for module in modules]
-    return force, np.concatenate([part[0] for part in parts]), np.concatenate([part[1] for part in parts])
-
-
-def impulsive_projection(robot: Robot, modules: Sequence[ConstraintModule], q: np.ndarray,
-                         qd: np.ndarray) -> np.ndarray:
-    """qd+ = qd - M^-1 A^T (A M^-1 A^T)+ A qd over the velocity constraints of ``modules`` at q: the impulse of a
-    constraint switch, the least kinetic energy change that imposes them."""
-    rows = [module.velocity_rows(q) for module in modules if isinstance(module, VelocityConstraint)]
-    if not rows:
-        return qd
-    rows = np.vstack(rows)
-    weighted = robot.mass_matrix_inverse(q) @ rows.T
-    return qd - weighted @ (np.linalg.pinv(rows @ weighted) @ (rows @ qd))
-
-
-def constrained_motion(robot: Robot, modules: Sequence[ConstraintModule], t: float, q: np.ndarray,
-                       qd: np.ndarray, motor_torque: tuple[float, float] = (0.0, 0.0)) -> ConstrainedMotion:
-    """qdd, Q_c and residual of ``robot`` under ``modules`` at (t, q, qd)."""
-    force, rows, rhs = stack_problem(robot, modules, t, q, qd, motor_torque)
-    return solve_with_factor(robot.mass_matrix(q), robot.mass_inverse_factor(q), force, rows, rhs)
-
-
-def _compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:
-    # imported here: model.compiled reaches the batch package, which imports this module
-    from wallbot_sim.model.compiled import CompiledDynamics
-    return CompiledDynamics(initial_time, dt)
-
-
-def _compiled_coulomb(initial_time: float, dt: float) -> CompiledCoulomb:
-    from wallbot_sim.model.compiled_contact import CompiledCoulomb
-    return CompiledCoulomb(initial_time, dt)
-
-
-RowKey = tuple[str, tuple[int, int] | None]
-
-
-def _row_keys(module: ConstraintModule) -> list[RowKey]:
-    if isinstance(module, WheelContact):
-        return [(module.name, (wheel, row)) for wheel in module.wheels for row in module.directions]
-    return [(module.name, None)] * len(module.velocity_rows(np.zeros(DOF)))
-
-
-def _constrained_rows(modules: Sequence[ConstraintModule]) -> set[RowKey]:
-    """(module name, (wheel, contact row) or None) of every velocity-constraint row ``modules`` impose."""
-    return {key for module in modules if isinstance(module, VelocityConstraint) for key in _row_keys(module)}
-
 
 def _state_vector(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)

@@ -21,7 +21,7 @@ from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule
 from wallbot_sim.model.contact import CoulombContact
 from wallbot_sim.model.errors import ModelError
 from wallbot_sim.model.robot import DOF
-from wallbot_sim.model.simulation import impulsive_projection
+from wallbot_sim.model.constrained_problem import impulsive_projection
 from wallbot_sim.model.trajectories import LastSample, Reference
 
 

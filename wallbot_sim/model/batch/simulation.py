@@ -15,12 +15,12 @@ from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stack
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model, coulomb_table
 from wallbot_sim.model.contact_kinematics import contact_velocities
-from wallbot_sim.model.errors import ModelError, ParameterError
+from wallbot_sim.model.errors import DivergedError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
-from wallbot_sim.model.simulation import DEFAULT_STEP, DivergedError
+from wallbot_sim.model.simulation import DEFAULT_STEP
 from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample, Vec2
 from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
 
