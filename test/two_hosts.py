@@ -54,42 +54,55 @@ def _has_net_admin() -> bool:
     return False
 
 
-class TwoHosts:
-    """Two network namespaces (host 0 and host 1) joined by a veth pair; removed on exit."""
+class Namespaces:
+    """Network namespaces made on entering (``_wire`` cables them), all deleted on exit."""
 
-    def __init__(self) -> None:
-        tag = f'wbs{os.getpid()}-{secrets.token_hex(3)}'
-        self.names = (f'{tag}-a', f'{tag}-b')
+    def __init__(self, hosts: tuple[str, ...], others: tuple[str, ...] = ()) -> None:
+        self.names = hosts
+        self._made = (*others, *hosts)
         self._created: list[str] = []
 
-    def __enter__(self) -> 'TwoHosts':
+    def __enter__(self):
         try:
-            for name in self.names:
+            for name in self._made:
                 _ip('netns', 'add', name)
                 self._created.append(name)
-            _ip('link', 'add', LINK, 'netns', self.names[0], 'type', 'veth', 'peer', 'name', LINK,
-                'netns', self.names[1])
-            for name, address in zip(self.names, ADDRESSES):
-                _ip('-n', name, 'addr', 'add', f'{address}/{PREFIX_LENGTH}', 'dev', LINK)
-                _ip('-n', name, 'link', 'set', 'lo', 'up')
-                _ip('-n', name, 'link', 'set', LINK, 'up')
-                _multicast_route(name)
+            self._wire()
         except BaseException:
             self.remove()
             raise
         return self
 
+    def _wire(self) -> None:
+        raise NotImplementedError
+
     def __exit__(self, *exc: object) -> None:
         self.remove()
 
     def remove(self) -> None:
-        """Delete the namespaces (the veth pair goes with them once their processes are gone)."""
+        """Delete the namespaces (veth pairs go with them once their processes are gone)."""
         while self._created:
             subprocess.run(['ip', 'netns', 'delete', self._created.pop()], capture_output=True, check=False)
 
     def command(self, host: int, cmd: list[str]) -> list[str]:
-        """``cmd`` run inside host ``host`` (0 or 1)."""
+        """``cmd`` run inside host ``host``."""
         return ['ip', 'netns', 'exec', self.names[host], *cmd]
+
+
+class TwoHosts(Namespaces):
+    """Two network namespaces (host 0 and host 1) joined by a veth pair; removed on exit."""
+
+    def __init__(self) -> None:
+        tag = f'wbs{os.getpid()}-{secrets.token_hex(3)}'
+        super().__init__((f'{tag}-a', f'{tag}-b'))
+
+    def _wire(self) -> None:
+        _ip('link', 'add', LINK, 'netns', self.names[0], 'type', 'veth', 'peer', 'name', LINK, 'netns', self.names[1])
+        for name, address in zip(self.names, ADDRESSES):
+            _ip('-n', name, 'addr', 'add', f'{address}/{PREFIX_LENGTH}', 'dev', LINK)
+            _ip('-n', name, 'link', 'set', 'lo', 'up')
+            _ip('-n', name, 'link', 'set', LINK, 'up')
+            _multicast_route(name)
 
     def packets_received(self, host: int) -> int:
         """Packets host ``host`` has received on its end of the link."""
@@ -108,7 +121,7 @@ class TwoHosts:
             _multicast_route(self.names[0])
 
 
-class Lan:
+class Lan(Namespaces):
     """``count`` hosts (network namespaces) on one switch: a Linux bridge in a namespace of its own,
     each host's ``veth0`` (10.214.0.k/24, k from 1) cabled to it; removed on exit. A host reaches
     every other one over the switch, as on a real LAN, and nothing outside it."""
@@ -118,42 +131,22 @@ class Lan:
     def __init__(self, count: int) -> None:
         tag = f'wbl{os.getpid()}-{secrets.token_hex(3)}'
         self.switch = f'{tag}-sw'
-        self.names = tuple(f'{tag}-{k}' for k in range(count))
-        self._created: list[str] = []
+        super().__init__(tuple(f'{tag}-{k}' for k in range(count)), (self.switch,))
 
     def address(self, host: int) -> str:
         return f'{self.SUBNET}.{host + 1}'
 
-    def __enter__(self) -> 'Lan':
-        try:
-            for name in (self.switch, *self.names):
-                _ip('netns', 'add', name)
-                self._created.append(name)
-            _ip('-n', self.switch, 'link', 'add', 'br0', 'type', 'bridge')
-            _ip('-n', self.switch, 'link', 'set', 'br0', 'up')
-            for host, name in enumerate(self.names):
-                port = f'port{host}'
-                _ip('link', 'add', LINK, 'netns', name, 'type', 'veth', 'peer', 'name', port, 'netns', self.switch)
-                _ip('-n', self.switch, 'link', 'set', port, 'master', 'br0')
-                _ip('-n', self.switch, 'link', 'set', port, 'up')
-                _ip('-n', name, 'addr', 'add', f'{self.address(host)}/24', 'dev', LINK)
-                _ip('-n', name, 'link', 'set', 'lo', 'up')
-                _ip('-n', name, 'link', 'set', LINK, 'up')
-        except BaseException:
-            self.remove()
-            raise
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.remove()
-
-    def remove(self) -> None:
-        while self._created:
-            subprocess.run(['ip', 'netns', 'delete', self._created.pop()], capture_output=True, check=False)
-
-    def command(self, host: int, cmd: list[str]) -> list[str]:
-        """``cmd`` run inside host ``host``."""
-        return ['ip', 'netns', 'exec', self.names[host], *cmd]
+    def _wire(self) -> None:
+        _ip('-n', self.switch, 'link', 'add', 'br0', 'type', 'bridge')
+        _ip('-n', self.switch, 'link', 'set', 'br0', 'up')
+        for host, name in enumerate(self.names):
+            port = f'port{host}'
+            _ip('link', 'add', LINK, 'netns', name, 'type', 'veth', 'peer', 'name', port, 'netns', self.switch)
+            _ip('-n', self.switch, 'link', 'set', port, 'master', 'br0')
+            _ip('-n', self.switch, 'link', 'set', port, 'up')
+            _ip('-n', name, 'addr', 'add', f'{self.address(host)}/24', 'dev', LINK)
+            _ip('-n', name, 'link', 'set', 'lo', 'up')
+            _ip('-n', name, 'link', 'set', LINK, 'up')
 
 
 def _multicast_route(namespace: str) -> None:
