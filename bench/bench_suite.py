@@ -27,7 +27,8 @@ from pathlib import Path
 from report import Report, add_write_docs_option
 
 REPO = Path(__file__).resolve().parents[1]
-SUMMARY = re.compile(r'=+ (?P<counts>[^=]*?) in (?P<seconds>[\d.]+)s')
+SUMMARY = re.compile(r'^(?:=+ )?(?P<counts>\d+ \w+(?:, \d+ \w+)*) in (?P<seconds>[\d.]+)s', re.MULTILINE)
+"""pytest's last line, with its ``=`` rule or without (``-q``)."""
 
 
 @dataclass

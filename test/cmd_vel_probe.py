@@ -27,6 +27,10 @@ from wallbot_msgs_py import topics  # noqa: E402
 from wallbot_msgs_py.qos import qos_profile  # noqa: E402
 
 
+REPLY_WAIT = 2.0
+"""Wall seconds to wait for the parameter service's reply before sending the request again."""
+
+
 def main(argv: list[str]) -> int:
     linear, angular, seconds = (float(a) for a in argv[:3])
     settings = dict(a.split(':=', 1) for a in argv[3:])
@@ -45,7 +49,14 @@ def main(argv: list[str]) -> int:
             request = SetParameters.Request(parameters=[Parameter(k, value=float(v)).to_parameter_msg()
                                                         for k, v in settings.items()])
             future = client.call_async(request)
-            executor.spin_until_future_complete(future)
+            # a service is "available" once its request reader matches; its reply is lost while the server has
+            # not yet matched this client's reply reader (seen under load: no answer ever), so a request without
+            # an answer is sent again (setting the same values twice changes nothing)
+            executor.spin_until_future_complete(future, timeout_sec=REPLY_WAIT)
+            while not future.done():
+                client.remove_pending_request(future)
+                future = client.call_async(request)
+                executor.spin_until_future_complete(future, timeout_sec=REPLY_WAIT)
             if not all(result.successful for result in future.result().results):
                 print(f'refused: {future.result().results}', flush=True)
                 return 1

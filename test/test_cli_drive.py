@@ -37,7 +37,7 @@ def test_an_aggressive_cmd_vel_slips_with_coulomb_contact(tmp_path, process_runn
     assert run.wait(timeout=60) == 130
     output = process_runner.output('run')
     assert 'rest, belt+non_lateral+nonslip driven by cmd_vel' in output and 'Traceback' not in output
-    assert 'first slip at' in output and 'tracking error:      none (no reference recorded' in output
+    assert "first slip at" in output and "tracking error:      none (no reference recorded" in output, output
 
     data = load_run(out / 'bag')
     slipping = np.nan_to_num(data.slip) > 0.5

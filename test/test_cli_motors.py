@@ -215,7 +215,7 @@ def test_robot_file_changes_the_adsorption_figures(tracking_run, tmp_path):
 @pytest.mark.parametrize('make, message', [
     (lambda tmp: tmp / 'missing', 'does not exist'),
     (lambda tmp: tmp, 'not a rosbag2 bag'),
-    (lambda tmp: (tmp / 'notes.txt').write_text('hello') and tmp / 'notes.txt', 'not a rosbag2 bag'),
+    (lambda tmp: (tmp / 'notes.txt').write_text('hello') and tmp / 'notes.txt', 'neither a simulate CSV (.csv) nor'),
     (lambda tmp: (tmp / 'bad.csv').write_text('a,b\n1,2\n') and tmp / 'bad.csv', 'not a wallbot-sim simulate CSV'),
 ])
 def test_bad_input_is_one_line(tmp_path, make, message):

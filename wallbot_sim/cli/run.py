@@ -307,7 +307,7 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
             from wallbot_sim.bag.reindex import repair_unclosed
             raise CliError(f'{died}; partial bag kept in {bag}{repair_unclosed(bag)}', code=1) from None
         except KeyboardInterrupt:
-            if duration > 0 or progress.latest is None:
+            if duration > 0 or not recorded_steps(bag):
                 print(f'\nwallbot-sim run: interrupted; partial bag kept in {bag}', file=sys.stderr)
                 return 130
             # a run until Ctrl-C ends here: its summary, and still the status of an interrupted command
@@ -315,6 +315,18 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
             report(bag, out, robot, plots=not args.no_plots)
             return 130
     return report(bag, out, robot, plots=not args.no_plots)
+
+
+def recorded_steps(bag: Path) -> bool:
+    """Whether the closed bag holds odometry: a run stopped before this command saw its first recorded step (its
+    view of the graph lags the graph's) has one to summarize as well."""
+    from wallbot_msgs_py import topics
+    from wallbot_sim.bag.errors import BagError
+    from wallbot_sim.bag.reader import info
+    try:
+        return any(topic.name.endswith('/' + topics.ODOM.name) and topic.count for topic in info(bag).topics)
+    except (BagError, OSError):
+        return False
 
 
 def report(bag: Path, out: Path, robot: Robot, plots: bool) -> int:
