@@ -161,8 +161,15 @@ class Session:
         if until > self.stop_at + EPSILON:
             self.stop_at = until
             self.monitor.set_dynamics_parameters({'stop_at': float(until)})
-        self._wait(lambda: self.monitor.recorded >= until - 0.5 * STEP and self.monitor.dynamics_stopped(), STALL,
+        self._wait(lambda: self.monitor.recorded >= until - 0.5 * STEP and self.monitor.dynamics_stopped()
+                   and self._held_at(until), STALL,
                    f'no simulation progress at t = {max(self.monitor.recorded, 0.0):.3f} s', progress=True)
+
+    def _held_at(self, until: float) -> bool:
+        """Whether the snapshot the dynamics publishes where a stop holds it has arrived (its own topic: it may
+        come after the diagnostics that say it stopped)."""
+        snapshot = self.monitor.snapshot
+        return snapshot is not None and snapshot.t >= until - 0.5 * STEP
 
     def inject(self, changes: Mapping[str, object], at: float | None = None) -> None:
         """Set the dynamics' fault settings ``changes`` now (at the time the run stands at), as ``ros2 param set``
