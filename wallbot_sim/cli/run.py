@@ -324,8 +324,8 @@ def recorded_steps(bag: Path) -> bool:
     from wallbot_sim.bag.errors import BagError
     from wallbot_sim.bag.reader import info
     try:
-        return any(topic.name.endswith('/' + topics.ODOM.name) and topic.count for topic in info(bag).topics)
-    except (BagError, OSError):
+        return info(bag).topic(topics.ODOM.resolve()).count > 0
+    except (BagError, OSError):  # no bag, or no odometry topic in it (UnknownTopicError)
         return False
 
 
