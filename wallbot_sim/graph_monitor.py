@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from typing import Mapping
 
 from wallbot_msgs_py import codec, topics
@@ -14,6 +15,8 @@ from wallbot_sim import messages
 
 PARAMETER_TIMEOUT = 10.0
 """Wall seconds a parameter set waits for the dynamics' answer."""
+REPLY_WAIT = 2.0
+"""Wall seconds to wait for the reply to one parameter request before sending it again."""
 
 
 class ParameterRefused(RuntimeError):
@@ -122,14 +125,24 @@ class Monitor:
     def set_dynamics_parameters(self, values: Mapping[str, object]) -> None:
         """Set parameters of the dynamics as ``ros2 param set`` does (they apply at its next step boundary);
         ParameterRefused with the dynamics' reason if it refuses one, or if it does not answer."""
+        from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
-        from rclpy.parameter_client import AsyncParameterClient
         if self._parameters is None:
-            self._parameters = AsyncParameterClient(self.node, topics.NODE_DYNAMICS)
-        if not self._parameters.wait_for_services(PARAMETER_TIMEOUT):
+            self._parameters = self.node.create_client(SetParameters, f'{topics.NODE_DYNAMICS}/set_parameters')
+        if not self._parameters.wait_for_service(PARAMETER_TIMEOUT):
             raise ParameterRefused(f'the dynamics offers no parameter service within {PARAMETER_TIMEOUT:g} s')
-        future = self._parameters.set_parameters([Parameter(name, value=value) for name, value in values.items()])
-        self.executor.spin_until_future_complete(future, timeout_sec=PARAMETER_TIMEOUT)
+        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()
+                                                    for name, value in values.items()])
+        # a service is available once its request reader matches; the reply is lost while the server has not yet
+        # matched this client's reply reader (seen under load: no answer ever), so an unanswered request is sent
+        # again: parameters are values, setting them twice changes nothing
+        deadline = time.monotonic() + PARAMETER_TIMEOUT
+        future = self._parameters.call_async(request)
+        self.executor.spin_until_future_complete(future, timeout_sec=REPLY_WAIT)
+        while not future.done() and time.monotonic() < deadline:
+            self._parameters.remove_pending_request(future)
+            future = self._parameters.call_async(request)
+            self.executor.spin_until_future_complete(future, timeout_sec=REPLY_WAIT)
         if not future.done():
             raise ParameterRefused(f'the dynamics did not answer a parameter set within {PARAMETER_TIMEOUT:g} s')
         refused = [result.reason for result in future.result().results if not result.successful]
