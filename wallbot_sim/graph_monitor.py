@@ -112,6 +112,10 @@ class Monitor:
         """Whether the trajectory node's reference reaches the monitor (the poses sent before do not)."""
         return self.reference_subscription.get_publisher_count() > 0
 
+    def reference_seen(self) -> bool:
+        """Whether a reference pose has reached the monitor (those sent before its reader matched do not)."""
+        return self.reference_time > -math.inf
+
     def reference_reached(self, duration: float) -> bool:
         """Whether the trajectory node has published its last reference pose of a run of ``duration``."""
         return self.reference_time >= duration - 1.0 / messages.PUBLISH_RATE_HZ - 1e-9
