@@ -31,7 +31,7 @@ from wallbot_sim.loop import loop as loop_module
 from wallbot_sim.loop import pacing
 from wallbot_sim.loop.blocks import BLOCK_PACED
 from wallbot_sim.loop.faults import parse_schedule, schedule_text
-from wallbot_sim.loop.start import COMMAND_WAIT_WARNING
+from wallbot_sim.loop.start import COMMAND_WAIT_WARNING, RESEND_EVERY
 from wallbot_sim.loop.waits import BACKPRESSURE_TIMEOUT
 from wallbot_sim.settings.dynamics import DynamicsSettings
 
@@ -52,6 +52,10 @@ class FakeGraph:
         self.faults = []
         self.recorder = self.keeper = False
         self.controller = True
+        self.resent: list[float] = []  # the last published time at each resend_to_controller
+
+    def resend_to_controller(self) -> None:
+        self.resent.append(self.published[-1][0])
 
     def prepare(self, out, clock):
         if clock:
@@ -510,6 +514,29 @@ def test_a_driven_start_waits_for_a_controller_and_its_first_command():
                                 '(wall), giving up after 30 s (command_wait_timeout)')
     loop.post(TorqueCommand((0.1, 0.1)))
     assert loop.tick() is Decision.STEPPED
+
+
+def test_an_unanswered_state_goes_to_the_controller_again_every_few_seconds_until_answered():
+    """A controller whose odometry reader matched after the t = 0 state went out never gets it: without an answer
+    the loop sends that state again every RESEND_EVERY (wall), and not once an answer came."""
+    loop, graph, log, clock = make_loop(wait_for_command=True, command_wait_timeout=0.0)
+    loop.post(DRIVEN)
+    ticks(loop, 2)
+    assert graph.times == [0.0] and not graph.resent
+    clock.now += RESEND_EVERY - 0.1
+    loop.tick()
+    assert not graph.resent
+    clock.now += 0.2
+    ticks(loop, 3)
+    assert graph.resent == [0.0] and log.said('no answer yet: the t = 0.000 s state goes to the controller again')
+    clock.now += RESEND_EVERY + 0.1
+    ticks(loop, 2)
+    assert graph.resent == [0.0, 0.0]
+    loop.post(TorqueCommand((0.1, 0.1)))
+    assert loop.tick() is Decision.STEPPED
+    clock.now += 2 * RESEND_EVERY
+    ticks(loop, 3)
+    assert graph.resent == [0.0, 0.0]
 
 
 def test_a_start_without_a_controller_says_so_then_gives_up_after_command_wait_timeout():

@@ -38,6 +38,9 @@ class Graph(Protocol):
     def keeper_seen(self) -> bool:
         """Whether some node publishes resume_state."""
 
+    def resend_to_controller(self) -> None:
+        """Publish the last state sent on control_odom again (to a controller whose reader matched after it)."""
+
     def controller_listening(self) -> bool:
         """Whether a wheel_torque_cmd publisher exists and hears the command sensor, odom (or control_odom) or
         wheel_states (``command_sensor``; see ``heard_by_every``)."""

@@ -29,6 +29,14 @@ MISSING = {RunState.WAITING_CONTROLLER: 'no controller (a wheel_torque_cmd publi
            RunState.WAITING_FIRST_COMMAND: 'no wheel_torque_cmd answering the t = 0 state',
            RunState.WAITING_RESUMED_COMMAND: 'no wheel_torque_cmd answering the resumed state at t = {t:.3f} s'}
 """What a wait for the controller found missing when it gave up."""
+ANSWER_WAITS = (RunState.WAITING_FIRST_COMMAND, RunState.WAITING_RESUMED_COMMAND)
+"""The waits for the answer to a state already published."""
+RESEND_EVERY = 5.0
+"""Wall seconds without the answer to the awaited state after which the loop sends that state to the controller
+again (``Graph.resend_to_controller``). Discovery matches each direction on its own: a controller whose odometry
+reader matched the dynamics' writer only after the state went out never gets it (seen under load, 1 run in ~10:
+the start then waited for command_wait_timeout and gave up). A controller acting at control instants answers a
+state once; sent again to one that did answer, it is ignored (its instant has passed)."""
 
 
 class CommandWait:
@@ -39,6 +47,8 @@ class CommandWait:
         """The wait under way: which, since when (clock), whether the log said it."""
         self.gave_up: str | None = None
         """Why the loop stopped without starting (then the node exits), or None."""
+        self.sent_at = 0.0
+        """Clock time the awaited state last went out again (``resend_due``)."""
 
     def wait(self, state: RunState, now: float, limit: float, t: float, log: Log) -> Status:
         """Wait (``state``) at clock time ``now`` and simulation time ``t``: the status saying so, or that the wait
@@ -63,6 +73,16 @@ class CommandWait:
             self.current = (state, since, True)
             log.warning(str(status))
         return status
+
+    def resend_due(self, now: float) -> bool:
+        """Whether the wait under way, one for an answer (ANSWER_WAITS), has gone RESEND_EVERY without one since it
+        began or since the state last went out again; if so, the state goes out again now."""
+        if self.current is None or self.current[0] not in ANSWER_WAITS:
+            return False
+        if now - max(self.current[1], self.sent_at) < RESEND_EVERY:
+            return False
+        self.sent_at = now
+        return True
 
     def end(self) -> None:
         """No wait is under way (the loop runs)."""
@@ -138,6 +158,9 @@ class StartGate:
                                              loop.log)
         if self.command_wait.gave_up is not None:
             loop.stopping.set()
+        elif self.command_wait.resend_due(loop.clock()):
+            loop.graph.resend_to_controller()
+            loop.log.info(f'no answer yet: the t = {loop.status.t:.3f} s state goes to the controller again')
 
     def resumed_unanswered(self) -> bool:
         """Lockstep in a process that resumed a kept snapshot: whether the sync state awaiting its

@@ -140,6 +140,8 @@ class DynamicsNode(Node):
         snapshots and the domain's /clock (``domain_clock``), with the step encoder and the sensor noise."""
         self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
                             for topic, kind in MESSAGE_TYPES.items()}
+        self.control_odom_sent: bytes | None = None
+        """The last state published on control_odom."""
         self.control_odom_pub = self.create_publisher(Odometry, topics.CONTROL_ODOM.name,
                                                       qos_profile(topics.CONTROL_ODOM))
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
@@ -336,6 +338,7 @@ class DynamicsNode(Node):
                     self.publishers_[topic].publish(data)
                 if topic is topics.ODOM and controller:
                     self.control_odom_pub.publish(data)
+                    self.control_odom_sent = data
             elif clock:
                 self.publishers_[topic].publish(data)
                 if self.domain_clock_pub is not None:
@@ -361,6 +364,10 @@ class DynamicsNode(Node):
 
     def keeper_seen(self) -> bool:
         return self.count_publishers(self.resume_topic) > 0
+
+    def resend_to_controller(self) -> None:
+        if self.control_odom_sent is not None:
+            self.control_odom_pub.publish(self.control_odom_sent)
 
     def controller_listening(self) -> bool:
         # and every discovered command publisher is matched here: its answer to the first state

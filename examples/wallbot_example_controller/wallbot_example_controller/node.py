@@ -35,10 +35,16 @@ class ExampleController(Node):
         self.publisher = self.create_publisher(Float64MultiArray, 'wheel_torque_cmd', RELIABLE)
         self.create_subscription(Odometry, 'control_odom', self.on_odom, RELIABLE)
         self.unsent: list[Float64MultiArray] = []
+        self.answered: tuple[int, int] | None = None
         self.create_timer(0.02, self.send)
 
     def on_odom(self, odom: Odometry) -> None:
         stamp, pose, twist = odom.header.stamp, odom.pose.pose, odom.twist.twist
+        # the simulator sends a state again when no answer came within seconds (the first one can miss a reader
+        # matched late): a state already answered is not answered twice, or the answers would run one behind
+        if (stamp.sec, stamp.nanosec) == self.answered:
+            return
+        self.answered = (stamp.sec, stamp.nanosec)
         heading = 2.0 * math.atan2(pose.orientation.z, pose.orientation.w)
         left, right = self.law.torques(stamp.sec + 1e-9 * stamp.nanosec, pose.position.x, pose.position.y, heading,
                                        twist.linear.x, twist.angular.z)
