@@ -57,12 +57,16 @@ class Answering:
         self.publisher = node.create_publisher(kind, topic, reliable)
         node.create_subscription(state, sensor, self.on_state, reliable)
         self.held = []
+        self.answered: tuple[int, int] | None = None
         node.create_timer(0.02, self.flush)
 
     def on_state(self, message) -> None:
         stamp = message.header.stamp
         if self.mute_after is not None and stamp.sec + 1e-9 * stamp.nanosec >= self.mute_after - 1e-9:
             return
+        if (stamp.sec, stamp.nanosec) == self.answered:  # sent again by a dynamics that saw no answer yet
+            return
+        self.answered = (stamp.sec, stamp.nanosec)
         command = self.kind()
         if self.drive == 'wheel_torque_cmd':
             command.data = [self.a, self.b]
