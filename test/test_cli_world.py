@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from bag_helpers import by_topic
-from cli_helpers import assert_one_line_error, read_csv, simulate
+from cli_helpers import assert_one_line_error, read_csv, simulate, wallbot
 from wallbot_sim import paths
 from wallbot_sim.model import RobotParameters
 
@@ -39,7 +39,38 @@ def test_on_the_ceiling_enough_adhesion_holds(tmp_path):
 def test_the_numba_engine_refuses_a_world_in_one_line_naming_the_python_engine(tmp_path):
     result = simulate('--scenario', 'rest', '--world', paths.config_dir() / 'world.yaml', '--engine', 'numba',
                       '--csv', tmp_path / 'run.csv')
-    assert_one_line_error(result, 'a world file', '--engine python')
+    assert_one_line_error(result, '--engine numba: a world file runs on the python engine only', '--engine python')
+
+
+@pytest.mark.parametrize('files, reason', [
+    (('--world', 'world.yaml'), 'a world file runs on the python engine only'),
+    (('--robot', 'climber.yaml'), 'a motor block and a vacuum block run on the python engine only'),
+    (('--robot', 'climber.yaml', '--world', 'world.yaml'),
+     'a world file and a motor block and a vacuum block run on the python engine only'),
+], ids=['world', 'climber', 'both'])
+def test_without_engine_simulate_computes_the_example_files_on_python_saying_so(tmp_path, files, reason):
+    """No --engine: the python engine, one line on stderr saying why, and the CSV --engine python writes, to the
+    bit; --engine numba: refused in one line naming why."""
+    files = [paths.config_dir() / name if name.endswith('.yaml') else name for name in files]
+    common = ('--scenario', 'rest', '--torque', '3,3', '--duration', 0.02, '--quiet', *files)
+    chosen, python = tmp_path / 'chosen.csv', tmp_path / 'python.csv'
+    result = simulate(*common, '--csv', chosen)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr.strip().splitlines() == [f'wallbot-sim simulate: engine python ({reason})']
+    assert simulate(*common, '--engine', 'python', '--csv', python).returncode == 0
+    assert chosen.read_text() == python.read_text()
+    assert_one_line_error(simulate(*common, '--engine', 'numba', '--csv', tmp_path / 'numba.csv'),
+                          f'--engine numba: {reason} (drop --engine, or --engine python)')
+    assert not (tmp_path / 'numba.csv').exists()
+
+
+def test_run_refuses_an_explicit_numba_engine_for_the_example_files_in_one_line(tmp_path):
+    """Before any node starts (no output directory made); run without --engine is test_sensors_graph's run."""
+    result = wallbot('run', 'circle', '--robot', paths.config_dir() / 'climber.yaml', '--world',
+                     paths.config_dir() / 'world.yaml', '--engine', 'numba', '--out', tmp_path / 'run')
+    assert_one_line_error(result, '--engine numba: a world file and a motor block and a vacuum block run on the '
+                                  'python engine only (drop --engine, or --engine python)')
+    assert not (tmp_path / 'run').exists()
 
 
 def test_a_misspelt_world_key_is_one_line_naming_the_closest(tmp_path):

@@ -190,11 +190,14 @@ def test_the_loop_reads_the_table_typed_and_a_change_keeps_the_types():
 
 
 def test_one_default_engine_everywhere():
-    """numba: the nodes' own defaults, the graph description, the launch file, run and simulate."""
+    """numba: the nodes' own defaults, the graph description, the launch file, and run and simulate for a robot
+    without a world file or the robot file's motor and adhesion blocks (``chosen_engine``)."""
+    from wallbot_sim.cli.engine import chosen_engine
     from wallbot_sim.graph_options import BY_NAME
+    from wallbot_sim.model import Robot, RobotParameters
     assert DYNAMICS['engine'].default == CONTROLLER['engine'].default == BY_NAME['engine'].setting.default == 'numba'
-    assert build_parser().parse_args(['run', 'circle']).engine == 'numba'
-    assert build_parser().parse_args(['simulate', '--csv', '-']).engine == 'numba'
+    for command in (['run', 'circle'], ['simulate', '--csv', '-']):
+        assert chosen_engine(build_parser().parse_args(command).engine, Robot(RobotParameters()), command[0]) == 'numba'
     from wallbot_sim.config import load_scenario
     from wallbot_sim.model import ConstraintSelection
     specs = describe_graph(load_scenario('circle'), ConstraintSelection.parse('belt'), controller_mass_scale=1.0)

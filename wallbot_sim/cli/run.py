@@ -2,9 +2,9 @@
 
 Starts constraint_config, trajectory, and the dynamics and the recorder in one process (the per-step
 topics recorded in process; ``--no-compose``: as separate processes), the dynamics on the compiled
-engine (``--engine python``: the model as written), with a ROS_DOMAIN_ID of their own (localhost
-discovery only; the first line on stdout is the ``export`` that attaches another terminal), all at
-once (each node holds back what it publishes until the recorder hears it), shows
+engine (``--engine python``, or a world file or a robot file's motor or adhesion block: the model as
+written), with a ROS_DOMAIN_ID of their own (localhost discovery only; the first line on stdout is the
+``export`` that attaches another terminal), all at once (each node holds back what it publishes until the recorder hears it), shows
 simulation time and real-time factor while they run, stops the graph once the recorder holds the
 whole duration (``--duration 0``: at Ctrl-C), then prints a summary and writes the paper's figures.
 A node that dies ends the run with its status and log named; Ctrl-C or SIGTERM stops the graph
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.engine import StartClock, require_compiled_engine
+from wallbot_sim.cli.engine import StartClock, chosen_engine
 from wallbot_sim.cli.options import add_graph_option
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.control.tracking import DRIVEN
@@ -35,9 +35,7 @@ from wallbot_sim.graph_description import (CONTROLLER, DRIVES, DYNAMICS_RECORDER
 from wallbot_sim.graph_monitor import Monitor
 from wallbot_sim.graph_options import ALL_STRUCTURAL, option
 from wallbot_sim.live_view import DEFAULT_HOST, DEFAULT_PORT
-from wallbot_sim.model import ConstraintSelection, ParameterError, Robot
-from wallbot_sim.model.python_only import refuse_compiled
-from wallbot_sim.model.simulation import NUMBA
+from wallbot_sim.model import ConstraintSelection, Robot
 
 HELP = 'run a scenario through the real node graph, record a bag, plot it'
 REST = 'rest'
@@ -86,7 +84,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_graph_option(parser, 'robot', default=None)
     add_graph_option(parser, 'world', default=None)
     add_graph_option(parser, 'contact')
-    add_graph_option(parser, 'engine')
+    add_graph_option(parser, 'engine', default=None,
+                     help_suffix=' (default numba; python where the world file or the robot file\'s motor or '
+                                 'adhesion block needs it, said on stderr)')
     add_graph_option(parser, 'adhesion_force')
     parser.add_argument('--out', help='output directory (default runs/SCENARIO-TIMESTAMP); bag in OUT/bag')
     parser.add_argument('--no-plots', action='store_true', help='skip the figures')
@@ -228,11 +228,11 @@ def main(args: argparse.Namespace) -> int:
     robot_file = Path(args.robot).resolve() if args.robot else None
     loop = '' if mass_scale is None else f' under tracking_controller_node (mass scale {mass_scale:g})'
 
-    def describe(bag: Path) -> list[NodeSpec]:
+    def describe(bag: Path, engine: str) -> list[NodeSpec]:
         try:
             return describe_graph(scenario, selection, duration=duration, real_time_factor=factor, bag=bag,
                                   controller_mass_scale=mass_scale, robot_file=robot_file,
-                                  contact_model=args.contact, adhesion_force=args.adhesion_force, engine=args.engine,
+                                  contact_model=args.contact, adhesion_force=args.adhesion_force, engine=engine,
                                   compose=args.compose, realtime_priority=args.realtime_priority,
                                   world_file=world_path(args), **viewer_options(args))
         except GraphDescriptionError as error:
@@ -250,10 +250,10 @@ def main_driven(args: argparse.Namespace) -> int:
     duration = 0.0 if args.duration is None else args.duration
     robot_file = Path(args.robot).resolve() if args.robot else None
 
-    def describe(bag: Path) -> list[NodeSpec]:
+    def describe(bag: Path, engine: str) -> list[NodeSpec]:
         return describe_driven_graph(args.drive, duration=duration, real_time_factor=args.real_time_factor, bag=bag,
                                      robot_file=robot_file, contact_model=args.contact,
-                                     adhesion_force=args.adhesion_force, engine=args.engine, compose=args.compose,
+                                     adhesion_force=args.adhesion_force, engine=engine, compose=args.compose,
                                      realtime_priority=args.realtime_priority, world_file=world_path(args),
                                      **viewer_options(args))
     return run_described(args, describe, f'{REST}, {DRIVEN.label()} driven by {args.drive}', duration, robot_file,
@@ -271,20 +271,15 @@ def viewer_options(args: argparse.Namespace) -> dict[str, object]:
             'foxglove_host': args.foxglove_host or DEFAULT_HOST}
 
 
-def run_described(args: argparse.Namespace, describe: Callable[[Path], list[NodeSpec]], title: str,
+def run_described(args: argparse.Namespace, describe: Callable[[Path, str], list[NodeSpec]], title: str,
                   duration: float, robot_file: Path | None, reference: bool = True) -> int:
-    """Claim a domain, run the graph ``describe`` gives for the bag's path, summarize and plot."""
+    """Claim a domain, run the graph ``describe`` gives for the bag's path and the engine (``chosen_engine``),
+    summarize and plot."""
     factor = args.real_time_factor
     params = load_robot_parameters(robot_file)
-    if args.engine == NUMBA:
-        require_compiled_engine()
     robot = Robot(params.replace(adhesion_force=args.adhesion_force) if args.adhesion_force else params,
                   load_world(args.world))
-    if args.engine == NUMBA:
-        try:
-            refuse_compiled(robot)
-        except ParameterError as error:
-            raise CliError(str(error)) from None
+    engine = chosen_engine(args.engine, robot, 'run')
     try:
         claim = claim_domain_id() if args.domain_id is None else claim_chosen_domain_id(args.domain_id)
     except DomainUnavailable as error:
@@ -292,7 +287,7 @@ def run_described(args: argparse.Namespace, describe: Callable[[Path], list[Node
     with claim:
         out = output_directory(args.out, args.scenario)
         bag = out / 'bag'
-        specs = describe(bag)
+        specs = describe(bag, engine)
         print(f'{claim.export_line()}  # in another terminal, to see this run with ros2 topic, RViz, ...', flush=True)
         os.environ.update(claim.env())  # the monitor node joins the run's domain
         graph = Graph(out / 'logs', claim.env())

@@ -12,7 +12,7 @@ import numpy as np
 
 from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
-from wallbot_sim.cli.engine import require_compiled_engine
+from wallbot_sim.cli.engine import chosen_engine
 from wallbot_sim.cli.options import add_graph_option, add_setting, number
 from wallbot_sim.cli.progress import Progress
 from wallbot_sim.config import load_robot_parameters, load_scenario, load_world
@@ -24,7 +24,6 @@ from wallbot_sim.model import TIME_STEP, ConstraintSelection, Robot, Simulation,
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import FINITE, POSITIVE
 from wallbot_sim.model.outputs import StepTable
-from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.model.vacuum import PUMP_COMMAND
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, block_columns, block_groups, csv_line, csv_lines, fill_rows
 from wallbot_sim.settings.dynamics import DYNAMICS
@@ -62,7 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_graph_option(parser, 'world', default=None)
     parser.add_argument('--pump-command', type=number(PUMP_COMMAND), default=1.0,
                         help="with the robot file's adhesion block: the vacuum pump's command in [0, 1] (default 1)")
-    add_graph_option(parser, 'engine')
+    add_graph_option(parser, 'engine', default=None,
+                     help_suffix=' (default numba; python where the world file or the robot file\'s motor or '
+                                 'adhesion block needs it, said on stderr)')
     parser.add_argument('--csv', help='CSV output path (- for stdout)')
     parser.add_argument('--bag', help='also write the graph\'s topics to this rosbag2 directory (MCAP)')
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
@@ -74,6 +75,7 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     if args.adhesion_force:  # 0: the robot file's
         params = params.replace(adhesion_force=args.adhesion_force)
     robot = Robot(params, load_world(args.world))
+    engine = chosen_engine(args.engine, robot, 'simulate')
     if args.pump_command != 1.0 and params.adhesion is None:
         raise CliError("--pump-command drives the robot file's adhesion block (a vacuum chamber): the file has none")
     rest = args.scenario == REST
@@ -97,7 +99,7 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
     if rest:
         heading = 0.0 if args.heading is None else args.heading
         q0, qd0 = np.array([0.0, 0.0, heading, 0.0, 0.0, 0.0, 0.0]), np.zeros(7)
-        simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact, engine=args.engine)
+        simulation = Simulation(robot, None, selection, q0, qd0, dt=args.dt, contact=args.contact, engine=engine)
         simulation.set_motor_torque(*parse_torque(args.torque))
         duration = args.duration if args.duration is not None else REST_DURATION
     else:
@@ -105,7 +107,7 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
         q0, qd0 = scenario.initial_state(robot)
         duration = args.duration if args.duration is not None else scenario.duration
         simulation = Simulation(robot, scenario.reference, selection, q0, qd0, dt=args.dt, contact=args.contact,
-                                engine=args.engine)
+                                engine=engine)
     simulation.set_pump_command(args.pump_command)
     return simulation, duration
 
@@ -122,7 +124,7 @@ def build_controller(args: argparse.Namespace, simulation: Simulation,
     if not args.controller:
         return None
     robot = controller_robot(load_robot_parameters(args.robot), args.controller_mass_scale)
-    controller = TrackingController(robot, simulation.reference, engine=args.engine)
+    controller = TrackingController(robot, simulation.reference, engine=simulation.engine)
     return close_loop(simulation, SampledController(controller), on_command)
 
 
@@ -143,8 +145,6 @@ def parse_torque(text: str | None) -> tuple[float, float]:
 def main(args: argparse.Namespace) -> int:
     if not args.csv and not args.bag:
         raise CliError('nothing to write: give --csv PATH (or - for stdout) and/or --bag DIR')
-    if args.engine == NUMBA:
-        require_compiled_engine()
     simulation, duration = build_simulation(args)
     # the controller is built before the bag is created (a refused controller leaves no bag behind);
     # its commands go to the bag once it is open

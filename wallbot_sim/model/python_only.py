@@ -14,10 +14,18 @@ def python_only_features(robot: Robot) -> list[str]:
                                        ('a vacuum block', robot.params.adhesion is not None)) if present]
 
 
+def python_only_reason(robot: Robot) -> str | None:
+    """Why ``robot`` needs the python engine, e.g. 'a world file runs on the python engine only'; None if it does
+    not."""
+    features = python_only_features(robot)
+    if not features:
+        return None
+    verb = 'runs' if len(features) == 1 else 'run'
+    return f'{" and ".join(features)} {verb} on the python engine only'
+
+
 def refuse_compiled(robot: Robot) -> None:
     """ParameterError naming the python engine if ``robot`` has what the compiled kernel does not compute."""
-    features = python_only_features(robot)
-    if features:
-        verb = 'runs' if len(features) == 1 else 'run'
-        raise ParameterError(f'{" and ".join(features)} {verb} on the python engine only: use --engine python '
-                             '(engine parameter python)')
+    reason = python_only_reason(robot)
+    if reason is not None:
+        raise ParameterError(f'{reason}: use --engine python (engine parameter python)')
