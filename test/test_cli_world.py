@@ -90,7 +90,7 @@ def test_a_motor_block_appends_the_applied_torques_to_the_csv(tmp_path):
                       '--engine', 'python', '--duration', 0.1, '--csv', out, '--quiet')
     assert result.returncode == 0, result.stderr
     header, rows = read_csv(out)
-    assert header[-2:] == ['tau_L_applied', 'tau_R_applied']
+    assert header[-4:] == ['tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd']
     left, right = header.index('tau_L_applied'), header.index('tau_R_applied')
     assert rows[0][left] == rows[0][right] == 4.0
     for row in rows:

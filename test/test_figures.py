@@ -42,8 +42,8 @@ def synthetic_run(label: str, reference: bool, sliding_wheel: int | None = None)
 
 def with_machine(run: RunData, names: tuple[str, ...]) -> RunData:
     """``run`` with the machine series ``names`` (a motor block's applied torques, a vacuum block's dp and F_ad)."""
-    shapes = {'tau_L_applied': 2.0 - run.t, 'tau_R_applied': 1.5 - run.t, 'dp': 10000.0 - 100 * run.t,
-              'F_ad': 200.0 - 2 * run.t}
+    shapes = {'tau_L_applied': 2.0 - run.t, 'tau_R_applied': 1.5 - run.t, 'tau_L_cmd': np.full_like(run.t, 3.0),
+              'tau_R_cmd': np.full_like(run.t, -1.0), 'dp': 10000.0 - 100 * run.t, 'F_ad': 200.0 - 2 * run.t}
     run.machine = {name: (run.t, shapes[name]) for name in names}
     return run
 
@@ -77,7 +77,7 @@ def has_data(ax) -> bool:
 
 def test_every_axis_of_a_run_figure_has_its_unit_and_data():
     for many in (False, True):
-        runs = [with_machine(synthetic_run('first', True, 2), ('tau_L_applied', 'tau_R_applied', 'dp', 'F_ad'))]
+        runs = [with_machine(synthetic_run('first', True, 2), ('tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd', 'dp', 'F_ad'))]
         runs += [synthetic_run('second', True, 3)] if many else []
         for name, fig in drawn(runs).items():
             for ax in data_axes(fig):
@@ -112,12 +112,17 @@ def test_titles_name_the_run_by_its_folder(tmp_path):
 
 
 def test_the_machine_figure_has_a_panel_for_each_series_a_run_has_and_only_for_such_runs():
-    """A motor block's CSV: one torque panel, a line a side; a bag with chamber_pressure only: the dp panel alone;
-    a run without the blocks: no machine figure."""
-    motor = drawn([with_machine(synthetic_run('motor', False), ('tau_L_applied', 'tau_R_applied'))])['machine']
-    [torque] = motor.axes
-    assert torque.get_ylabel() == 'applied side torque (N m)'
-    assert torque.get_legend_handles_labels()[1] == ['tau_L applied', 'tau_R applied']
+    """A motor block's CSV: a torque panel a side, its applied and commanded torque; a bag with chamber_pressure
+    only: the dp panel alone; a run without the blocks: no machine figure."""
+    run = with_machine(synthetic_run('motor', False), ('tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd'))
+    left, right = drawn([run])['machine'].axes
+    for ax, side, name in ((left, 'L', 'left'), (right, 'R', 'right')):
+        assert ax.get_ylabel() == f'{name} side torque (N m)'
+        assert ax.get_legend_handles_labels()[1] == ['applied', 'commanded']
+        applied, commanded = ax.get_lines()
+        assert list(applied.get_ydata()) == list(run.machine[f'tau_{side}_applied'][1])
+        assert list(commanded.get_ydata()) == list(run.machine[f'tau_{side}_cmd'][1])
+        assert commanded.get_linestyle() == '--' and commanded.get_drawstyle() == 'steps-post'
     [pressure] = drawn([with_machine(synthetic_run('bag', False), ('dp',))])['machine'].axes
     assert pressure.get_ylabel() == 'chamber pressure difference dp (Pa)' and has_data(pressure)
     both = drawn([with_machine(synthetic_run('a', False), ('dp', 'F_ad')), synthetic_run('b', False)])['machine']
@@ -126,7 +131,7 @@ def test_the_machine_figure_has_a_panel_for_each_series_a_run_has_and_only_for_s
 
 
 def test_legends_stand_beside_the_data():
-    runs = [with_machine(synthetic_run('a', True, 1), ('tau_L_applied', 'tau_R_applied', 'dp', 'F_ad')),
+    runs = [with_machine(synthetic_run('a', True, 1), ('tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd', 'dp', 'F_ad')),
             synthetic_run('b', True, 2)]
     for name, fig in drawn(runs).items():
         renderer = fig.canvas.get_renderer()

@@ -20,7 +20,7 @@ from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.graph_description import describe_driven_graph
 from wallbot_sim.model import Robot
 from wallbot_sim.model.parameters import RobotParameters
-from wallbot_sim.urdf import RobotFrames, robot_urdf
+from wallbot_sim.urdf import RobotFrames, robot_urdf, wheel_radius
 
 yourdfpy = pytest.importorskip('yourdfpy')
 
@@ -58,6 +58,16 @@ def planar_mass_matrix(model, theta: float) -> np.ndarray:
             axis = rotation @ np.asarray(joint.axis)
             mass[spin, spin] = axis @ inertia @ axis
     return mass
+
+
+@pytest.mark.parametrize('radius', [0.04, 0.1 / 3, 0.0525])
+def test_the_wheel_radius_reads_back_exactly_from_the_urdf(radius):
+    """What a bag's reader takes from robot_description for a side's torque (r F_side plus its wheels' efforts)."""
+    assert wheel_radius(robot_urdf(RobotParameters(wheel_radius=radius))) == radius
+    with pytest.raises(ValueError, match='no wheel cylinder'):
+        wheel_radius('<robot name="empty"/>')
+    with pytest.raises(ValueError, match='not XML'):
+        wheel_radius('<robot')
 
 
 @pytest.mark.parametrize('params', [load_robot_parameters(), OFFSET_ROBOT], ids=['robot.yaml', 'offset'])

@@ -241,9 +241,84 @@ def test_a_csv_s_block_columns_are_the_run_s_machine_series(tmp_path):
     assert result.returncode == 0, result.stderr
     header, rows = read_csv(out)
     run = load_run(out)
-    assert list(run.machine) == ['tau_L_applied', 'tau_R_applied', 'dp', 'F_ad']
+    assert list(run.machine) == ['tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd', 'dp', 'F_ad']
     for name, (t, values) in run.machine.items():
         assert t.tolist() == [row[0] for row in rows]
         assert values.tolist() == [row[header.index(name)] for row in rows]
     assert run.machine['F_ad'][1] == pytest.approx(0.02 * run.machine['dp'][1], rel=1e-12)
     assert run.machine['tau_L_applied'][1][0] == 3.0  # at rest the 4 N m envelope holds the command
+    assert run.machine['tau_L_cmd'][1].tolist() == [3.0] * len(rows)
+
+
+def machine_lines(run) -> dict[str, dict[str, tuple[list, list]]]:
+    """The lines of ``run``'s machine figure: each panel's (by its y axis) lines by legend entry, (x, y)."""
+    import matplotlib
+    matplotlib.use('Agg', force=True)
+    import matplotlib.pyplot as plt
+    from wallbot_sim.plots.figures import run_figures
+    figure = dict(run_figures(plt, [run], 0.1, 0.12))['machine']
+    try:
+        return {ax.get_ylabel(): {line.get_label(): (list(line.get_xdata()), list(line.get_ydata()))
+                                  for line in ax.get_lines()} for ax in figure.axes}
+    finally:
+        plt.close('all')
+
+
+def test_plot_draws_a_csv_s_applied_torque_against_its_command(tmp_path):
+    """The example robot file commanded 50 N m per side against its 4 N m motors: each side's panel holds the CSV's
+    applied column (at rest the stall torque, then the torque-speed line) and the command, in N m."""
+    out = tmp_path / 'climb.csv'
+    result = simulate('--scenario', 'rest', '--heading', 1.5707963267948966, '--torque', '50,50', '--robot',
+                      paths.config_dir() / 'climber.yaml', '--duration', 0.05, '--csv', out, '--quiet')
+    assert result.returncode == 0, result.stderr
+    header, rows = read_csv(out)
+    lines = machine_lines(load_run(out))
+    for side, panel in (('L', 'left side torque (N m)'), ('R', 'right side torque (N m)')):
+        times = [row[0] for row in rows]
+        assert lines[panel]['applied'] == (times, [row[header.index(f'tau_{side}_applied')] for row in rows])
+        assert lines[panel]['commanded'] == (times, [50.0] * len(rows))
+        assert lines[panel]['applied'][1][0] == 4.0 and max(lines[panel]['applied'][1]) <= 4.0
+
+
+def test_a_bag_s_applied_and_commanded_side_torques_are_the_simulation_s_at_its_simulation_times(tmp_path):
+    """The closed loop on the example robot file, its bag logged as a recorder logs it, at wall-clock receive times
+    (a command 0.4 ms after the state it answers): the applied torques read back from wheel_states, drive_forces and
+    robot_description are the simulation's at every state, and each command is placed at the simulation time of the
+    state it answers; the machine figure draws exactly these."""
+    from wallbot_sim.cli.main import build_parser
+    from wallbot_sim.cli.simulate import build_controller, build_simulation
+    args = build_parser().parse_args(['simulate', '--robot', str(paths.config_dir() / 'climber.yaml'), '--controller',
+                                      '--duration', '0.3', '--csv', '-'])
+    simulation, duration = build_simulation(args)
+    bag = tmp_path / 'bag'
+    writer = HeadlessBagWriter.open(bag, simulation)
+    wall, delay = 1_733_000_000 * 10**9, 400_000
+    write = writer.writer.write
+    writer.writer.write = lambda connection, log_ns, data: write(
+        connection, log_ns + wall + (delay if connection.topic.endswith('wheel_torque_cmd') else 0), data)
+    applied, commands = [], []
+
+    def on_command(t, command):
+        commands.append((t, command.tau_left, command.tau_right))
+        writer.write_command(t, command.tau_left, command.tau_right)
+    controller = build_controller(args, simulation, on_command)
+
+    def on_step(out):
+        writer.write(out)
+        applied.append((out.t, *out.motor_torque))
+        controller(out)
+    simulation.run(duration, on_step)
+    writer.close()
+
+    run = load_run(bag)
+    t, left, right = (np.array(column) for column in zip(*applied))
+    assert run.t == pytest.approx(t, abs=1e-12)  # the bag's stamps in whole nanoseconds
+    assert np.abs(run.machine['tau_L_applied'][1] - left).max() < 1e-9
+    assert np.abs(run.machine['tau_R_applied'][1] - right).max() < 1e-9
+    assert np.abs(left).max() > 1.0  # the loop drives the motors
+    lines = machine_lines(run)
+    assert len(commands) == int(duration * 25 + 1e-9) + 1 and len({c[1] for c in commands}) > 3  # at 25 Hz
+    for side, panel, column in (('L', 'left side torque (N m)', 1), ('R', 'right side torque (N m)', 2)):
+        times, values = lines[panel]['commanded']
+        assert times == pytest.approx([c[0] for c in commands], abs=1e-12) and values == [c[column] for c in commands]
+        assert lines[panel]['applied'] == (run.t.tolist(), run.machine[f'tau_{side}_applied'][1].tolist())

@@ -187,6 +187,11 @@ DIAGNOSTIC_RESIDUAL_SETTLED = f'constraint residual max after {RESIDUAL_SETTLED_
 """Key of the dynamics' /diagnostics value: DIAGNOSTIC_RESIDUAL_MAX of the states at or after
 RESIDUAL_SETTLED_AFTER of simulation time (nan when the window has none)."""
 
+DIAGNOSTIC_MOTOR_COMMANDED = '{side} motor commanded (N m)'
+DIAGNOSTIC_MOTOR_APPLIED = '{side} motor applied (N m)'
+"""Keys (``side``: left or right) of the dynamics' /diagnostics values with a robot file's motor block: the side's
+torque commanded and applied over the step from the newest state; absent without the block."""
+
 NODE_DYNAMICS = 'dynamics'
 NODE_TRAJECTORY = 'trajectory'
 NODE_CONSTRAINT_CONFIG = 'constraint_config'

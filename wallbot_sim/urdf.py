@@ -125,6 +125,18 @@ def robot_urdf(params: RobotParameters, frames: RobotFrames = RobotFrames()) -> 
     return '<?xml version="1.0"?>\n' + ElementTree.tostring(robot, encoding='unicode') + '\n'
 
 
+def wheel_radius(urdf: str) -> float:
+    """The wheel radius (m) of a URDF ``robot_urdf`` wrote: its wheels' cylinders' radius, exact. ValueError if the
+    document is not XML or has no cylinder."""
+    try:
+        cylinder = ElementTree.fromstring(urdf).find('.//cylinder')
+    except ElementTree.ParseError as error:
+        raise ValueError(f'the robot description is not XML: {error}') from None
+    if cylinder is None or cylinder.get('radius') is None:
+        raise ValueError('the robot description has no wheel cylinder')
+    return float(cylinder.get('radius'))
+
+
 def _numbers(*values: float) -> str:
     """Space-separated, each float written so that it reads back exactly."""
     return ' '.join(repr(float(v)) for v in values)

@@ -9,6 +9,7 @@ import time
 from dataclasses import dataclass, field
 from enum import Enum, auto
 
+from wallbot_msgs_py import topics
 from wallbot_sim import messages
 
 LATE_LIMIT = 2e-3
@@ -165,8 +166,8 @@ class MotorSaturation:
         sides, entries = self.sides, []
         for side, motor in zip(SIDES, sides):
             since = motor.saturated_since
-            entries += [(f'{side} motor commanded (N m)', motor.commanded),
-                        (f'{side} motor applied (N m)', motor.applied),
+            entries += [(topics.DIAGNOSTIC_MOTOR_COMMANDED.format(side=side), motor.commanded),
+                        (topics.DIAGNOSTIC_MOTOR_APPLIED.format(side=side), motor.applied),
                         (f'{side} motor saturated since (s)', 'not saturated' if since is None else since)]
         saturated = ', '.join(f'{side} since t = {motor.saturated_since:.3f} s (commanded {motor.commanded:.3g} N m, '
                               f'applied {motor.applied:.3g} N m)'

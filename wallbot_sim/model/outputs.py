@@ -99,6 +99,9 @@ class StepOutputs:
     contact: ContactOutputs
     vacuum: tuple[float, float] | None = None
     """(dp (Pa), F_ad (N)) of a vacuum chamber (docs/model.md 13.3); None without one."""
+    motor_command: tuple[float, float] | None = None
+    """The side torques commanded (N m) that a motor block clipped to ``motor_torque`` (docs/model.md 13.2); None
+    without one (the command acts as given)."""
 
     @property
     def chassis_wrench(self) -> np.ndarray:

@@ -340,7 +340,8 @@ class Simulation(CompiledSteps):
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
                 self.applied_torque, drive, reference, contact,
-                None if self._chamber is None else (self.pressure, self.robot.adsorption.applied_force))
+                None if self._chamber is None else (self.pressure, self.robot.adsorption.applied_force),
+                None if self.robot.params.motor is None else self.motor_torque)
         return self._cached
 
     def _ideal_contact(self, loads: np.ndarray, use: FrictionUse, wheels: WheelOutputs) -> ContactOutputs:

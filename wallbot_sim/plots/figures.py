@@ -11,7 +11,7 @@
 | drive_forces.png | 18, 19, 26, 27: left and right drive (traction) forces, and the lateral force |
 | normal_loads.png | (wheel-wall contact) normal load of each wheel; below 0 a wheel lifts off |
 | friction_use.png | (wheel-wall contact) friction use of each wheel against the limit 1, its slides shaded (compared runs: a strip each, in its colour) |
-| machine.png | (a robot file's motor and adhesion blocks, docs/model.md 13) the side torques applied within the motors' envelope, the chamber's pressure difference dp and adhesion force F_ad: a panel for each a run has (only for such runs) |
+| machine.png | (a robot file's motor and adhesion blocks, docs/model.md 13) each side's torque applied within its motor's envelope against the one commanded, the chamber's pressure difference dp and adhesion force F_ad: a panel for each a run has (only for such runs) |
 """
 
 from __future__ import annotations
@@ -30,9 +30,14 @@ FIGURES = ('path', 'position', 'tracking_error', 'attitude', 'wheel_tracks', 'co
            'normal_loads', 'friction_use', 'machine')
 """Base names of the PNG files written, in this order (tracking_error only when a run has a reference, machine
 only when one has a machine series)."""
-MACHINE_PANELS = ((('tau_L_applied', 'tau_R_applied'), 'applied side torque (N m)'),
+MACHINE_PANELS = ((('tau_L_applied', 'tau_L_cmd'), 'left side torque (N m)'),
+                  (('tau_R_applied', 'tau_R_cmd'), 'right side torque (N m)'),
                   (('dp',), 'chamber pressure difference dp (Pa)'), (('F_ad',), 'adhesion force F_ad (N)'))
 """The machine figure's panels: the series each shows (RunData.machine), its y axis."""
+MACHINE_LINES = {'tau_L_applied': ('applied', '-'), 'tau_R_applied': ('applied', '-'),
+                 'tau_L_cmd': ('commanded', '--'), 'tau_R_cmd': ('commanded', '--'), 'dp': ('dp', '-'),
+                 'F_ad': ('F_ad', '-')}
+"""Each machine series' legend entry and line style (a command is held from its time to the next one's)."""
 
 WHEEL_OFFSETS = {  # body-frame axle centres in units of (a, b): x forward, y to the left
     'wheel_left_front': (1, 1), 'wheel_left_rear': (-1, 1),
@@ -279,18 +284,19 @@ class _Figures:
         return fig
 
     def machine(self) -> Any:
-        """A panel for each of MACHINE_PANELS some run has: each side a line style, each run a colour."""
+        """A panel for each of MACHINE_PANELS some run has: applied and commanded a line style, each run a colour."""
         panels = [(names, ylabel) for names, ylabel in MACHINE_PANELS
                   if any(name in run.machine for run in self.runs for name in names)]
         fig, axes = self.plt.subplots(len(panels), 1, sharex=True, figsize=(8.5, 2.6 * len(panels) + 1.0),
                                       squeeze=False)
         for ax, (names, ylabel) in zip(axes[:, 0], panels):
             for run in self.runs:
-                for style, name in zip(('-', '--'), names):
+                for name in names:
                     if name in run.machine:
                         t, values = run.machine[name]
-                        ax.plot(t, values, style, lw=1.2, color=self.colour(run),
-                                label=self.label(run, name.replace('_applied', ' applied')))
+                        what, style = MACHINE_LINES[name]
+                        ax.plot(t, values, style, lw=1.2, color=self.colour(run), label=self.label(run, what),
+                                drawstyle='steps-post' if name.endswith('_cmd') else 'default')
             ax.set(ylabel=ylabel)
             ax.grid(True, alpha=0.3)
             _legend(ax)

@@ -12,7 +12,7 @@ tangential force on the robot at each wheel along the body axes x_p and y_p (N).
 
 A robot file's optional blocks (docs/model.md 13) append their columns (BLOCK_GROUPS), in that order:
 ``motor``: ``tau_L_applied, tau_R_applied``, the side torques acting (the command clipped to the
-torque-speed envelope); ``adhesion``: ``dp, F_ad``, the vacuum chamber's pressure difference (Pa) and
+torque-speed envelope), then ``tau_L_cmd, tau_R_cmd``, the side torques commanded; ``adhesion``: ``dp, F_ad``, the vacuum chamber's pressure difference (Pa) and
 adhesion force (N). A robot file without them writes CSV_COLUMNS alone.
 """
 
@@ -65,7 +65,8 @@ CSV_LINE_END = '\r\n'
 """``csv.writer``'s default line terminator."""
 ColumnGroup = tuple[tuple[str, ...], Callable[[StepOutputs], Sequence[float]]]
 BLOCK_GROUPS: dict[str, ColumnGroup] = {
-    'motor': (('tau_L_applied', 'tau_R_applied'), lambda out: out.motor_torque),
+    'motor': (('tau_L_applied', 'tau_R_applied', 'tau_L_cmd', 'tau_R_cmd'),
+              lambda out: (*out.motor_torque, *out.motor_command)),
     'adhesion': (('dp', 'F_ad'), lambda out: out.vacuum),
 }
 """The columns of each optional block of the robot file, appended in this order where the block is given."""

@@ -9,7 +9,10 @@ residual comes from ``/diagnostics`` (key ``topics.DIAGNOSTIC_RESIDUAL_MAX``: th
 of every step since the previous diagnostics message), NaN at the other stamps: of the dynamics in
 the odometry's namespace only (``/diagnostics`` is one topic for every robot of a domain); the residual after the
 start likewise (key ``topics.DIAGNOSTIC_RESIDUAL_SETTLED``), from a CSV the residual of the rows at or after
-``topics.RESIDUAL_SETTLED_AFTER``. When simulation time jumps back on a topic (the
+``topics.RESIDUAL_SETTLED_AFTER``. A robot file's motor block (its diagnostics' motor entries) gives the side
+torques applied, r F_side plus the side's wheels' efforts (``side_motor_torques``, r from ``robot_description``),
+and commanded, ``wheel_torque_cmd`` at the simulation time of the newest odometry the bag logged at or before it
+(``command_stamps``: a recorder logs a command at its receive time). When simulation time jumps back on a topic (the
 dynamics node was reset or restarted), only what follows the last jump is kept: a bag may hold
 several runs, and the figures show the last one (``RunData.restarts`` counts the jumps).
 """
@@ -31,7 +34,8 @@ from wallbot_sim.rundata.errors import RunDataError
 
 BLOCK_COLUMNS = set(block_columns(tuple(BLOCK_GROUPS.values())))
 """The columns a robot file's blocks append (RunData.machine)."""
-MACHINE_SERIES = {'tau_L_applied': 'N m', 'tau_R_applied': 'N m', 'dp': 'Pa', 'F_ad': 'N'}
+MACHINE_SERIES = {'tau_L_applied': 'N m', 'tau_R_applied': 'N m', 'tau_L_cmd': 'N m', 'tau_R_cmd': 'N m', 'dp': 'Pa',
+                  'F_ad': 'N'}
 """The machine's series a run may have (docs/model.md 13), with their units."""
 
 
@@ -82,7 +86,8 @@ class RunData:
     noise; NaN where a stamp has none), empty when the odometry was the simulated state itself."""
     machine: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     """The machine's series the run has (MACHINE_SERIES' names), each (times (s), values): a CSV's block columns
-    (``tau_L_applied, tau_R_applied``, ``dp, F_ad``), a bag's ``dp`` from its chamber_pressure."""
+    (``tau_L_applied, tau_R_applied, tau_L_cmd, tau_R_cmd``, ``dp, F_ad``); a bag's side torques applied and
+    commanded where its robot file has a motor block, and ``dp`` from its chamber_pressure."""
 
     def __len__(self) -> int:
         return len(self.t)
@@ -182,7 +187,7 @@ class _LastRun(dict):
 
 
 LEAVES = ('odom', 'wheel_states', 'constraint_wrench', 'drive_forces', 'wheel_contact', 'reference', 'reference_path',
-          'reference_trajectory', 'diagnostics', 'chamber_pressure')
+          'reference_trajectory', 'diagnostics', 'chamber_pressure', 'wheel_torque_cmd', 'robot_description')
 """The topics a run is read from, by their last name component; ``ground_truth`` is ground_truth/odom."""
 
 
@@ -205,15 +210,21 @@ def namespace_of(topic: str) -> str:
     return topic.rsplit('/', 1)[0] or '/'
 
 
+def simulation_values(data: bytes, namespace: str) -> tuple[int, dict[str, str]]:
+    """(stamp, values) of a ``/diagnostics`` message: the values of the dynamics' status in ``namespace`` (empty
+    when the message has none)."""
+    diagnostics = codec.decode_diagnostics(data)
+    status = codec.simulation_status(diagnostics.statuses, namespace)
+    return diagnostics.stamp_ns, {} if status is None else status.value_map()
+
+
 def residual_max(data: bytes, namespace: str) -> tuple[int, float, float] | None:
     """(stamp, residual max, residual max after the start) of a ``/diagnostics`` message from the dynamics in
     ``namespace``, or None (the latter NaN when the message lacks it)."""
-    diagnostics = codec.decode_diagnostics(data)
-    status = codec.simulation_status(diagnostics.statuses, namespace)
-    values = {} if status is None else status.value_map()
+    stamp_ns, values = simulation_values(data, namespace)
     value = values.get(topics.DIAGNOSTIC_RESIDUAL_MAX)
     try:
-        return None if value is None else (diagnostics.stamp_ns, float(value),
+        return None if value is None else (stamp_ns, float(value),
                                            float(values.get(topics.DIAGNOSTIC_RESIDUAL_SETTLED, math.nan)))
     except ValueError:
         return None
@@ -255,6 +266,14 @@ STAMPED_SERIES: dict[str, tuple[Callable[[bytes], tuple[int, tuple[float, ...]]]
 """How each per-stamp topic is read: its decoder to (stamp, values), and how many values."""
 
 
+def command_stamps(odom_log_ns: np.ndarray, odom_stamps_ns: np.ndarray, command_log_ns: np.ndarray) -> np.ndarray:
+    """The simulation time (ns) of each command logged at ``command_log_ns``: the stamp of the newest odometry logged
+    at or before it (``odom_log_ns`` ascending, with its ``odom_stamps_ns``), the state the dynamics had reached
+    when the command was recorded; the first odometry's for a command logged before any."""
+    newest = np.searchsorted(odom_log_ns, command_log_ns, side='right') - 1
+    return odom_stamps_ns[np.maximum(newest, 0)]
+
+
 class _BagSeries:
     """Everything a bag says about its last run, message by message."""
 
@@ -263,10 +282,25 @@ class _BagSeries:
         self.tables = {leaf: _LastRun() for leaf in (*STAMPED_SERIES, 'diagnostics', 'chamber_pressure')}
         self.plan: dict[int, tuple] = {}
         self.path_xy: tuple[list[float], list[float]] = ([], [])
+        self.odom_log: list[tuple[int, int]] = []
+        """(log time, stamp) of each odometry message, in log order."""
+        self.commands: list[tuple[int, tuple[float, float]]] = []
+        """(log time, (tau_L, tau_R)) of each wheel_torque_cmd, in log order."""
+        self.motor = False
+        """Whether the dynamics' diagnostics carry a motor block's entries."""
+        self.wheel_radius: float | None = None
+        """r of the recorded robot_description."""
 
-    def put(self, leaf: str, data: bytes) -> None:
+    def put(self, leaf: str, data: bytes, log_ns: int) -> None:
         if leaf in STAMPED_SERIES:
             self.tables[leaf].put(*STAMPED_SERIES[leaf][0](data))
+            if leaf == 'odom':
+                self.odom_log.append((log_ns, self.tables[leaf].latest))
+        elif leaf == 'wheel_torque_cmd':
+            self.commands.append((log_ns, codec.decode_wheel_torque_cmd(data, math.inf)))
+        elif leaf == 'robot_description':
+            from wallbot_sim.urdf import wheel_radius
+            self.wheel_radius = wheel_radius(codec.decode_robot_description(data))
         elif leaf == 'reference_trajectory':  # later plans override earlier samples at the same time
             try:
                 samples = codec.decode_plan(data)
@@ -281,6 +315,8 @@ class _BagSeries:
             residual = residual_max(data, self.namespace)
             if residual is not None:
                 self.tables['diagnostics'].put(residual[0], residual[1:])
+            self.motor = self.motor or topics.DIAGNOSTIC_MOTOR_APPLIED.format(side='left') in simulation_values(
+                data, self.namespace)[1]
         elif leaf == 'chamber_pressure':  # its own sample times (the sensor's rate), as the pressure difference
             pressure = codec.decode_fluid_pressure(data)
             self.tables[leaf].put(pressure.stamp_ns, ATMOSPHERE - pressure.pressure)
@@ -306,7 +342,7 @@ def _load_bag(path: Path, label: str) -> RunData:
     series = _BagSeries(namespace_of(next(topic for topic, leaf in names.items() if leaf == 'odom')))
     for raw in messages(path, list(names)):
         try:
-            series.put(names[raw.topic], raw.data)
+            series.put(names[raw.topic], raw.data, raw.timestamp)
         except ValueError as error:
             raise RunDataError(f'{path}: {raw.topic}: {error}') from None
     return _run_data(series, label, path)
@@ -338,7 +374,30 @@ def _run_data(series: _BagSeries, label: str, path: Path) -> RunData:
                    loads=k[:, 0:4], use=k[:, 4:8], slip=k[:, 8:12],
                    wheel_forces=np.stack((k[:, 12:16], k[:, 16:20]), axis=2),
                    sensed=matched(sensed, 7)[:, 1:] if sensed is not None else np.empty((0, 6)),
-                   machine=_sampled(tables['chamber_pressure'], 'dp'))
+                   machine={**_side_torques(series, t, w[:, 8:12], d[:, :2]), **_sampled(tables['chamber_pressure'], 'dp')})
+
+
+def _side_torques(series: _BagSeries, t: np.ndarray, wheel_torques: np.ndarray, drive: np.ndarray
+                  ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """With a motor block (and the robot's wheel radius recorded): the side torques applied at the odometry's times
+    ``t``, r F_side plus the efforts of the side's wheels (``wheel_torques`` (N, 4), ``drive`` (N, 2): F_L, F_R),
+    and those commanded (``command_stamps``; of the last run where the stamps jump back); else nothing."""
+    if not series.motor or series.wheel_radius is None:
+        return {}
+    from wallbot_sim.model.outputs import DriveForces, side_motor_torques
+    applied = np.array([side_motor_torques(DriveForces(left, right, 0.0), torques, series.wheel_radius)
+                        for (left, right), torques in zip(drive.tolist(), wheel_torques.tolist())]).reshape(-1, 2)
+    found = {'tau_L_applied': (t, applied[:, 0]), 'tau_R_applied': (t, applied[:, 1])}
+    if series.commands and series.odom_log:
+        odom_log, odom_stamps = (np.array(column, dtype=np.int64) for column in zip(*series.odom_log))
+        stamps = command_stamps(odom_log, odom_stamps, np.array([log for log, _ in series.commands], dtype=np.int64))
+        commanded = _LastRun()
+        for stamp, (_log, command) in zip(stamps.tolist(), series.commands):
+            commanded.put(stamp, command)
+        times = np.array(list(commanded), dtype=float) * 1e-9
+        values = np.array(list(commanded.values()), dtype=float).reshape(-1, 2)
+        found.update(tau_L_cmd=(times, values[:, 0]), tau_R_cmd=(times, values[:, 1]))
+    return found
 
 
 def _sampled(table: _LastRun, name: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
