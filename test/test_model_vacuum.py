@@ -47,6 +47,18 @@ def test_the_chamber_starts_and_stays_where_pump_and_leak_balance():
     assert simulation.pressure == pytest.approx(expected, rel=1e-9)
 
 
+def test_a_seam_under_the_chamber_leaks_through_its_width_times_its_chord():
+    """A 4 mm seam through the centre of the chamber's disc (area A: diameter 2 sqrt(A / pi)) adds width x diameter
+    to the gap: the chamber starts where the pump balances that leak; a seam beside the disc changes nothing."""
+    diameter = 2 * math.sqrt(BLOCK['chamber_area'] / math.pi)
+    through = at_rest(World(seams=(Seam((-5.0, 0.0), (5.0, 0.0), 0.004),)))
+    expected = balanced(1.0, BLOCK['leak_area'] + 0.004 * diameter)
+    assert through.pressure == pytest.approx(expected, rel=1e-9) and expected < 0.2 * balanced(1.0)
+    assert through.outputs().vacuum[1] == pytest.approx(expected * BLOCK['chamber_area'], rel=1e-9)
+    beside = at_rest(World(seams=(Seam((-5.0, 0.5 * diameter + 1e-3), (5.0, 0.5 * diameter + 1e-3), 0.004),)))
+    assert beside.pressure == pytest.approx(balanced(1.0), rel=1e-9)
+
+
 def test_a_small_pump_step_relaxes_with_the_linearized_time_constant():
     """From the balance at u = 1 to u = 0.95: dp moves to the new balance as exp(-t / tau) with
     1 / tau = -(p_atm / V) d(Q_pump u - Q_leak)/d(dp) at the new balance."""

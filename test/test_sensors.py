@@ -48,12 +48,15 @@ def test_at_rest_on_the_floor_the_accelerometer_reads_g_along_z_whatever_the_hea
     assert linear == pytest.approx((0.0, 0.0, G), abs=1e-12)
 
 
-def test_on_the_floor_a_simulated_robot_at_rest_reads_g_along_z_and_no_turn():
-    """The model's own state on the floor (no in-plane gravity, no torque: it stays at rest), sampled by the suite
-    and read back from the message's bytes by rosbags."""
-    robot = Robot(RobotParameters(sensors={'imu': {}}), World(0.0))
-    sim = Simulation(robot, None, ConstraintSelection(False, True, True, True), np.array([0, 0, 0.7, 0, 0, 0, 0.0]),
-                     np.zeros(7))
+@pytest.mark.parametrize('inclination, heading, expected', [(0.0, 0.7, (0.0, 0.0, G)), (90.0, 0.0, (0.0, G, 0.0))],
+                         ids=['floor', 'wall facing +X'])
+def test_a_simulated_robot_at_rest_reads_the_specific_force_of_its_surface_and_no_turn(inclination, heading, expected):
+    """The model's own state at rest (on the floor no in-plane gravity; on the wall facing +X gravity is lateral,
+    which non_lateral holds; no torque), sampled by the suite and read back from the message's bytes by rosbags:
+    REP 145's +g along z on the floor, along y on the wall."""
+    robot = Robot(RobotParameters(sensors={'imu': {}}), World(inclination))
+    sim = Simulation(robot, None, ConstraintSelection(False, True, True, True),
+                     np.array([0, 0, heading, 0, 0, 0, 0.0]), np.zeros(7))
     suite = SensorSuite(robot.params.sensors, robot, 'base_link')
     for _ in range(10):
         sim.step()
@@ -61,7 +64,8 @@ def test_on_the_floor_a_simulated_robot_at_rest_reads_g_along_z_and_no_turn():
     msg = bagio.deserialize(data, topic.type)
     acceleration = msg.linear_acceleration
     assert topic is topics.IMU and msg.header.frame_id == 'base_link'
-    assert (acceleration.x, acceleration.y, acceleration.z) == pytest.approx((0.0, 0.0, G), abs=1e-9)
+    assert np.abs(sim.qd).max() < 1e-9  # at rest
+    assert (acceleration.x, acceleration.y, acceleration.z) == pytest.approx(expected, abs=1e-9)
     assert msg.angular_velocity.z == pytest.approx(0.0, abs=1e-12)
     assert msg.orientation_covariance[0] == -1.0
 
