@@ -32,6 +32,7 @@ IMAGES = {
                                         'slip/tracking_error.png'),
     'fast_circle_slip_friction_use': ('docs/examples.md', 'wallbot-sim plot F_ad_300N.csv --out slip_300/',
                                       'slip_300/friction_use.png'),
+    'climb_patch_machine': ('docs/examples.md', 'wallbot-sim plot climb.csv --out climb/', 'climb/machine.png'),
     'sweep_figure8_least_adhesion': ('docs/sweeps.md',
                                      'wallbot-sim sweep examples/sweep_figure8.yaml --out runs/sweep_figure8',
                                      'runs/sweep_figure8/map_least_adhesion_force.png'),

@@ -96,6 +96,12 @@ def _all_stick(data: np.ndarray) -> tuple[float, float]:
     return float(data['t'][start]), float(data['t'][end])
 
 
+def _first_slip(data: np.ndarray, columns: Sequence[str]) -> list[float]:
+    """``columns`` at the first instant a wheel slides."""
+    first = np.argmax(np.any([data[f'slip{wheel}'] > 0.5 for wheel in range(1, 5)], axis=0))
+    return [float(data[column][first]) for column in columns]
+
+
 PAPER_CIRCLES = ('circle-belt.csv', 'circle-belt,non_lateral.csv', 'circle-belt,non_lateral,nonslip.csv')
 PAPER_FIGURE8 = ('figure8-none.csv', 'figure8-belt.csv', 'figure8-belt,non_lateral.csv',
                  'figure8-belt,non_lateral,nonslip.csv')
@@ -143,6 +149,13 @@ CLAIMS = (
           lambda ran: _all_stick(ran.csv('F_ad_300N.csv'))),
     Claim('docs/examples.md', r'drive the robot away: (\S+) m off at 1.5 s, (\S+) m at 3 s',
           lambda ran: [_at(ran.csv('F_ad_260N.csv'), 'err', 1.5), _at(ran.csv('F_ad_260N.csv'), 'err', 3.0)]),
+    # docs/examples.md, the motor-limited climb into a wet patch
+    Claim('docs/examples.md', r'the robot settles at (\S+) m/s, each side applying (\S+) N m of the 2.2 N m commanded',
+          lambda ran: [_at(ran.csv('climb.csv'), 'vy', 0.5), _at(ran.csv('climb.csv'), 'tau_L_applied', 0.5),
+                       _at(ran.csv('climb.csv'), 'tau_R_applied', 0.5)]),
+    Claim('docs/examples.md', r'F_ad = (\d+) N from the chamber', lambda ran: [ran.csv('climb.csv')['F_ad'][0]]),
+    Claim('docs/examples.md', r'with the centre at y = (\S+) m, and they slide from t = (\S+) s',
+          lambda ran: _first_slip(ran.csv('climb.csv'), ('y', 't'))),
     Claim('docs/examples.md', r"adhesion force needed at (\S+) N at least \(its right front wheel, at (\S+) s",
           lambda ran: [ran.number(SLIP_MOTORS, r'Adhesion needed: (\S+) N \(right front wheel'),
                        ran.number(SLIP_MOTORS, r'friction binds at t = (\S+) s')]),
