@@ -86,8 +86,9 @@ def _responded(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs:
         _solve(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch, out)
 
 
-# Long on purpose: one compiled frame for a boundary's whole solve (rows, responses, Newton, split), as numba
-# compiles it best: its ~20 scratch arrays and loop state stay in one frame instead of being passed through calls.
+# Long on purpose: a boundary's set-up (rows, the response to each column) and its outputs from Newton's result
+# share ~20 scratch arrays in one compiled frame (numba) instead of passing them through calls; Newton (_kinetic)
+# and the split (_split) are its own calls.
 def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
               torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, rows: np.ndarray,
               rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,

@@ -79,7 +79,7 @@ def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsil
 
 
 # Long on purpose: the residual and its Jacobian in one pass over Newton's state, called at every trial of the
-# line search; the Jacobian's blocks reuse the residual's sums, which separate compiled calls would recompute.
+# line search; the Jacobian reuses the residual's intermediates (qdd, the slip's directions and sizes).
 def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, wheel_of: np.ndarray,
                        kinetic: float, epsilon: float, dt: float, state: np.ndarray, residual: np.ndarray,
                        jacobian: np.ndarray, predicted: np.ndarray) -> float:
