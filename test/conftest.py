@@ -80,7 +80,7 @@ FAST_MODULES = frozenset({
     'test_figures', 'test_input_files', 'test_launch_description', 'test_messages', 'test_model_contact',
     'test_model_parameters', 'test_model_robot', 'test_model_simulation', 'test_model_solver',
     'test_model_trajectories', 'test_model_wheel_contact', 'test_pacing', 'test_peer_mujoco', 'test_resume',
-    'test_step_cdr', 'test_step_tap', 'test_suite_waits', 'test_view', 'test_wheel_speed',
+    'test_sizes', 'test_step_cdr', 'test_step_tap', 'test_suite_waits', 'test_view', 'test_wheel_speed',
 })
 """The model and the units (no node processes, no DDS graph): ``make test-fast``, ``pytest -m fast``."""
 

@@ -414,7 +414,7 @@ def test_a_composed_run_stopped_by_ctrl_c_logs_nothing_after_the_signal(tmp_path
     log = (out / 'logs' / 'dynamics_recorder.log').read_text()
     assert 'stopped by SIGINT' in log and 'Traceback' not in log + process_runner.output('run')
     from wallbot_msgs_py import topics
-    from wallbot_sim.nodes.dynamics import STEP_TOPICS as TAPPABLE
+    from wallbot_sim.nodes.state_publisher import STEP_TOPICS as TAPPABLE
     in_process = sum(topic in TAPPABLE for topic in topics.RECORDED)  # the dynamics' per-step topics, through the tap
     assert f'recording {len(topics.RECORDED)} topics ({in_process} of them in process)' in log, log
     for pid in nodes:

@@ -19,7 +19,7 @@ from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutput
 from wallbot_sim.model import contact as python_contact
 from wallbot_sim.model import kinetic_friction, wheel_forces
 from wallbot_sim.model.batch import kernel
-from wallbot_sim.model.batch.kernel import dynamics, layout, linalg
+from wallbot_sim.model.batch.kernel import dynamics, layout, row_space
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.contact import CoulombContact, DetachedError
 from wallbot_sim.model.robot import DOF
@@ -219,11 +219,11 @@ def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing
     _, matrix, _, _, vectors, _ = dynamics._workspace()
     mats, _, ints, *_ = layout._contact_workspace()
     order, kept, lower = ints[layout.ROW_ORDER], ints[layout.ROW_KEPT], mats[layout.ROW_FACTOR]
-    rank = linalg._prepare_rows(padded_rows, factor, count, matrix, mats[layout.ROW_SYSTEM], lower, order, kept)
+    rank = row_space._prepare_rows(padded_rows, factor, count, matrix, mats[layout.ROW_SYSTEM], lower, order, kept)
     assert rank == 6
     for column, force in enumerate(rng.normal(size=(4, DOF))):
         out = np.full(DOF, np.nan)
-        solved = linalg._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
+        solved = row_space._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
                                          lower, vectors, out)
         assert solved == (consistent or column > 0)
         if solved:

@@ -11,6 +11,7 @@ Each tick ends in a ``status.Decision``: a step was taken, or why not (the run s
 which wait it is), lockstep waits for the controller, or back-pressure waits for a recorder. Its rooms:
 
 * ``start``: what a start waits for (a recorder, a keeper's snapshot, a plan, the controller) and gives up on;
+* ``segments``: the simulation of each run segment (the start, a rate change, a reset, a teleport);
 * ``waits``: lockstep and back-pressure, the waits on other nodes once running;
 * ``commands``: the torque command in force;
 * ``pacing``: the wall-clock pace at a real-time factor (and the loop thread's priority);

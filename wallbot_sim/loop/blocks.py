@@ -120,7 +120,7 @@ class Blocks:
         loop = self.loop
         sim, settings = loop.sim, loop.settings
         if (not sim.tabulates or loop.paused or loop.resume.catching_up or settings.publish_every != 1
-                or loop.torque_at(sim.t) != sim.motor_torque or loop.answer_awaited()
+                or loop.torque_at(sim.t) != sim.motor_torque or loop.waits.answer_awaited()
                 or not loop.graph.encodes_blocks(loop.factor <= 0.0)):
             return 1
         size = BLOCK_PACED if loop.factor > 0.0 else BLOCK_MOST
@@ -261,7 +261,7 @@ class Blocks:
             lateness = pacer.wait(steps, sim.dt, lambda: loop.factor, loop.stopping)
         count_step(window, ahead.step_time, lateness)
         state.send(clock, max(-lateness, 0.0))
-        loop.lockstep.mark_sync(loop.commander_hears())
+        loop.lockstep.mark_sync(loop.waits.commander_hears())
         loop.statistics.note_residual(float(ahead.block.table.residual[row]), float(ahead.block.table.t[row]))
         ahead.published += 1
         return early, woke, last

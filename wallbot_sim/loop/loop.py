@@ -22,14 +22,14 @@ from wallbot_sim.loop.faults import (FaultChange, FaultSchedule, delivered, faul
 from wallbot_sim.loop.graph import Graph, Log
 from wallbot_sim.loop.pacing import Pacer
 from wallbot_sim.loop.resume import ResumeGate
+from wallbot_sim.loop.segments import Segments
 from wallbot_sim.loop.snapshots import snapshot_every, snapshot_of
 from wallbot_sim.loop.start import StartGate
 from wallbot_sim.loop.status import WAIT_AFTER, Decision, MotorSaturation, RunState, Statistics, Status, count_step
-from wallbot_sim.loop.waits import BackPressure, Lockstep
-from wallbot_sim.model import (DOF, BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters,
-                               Simulation, StepOutputs, adsorption_analysis)
+from wallbot_sim.loop.waits import BackPressure, Lockstep, RunningWaits
+from wallbot_sim.model import (BaumgarteGains, ConstraintSelection, DivergedError, Robot, RobotParameters, Simulation,
+                               StepOutputs, adsorption_analysis)
 from wallbot_sim.model.contact import DetachedError
-from wallbot_sim.model.scenario import moving_start
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.model.world import World
@@ -49,9 +49,9 @@ def robot_with(params: RobotParameters, adhesion_force: float, adhesion_scale: f
 
 
 class DynamicsLoop:
-    """The simulation and the state around it, written by the loop thread only (its rooms: ``start``, ``commands``,
-    ``lockstep``, ``backpressure``, ``resume``, ``pacer``, ``blocks``, ``statistics``). ``settings``: the node's
-    parameter values, which a :class:`ParameterChange` updates at the next step boundary."""
+    """The simulation and the state around it, written by the loop thread only (its rooms: ``start``, ``segments``,
+    ``commands``, ``lockstep``, ``backpressure`` and ``waits``, ``resume``, ``pacer``, ``blocks``, ``statistics``).
+    ``settings``: the node's parameter values, which a :class:`ParameterChange` updates at the next step boundary."""
 
     def __init__(self, settings: DynamicsSettings, robot_file: RobotParameters, graph: Graph, log: Log,
                  pacer: Pacer, clock: Callable[[], float] = time.monotonic, world: World | None = None) -> None:
@@ -89,9 +89,11 @@ class DynamicsLoop:
         self.pump_command = 1.0
         """The vacuum pump's command u (pump_command), held by every simulation the loop makes."""
         self.commands, self.lockstep, self.backpressure = Commands(), Lockstep(), BackPressure()
+        self.waits = RunningWaits(self)
         self.lockstep_gave_up: str | None = None
         """Why a strict lockstep ended the run (the controller left a state unanswered), or None."""
         self.start = StartGate(self)
+        self.segments = Segments(self)
         self.resume = ResumeGate(settings.resume_wait)
         self.clock_schedule = messages.ClockSchedule(settings.clock_rate_hz)
         self.statistics = Statistics()
@@ -171,15 +173,15 @@ class DynamicsLoop:
         for event in events:
             self._apply(event)
         if self.reset_requested is not None:
-            self._reset_when_answered()
+            self.segments.reset_when_answered()
         if not self._ready():
             self.pacer.reanchor()
             return Decision.NOT_READY
         for fault in self.schedule.due(self.sim.t, self.sim.dt):
             self._apply_settings(dict(fault.changes), cause='scheduled')
-        if self._lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
+        if self.waits.lockstep_blocked():  # no re-anchor: a prompt answer costs no pace
             return Decision.LOCKSTEP
-        if self._held_back():
+        if self.waits.held_back():
             return Decision.HELD_BACK
         size = self.blocks.size()
         if size > 1 and self.blocks.start(size):
@@ -225,7 +227,7 @@ class DynamicsLoop:
                 else:
                     self.log.warning('~/step ignored: the simulation is running (it steps while paused)')
             case Teleport():
-                self._teleport(event)
+                self.segments.teleport(event)
             case ResumeSnapshot():
                 self.resume.offer(event.snapshot)
             case ParameterChange():
@@ -238,7 +240,7 @@ class DynamicsLoop:
         if 'realtime_priority' in changes:
             self.pacer.priority = changes['realtime_priority']
         if 'rate_hz' in changes and self.sim is not None:
-            self.sim = self.simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
+            self.sim = self.segments.simulation(self.sim.q, self.sim.qd, self.sim.t, self.sim.motor_torque)
             self.snapshot()
         if {'adhesion_force', 'adhesion_scale'} & set(changes):
             self.robot = robot_with(self._robot_file, self.settings.adhesion_force, self.settings.adhesion_scale,
@@ -267,57 +269,6 @@ class DynamicsLoop:
         """Tell the graph that the fault settings ``names`` changed (an event it records)."""
         self.graph.publish_fault(FaultChange(self.sim.t if self.sim is not None else 0.0, names,
                                              fault_values(self.settings), cause))
-
-    def simulation(self, q, qd, t0: float, torque=(0.0, 0.0)) -> Simulation:
-        reference = self.plan.reference if self.plan is not None else None
-        settings = self.settings
-        sim = Simulation(self.robot, reference, self.selection, q, qd, dt=1.0 / settings.rate_hz, t0=t0,
-                         gains=self.gains, contact=settings.contact_model, engine=settings.engine)
-        sim.set_motor_torque(*torque)
-        if self.pump_command != 1.0:
-            sim.set_pump_command(self.pump_command)
-        return sim
-
-    def initial_state(self) -> tuple[np.ndarray, np.ndarray]:
-        s = self.settings
-        q0 = np.array([s.initial_x, s.initial_y, s.initial_theta, 0, 0, 0, 0], dtype=float)
-        if s.initial_at_rest or self.plan is None:
-            return q0, np.zeros(DOF)
-        return q0, moving_start(self.robot, self.plan.reference, s.initial_theta)
-
-    def _reset_when_answered(self) -> None:
-        """Reset once lockstep's answer to the last published state came (at most lockstep_timeout): arriving after
-        the reset, that answer to a state of the old run would be taken for the answer to the reset state."""
-        if (self.sim is None or not self.answer_awaited()
-                or self.clock() - self.reset_requested > self.settings.lockstep_timeout):
-            self.reset_requested = None
-            self._reset()
-
-    def _reset(self) -> None:
-        self.commands.command, self.diverged, self.detached = None, False, None
-        self.resume.stop_catch_up()
-        if self.sim is not None:
-            self.sim = self.simulation(*self.initial_state(), 0.0)
-            self.log.info('reset to the initial state at t = 0')
-            self.publish(self.sim.outputs())
-            self.snapshot()
-        self.pacer.reanchor()
-
-    def _teleport(self, pose: Teleport) -> None:
-        """A new run segment from the current time, at rest at ``pose``; published at once, so a
-        paused robot is seen where it was put."""
-        sim = self.sim
-        if sim is None:
-            self.log.warning('initialpose ignored: the simulation starts with the first constraint set')
-            return
-        self.diverged, self.detached = False, None
-        q = np.array([pose.x, pose.y, pose.theta, *sim.q[3:]])
-        self.sim = self.simulation(q, np.zeros(DOF), sim.t, sim.motor_torque)
-        self.log.info(f'placed at rest at x = {pose.x:.3f} m, y = {pose.y:.3f} m, heading {pose.theta:.3f} rad '
-                       f'at t = {sim.t:.3f} s')
-        self.publish(self.sim.outputs())
-        self.snapshot()
-        self.pacer.reanchor()
 
     def switch(self, switch: ConstraintSwitch) -> None:
         """Run with the constraint set ``switch`` from now on (the first one starts the run: ``StartGate.begin``)."""
@@ -368,49 +319,6 @@ class DynamicsLoop:
         self.status = Status(RunState.RUNNING)
         return True
 
-    def commander_hears(self) -> bool:
-        """Whether the commander's sensor (``command_sensor``) carries the states published now (no dropout)."""
-        return not (self.settings.drop_odom if self.settings.command_sensor == 'odom'
-                    else self.settings.drop_wheel_states)
-
-    def answer_awaited(self) -> bool:
-        """Lockstep: whether the last published state was a sync state whose answer is still to come
-        (``Lockstep.awaited``)."""
-        every = self.settings.lockstep_every
-        if every <= 0:
-            return False
-        sim = self.sim
-        return self.lockstep.awaited(every, sim.steps, sim.selection.trajectory, self.resume.catching_up)
-
-    def _lockstep_blocked(self) -> bool:
-        """Lockstep: whether to wait for the controller (``Lockstep``); giving up re-anchors the pace."""
-        if not self.answer_awaited():
-            self.lockstep.since = None
-            return False
-        if self.lockstep.holds(self.clock(), self.settings.lockstep_timeout):
-            return True
-        if self.settings.strict_lockstep:
-            return self._give_up_lockstep()
-        self.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
-        self.log.warning(f'no wheel_torque_cmd within {self.settings.lockstep_timeout:g} s (wall) of the state '
-                         f'at t = {self.sim.t:.3f} s: stepping on without lockstep until commands return')
-        return False
-
-    def _give_up_lockstep(self) -> bool:
-        """A strict lockstep's answer did not come: the run ends, naming the state left unanswered."""
-        if self.lockstep_gave_up is None:
-            self.lockstep_gave_up = (f'no wheel_torque_cmd answering the state at t = {self.sim.t:.3f} s within '
-                                     f'lockstep_timeout {self.settings.lockstep_timeout:g} s (wall)')
-            self.log.error(f'{self.lockstep_gave_up} with strict_lockstep set; exiting')
-            self.status = Status(RunState.GAVE_UP, reason=self.lockstep_gave_up)
-            self.stopping.set()
-        return True
-
-    def _held_back(self) -> bool:
-        """Whether a recorder's progress is more than the window behind (``BackPressure``)."""
-        return self.backpressure.held_back(self.clock(), self.graph.recorder_present, self.sim.t,
-                                           self.settings.backpressure_window * self.sim.dt, self.log)
-
     def torque_at(self, t: float) -> tuple[float, float]:
         """The motor torque of a step from time ``t``: the command in force (``Commands.torque_at``) as the motors
         deliver it (``faults.delivered``)."""
@@ -452,7 +360,7 @@ class DynamicsLoop:
         count_step(window, step_time, self.pacer.wait(sim.steps, sim.dt, lambda: self.factor, self.stopping))
         if publish:
             send()
-            self.lockstep.mark_sync(self.commander_hears())
+            self.lockstep.mark_sync(self.waits.commander_hears())
             every = snapshot_every(self.settings.snapshot_period, sim.dt)
             if every > 0 and sim.steps % every == 0:
                 self.snapshot()
@@ -478,4 +386,4 @@ class DynamicsLoop:
         self.statistics.note_residual(out.residual, out.t)
         self.saturation.note(out.t, self.sim.motor_torque, out.motor_torque)
         self.graph.prepare(out, self.clock_schedule.due(codec.to_nanoseconds(out.t), final=True))()
-        self.lockstep.mark_sync(self.commander_hears())
+        self.lockstep.mark_sync(self.waits.commander_hears())

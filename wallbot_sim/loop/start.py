@@ -177,7 +177,7 @@ class StartGate:
         which is.
         """
         loop = self.loop
-        return loop.resume.snapshot is not None and loop.lockstep.first_answer_pending() and loop.answer_awaited()
+        return loop.resume.snapshot is not None and loop.lockstep.first_answer_pending() and loop.waits.answer_awaited()
 
     def begin(self, switch: ConstraintSwitch) -> None:
         """Start the run with the constraint set ``switch``: from the kept snapshot if a keeper gave one, else
@@ -187,7 +187,7 @@ class StartGate:
             self._restore(loop.resume.snapshot, switch)
             return
         loop.selection, loop.gains = switch.selection, switch.gains
-        loop.sim = loop.simulation(*loop.initial_state(), 0.0)
+        loop.sim = loop.segments.simulation(*loop.segments.initial_state(), 0.0)
         fresh = f' from the initial state ({loop.resume.timed_out})' if loop.resume.timed_out else ''
         loop.log.info(f'starting with constraints {switch.selection.label()}{fresh}')
         loop.publish(loop.sim.outputs())
@@ -200,10 +200,10 @@ class StartGate:
         loop = self.loop
         loop.selection, loop.gains = kept_constraints(kept, switch, loop.plan is not None)
         if kept.dt == 1.0 / loop.settings.rate_hz:
-            loop.sim = loop.simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
+            loop.sim = loop.segments.simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
             loop.sim.restore(kept.steps, kept.q, kept.qd)
         else:  # another rate_hz: a new run segment from the kept time, as a rate change makes
-            loop.sim = loop.simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
+            loop.sim = loop.segments.simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
         loop.commands.command = (kept.command, kept.command_since) if kept.command is not None else None
         loop.commands.expired = kept.command_expired
         loop.paused = kept.paused

@@ -17,9 +17,13 @@ after a stall), which then slows the simulation instead of losing messages. With
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from wallbot_sim.loop.graph import Log
+from wallbot_sim.loop.status import RunState, Status
+
+if TYPE_CHECKING:
+    from wallbot_sim.loop.loop import DynamicsLoop
 
 BACKPRESSURE_TIMEOUT = 2.0
 """Wall seconds the loop waits for a recorder's progress to move before stepping on without it: a
@@ -125,3 +129,59 @@ class BackPressure:
                         'until the recorder reports again')
             self._held_since = (-math.inf, self.progress_ns)
         return False
+
+
+class RunningWaits:
+    """The waits of ``loop`` on other nodes once it runs, decided at each tick from its ``lockstep`` and
+    ``backpressure`` and its settings: whether the controller's answer holds the next step, whether a recorder
+    does."""
+
+    def __init__(self, loop: DynamicsLoop) -> None:
+        self.loop = loop
+
+    def commander_hears(self) -> bool:
+        """Whether the commander's sensor (``command_sensor``) carries the states published now (no dropout)."""
+        settings = self.loop.settings
+        return not (settings.drop_odom if settings.command_sensor == 'odom' else settings.drop_wheel_states)
+
+    def answer_awaited(self) -> bool:
+        """Lockstep: whether the last published state was a sync state whose answer is still to come
+        (``Lockstep.awaited``)."""
+        loop = self.loop
+        every = loop.settings.lockstep_every
+        if every <= 0:
+            return False
+        sim = loop.sim
+        return loop.lockstep.awaited(every, sim.steps, sim.selection.trajectory, loop.resume.catching_up)
+
+    def lockstep_blocked(self) -> bool:
+        """Lockstep: whether to wait for the controller (``Lockstep``); giving up re-anchors the pace."""
+        loop = self.loop
+        if not self.answer_awaited():
+            loop.lockstep.since = None
+            return False
+        if loop.lockstep.holds(loop.clock(), loop.settings.lockstep_timeout):
+            return True
+        if loop.settings.strict_lockstep:
+            return self._give_up_lockstep()
+        loop.pacer.reanchor()  # the time spent waiting for a dead controller is not caught up in a burst
+        loop.log.warning(f'no wheel_torque_cmd within {loop.settings.lockstep_timeout:g} s (wall) of the state '
+                         f'at t = {loop.sim.t:.3f} s: stepping on without lockstep until commands return')
+        return False
+
+    def _give_up_lockstep(self) -> bool:
+        """A strict lockstep's answer did not come: the run ends, naming the state left unanswered."""
+        loop = self.loop
+        if loop.lockstep_gave_up is None:
+            loop.lockstep_gave_up = (f'no wheel_torque_cmd answering the state at t = {loop.sim.t:.3f} s within '
+                                     f'lockstep_timeout {loop.settings.lockstep_timeout:g} s (wall)')
+            loop.log.error(f'{loop.lockstep_gave_up} with strict_lockstep set; exiting')
+            loop.status = Status(RunState.GAVE_UP, reason=loop.lockstep_gave_up)
+            loop.stopping.set()
+        return True
+
+    def held_back(self) -> bool:
+        """Whether a recorder's progress is more than the window behind (``BackPressure``)."""
+        loop = self.loop
+        return loop.backpressure.held_back(loop.clock(), loop.graph.recorder_present, loop.sim.t,
+                                           loop.settings.backpressure_window * loop.sim.dt, loop.log)

@@ -11,18 +11,14 @@ from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constrained_problem import (constrained_motion, constrained_rows, impulsive_projection, row_keys,
                                                    stack_problem)
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
-from wallbot_sim.model.contact import (
-    IDEAL, ContactSolution, CoulombContact, DetachedError, HeldFriction, check_contact_model, coulomb_table)
-from wallbot_sim.model.contact_kinematics import contact_velocities
+from wallbot_sim.model.contact import IDEAL, CoulombContact, DetachedError, HeldFriction, check_contact_model
+from wallbot_sim.model.contact_outputs import coulomb_contact, ideal_contact, ideal_measures
 from wallbot_sim.model.errors import DivergedError, ParameterError
-from wallbot_sim.model.friction import FrictionUse, channel_loads, friction_use
 from wallbot_sim.model.integrator import rk4_step
-from wallbot_sim.model.normal_loads import normal_loads
 from wallbot_sim.model.numbers import POSITIVE, NumberRange
-from wallbot_sim.model.outputs import ContactOutputs, DriveForces, StepOutputs, drive_forces
+from wallbot_sim.model.outputs import StepOutputs
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.solver import ConstrainedMotion, constrained_acceleration, solve_with_factor
-from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
 from wallbot_sim.model.trajectories import LastSample, Reference
 from wallbot_sim.model.python_only import refuse_compiled
 from wallbot_sim.model.tabulated import CompiledSteps, compiled_dynamics
@@ -324,7 +320,8 @@ class Simulation(CompiledSteps):
                     self._held_torque = (self._y, torque)
                     q = self._y[:DOF]
                 self._active, self._friction, self._held_loads = solution.active, solution.friction, solution.loads
-                motion, drive, contact = solution.motion, *self._coulomb_contact(q, qd, solution)
+                directions = self._coulomb.layout(self._modules).directions
+                motion, drive, contact = solution.motion, *coulomb_contact(self.robot, directions, q, qd, solution)
             else:
                 qd = self._y[DOF:]
                 compiled = self._compiled_now()
@@ -332,10 +329,8 @@ class Simulation(CompiledSteps):
                     motion, loads, use, drive, wheels = compiled.measured(self._y, self.steps, self.motor_torque)
                 else:
                     motion = self.solve(self._t, q, qd)
-                    loads, use, drive = self._measure(motion, qd)
-                    wheels = ideal_wheel_outputs(self.robot, q[None], qd[None], motion.constraint_force[None, :3],
-                                                 loads[None])
-                contact = self._ideal_contact(loads, use, wheels)
+                    loads, use, drive, wheels = ideal_measures(self.robot, q, qd, motion)
+                contact = ideal_contact(self.robot, loads, use, wheels)
             reference = self._reference.sample(self._t) if self._reference is not None else None
             self._cached = StepOutputs(
                 self._t, q.copy(), qd.copy(), motion.acceleration, motion.constraint_force, motion.residual,
@@ -343,38 +338,6 @@ class Simulation(CompiledSteps):
                 None if self._chamber is None else (self.pressure, self.robot.adsorption.applied_force),
                 None if self.robot.params.motor is None else self.motor_torque)
         return self._cached
-
-    def _ideal_contact(self, loads: np.ndarray, use: FrictionUse, wheels: WheelOutputs) -> ContactOutputs:
-        """Ideal contact's outputs: nothing slides; each wheel's share of the chassis wrench (``wheels``, one row)."""
-        return ContactOutputs(loads, use, self._limits(loads), (False, False, False), None, wheels.forces[0],
-                              wheels.use[0], (False, False, False, False), wheels.velocities[0])
-
-    def _coulomb_contact(self, q: np.ndarray, qd: np.ndarray,
-                         solution: ContactSolution) -> tuple[DriveForces, ContactOutputs]:
-        """Coulomb contact's drive forces and outputs at a settled boundary (``coulomb_table``: the channels as sums
-        of the wheels' forces, each wheel's use against its own mu_s)."""
-        sliding = tuple(wheel in solution.sliding for wheel in range(4))
-        table = coulomb_table(solution.loads[None], solution.wheel_forces[None], np.array([sliding]),
-                              self._coulomb.layout(self._modules).directions, self.robot.params.wall_friction,
-                              self.robot.wall_load, self.robot.wheel_friction(q)[0][None])
-        return DriveForces(*table.drive[0].tolist()), ContactOutputs(
-            solution.loads, FrictionUse(*table.use[0].tolist()), tuple(table.limits[0].tolist()),  # type: ignore
-            tuple(table.slipping[0].tolist()), solution.friction_force, solution.wheel_forces,  # type: ignore
-            table.wheel_use[0], sliding,  # type: ignore[arg-type]
-            contact_velocities(q[None, 2], qd[None], self.robot.wheel_offsets, self.robot.params.wheel_radius)[0])
-
-    def _measure(self, motion: ConstrainedMotion, qd: np.ndarray) -> tuple[np.ndarray, FrictionUse, DriveForces]:
-        """Normal loads (11.1), channel friction use and the drive forces they come from, of an ideal motion at
-        the current q and velocities ``qd``."""
-        q = self._y[:DOF]
-        loads = normal_loads(self.robot, q, qd, motion.acceleration)
-        drive = drive_forces(q[2], motion.constraint_force[:3], self.robot.params.half_track)
-        return loads, friction_use((drive.left, drive.right, drive.lateral), loads, self.robot.wall_load,
-                                   self.robot.params.wall_friction), drive
-
-    def _limits(self, loads: np.ndarray) -> tuple[float, float, float]:
-        static = self.robot.params.wall_friction
-        return tuple(static * load for load in channel_loads(loads, self.robot.wall_load))
 
     def step(self) -> None:
         """Advance one RK4 step; raises DivergedError (state unchanged) if it stops being finite, and
@@ -394,7 +357,8 @@ class Simulation(CompiledSteps):
                 if self._chamber is None:
                     y = rk4_step(self._derivative, self._t, self._y, self.dt, k1)
                 else:
-                    y, pressure = self._step_with_chamber(k1)
+                    y, pressure = self._chamber.step(self._derivative, self._t, self._y, self.pressure, self.dt,
+                                                     self.pump_command, k1)
             y = y if np.all(np.isfinite(y)) else None
         if y is None:
             raise DivergedError(f'state is no longer finite at t = {self._t + self.dt:.3f} s')
@@ -404,18 +368,6 @@ class Simulation(CompiledSteps):
         self._cached = None
         if self._chamber is not None:
             self._set_pressure(pressure)
-
-    def _step_with_chamber(self, k1: np.ndarray | None) -> tuple[np.ndarray, float]:
-        """One RK4 step of the robot and the chamber's dp together: dp's rate at each stage's centre (the seams
-        under it), the robot's motion under the F_ad held from the boundary."""
-        def derivative(t: float, state: np.ndarray) -> np.ndarray:
-            return np.append(self._derivative(t, state[:-1]),
-                             self._chamber.rate(float(state[-1]), state[:2], self.pump_command))
-        start = np.append(self._y, self.pressure)
-        first = None if k1 is None else np.append(k1, self._chamber.rate(self.pressure, self._y[:2],
-                                                                          self.pump_command))
-        end = rk4_step(derivative, self._t, start, self.dt, first)
-        return end[:-1], float(end[-1])
 
     def run(self, duration: float, on_step: Callable[[StepOutputs], None] | None = None) -> StepOutputs:
         """Step for ``duration`` seconds; ``on_step`` sees the outputs at every instant, both ends included."""

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from wallbot_sim.model.contact_outputs import ideal_contact
 from wallbot_sim.model.errors import DivergedError, ModelError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepBlock, StepOutputs, StepTable
@@ -123,9 +124,9 @@ class CompiledSteps:
         return StepOutputs(self._t, table.q[-1].copy(), table.qd[-1].copy(), table.acceleration[-1],
                            table.constraint_force[-1], float(table.residual[-1]), self.motor_torque,
                            DriveForces(*table.drive[-1].tolist()), reference,
-                           self._ideal_contact(loads, FrictionUse(*table.use[-1].tolist()),
-                                               WheelOutputs(table.wheel_forces[-1:], table.wheel_use[-1:],
-                                                            table.slip_velocity[-1:])))
+                           ideal_contact(self.robot, loads, FrictionUse(*table.use[-1].tolist()),
+                                         WheelOutputs(table.wheel_forces[-1:], table.wheel_use[-1:],
+                                                      table.slip_velocity[-1:])))
 
 
 def compiled_dynamics(initial_time: float, dt: float) -> CompiledDynamics:

@@ -19,6 +19,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from wallbot_sim.model.integrator import Derivative, rk4_step
 from wallbot_sim.model.keys import check_block
 from wallbot_sim.model.numbers import NON_NEGATIVE, POSITIVE, NumberRange
 from wallbot_sim.model.world import World
@@ -98,3 +99,13 @@ class Chamber:
     def steady_pressure(self, centre: np.ndarray, command: float) -> float:
         """The balanced dp (Pa) with the robot's centre at ``centre``."""
         return self.params.steady_pressure(self.gap_area(centre), command)
+
+    def step(self, derivative: Derivative, t: float, y: np.ndarray, pressure: float, dt: float, command: float,
+             k1: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+        """One RK4 step of the robot's state y (``derivative``, under the F_ad held from the boundary) and dp
+        together: dp's rate at each stage's centre (the seams under it). ``k1``: the robot's derivative at (t, y)."""
+        def joint(time: float, state: np.ndarray) -> np.ndarray:
+            return np.append(derivative(time, state[:-1]), self.rate(float(state[-1]), state[:2], command))
+        first = None if k1 is None else np.append(k1, self.rate(pressure, y[:2], command))
+        end = rk4_step(joint, t, np.append(y, pressure), dt, first)
+        return end[:-1], float(end[-1])

@@ -27,15 +27,13 @@ import sys
 import threading
 import time
 import traceback
-from typing import Callable, Sequence
+from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import PoseWithCovarianceStamped, WrenchStamped
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import FluidPressure, Imu, JointState
 from std_msgs.msg import Float64, Float64MultiArray
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
@@ -43,7 +41,6 @@ from trajectory_msgs.msg import MultiDOFJointTrajectory
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_snapshot
-from wallbot_msgs_py.step_cdr import StepEncoder
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.loop import (ConstraintSwitch, DynamicsLoop, NewPlan, Pacer, ParameterChange, Pause, PreparedState,
@@ -57,26 +54,11 @@ from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.nodes.common import heard_by_every, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
-from wallbot_sim.nodes.sensor_noise import NoiseLevels, SensorNoise
+from wallbot_sim.nodes.state_publisher import StatePublisher
 from wallbot_sim.nodes.step_tap import StepTap
-from wallbot_sim.sensors import SensorSuite
-from wallbot_sim.settings.dynamics import DYNAMICS, NOISE_PARAMETERS, DynamicsSettings
+from wallbot_sim.settings.dynamics import DYNAMICS, DynamicsSettings
 from wallbot_sim.settings.table import SettingsTable, changed, text_of
 from wallbot_sim.urdf import RobotFrames
-
-BURST_CONTROL_ODOM_EVERY = 10
-"""Smallest control_odom_every at which the loop publishes a block's states at once (factor 0) to a DDS
-subscriber of control_odom: five of its messages at most in a burst of 50 states."""
-MESSAGE_TYPES = {topics.ODOM: Odometry, topics.WHEEL_STATES: JointState,
-                 topics.CONSTRAINT_WRENCH: WrenchStamped, topics.DRIVE_FORCES: JointState,
-                 topics.WHEEL_CONTACT: JointState,
-                 topics.CLOCK: ClockMsg}
-"""The per-step topics; published as CDR bytes from ``step_cdr`` (rclpy's publish takes bytes as serialized)."""
-SENSOR_TYPES = {topics.IMU: Imu, topics.JOINT_STATES: JointState, topics.CHAMBER_PRESSURE: FluidPressure}
-"""The robot file's sensors (``wallbot_sim.sensors``), published where its ``sensors`` block has them."""
-STEP_TOPICS = (*MESSAGE_TYPES, topics.GROUND_TRUTH_ODOM, *SENSOR_TYPES)
-"""Every topic ``prepare``'s send may publish (ground_truth/odom while the sensor noise is on, the sensors)."""
-
 
 class DynamicsNode(Node):
     """The ROS interface of the simulation loop (``wallbot_sim.loop``): parameters, topics, services,
@@ -136,34 +118,13 @@ class DynamicsNode(Node):
         return True
 
     def _create_publishers(self, frames: RobotFrames) -> None:
-        """The per-step topics' publishers (and ground_truth/odom with sensor noise), control_odom, diagnostics,
-        snapshots and the domain's /clock (``domain_clock``), with the step encoder and the sensor noise."""
-        self.publishers_ = {topic: self.create_publisher(kind, topic.name, qos_profile(topic))
-                            for topic, kind in MESSAGE_TYPES.items()}
-        self.control_odom_sent: bytes | None = None
-        """The last state published on control_odom."""
-        self.control_odom_pub = self.create_publisher(Odometry, topics.CONTROL_ODOM.name,
-                                                      qos_profile(topics.CONTROL_ODOM))
+        """The per-step topics' publishers (``StatePublisher``), diagnostics, snapshots and fault events."""
+        self.states = StatePublisher(self, frames, self.loop.robot, self.tap)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
                                                      qos_profile(topics.DIAGNOSTICS))
         self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
                                                   qos_profile(topics.STATE_SNAPSHOT))
-        self.domain_clock_pub = (self.create_publisher(ClockMsg, topics.DOMAIN_CLOCK.name,
-                                                       qos_profile(topics.DOMAIN_CLOCK))
-                                 if self.settings.domain_clock else None)
         self.fault_pub = self.create_publisher(DiagnosticArray, topics.FAULTS.name, qos_profile(topics.FAULTS))
-        levels = NoiseLevels(*(getattr(self.settings, name) for name in NOISE_PARAMETERS))
-        self.noise = SensorNoise(levels, self.settings.noise_seed) if levels.on else None
-        truth = levels.on or self.settings.ground_truth
-        self.encoder = StepEncoder(frames.odom, frames.base_link, levels.pose_variances(),
-                                   levels.twist_variances(), ground_truth=truth)
-        if truth:
-            self.publishers_[topics.GROUND_TRUTH_ODOM] = self.create_publisher(
-                Odometry, topics.GROUND_TRUTH_ODOM.name, qos_profile(topics.GROUND_TRUTH_ODOM))
-        sensors = self.loop.robot.params.sensors
-        self.sensors = SensorSuite(sensors, self.loop.robot, frames.base_link) if sensors is not None else None
-        for topic in self.sensors.topics if self.sensors is not None else ():
-            self.publishers_[topic] = self.create_publisher(SENSOR_TYPES[topic], topic.name, qos_profile(topic))
 
     def _create_subscriptions(self) -> None:
         self.progress_topic = self.resolve_topic_name(topics.RECORD_PROGRESS.name)
@@ -274,77 +235,13 @@ class DynamicsNode(Node):
 
     # --- the loop's view of the graph (dynamics_loop.Graph), called from the loop thread --------
     def prepare(self, out: StepOutputs, clock: bool) -> Callable[[], None]:
-        sensed = self.noise.sense(out.q, out.qd) if self.noise is not None else None
-        encoded, stamp_ns = self.encoder.encode(out, sensed), codec.to_nanoseconds(out.t)
-        if self.sensors is not None:
-            encoded[-1:-1] = self.sensors.encode(out)  # before /clock, which goes last
-
-        def send() -> None:
-            heard = self._heard()
-            self._send(encoded, clock, stamp_ns, heard, self._to_controller(heard, stamp_ns), 0.0)
-        return send
+        return self.states.prepare(out, clock)
 
     def encodes_blocks(self, burst: bool) -> bool:
-        # A burst of a block's messages (hundreds within a millisecond) can overflow a DDS subscriber's
-        # shared-memory queue on a loaded machine; reliability repairs the loss only at Fast DDS's next
-        # heartbeat, seconds later (seen: a separate recorder missing one message of a 1.5 s run). So
-        # bursts only where no DDS subscriber takes the per-step topics (a composed recorder takes them
-        # from the tap); paced, a block's states go out one at a time. A controller's control_odom carries
-        # at most every BURST_CONTROL_ODOM_EVERY-th state, a few of a burst: no queue overflows for them
-        heard = self._heard()
-        if self.settings.control_odom_every >= BURST_CONTROL_ODOM_EVERY:
-            heard.discard(topics.CONTROL_ODOM)
-        return self.noise is None and self.sensors is None and not (burst and heard)
+        return self.states.encodes_blocks(burst)
 
     def prepare_block(self, block: StepBlock) -> list[PreparedState]:
-        heard = self._heard()  # once a block: a subscriber matched within it misses at most its few states
-        every_state = bool(heard - {topics.CONTROL_ODOM})
-        prepared = []
-        for encoded, t in zip(self.encoder.encode_rows(block), block.t.tolist()):
-            stamp_ns = codec.to_nanoseconds(t)
-            controller = self._to_controller(heard, stamp_ns)
-            prepared.append(PreparedState(
-                lambda clock, ahead, encoded=encoded, stamp_ns=stamp_ns, controller=controller: self._send(
-                    encoded, clock, stamp_ns, heard, controller, ahead),
-                every_state or controller))
-        return prepared
-
-    def _heard(self) -> set[topics.Topic]:
-        # a per-step message nobody is matched to would only cost its write into Fast DDS
-        # (in a composed run, with nothing else subscribed: a tenth of the process)
-        heard = {topic for topic, publisher in self.publishers_.items()
-                 if topic is not topics.CLOCK and publisher.get_subscription_count()}
-        if self.control_odom_pub.get_subscription_count():
-            heard.add(topics.CONTROL_ODOM)
-        return heard
-
-    def _to_controller(self, heard: set[topics.Topic], stamp_ns: int) -> bool:
-        """Whether the state at ``stamp_ns`` goes out on control_odom: subscribed, and a control instant."""
-        every = self.settings.control_odom_every
-        return (topics.CONTROL_ODOM in heard and every > 0
-                and round(stamp_ns * 1e-9 * self.settings.rate_hz) % every == 0)
-
-    def _send(self, encoded: Sequence[tuple[topics.Topic, bytes]], clock: bool, stamp_ns: int,
-              heard: set[topics.Topic], controller: bool, ahead: float) -> None:
-        """Publish one state's messages (/clock if ``clock``, the others where ``heard``, odom on control_odom if
-        ``controller``: ``_to_controller``) but those a sensor dropout silences; hand them to the tap, ``ahead``
-        seconds before the state is due (the loop does so only for a state nobody outside hears)."""
-        silenced = self.loop.silenced
-        if silenced:
-            encoded = [(topic, data) for topic, data in encoded if topic not in silenced]
-        for topic, data in encoded:
-            if topic is not topics.CLOCK:
-                if topic in heard:
-                    self.publishers_[topic].publish(data)
-                if topic is topics.ODOM and controller:
-                    self.control_odom_pub.publish(data)
-                    self.control_odom_sent = data
-            elif clock:
-                self.publishers_[topic].publish(data)
-                if self.domain_clock_pub is not None:
-                    self.domain_clock_pub.publish(data)
-        if self.tap is not None:
-            self.tap.put(encoded, clock, stamp_ns, ahead)
+        return self.states.prepare_block(block)
 
     def publish_snapshot(self, snapshot: DynamicsSnapshot) -> None:
         self.snapshot_pub.publish(encode_snapshot(snapshot))
@@ -360,20 +257,20 @@ class DynamicsNode(Node):
     def recorder_listening(self) -> bool:
         tapped = self.tap.names if self.tap is not None else {}
         return self.recorder_present() and all(topic in tapped or pub.get_subscription_count() > 0
-                                               for topic, pub in self.publishers_.items())
+                                               for topic, pub in self.states.publishers_.items())
 
     def keeper_seen(self) -> bool:
         return self.count_publishers(self.resume_topic) > 0
 
     def resend_to_controller(self) -> None:
-        if self.control_odom_sent is not None:
-            self.control_odom_pub.publish(self.control_odom_sent)
+        self.states.resend_to_controller()
 
     def controller_listening(self) -> bool:
         # and every discovered command publisher is matched here: its answer to the first state
         # must not be sent before (the other direction is the controller's to check)
-        sensors = ((self.publishers_[topics.ODOM], self.control_odom_pub) if self.settings.command_sensor == 'odom'
-                   else (self.publishers_[topics.WHEEL_STATES],))
+        states = self.states
+        sensors = ((states.publishers_[topics.ODOM], states.control_odom_pub) if self.settings.command_sensor == 'odom'
+                   else (states.publishers_[topics.WHEEL_STATES],))
         return (any(heard_by_every(self, publisher, self.command_topic) for publisher in sensors)
                 and self.command_sub.get_publisher_count() >= self.count_publishers(self.command_topic))
 

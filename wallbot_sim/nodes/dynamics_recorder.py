@@ -30,8 +30,9 @@ import sys
 from rclpy.node import Node
 
 from wallbot_sim.nodes.common import StopSignals, run_nodes
-from wallbot_sim.nodes.dynamics import STEP_TOPICS, SWITCH_INTERVAL, started_node
+from wallbot_sim.nodes.dynamics import SWITCH_INTERVAL, started_node
 from wallbot_sim.nodes.recorder import Recorder
+from wallbot_sim.nodes.state_publisher import STEP_TOPICS
 from wallbot_sim.settings.dynamics import COMPOSED
 
 PROGRAM = 'dynamics_recorder_node'

@@ -36,8 +36,9 @@ Several hooks: call them in order from one ``on_step``.
 
 from wallbot_sim.model.batch.constraints import BATCH_MODULES, BatchGains, build_batch_modules
 from wallbot_sim.model.batch.control import BatchTrackingController
+from wallbot_sim.model.batch.outputs import BatchOutputs, BatchRecorder
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.batch.simulation import ENGINES, BatchOutputs, BatchRecorder, BatchSimulation
+from wallbot_sim.model.batch.simulation import ENGINES, BatchSimulation
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, minimum_norm_least_squares
 
 __all__ = [

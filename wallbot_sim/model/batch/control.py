@@ -14,7 +14,8 @@ import numpy as np
 from wallbot_sim.model.batch.constraints import BatchGains, build_batch_modules
 from wallbot_sim.model.batch.contact import drive_forces
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.batch.simulation import BatchOutputs, BatchSimulation, StepHook
+from wallbot_sim.model.batch.outputs import BatchOutputs, StepHook
+from wallbot_sim.model.batch.simulation import BatchSimulation
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints.look_ahead import point_reference

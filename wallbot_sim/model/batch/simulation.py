@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -10,6 +10,7 @@ from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, BatchWheelContact, build_batch_modules
 from wallbot_sim.model.batch.contact import (
     BatchCoulomb, BatchMotion, detached_wheels, drive_forces, friction_use, normal_loads)
+from wallbot_sim.model.batch.outputs import BatchOutputs, StepHook
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
@@ -21,78 +22,13 @@ from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
 from wallbot_sim.model.simulation import DEFAULT_STEP
-from wallbot_sim.model.trajectories import LastSample, Reference, ReferenceSample, Vec2
+from wallbot_sim.model.trajectories import LastSample, Reference
 from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
-
-
-class BatchOutputs(NamedTuple):
-    """The solution of every robot at one instant (``StepOutputs`` with the robot index first)."""
-
-    t: float
-    q: np.ndarray
-    """(N, 7)."""
-    qd: np.ndarray
-    """(N, 7)."""
-    acceleration: np.ndarray
-    """qdd (N, 7)."""
-    constraint_force: np.ndarray
-    """Q_c = M qdd - Q (N, 7) (Q_f, the kinetic friction, apart: ``friction_force``)."""
-    residual: np.ndarray
-    """|A qdd - b| (N,) over the rows in the solve."""
-    motor_torque: np.ndarray
-    """(tau_L, tau_R) held over the next step (N, 2)."""
-    drive: np.ndarray
-    """(F_L, F_R, F_lat) (N, 3): the channel forces of the whole contact wrench (constraint force plus Q_f)."""
-    loads: np.ndarray
-    """Normal loads N_1..N_4 (N, 4)."""
-    use: np.ndarray
-    """Friction use of the channels (left, right, lateral) (N, 3)."""
-    slipping: np.ndarray
-    """(N, 3) bool: the channels a sliding wheel belongs to (never with ideal contact)."""
-    friction_force: np.ndarray
-    """Q_f (N, 7): the sliding wheels' kinetic friction, zero while none of a robot's wheels slides."""
-    detached: np.ndarray
-    """(N,) bool: the robots stopped by a lifted wheel (their state and outputs the ones they detached at)."""
-    reference: ReferenceSample | None
-    wheel_forces: np.ndarray
-    """f_i (N, 4, 2): each wheel's tangential contact force in body axes (``ContactOutputs.wheel_forces``)."""
-    wheel_use: np.ndarray
-    """|f_i| / (mu_s N_i) (N, 4)."""
-    wheel_slipping: np.ndarray
-    """(N, 4) bool: the sliding wheels (never with ideal contact)."""
-    slip_velocity: np.ndarray
-    """v_i (N, 4, 2): each wheel's contact-point velocity in body axes."""
-
-    @property
-    def size(self) -> int:
-        return self.q.shape[0]
-
-    @property
-    def wheel_torques(self) -> np.ndarray:
-        """Total torque on each wheel (N, 4): constraint torque, kinetic friction and its share of the motor."""
-        motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)
-        return self.constraint_force[:, 3:] + motor + self.friction_force[:, 3:]
-
-    @property
-    def reference_position(self) -> Vec2 | None:
-        """The reference point (the same for every robot), None without a reference."""
-        return self.reference.position if self.reference is not None else None
-
-    @property
-    def tracking_error(self) -> np.ndarray:
-        """Distance of each centre from the reference point (N,) (m); NaN without a reference."""
-        if self.reference is None:
-            return np.full(self.size, np.nan)
-        offset = self.q[:, :2] - np.asarray(self.reference.position)
-        return np.hypot(offset[:, 0], offset[:, 1])
 
 
 NUMPY, NUMBA = 'numpy', 'numba'
 ENGINES = (NUMPY, NUMBA)
 """How the ideal-contact steps are computed: whole-batch NumPy array passes, or the compiled kernel."""
-
-StepHook = Callable[[BatchOutputs], None]
-"""Called with the outputs of every instant (``Simulation.run``'s ``on_step`` over a batch)."""
 
 
 class BatchSimulation:
@@ -375,36 +311,6 @@ class BatchSimulation:
             return None
         on_step(self.outputs())
         return self.outputs()
-
-
-class BatchRecorder:
-    """A step hook keeping chosen fields of ``BatchOutputs`` every ``every`` instants: per-robot time series.
-
-    ``series()`` gives 't' (T,) and each field stacked over time, robot index second: q (T, N, 7),
-    tracking_error (T, N), ... (any field or property of ``BatchOutputs``).
-    """
-
-    def __init__(self, fields: Sequence[str], every: int = 1) -> None:
-        unknown = [name for name in fields if not hasattr(BatchOutputs, name)]
-        if unknown:
-            raise ParameterError(f'BatchOutputs has no field {unknown[0]!r}')
-        if every < 1:
-            raise ParameterError(f'every must be >= 1, got {every}')
-        self.fields, self.every = tuple(fields), every
-        self._count = 0
-        self._times: list[float] = []
-        self._values: dict[str, list[np.ndarray]] = {name: [] for name in self.fields}
-
-    def __call__(self, out: BatchOutputs) -> None:
-        if self._count % self.every == 0:
-            self._times.append(out.t)
-            for name in self.fields:
-                self._values[name].append(np.array(getattr(out, name)))
-        self._count += 1
-
-    def series(self) -> dict[str, np.ndarray]:
-        """'t' and every recorded field, stacked over the recorded instants."""
-        return {'t': np.array(self._times), **{name: np.array(values) for name, values in self._values.items()}}
 
 
 def _state_matrix(size: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray:

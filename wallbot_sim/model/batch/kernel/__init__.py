@@ -25,10 +25,11 @@ contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a bat
 cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
 The package is split by concern: ``dynamics`` (the derivative and RK4 step with ideal contact, ``robot_run``,
-``tracking_force``), ``linalg`` (the solves), ``layout`` (the contact arrays' layout and tolerances), ``friction``
-(the contact rows, loads and Newton's kinetic friction), ``boundary`` (one stick/slip set's solve and split) and
-``settle`` (the transitions, the steps from a boundary, the runs); ``compiling`` compiles them into numba's cache
-under one stamp of the whole package. numba is optional: ``available()`` says whether it imported.
+``tracking_force``), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the
+contact arrays' layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
+``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the steps from a boundary, the
+runs); ``compiling`` compiles them into numba's cache under one stamp of the whole package. numba is optional:
+``available()`` says whether it imported.
 """
 
 from __future__ import annotations

@@ -16,9 +16,8 @@ from wallbot_sim.model.batch.kernel.layout import (
     ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR, ROW_KEPT, ROW_LOADS, ROW_ORDER,
     ROW_SYSTEM, SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER, SPLIT_PIVOTS, SPLIT_X, STATE,
     STATUS, STICKING, STUCK_ROWS, TOTAL, VELOCITY, WHEEL_OF, ZERO)
-from wallbot_sim.model.batch.kernel.linalg import (
-    _dot, _factor_times, _minimum_norm, _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_solve,
-    _scaled_rows, _solve)
+from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
+from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 
 
@@ -87,6 +86,9 @@ def _responded(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs:
         _solve(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch, out)
 
 
+# Long on purpose: a boundary's set-up (rows, the response to each column) and its outputs from Newton's result
+# share ~20 scratch arrays in one compiled frame (numba) instead of passing them through calls; Newton (_kinetic)
+# and the split (_split) are its own calls.
 def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
               torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, rows: np.ndarray,
               rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,

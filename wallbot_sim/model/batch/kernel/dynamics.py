@@ -9,7 +9,8 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit, prange
 from wallbot_sim.model.batch.kernel.layout import ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM
-from wallbot_sim.model.batch.kernel.linalg import _prepare_rows, _row_space_solve, _scratch, _solve
+from wallbot_sim.model.batch.kernel.linalg import _scratch, _solve
+from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
 
@@ -92,6 +93,8 @@ def _factor_of(theta: float, constants: np.ndarray, factor: np.ndarray) -> None:
         factor[j, j] = spin
 
 
+# Long on purpose: Q and the rows of every active module in stacking order, in one pass over the shared heading
+# terms; numba inlines it into each RK4 stage of the hot loop, one frame with the row counter in registers.
 def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
              torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
              rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, force: np.ndarray) -> int:

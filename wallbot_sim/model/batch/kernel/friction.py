@@ -78,6 +78,8 @@ def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsil
         sizes[k] = math.sqrt(squares[wheel_of[k]] + epsilon * epsilon)
 
 
+# Long on purpose: the residual and its Jacobian in one pass over Newton's state, called at every trial of the
+# line search; the Jacobian reuses the residual's intermediates (qdd, the slip's directions and sizes).
 def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, wheel_of: np.ndarray,
                        kinetic: float, epsilon: float, dt: float, state: np.ndarray, residual: np.ndarray,
                        jacobian: np.ndarray, predicted: np.ndarray) -> float:
@@ -144,6 +146,8 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
     return size
 
 
+# Long on purpose: Newton's iteration with its line search in one compiled frame (numba): the fixed Jacobian
+# blocks, the state and the trial arrays stay local to the loop instead of being passed through calls.
 def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
              kinetic: float, epsilon: float, dt: float, start: np.ndarray, adhesion: float,
              solution: np.ndarray) -> int:

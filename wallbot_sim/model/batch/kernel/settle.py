@@ -39,6 +39,7 @@ def _holds(solution: np.ndarray, wheel: int, static: float) -> bool:
     return not size > static * solution[LOADS, wheel]
 
 
+# Long on purpose (numba): a round of transitions keeps its state, the stick/slip sets, in one compiled frame.
 def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
             torque: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
             factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
