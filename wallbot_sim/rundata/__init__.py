@@ -9,7 +9,8 @@ CSV format, the run summary and the motor analysis. ``wallbot_sim.bag`` reads an
 
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row
 from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.load import RunData, load_run
+from wallbot_sim.rundata.load import load_run
+from wallbot_sim.rundata.run_data import RunData
 from wallbot_sim.rundata.summary import RunSummary, format_summary, summarize
 
 __all__ = ['CSV_COLUMNS', 'RunData', 'RunDataError', 'RunSummary', 'csv_row', 'format_summary', 'load_run',

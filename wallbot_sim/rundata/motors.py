@@ -36,7 +36,7 @@ from wallbot_sim.model.contact import WHEEL_POSITIONS
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
 from wallbot_sim.rundata.errors import RunDataError
 from wallbot_sim.rundata.least_adhesion import least_adhesion, needed_adhesion
-from wallbot_sim.rundata.load import RunData
+from wallbot_sim.rundata.run_data import RunData
 from wallbot_sim.rundata.turning import LEFT, flat_turn_threshold, worst_turn_start
 
 SIDES = ('left', 'right')

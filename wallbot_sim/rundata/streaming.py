@@ -22,7 +22,7 @@ from wallbot_sim.messages import plan_is_final
 from wallbot_sim.model import ModelError, SampledReference
 from wallbot_sim.model.trajectories import Plan
 from wallbot_sim.rundata.errors import RunDataError
-from wallbot_sim.rundata.load import STAMPED_SERIES, bag_topics, namespace_of, residual_max
+from wallbot_sim.rundata.bag_run import STAMPED_SERIES, bag_topics, namespace_of, residual_max
 from wallbot_sim.rundata.summary import sliding_wheels
 
 PENDING_STATES = 20_000

@@ -17,7 +17,8 @@ import numpy as np
 
 from wallbot_msgs_py.topics import RESIDUAL_SETTLED_AFTER
 from wallbot_sim.model.contact import WHEEL_POSITIONS
-from wallbot_sim.rundata.load import RunData, is_csv, load_run
+from wallbot_sim.rundata.load import is_csv, load_run
+from wallbot_sim.rundata.run_data import RunData
 
 
 @dataclass(frozen=True)
