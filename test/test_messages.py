@@ -11,6 +11,7 @@ import pytest
 from bag_helpers import fields
 from message_fields import planar_state, quaternion_yaw, seconds, stamp_ns, typestore_header
 from wallbot_msgs_py import bagio, cdr, codec, topics
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_MODULES, CONSTRAINT_SWITCHES
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import (
@@ -277,17 +278,17 @@ def test_a_selection_survives_its_switches(selection):
 def test_each_switch_names_a_module_of_the_model():
     """The interface's one list of constraint modules and the model's are the same modules: every switch
     on activates every module, and each switch off removes the module it is keyed by."""
-    assert sorted(topics.CONSTRAINT_MODULES) == sorted(MODULES)
-    all_on = {switch.parameter: True for switch in topics.CONSTRAINT_MODULES.values()}
+    assert sorted(CONSTRAINT_MODULES) == sorted(MODULES)
+    all_on = {switch.parameter: True for switch in CONSTRAINT_MODULES.values()}
     assert messages.selection_from_switches(all_on).active_names() == list(MODULES)
-    for module, switch in topics.CONSTRAINT_MODULES.items():
+    for module, switch in CONSTRAINT_MODULES.items():
         assert module not in messages.selection_from_switches({**all_on, switch.parameter: False}).active_names()
 
 
 @pytest.mark.parametrize('key, value, reason', [('belt', 'yes', 'belt'), ('baumgarte_alpha', '-1', 'alpha'),
                                                 ('baumgarte_beta', 'nan', 'beta')])
 def test_bad_constraints_message(key, value, reason):
-    msg = decode(messages.constraints_message({name: False for name in topics.CONSTRAINT_SWITCHES}, BaumgarteGains()),
+    msg = decode(messages.constraints_message({name: False for name in CONSTRAINT_SWITCHES}, BaumgarteGains()),
                  topics.CONSTRAINTS)
     for kv in msg.values:
         if kv.key == key:

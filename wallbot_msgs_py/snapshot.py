@@ -20,7 +20,7 @@ index      meaning
 20, 21     the held command (tau_L, tau_R) (N m)
 22         simulation time the held command arrived (s)
 23         1 if the held command has timed out, else 0
-24 .. 28   constraint switches in force, 1/0, in the order of ``topics.CONSTRAINT_SWITCHES``:
+24 .. 28   constraint switches in force, 1/0, in the order of ``constraint_modules.CONSTRAINT_SWITCHES``:
            trajectory_task, belt, non_lateral, nonslip, tangent_heading
 29, 30     Baumgarte gains alpha, beta (1/s)
 31         1 if the simulation is paused, else 0
@@ -39,13 +39,13 @@ import math
 from dataclasses import dataclass, replace
 from typing import Sequence
 
-from wallbot_msgs_py import cdr, topics
+from wallbot_msgs_py import cdr, constraint_modules
 
 TYPE = 'std_msgs/msg/Float64MultiArray'
 LABEL = 'wallbot_dynamics_snapshot_v1'
 LENGTH = 33
 """Values in a snapshot."""
-SWITCHES = topics.CONSTRAINT_SWITCHES
+SWITCHES = constraint_modules.CONSTRAINT_SWITCHES
 """The order of the constraint switches at indices 24 .. 28."""
 
 

@@ -201,31 +201,6 @@ NODE_JOINT_BRIDGE = 'joint_bridge'
 NODE_VIEWER = 'viewer'
 
 
-@dataclass(frozen=True)
-class ConstraintSwitch:
-    """The constraint_config parameter that switches one constraint module, under the same name
-    in the ``constraints`` message and in the dynamics' state snapshot."""
-
-    parameter: str
-    default: bool
-    description: str
-
-
-CONSTRAINT_MODULES = {
-    'trajectory': ConstraintSwitch('trajectory_task', True, 'the centre follows the reference trajectory '
-                                                            '(off = driven by wheel_torque_cmd)'),
-    'belt': ConstraintSwitch('belt', False, 'synchronous toothed belt: front and rear wheel of a side turn together'),
-    'non_lateral': ConstraintSwitch('non_lateral', False, 'the centre does not move sideways'),
-    'nonslip': ConstraintSwitch('nonslip', False, 'each wheel rolls on the wall without longitudinal slip'),
-    'tangent_heading': ConstraintSwitch('tangent_heading', True,
-                                        'heading task along the path whenever non_lateral is on with the trajectory '
-                                        "task (false gives the paper's inconsistent set)"),
-}
-"""The constraint modules a graph can switch, keyed by module name (the simulator's names, also in the
-``constraints`` message's 'active' list), in the order of their switches in the messages."""
-CONSTRAINT_SWITCHES = tuple(switch.parameter for switch in CONSTRAINT_MODULES.values())
-
-
 def by_name(name: str) -> Topic:
     """The graph topic called ``name`` (relative or absolute, e.g. 'odom' or '/wallbot/odom')."""
     known = RECORDED + (CONTROL_ODOM, WHEEL_TORQUE_CMD, CMD_VEL, JOINT_COMMANDS)

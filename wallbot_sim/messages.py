@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 from wallbot_msgs_py import cdr, codec, topics
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_MODULES
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.contact import IDEAL, WHEEL_POSITIONS
@@ -170,7 +171,7 @@ def selection_from_switches(switches: Mapping[str, bool]) -> ConstraintSelection
     ``tangent_heading`` true keeps the model's default (heading task on whenever non_lateral is
     active with the trajectory task); false switches it off (the paper's inconsistent set).
     """
-    on = {module: bool(switches[switch.parameter]) for module, switch in topics.CONSTRAINT_MODULES.items()}
+    on = {module: bool(switches[switch.parameter]) for module, switch in CONSTRAINT_MODULES.items()}
     heading = on.pop('tangent_heading')
     return ConstraintSelection(**on, tangent_heading=None if heading else False)
 
@@ -180,7 +181,7 @@ def switches_from_selection(selection: ConstraintSelection) -> dict[str, bool]:
     non_lateral has no switch: the graph runs its default there), in the order of the switches."""
     return {switch.parameter: (selection.tangent_heading is not False if module == 'tangent_heading'
                                else getattr(selection, module))
-            for module, switch in topics.CONSTRAINT_MODULES.items()}
+            for module, switch in CONSTRAINT_MODULES.items()}
 
 
 def constraints_message(switches: Mapping[str, bool], gains: BaumgarteGains) -> bytes:

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from typing import Mapping, NamedTuple, Sequence
 
-from wallbot_msgs_py import cdr, topics
+from wallbot_msgs_py import cdr
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_SWITCHES
 
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 DIAGNOSTIC_STATUS = 'diagnostic_msgs/msg/DiagnosticStatus'
@@ -107,7 +108,7 @@ def constraints(switches: Mapping[str, bool], alpha: float, beta: float, active:
     """``constraints``: a DiagnosticStatus whose values hold every switch ('true'/'false'), the
     gains (repr of the float) and 'active' (the active modules, comma-separated); its message
     is ``label``, e.g. 'trajectory+belt'."""
-    values = {name: 'true' if switches[name] else 'false' for name in topics.CONSTRAINT_SWITCHES}
+    values = {name: 'true' if switches[name] else 'false' for name in CONSTRAINT_SWITCHES}
     values.update({'baumgarte_alpha': repr(float(alpha)), 'baumgarte_beta': repr(float(beta)),
                    'active': ','.join(active)})
     out = cdr.Writer()
@@ -120,7 +121,7 @@ def decode_constraints(message: cdr.Reader) -> ConstraintSwitches:
     """The switches and gains of a serialized ``constraints``; ValueError naming what is wrong."""
     values = _read_status(message).value_map()
     switches = {}
-    for name in topics.CONSTRAINT_SWITCHES:
+    for name in CONSTRAINT_SWITCHES:
         text = values.get(name, '').strip().lower()
         if text not in ('true', 'false'):
             raise ValueError(f'constraints message: {name} must be true or false, got {values.get(name)!r}')

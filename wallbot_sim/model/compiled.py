@@ -18,7 +18,7 @@ import numpy as np
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
 from wallbot_sim.model.batch.robots import RobotBatch
-from wallbot_sim.model.constraint_set import ConstraintSelection
+from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.constraints.look_ahead import PointReference
 from wallbot_sim.model.contact import COULOMB
@@ -96,11 +96,10 @@ class CompiledInverseDynamics:
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
         if selection is not self._selection:
-            flags, _ = kernel.module_flags(selection.active_names())
-            if flags[0] or flags[1]:
+            if any(MODULES[name].task for name in selection.active_names()):
                 raise ParameterError('the look-ahead point task takes the place of the trajectory task: '
                                      'a selection without it is needed')
-            self._selection, self._flags = selection, flags
+            self._selection, self._flags = selection, kernel.module_flags(selection.active_names())[0]
         self._state[:DOF], self._state[DOF:] = q, qd
         out = np.empty(DOF)
         kernel.tracking_force(self._state, np.array(point[:3]), self._flags, self._constants, float(distance), out)

@@ -83,9 +83,7 @@ class CompiledCoulomb(Configured):
     def _forget(self, robot_changed: bool = False) -> None:
         if robot_changed:
             self._contact = kernel.contact_constants(self._robot)
-        nonslip, non_lateral = self._flags[kernel.MODULE_ORDER.index('nonslip')], self._flags[
-            kernel.MODULE_ORDER.index('non_lateral')]
-        self._directions = tuple(row for row, friction in ((0, nonslip), (1, non_lateral)) if friction)
+        self._directions = tuple(row for row, flag in enumerate(kernel.HELD_BY) if self._flags[flag])
         self._components = {}
         self._ahead = None
 

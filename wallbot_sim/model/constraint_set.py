@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_MODULES, STACKING_ORDER, STRUCTURAL
 from wallbot_sim.model.constraints import (
     BaumgarteGains, ConstraintModule, NonLateral, Nonslip, SynchronousBelt, TangentHeadingTask,
     TrajectoryTask)
@@ -12,35 +13,41 @@ from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.robot import Robot
 from wallbot_sim.model.trajectories import Reference
 
+Builder = Callable[[Robot, 'Reference | None', BaumgarteGains], ConstraintModule]
+
 
 @dataclass(frozen=True)
 class ModuleKind:
-    """How to build one kind of constraint module, and whether it is a task on the reference."""
+    """How to build one kind of constraint module, its row count, and whether it is a task on the reference."""
 
-    build: Callable[[Robot, Reference | None, BaumgarteGains], ConstraintModule]
-    task: bool = False
+    build: Builder
+    rows: int
+    """k, the same at every state (the compiled kernel lays out the modules' rows by it)."""
+    task: bool
 
 
-MODULES: dict[str, ModuleKind] = {
-    'trajectory': ModuleKind(lambda robot, reference, gains: TrajectoryTask(reference, gains), task=True),
-    'tangent_heading': ModuleKind(lambda robot, reference, gains: TangentHeadingTask(reference, gains), task=True),
-    'belt': ModuleKind(lambda robot, reference, gains: SynchronousBelt(gains)),
-    'non_lateral': ModuleKind(lambda robot, reference, gains: NonLateral(gains)),
-    'nonslip': ModuleKind(lambda robot, reference, gains: Nonslip(robot.params.wheel_radius, robot.lateral_offsets,
-                                                                  gains)),
+_BUILDERS: dict[str, tuple[Builder, int]] = {
+    'trajectory': (lambda robot, reference, gains: TrajectoryTask(reference, gains), 2),
+    'tangent_heading': (lambda robot, reference, gains: TangentHeadingTask(reference, gains), 1),
+    'belt': (lambda robot, reference, gains: SynchronousBelt(gains), 2),
+    'non_lateral': (lambda robot, reference, gains: NonLateral(gains), 1),
+    'nonslip': (lambda robot, reference, gains: Nonslip(robot.params.wheel_radius, robot.lateral_offsets, gains),
+                4),  # one row per wheel
 }
-"""The one list of constraint modules a selection can switch on, keyed by name, in stacking order. The
-names are the ones the command line, the nodes and the ``constraints`` message use
-(``wallbot_msgs_py.topics.CONSTRAINT_MODULES`` gives each its constraint_config switch)."""
-STRUCTURAL = tuple(name for name, kind in MODULES.items() if not kind.task)
-"""Names of the structural and environmental constraints, in the paper's order."""
+"""How to build each module of ``wallbot_msgs_py.constraint_modules``' table, and its row count."""
+MODULES: dict[str, ModuleKind] = {name: ModuleKind(*_BUILDERS[name], task=CONSTRAINT_MODULES[name].task)
+                                  for name in STACKING_ORDER}
+"""Every constraint module a selection can switch on, keyed by name, in stacking order: the modules, names, order and
+kinds of ``wallbot_msgs_py.constraint_modules.CONSTRAINT_MODULES`` (the names the command line, the nodes and the
+``constraints`` message use, each with its constraint_config switch)."""
 SELECTION_SYNTAX = f'comma list of {", ".join(STRUCTURAL)}, or none'
 """How a selection is written (:meth:`ConstraintSelection.parse`; ``--constraints``, ``constraints:=``)."""
 
 
 @dataclass(frozen=True)
 class ConstraintSelection:
-    """The module switches of docs/model.md section 5.
+    """The module switches of docs/model.md section 5: one field per module of ``MODULES``, in the order of the
+    table's switches (``wallbot_msgs_py.constraint_modules.CONSTRAINT_MODULES``).
 
     ``tangent_heading`` None means the default: on whenever non-lateral motion is constrained
     together with the trajectory task (without it that set is inconsistent).

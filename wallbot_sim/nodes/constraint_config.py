@@ -23,6 +23,7 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from wallbot_msgs_py import codec, topics
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_SWITCHES
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
@@ -43,7 +44,7 @@ class ConstraintConfigNode(Node):
         params = load_robot_parameters(robot_file or None)
         values = declare_settings(self, CONSTRAINT_CONFIG, {'baumgarte_alpha': params.baumgarte_alpha,
                                                             'baumgarte_beta': params.baumgarte_beta})
-        self.switches = {switch.parameter: values[switch.parameter] for switch in topics.CONSTRAINT_MODULES.values()}
+        self.switches = {name: values[name] for name in CONSTRAINT_SWITCHES}
         frames = RobotFrames(values['odom_frame_id'], values['base_frame_id'], values['frame_prefix'])
         urdf = robot_urdf(params, frames)  # before anything is published: unusable frames stop the node here
         self.gains = {name: values[name] for name in ROBOT_GAINS}

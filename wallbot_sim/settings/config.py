@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from wallbot_msgs_py import topics
+from wallbot_msgs_py.constraint_modules import CONSTRAINT_MODULES
 from wallbot_sim.live_view import DEFAULT_HOST
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.parameters import RobotParameters
@@ -40,8 +41,8 @@ class ConstraintConfigSettings:
 
 
 SWITCHES = tuple(Setting(switch.parameter, switch.default, switch.description)
-                 for switch in topics.CONSTRAINT_MODULES.values())
-"""The constraint switches, one bool each (``topics.CONSTRAINT_MODULES``)."""
+                 for switch in CONSTRAINT_MODULES.values())
+"""The constraint switches, one bool each (``wallbot_msgs_py.constraint_modules``' table)."""
 CONSTRAINT_CONFIG = SettingsTable((*SWITCHES, *table_of(ConstraintConfigSettings)))
 
 

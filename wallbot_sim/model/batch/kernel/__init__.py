@@ -40,16 +40,16 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import available, numba
 from wallbot_sim.model.batch.kernel.dynamics import (
-    MAX_ROWS, MODULE_ORDER, MODULE_ROWS, REFERENCE_FIELDS, _steps, reference_samples, robot_run, tracking_force)
+    REFERENCE_FIELDS, _steps, reference_samples, robot_run, tracking_force)
 from wallbot_sim.model.batch.kernel.layout import (
-    CONSTRAINT, CONTACT_ERRORS, FAILED, FORCES, FRICTION, LOADS, NEWTON_RESIDUAL, PREDICTED, QDD,
-    RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY, contact_constants)
+    CONSTRAINT, CONTACT_ERRORS, FAILED, FORCES, FRICTION, HELD_BY, LOADS, MAX_ROWS, MODULE_ORDER, MODULE_ROWS,
+    NEWTON_RESIDUAL, PREDICTED, QDD, RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY, contact_constants)
 from wallbot_sim.model.batch.kernel.linalg import _accelerations
 from wallbot_sim.model.batch.kernel.settle import _batch_settle, _batch_step, robot_contact_run
 from wallbot_sim.model.batch.robots import RobotBatch
 
 __all__ = [
-    'available', 'numba', 'MAX_ROWS', 'MODULE_ORDER', 'MODULE_ROWS', 'REFERENCE_FIELDS', 'reference_samples',
+    'available', 'numba', 'HELD_BY', 'MAX_ROWS', 'MODULE_ORDER', 'MODULE_ROWS', 'REFERENCE_FIELDS', 'reference_samples',
     'robot_run', 'tracking_force', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES', 'FRICTION', 'LOADS',
     'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
     'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',

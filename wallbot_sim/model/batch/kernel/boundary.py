@@ -12,10 +12,11 @@ from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.dynamics import _constraint_force, _factor_of, _problem
 from wallbot_sim.model.batch.kernel.friction import _contact_row, _kinetic, _load_gain, _spin_loads
 from wallbot_sim.model.batch.kernel.layout import (
-    ADHESION, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, KINETIC, LOADS, MADE, NEWTON_PREDICTED,
-    ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR, ROW_KEPT, ROW_LOADS, ROW_ORDER,
-    ROW_SYSTEM, SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER, SPLIT_PIVOTS, SPLIT_X, STATE,
-    STATUS, STICKING, STUCK_ROWS, TOTAL, VELOCITY, WHEEL_OF, ZERO)
+    ADHESION, BELT, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, HELD_BY, KINETIC, LOADS, MADE,
+    NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR,
+    ROW_KEPT, ROW_LOADS, ROW_ORDER, ROW_SYSTEM, SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER,
+    SPLIT_PIVOTS, SPLIT_X, STATE, STATUS, STICKING, STUCK_ROWS, TANGENT_HEADING, TOTAL, TRAJECTORY, VELOCITY,
+    WHEEL_OF, ZERO)
 from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
 from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
@@ -26,13 +27,13 @@ def _reduce(flags: np.ndarray, vector: np.ndarray, out: np.ndarray) -> int:
     belt's pd1 = pd2 and pd3 = pd4); the basis' size. U need not be orthonormal: the split below is the same for
     any basis of that space."""
     size = 0
-    if not flags[0]:
+    if not flags[TRAJECTORY]:
         out[0], out[1] = vector[0], vector[1]
         size = 2
-    if not (flags[0] or flags[1]):
+    if not (flags[TRAJECTORY] or flags[TANGENT_HEADING]):
         out[size] = vector[2]
         size += 1
-    if flags[2]:
+    if flags[BELT]:
         out[size], out[size + 1] = vector[3] + vector[4], vector[5] + vector[6]
         return size + 2
     for j in range(3, DOF):
@@ -98,7 +99,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
     friction and every wheel's load solved together from the ``start`` loads, the motion under them, the sticking
     wheels' split of the constraint force; an error code (``CONTACT_ERRORS``)."""
     q, qd = y[:DOF], y[DOF:]
-    frictional = flags[3] or flags[4]
+    frictional = flags[NON_LATERAL] or flags[NONSLIP]
     sticking, zero = marks[STICKING], vecs[ZERO]
     for wheel in range(4):
         sticking[wheel] = frictional and not sliding[wheel]
@@ -113,7 +114,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
     sliders = 0
     for wheel in range(4):
         for direction in range(2):
-            if frictional and sliding[wheel] and flags[4 - direction]:  # x_p: nonslip, y_p: non-lateral
+            if frictional and sliding[wheel] and flags[HELD_BY[direction]]:
                 wheel_of[sliders], direction_of[sliders] = wheel, direction
                 _contact_row(cos_t, sin_t, constants, wheel, direction, slip_rows[sliders])
                 for j in range(DOF):
@@ -179,7 +180,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
     stuck, stuck_rows, row_loads = 0, mats[STUCK_ROWS], vecs[ROW_LOADS]
     for wheel in range(4):
         for direction in range(2):
-            if sticking[wheel] and flags[4 - direction]:
+            if sticking[wheel] and flags[HELD_BY[direction]]:
                 _contact_row(cos_t, sin_t, constants, wheel, direction, stuck_rows[stuck])
                 row_loads[stuck] = loads[wheel]
                 stuck += 1
@@ -189,7 +190,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
         stuck = 0
         for wheel in range(4):
             for direction in range(2):
-                if sticking[wheel] and flags[4 - direction]:
+                if sticking[wheel] and flags[HELD_BY[direction]]:
                     forces[2 * wheel + direction] = split[stuck]
                     stuck += 1
     return SOLVED
@@ -203,7 +204,7 @@ def _project_onto(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, stick
     theta = y[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
     count = 0
-    if flags[2]:
+    if flags[BELT]:
         for r in range(2):
             for j in range(DOF):
                 rows[r, j] = 0.0
@@ -211,7 +212,7 @@ def _project_onto(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, stick
         count = 2
     for wheel in range(4):
         for direction in range(2):
-            if sticking[wheel] and flags[4 - direction]:
+            if sticking[wheel] and flags[HELD_BY[direction]]:
                 _contact_row(cos_t, sin_t, constants, wheel, direction, rows[count])
                 count += 1
     if count == 0:

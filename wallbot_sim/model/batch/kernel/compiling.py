@@ -3,7 +3,8 @@
 numba's cache of a function is checked against its own file only, while a kernel function compiles the functions it
 calls from the package's other files into its own code: a change to a callee in another file would leave its
 callers' cached code in use. The kernel's functions are therefore cached under a stamp of every source file of the
-package (a digest of their contents, taken at import, as the code that runs is the code imported), so that any
+package (a digest of their contents, taken at import, as the code that runs is the code imported) and of the
+constraint modules' table (their order and rows, compiled in as constants: ``layout.MODULE_ORDER``), so that any
 change recompiles them all. numba is optional: without it ``jit`` returns the function as written.
 """
 
@@ -12,6 +13,8 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 from typing import Any, Callable
+
+from wallbot_sim.model.constraint_set import MODULES
 
 try:
     import numba
@@ -26,11 +29,12 @@ PACKAGE = Path(__file__).resolve().parent
 
 
 def package_stamp() -> str:
-    """A digest of every source file of the package, by name and contents."""
+    """A digest of every source file of the package, by name and contents, and of the modules' names and rows."""
     digest = hashlib.sha256()
     for path in sorted(PACKAGE.glob('*.py')):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
+    digest.update(repr([(name, kind.rows) for name, kind in MODULES.items()]).encode())
     return digest.hexdigest()
 
 

@@ -8,18 +8,14 @@ import math
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit, prange
-from wallbot_sim.model.batch.kernel.layout import ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM
+from wallbot_sim.model.batch.kernel.layout import (
+    BELT, MAX_ROWS, NON_LATERAL, NONSLIP, ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM, TANGENT_HEADING, TRAJECTORY)
 from wallbot_sim.model.batch.kernel.linalg import _scratch, _solve
 from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
 
 
-MODULE_ORDER = ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip')
-"""The modules the kernel knows, in ``MODULES``' stacking order (its flags follow it)."""
-MODULE_ROWS = (2, 1, 2, 1, 4)
-MAX_ROWS = sum(MODULE_ROWS[:3]) + 8
-"""The rows of the tasks and the belt with every wheel's two contact rows (more than every module's at once)."""
 REFERENCE_FIELDS = 10
 """A reference instant: position, velocity, acceleration (2 each), has heading, angle, rate, its rate."""
 NO_HEADING = (0.0, 0.0, 0.0, 0.0)
@@ -131,13 +127,13 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
     # zero from the block's start (each module writes the same entries at every stage)
     gam = 2.0 * alpha
     count = 0
-    if flags[0]:
+    if flags[TRAJECTORY]:
         for axis in range(2):
             rows[count, axis] = 1.0
             rhs[count] = (reference[4 + axis] - 2.0 * alpha * (qd[axis] - reference[2 + axis])
                           - beta * beta * (q[axis] - reference[axis]))
             count += 1
-    if flags[1]:
+    if flags[TANGENT_HEADING]:
         rows[count, 2] = 1.0
         if reference[6] == 0.0:
             rhs[count] = -gam * thd
@@ -149,7 +145,7 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
                 error += turn
             rhs[count] = reference[9] - gam * (thd - reference[8]) - beta * beta * error
         count += 1
-    if flags[2]:
+    if flags[BELT]:
         rows[count, 3], rows[count, 4] = 1.0, -1.0
         rhs[count] = -gam * (qd[3] - qd[4])
         rows[count + 1, 5], rows[count + 1, 6] = 1.0, -1.0
@@ -160,11 +156,11 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
     if contact:
         return _wheel_rows(qd, flags, constants, sticking, held, cos_t, sin_t, v_long, v_lat, gam, count, rows, rhs,
                            force)
-    if flags[3]:
+    if flags[NON_LATERAL]:
         rows[count, 0], rows[count, 1] = -sin_t, cos_t
         rhs[count] = thd * v_long - gam * v_lat
         count += 1
-    if flags[4]:
+    if flags[NONSLIP]:
         for wheel in range(4):
             offset = constants[12 + wheel]
             violation = -cos_t * qd[0] - sin_t * qd[1] + offset * thd + radius * qd[3 + wheel]
@@ -184,13 +180,13 @@ def _wheel_rows(qd: np.ndarray, flags: np.ndarray, constants: np.ndarray, sticki
     drift_x, drift_y = thd * v_lat, -thd * v_long  # c = (thd v_lat, -thd v_long)
     for wheel in range(4):
         offset, along = constants[12 + wheel], constants[17 + 2 * wheel]  # s_i, a_i
-        if sticking[wheel] and flags[4]:
+        if sticking[wheel] and flags[NONSLIP]:
             rows[count, 0], rows[count, 1], rows[count, 2] = cos_t, sin_t, -offset
             for j in range(3, DOF):
                 rows[count, j] = -radius if j == 3 + wheel else 0.0
             rhs[count] = -drift_x - gam * (v_long - offset * thd - radius * qd[3 + wheel])
             count += 1
-        if sticking[wheel] and flags[3]:
+        if sticking[wheel] and flags[NON_LATERAL]:
             rows[count, 0], rows[count, 1], rows[count, 2] = -sin_t, cos_t, along
             for j in range(3, DOF):
                 rows[count, j] = 0.0

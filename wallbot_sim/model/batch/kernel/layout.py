@@ -1,13 +1,28 @@
-"""The layout of the coulomb contact's arrays: each robot's contact constants, a boundary's solution, the
-workspace's rows, and the tolerances and error codes the kernel shares with the Python model."""
+"""The layout of the kernel's arrays: the constraint modules' flags and rows, each robot's contact constants, a
+boundary's solution, the workspace's rows, and the tolerances and error codes the kernel shares with the Python
+model."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.constraint_set import MODULES
 from wallbot_sim.model.robot import DOF, Robot
 
+
+MODULE_ORDER = tuple(MODULES)
+"""The modules the kernel knows, in ``MODULES``' stacking order: a problem's flags follow it (``module_flags``)."""
+MODULE_ROWS = tuple(kind.rows for kind in MODULES.values())
+"""Each module's row count, in MODULE_ORDER."""
+TRAJECTORY, TANGENT_HEADING, BELT, NON_LATERAL, NONSLIP = (
+    MODULE_ORDER.index(name) for name in ('trajectory', 'tangent_heading', 'belt', 'non_lateral', 'nonslip'))
+"""Each module's flag (its place in MODULE_ORDER); numba compiles these module-level ints in as constants."""
+HELD_BY = (NONSLIP, NON_LATERAL)
+"""The flag of the module whose friction holds each direction of a wheel's contact velocity (x_p, y_p): with coulomb
+contact its rows give way to each sticking wheel's contact row in that direction."""
+MAX_ROWS = sum(MODULE_ROWS) - sum(MODULE_ROWS[flag] for flag in HELD_BY) + 2 * 4
+"""The rows of the other modules with every wheel's two contact rows (more than every module's at once)."""
 
 ADHESION, STATIC, KINETIC, STICK, HEIGHT, HALF_BASE, HALF_TRACK = range(7)
 ROLLING = 15

@@ -10,18 +10,18 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
 from wallbot_sim.model.batch.kernel.compiling import jit, prange
-from wallbot_sim.model.batch.kernel.dynamics import MAX_ROWS, _rk4, _workspace
+from wallbot_sim.model.batch.kernel.dynamics import _rk4, _workspace
 from wallbot_sim.model.batch.kernel.layout import (
-    AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, PREDICTED, PRESSED, PROJECTION, QDD, RAN,
-    REVERSING, ROLLING, SETTLE_PASSES, SOLUTION_ROWS, SOLUTION_WIDTH, SOLVED, STATIC, STICK, STICKING, STOPPED, TOTAL,
-    TRIAL_SLIDING, TRIAL_Y, VELOCITY, _contact_workspace)
+    AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, MAX_ROWS, NON_LATERAL, NONSLIP, PREDICTED,
+    PRESSED, PROJECTION, QDD, RAN, REVERSING, ROLLING, SETTLE_PASSES, SOLUTION_ROWS, SOLUTION_WIDTH, SOLVED, STATIC,
+    STICK, STICKING, STOPPED, TOTAL, TRIAL_SLIDING, TRIAL_Y, VELOCITY, _contact_workspace)
 from wallbot_sim.model.robot import DOF
 
 
 def _speed(velocity: np.ndarray, wheel: int, flags: np.ndarray) -> float:
     """|v| of a wheel's velocity (interleaved) over the directions that have friction (``contact._speed``)."""
-    along = velocity[2 * wheel] if flags[4] else 0.0
-    across = velocity[2 * wheel + 1] if flags[3] else 0.0
+    along = velocity[2 * wheel] if flags[NONSLIP] else 0.0
+    across = velocity[2 * wheel + 1] if flags[NON_LATERAL] else 0.0
     return math.sqrt(along * along + across * across)
 
 
@@ -54,7 +54,7 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
     slides. ``sliding`` (4,) and ``loads`` (4,) (held, Newton's start) are the contact state before, updated in
     place, and y's velocities are projected in place, unless an error code is returned (``CONTACT_ERRORS``).
     """
-    frictional = flags[3] or flags[4]
+    frictional = flags[NON_LATERAL] or flags[NONSLIP]
     static, stick = contact[STATIC], contact[STICK]
     for wheel in range(4):
         sliding[wheel] = sliding[wheel] and frictional
@@ -141,7 +141,7 @@ def _hold(solution: np.ndarray, sliding: np.ndarray, flags: np.ndarray, contact:
           sticking: np.ndarray, held: np.ndarray) -> None:
     """What a step holds from its settled boundary (``_problem``'s gains, sticking and held): each wheel's rolling
     resistance f_r max(N_i, 0), the sticking wheels, the sliding wheels' friction."""
-    frictional = flags[3] or flags[4]
+    frictional = flags[NON_LATERAL] or flags[NONSLIP]
     for wheel in range(4):
         load = solution[LOADS, wheel]
         gains[wheel] = contact[ROLLING] * (load if load > 0.0 else 0.0)
