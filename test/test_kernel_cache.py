@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import shutil
 import sys
+from dataclasses import replace
 
 import pytest
 
@@ -34,6 +35,18 @@ def test_a_change_to_any_file_of_the_package_changes_the_stamp(tmp_path, monkeyp
         path.write_text(text + '\n')
         assert compiling.package_stamp() != compiling.STAMP, path.name
         path.write_text(text)
+
+
+def test_a_change_to_the_constraint_modules_order_or_rows_changes_the_stamp(monkeypatch):
+    """The modules' flags and rows are compiled in as constants from outside the package (``layout.MODULE_ORDER``)."""
+    modules = compiling.MODULES
+    monkeypatch.setattr(compiling, 'MODULES', dict(reversed(modules.items())))
+    assert compiling.package_stamp() != compiling.STAMP
+    name, kind = next(iter(modules.items()))
+    monkeypatch.setattr(compiling, 'MODULES', {**modules, name: replace(kind, rows=kind.rows + 1)})
+    assert compiling.package_stamp() != compiling.STAMP
+    monkeypatch.undo()
+    assert compiling.package_stamp() == compiling.STAMP
 
 
 def test_functions_outside_the_package_keep_numbas_own_cache(tmp_path):

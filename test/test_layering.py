@@ -40,6 +40,7 @@ def test_every_layering_contract_is_kept(linter):
     ('wallbot_msgs_py/topics.py', 'import wallbot_sim.model', 'wallbot_msgs_py is the interface contract only'),
     ('wallbot_sim/cli/compare.py', 'from wallbot_sim.cli import plot', 'never imports another verb'),
     ('wallbot_sim/model/robot.py', 'import rclpy', 'wallbot_sim.model is pure NumPy'),
+    ('wallbot_sim/model/constraint_set.py', 'from wallbot_msgs_py import topics', 'wallbot_sim.model is pure NumPy'),
     ('wallbot_sim/rundata/load.py', 'from wallbot_sim.cli.errors import CliError', 'know nothing of the command line'),
     ('wallbot_sim/loop/blocks.py', 'import rclpy',
      'the dynamics loop (its package), its settings, sensors'),
@@ -47,7 +48,7 @@ def test_every_layering_contract_is_kept(linter):
      'the dynamics loop (its package), its settings, sensors'),
     ('wallbot_sim/urdf.py', 'import std_msgs', 'the URDF generator knows no ROS'),
     ('wallbot_sim/view.py', 'import visualization_msgs', 'what the viewer draws and encodes'),
-], ids=['interface', 'verbs', 'model', 'libraries', 'loop', 'settings', 'urdf', 'view'])
+], ids=['interface', 'verbs', 'model', 'model-interface', 'libraries', 'loop', 'settings', 'urdf', 'view'])
 def test_a_broken_contract_fails(linter, tmp_path, module, line, contract):
     """The same check on a copy with one forbidden import added fails, naming the contract."""
     for package in ('wallbot_sim', 'wallbot_msgs_py'):
