@@ -59,7 +59,7 @@ OPTIONS = (
                 help="SCHED_FIFO priority of the dynamics' paced loop thread (Linux; needs an rtprio limit, else a "
                      'warning and normal scheduling); 0 = normal scheduling'),
     GraphOption(Setting('record', '', 'bag directory to record into (empty: no recorder)')),
-    GraphOption(Setting('controller', False, 'closed loop: the driven robot (belt, non_lateral, nonslip, no '
+    GraphOption(Setting('controller', False, f'closed loop: the driven robot ({", ".join(STRUCTURAL)}, no '
                                              'trajectory task) under tracking_controller_node; wheel_torque_cmd is '
                                              'recorded'), '--controller'),
     node_option('controller', CONTROLLER, 'mass_scale', '--controller-mass-scale', 'controller_mass_scale',

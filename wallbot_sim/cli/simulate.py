@@ -48,9 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_graph_option(parser, 'contact', help_suffix=' (coulomb needs a run without the trajectory task: rest, or '
                                                     '--controller; default ideal)')
     parser.add_argument('--controller', action='store_true',
-                        help='closed loop: driven mode (no trajectory task; belt, non_lateral, nonslip) with the '
-                             'example tracking controller commanding the wheel torques at 25 Hz of simulation '
-                             'time, as run --controller does over DDS')
+                        help=f'closed loop: driven mode (no trajectory task; {", ".join(DRIVEN.active_names())}) '
+                             'with the example tracking controller commanding the wheel torques at 25 Hz of '
+                             'simulation time, as run --controller does over DDS')
     add_graph_option(parser, 'controller_mass_scale')
     add_graph_option(parser, 'adhesion_force')
     parser.add_argument('--tangent-heading', action=argparse.BooleanOptionalAction, default=None,
@@ -85,8 +85,8 @@ def build_simulation(args: argparse.Namespace) -> tuple[Simulation, float]:
         if rest:
             raise CliError('--controller follows a trajectory scenario (circle, figure8, a YAML): rest has none')
         if args.constraints != ALL_STRUCTURAL or args.tangent_heading is not None:
-            raise CliError('--controller runs the driven robot (belt, non_lateral, nonslip, no trajectory task): '
-                           'drop --constraints and --tangent-heading')
+            raise CliError(f'--controller runs the driven robot ({", ".join(DRIVEN.active_names())}, '
+                           'no trajectory task): drop --constraints and --tangent-heading')
         selection = DRIVEN
     else:
         if args.controller_mass_scale != 1.0:

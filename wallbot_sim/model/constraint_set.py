@@ -61,7 +61,7 @@ class ConstraintSelection:
 
     @classmethod
     def parse(cls, text: str, trajectory: bool = True, tangent_heading: bool | None = None) -> ConstraintSelection:
-        """From a comma list of belt, non_lateral, nonslip, or 'none' (the trajectory task only)."""
+        """From a comma list of STRUCTURAL's names, or 'none' (the trajectory task only)."""
         names = [name.strip() for name in text.split(',') if name.strip()]
         if names == ['none']:
             names = []

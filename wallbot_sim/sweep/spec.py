@@ -139,8 +139,8 @@ def _settings(values: Mapping[str, Any], folder: Path) -> RunSettings:
     if controller:
         for key in ('constraints', 'tangent_heading'):
             if key in values:
-                raise SweepError(f'{key}: with controller: true the driven robot runs (belt, non_lateral, nonslip, '
-                                 'no trajectory task); drop it')
+                raise SweepError(f'{key}: with controller: true the driven robot runs '
+                                 f'({", ".join(DRIVEN.active_names())}, no trajectory task); drop it')
         selection = DRIVEN
     else:
         if scale != 1.0:
