@@ -15,9 +15,10 @@ $(STAMP): setup.py setup.cfg package.xml
 	$(VPY) -m pip install -e ".[ros,test]"
 	touch $@
 
-# Two workers (pytest-xdist), each a session of its own with its own DDS domain; a test module's
-# tests stay on one worker (its module-scoped fixtures run once).
-PYTEST := $(VPY) -m pytest -q -n 2 --dist loadscope --durations=25
+# Two workers (pytest-xdist), each a session of its own with its own DDS domain. Each test goes to
+# whichever worker is free, but the tests sharing a module- or class-scoped fixture stay on one worker
+# so that it runs once (test/conftest.py marks them an xdist_group).
+PYTEST := $(VPY) -m pytest -q -n 2 --dist loadgroup --durations=25
 
 test: venv
 	$(PYTEST) test

@@ -12,9 +12,11 @@
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Iterator
 
@@ -94,19 +96,50 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def _compile_kernels() -> None:
     """The numba kernels compiled here, once, into numba's cache (in the checkout): a fresh clone's
-    test processes would otherwise each compile them on first use, several at once, for a minute."""
+    test processes would otherwise each compile them on first use, several at once, for minutes. The
+    single robot's runs (every numba node and simulate) and the batch's (the batch tests, sweeps) compile
+    side by side, one process each."""
     from wallbot_sim.model.batch import kernel
     if not kernel.available():
         return
-    from wallbot_sim.model.compiled import compile_kernel
+    from wallbot_sim.model.compiled import compile_batch, compile_kernel
     started = time.monotonic()
-    compile_kernel()
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context('spawn')) as pool:
+        for compiled in [pool.submit(compile_kernel), pool.submit(compile_batch)]:
+            compiled.result()
     took = time.monotonic() - started
     if took > 5.0:
         print(f'\nnumba kernels compiled into the cache in {took:.0f} s (later runs load them)', file=sys.stderr)
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+@pytest.hookimpl(tryfirst=True)  # before xdist's worker reads the xdist_group marks, and before -m selects
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     for item in items:
         if item.module is not None and item.module.__name__.rpartition('.')[2] in FAST_MODULES:
             item.add_marker(pytest.mark.fast)
+        group = shared_fixture_group(item)
+        if group is not None:
+            item.add_marker(pytest.mark.xdist_group(group))
+    if hasattr(config, 'workerinput'):
+        # Workers take the tests in this order: the node-process tests (many of them tens of seconds) first, the
+        # model and units (mostly under a second) last, so that neither worker is left waiting at the end for the
+        # other's last long test.
+        items.sort(key=lambda item: item.get_closest_marker('fast') is not None)
+
+
+def shared_fixture_group(item: pytest.Item) -> str | None:
+    """The xdist group of a test that uses a module- or class-scoped fixture: its module's, or its class's when
+    the class-scoped fixtures are all it shares. ``make test`` runs with ``--dist loadgroup``: a group's tests
+    stay on one worker, so the fixture (a colcon build, a sweep, a document's commands) runs once; every other
+    test is scheduled alone, to whichever worker is free."""
+    fixture_info = getattr(item, '_fixtureinfo', None)
+    if fixture_info is None:
+        return None
+    scopes = {definitions[-1].scope for definitions in fixture_info.name2fixturedefs.values() if definitions}
+    module_file = item.nodeid.partition('::')[0]
+    if 'module' in scopes:
+        return module_file
+    cls = getattr(item, 'cls', None)
+    if 'class' in scopes and cls is not None:
+        return f'{module_file}::{cls.__name__}'
+    return None

@@ -16,12 +16,13 @@ from typing import NamedTuple, Self
 import numpy as np
 
 from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.batch.simulation import BatchSimulation
 from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
 from wallbot_sim.model.constraints.look_ahead import PointReference
-from wallbot_sim.model.contact import COULOMB
+from wallbot_sim.model.contact import COULOMB, IDEAL
 from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.outputs import DriveForces, StepTable
@@ -47,6 +48,17 @@ def compile_kernel() -> None:
     (which the first compilation on a machine writes, 20-60 s), so that no first numba step waits for them."""
     compile_run(COULOMB)
     compile_inverse_dynamics()
+
+
+def compile_batch() -> None:
+    """Compile the batch engine's kernel (``BatchSimulation(..., engine='numba')``, a sweep's robots): its fused
+    steps and solve with ideal contact, its boundaries and steps with coulomb contact; or load them from the cache."""
+    robots, start = [Robot(RobotParameters())] * 2, np.zeros((2, DOF))
+    for contact, selection in ((IDEAL, ConstraintSelection.parse('belt')),
+                               (COULOMB, ConstraintSelection.structural(trajectory=False))):
+        batch = BatchSimulation(robots, Circle(1.0, 20.0), selection, start, start, contact=contact, engine=NUMBA)
+        batch.step()
+        batch.outputs()
 
 
 def compile_run(contact: str) -> None:
