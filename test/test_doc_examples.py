@@ -1,6 +1,6 @@
 """The headless pages' command blocks run as written, print what the pages show and write what they quote
 (test/doc_blocks.py, test/doc_checks.py). ROS-free: the model, plots, motors, a sweep in one process. A class a
-page, so that xdist's loadscope spreads the pages over the workers."""
+page, so that the pages spread over the workers (each class, whose tests share its page's run, one xdist group)."""
 
 from __future__ import annotations
 
