@@ -17,7 +17,7 @@ $(STAMP): setup.py setup.cfg package.xml
 
 # Two workers (pytest-xdist), each a session of its own with its own DDS domain. Each test goes to
 # whichever worker is free, but the tests sharing a module- or class-scoped fixture stay on one worker
-# so that it runs once (test/conftest.py marks them an xdist_group).
+# so that it runs once (test/conftest.py's scheduler, SHARED_FIXTURE_MODULES).
 PYTEST := $(VPY) -m pytest -q -n 2 --dist loadgroup --durations=25
 
 test: venv

@@ -112,14 +112,55 @@ def _compile_kernels() -> None:
         print(f'\nnumba kernels compiled into the cache in {took:.0f} s (later runs load them)', file=sys.stderr)
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's worker reads the xdist_group marks, and before -m selects
+SHARED_FIXTURE_MODULES = frozenset({
+    'test/test_cli_motors.py', 'test/test_cli_tools.py', 'test/test_layering.py', 'test/test_packaging.py',
+    'test/test_parameter_ranges.py', 'test/test_peer_mujoco.py', 'test/test_sweep.py', 'test/test_view.py',
+})
+"""The modules whose tests share a module-scoped fixture (a colcon build, a sweep, MuJoCo's runs): ``make test``
+keeps each on one worker, which runs the fixture once."""
+SHARED_FIXTURE_CLASSES = frozenset({'test/test_doc_examples.py', 'test/test_doc_graph_examples.py'})
+"""The modules whose classes each share a class-scoped fixture (a page's commands run once): one worker a class."""
+
+
+def scheduling_scope(nodeid: str) -> str:
+    """The tests ``make test`` keeps on one worker: a test's module or class when they share a fixture, else the
+    test alone."""
+    module, _, rest = nodeid.partition('::')
+    if module in SHARED_FIXTURE_MODULES:
+        return module
+    if module in SHARED_FIXTURE_CLASSES:
+        return f'{module}::{rest.partition("::")[0]}'
+    return nodeid
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):  # noqa: ANN201 (xdist's types, imported only here)
+    """``--dist loadgroup`` (``make test``): each test goes to whichever worker is free, but a group of
+    ``scheduling_scope`` to one worker. xdist's own loadgroup reads ``xdist_group`` marks from test ids that
+    pytest 9 no longer lets it change, so it would scatter the groups."""
+    if config.getvalue('dist') != 'loadgroup':
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class SharedFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return scheduling_scope(nodeid)
+
+    return SharedFixtureScheduling(config, log)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    shared: dict[str, set[str]] = {}
     for item in items:
         if item.module is not None and item.module.__name__.rpartition('.')[2] in FAST_MODULES:
             item.add_marker(pytest.mark.fast)
         group = shared_fixture_group(item)
         if group is not None:
-            item.add_marker(pytest.mark.xdist_group(group))
+            shared.setdefault(group, set()).add(scheduling_scope(item.nodeid))
+    scattered = sorted(group for group, scopes in shared.items() if len(scopes) > 1)
+    if scattered:
+        raise pytest.UsageError(f'the tests of {scattered[0]} share a module- or class-scoped fixture: list their '
+                                'module in SHARED_FIXTURE_MODULES or SHARED_FIXTURE_CLASSES (test/conftest.py)')
     if hasattr(config, 'workerinput'):
         # Workers take the tests in this order: the node-process tests (many of them tens of seconds) first, the
         # model and units (mostly under a second) last, so that neither worker is left waiting at the end for the
@@ -128,10 +169,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def shared_fixture_group(item: pytest.Item) -> str | None:
-    """The xdist group of a test that uses a module- or class-scoped fixture: its module's, or its class's when
-    the class-scoped fixtures are all it shares. ``make test`` runs with ``--dist loadgroup``: a group's tests
-    stay on one worker, so the fixture (a colcon build, a sweep, a document's commands) runs once; every other
-    test is scheduled alone, to whichever worker is free."""
+    """The module (or class) of a test that uses a module-scoped (or class-scoped) fixture."""
     fixture_info = getattr(item, '_fixtureinfo', None)
     if fixture_info is None:
         return None
