@@ -153,13 +153,10 @@ def run_graph(graph: Graph, specs: list[NodeSpec], duration: float, progress: Pr
                 progress.update(monitor.recorded)
         progress.update(duration, force=True)
         # The summary's residual is the maximum the diagnostics carry for each window of steps:
-        # wait for the window that holds the last steps, published after the dynamics stopped. The
-        # last reference pose is waited for where the monitor hears the poses: in a short run under
-        # load its reader can match the trajectory node's writer only after the last pose went out
-        # (1 run in ~15 of 1 s), which the recorder, heard before the first pose, has taken.
+        # wait for the window that holds the last steps, published after the dynamics stopped.
         def missing() -> list[str]:
             return [what for what, seen in (("the dynamics' diagnostics of its stop", monitor.dynamics_stopped()),
-                                            ('the last reference pose', not reference or not monitor.reference_seen()
+                                            ('the last reference pose', not reference
                                              or monitor.reference_reached(duration)))
                     if not seen]
         deadline = time.monotonic() + FINAL_WAIT

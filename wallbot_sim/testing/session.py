@@ -258,11 +258,7 @@ class Session:
         if self._answer_awaited(end):
             waits.append((lambda: self._answered(end), f'the controller did not answer the last state, at t = {end:.3f} s,'))
         if self.spec.loaded_scenario() is not None:
-            # where the monitor hears the poses: the trajectory node's writer can match the monitor's reader (its
-            # side of discovery, which the monitor cannot see) only after the poses of a short run went out, which
-            # the recorder, heard before the first pose, has taken (seen under load: a 0.4 s run waited in vain)
-            waits.append((lambda: not self.monitor.reference_seen() or self.monitor.reference_reached(end),
-                          'the last reference pose did not come'))
+            waits.append((lambda: self.monitor.reference_reached(end), 'the last reference pose did not come'))
         for done, missing in waits:
             self._wait(done, FINAL_WAIT, missing)
 
