@@ -55,6 +55,29 @@ def ros_domain() -> Iterator[DomainClaim]:
         claim.release()
 
 
+@pytest.fixture(scope='session', autouse=True)
+def test_process_heartbeat(ros_domain: DomainClaim) -> None:
+    """This process's writers (commands, parameter requests) send Fast DDS heartbeats as the nodes' do
+    (``NODE_HEARTBEAT``), so a ``wait_for_all_acked`` or a lost request's repair takes about 0.1 s, not up
+    to the default 3 s. Fast DDS reads the profile once, at the process's first participant: made here,
+    before any test's, and the variable removed again so that child processes choose their own."""
+    try:
+        import rclpy
+    except ImportError:
+        return
+    from wallbot_sim.heartbeat import NODE_HEARTBEAT, PROFILES_ENV, PROFILES_ENVS, install_heartbeat
+    if any(os.environ.get(name) for name in PROFILES_ENVS):
+        return  # the developer's own profile file
+    install_heartbeat(NODE_HEARTBEAT)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        rclpy.create_node('heartbeat_profile_loader', context=context).destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+        os.environ.pop(PROFILES_ENV)
+
+
 @pytest.fixture
 def process_runner(tmp_path: Path, ros_domain: DomainClaim) -> Iterator[ChildProcesses]:
     """The product's ChildProcesses with the session's isolated ROS env and unbuffered Python
@@ -119,7 +142,8 @@ SHARED_FIXTURE_MODULES = frozenset({
 })
 """The modules whose tests share a module-scoped fixture (a colcon build, a sweep, MuJoCo's runs): ``make test``
 keeps each on one worker, which runs the fixture once."""
-SHARED_FIXTURE_CLASSES = frozenset({'test/test_doc_examples.py', 'test/test_doc_graph_examples.py'})
+SHARED_FIXTURE_CLASSES = frozenset({'test/test_batch_contact.py', 'test/test_doc_examples.py',
+                                    'test/test_doc_graph_examples.py'})
 """The modules whose classes each share a class-scoped fixture (a page's commands run once): one worker a class."""
 
 
