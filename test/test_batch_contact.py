@@ -3,6 +3,8 @@ detachment."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pytest
 
@@ -46,77 +48,119 @@ def mixed_start(seed: int = 5) -> tuple[list[Robot], np.ndarray, np.ndarray]:
     return robots, q0, torques
 
 
-def compare_contact(batch: BatchSimulation, singles: list[Simulation], steps: int) -> dict[str, np.ndarray]:
-    """Step both side by side; every robot's outputs agree until it detaches, which happens at the same instant.
+KEYS = ('q', 'qd', 'acceleration', 'constraint force', 'friction force', 'drive forces', 'loads', 'use',
+        'wheel forces', 'wheel use', 'slip velocity')
 
-    Returns per robot whether it slipped, and the detachment time and wheel the single robots gave.
-    """
-    size = len(singles)
-    keys = ('q', 'qd', 'acceleration', 'constraint force', 'friction force', 'drive forces', 'loads', 'use',
-            'wheel forces', 'wheel use', 'slip velocity')
-    single_history = [{key: [] for key in keys} for _ in range(size)]
-    batch_history = [{key: [] for key in keys} for _ in range(size)]
-    slipped = np.zeros(size, dtype=bool)
-    t_detached, wheel = np.full(size, np.nan), np.zeros(size, dtype=int)
-    for _ in range(steps):
-        out = batch.outputs()
-        for i, single in enumerate(singles):
-            if not np.isnan(t_detached[i]):
-                continue
+
+class LoneRuns(NamedTuple):
+    """Each robot stepped alone on the single-robot ``Simulation`` until it detaches or the steps end."""
+
+    history: list[dict[str, np.ndarray]]
+    """Per robot, per key of KEYS, its values at each instant it ran (one row an instant)."""
+    wheel_slipping: list[np.ndarray]
+    """Per robot, its wheels' slipping at each instant (instants, 4)."""
+    slipping: list[np.ndarray]
+    """Per robot, its channels' slipping at each instant."""
+    t_detached: np.ndarray
+    """Per robot, the time it detached (nan: never)."""
+    wheel: np.ndarray
+    """Per robot, the wheel that lifted off (0: none)."""
+    spin_inertia: np.ndarray
+    """Per robot, its wheels' spin inertia (kg m^2)."""
+
+    @property
+    def slipped(self) -> np.ndarray:
+        return np.array([bool(np.any(slipping)) for slipping in self.wheel_slipping])
+
+
+def lone_runs(singles: list[Simulation], steps: int) -> LoneRuns:
+    history = [{key: [] for key in KEYS} for _ in singles]
+    wheel_slipping: list[list] = [[] for _ in singles]
+    slipping: list[list] = [[] for _ in singles]
+    t_detached, wheel = np.full(len(singles), np.nan), np.zeros(len(singles), dtype=int)
+    for i, single in enumerate(singles):
+        for _ in range(steps):
             mine = single.outputs()
             contact = mine.contact
-            assert tuple(out.wheel_slipping[i]) == contact.wheel_slipping, f'robot {i} wheels at t = {out.t:.3f} s'
-            assert tuple(out.slipping[i]) == contact.slipping, f'robot {i} channels at t = {out.t:.3f} s'
-            slipped[i] |= any(contact.wheel_slipping)
+            wheel_slipping[i].append(contact.wheel_slipping)
+            slipping[i].append(contact.slipping)
             friction = np.zeros(DOF) if contact.friction_force is None else contact.friction_force
-            for history, values in (
-                    (single_history[i], (mine.q, mine.qd, mine.acceleration, mine.constraint_force, friction,
-                                         [mine.drive.left, mine.drive.right, mine.drive.lateral], contact.loads, contact.use, contact.wheel_forces, contact.wheel_use,
-                                         contact.slip_velocity)),
-                    (batch_history[i], (out.q[i], out.qd[i], out.acceleration[i], out.constraint_force[i],
-                                        out.friction_force[i], out.drive[i], out.loads[i], out.use[i],
-                                        out.wheel_forces[i], out.wheel_use[i], out.slip_velocity[i]))):
-                for key, value in zip(keys, values):
-                    history[key].append(np.asarray(value, dtype=float))
+            values = (mine.q, mine.qd, mine.acceleration, mine.constraint_force, friction,
+                      [mine.drive.left, mine.drive.right, mine.drive.lateral], contact.loads, contact.use,
+                      contact.wheel_forces, contact.wheel_use, contact.slip_velocity)
+            for key, value in zip(KEYS, values):
+                history[i][key].append(np.asarray(value, dtype=float))
             try:
                 single.step()
             except DetachedError as detached:
                 t_detached[i], wheel[i] = detached.t, detached.wheel
+                break
+    return LoneRuns([{key: np.array(values) for key, values in robot.items()} for robot in history],
+                    [np.array(robot, dtype=bool) for robot in wheel_slipping],
+                    [np.array(robot, dtype=bool) for robot in slipping], t_detached, wheel,
+                    np.array([single.robot.params.wheel_spin_inertia for single in singles]))
+
+
+def compare_contact(batch: BatchSimulation, lone: LoneRuns) -> None:
+    """Step the batch as long as the lone robots ran: every robot's outputs agree with its lone run's until it
+    detaches, which happens at the same instant and wheel."""
+    steps = max(len(robot['q']) for robot in lone.history)
+    batch_history = [{key: [] for key in KEYS} for _ in lone.history]
+    for k in range(steps):
+        out = batch.outputs()
+        for i, single_history in enumerate(lone.history):
+            if k >= len(single_history['q']):
+                continue
+            assert tuple(out.wheel_slipping[i]) == tuple(lone.wheel_slipping[i][k]), f'robot {i} wheels at t = {out.t:.3f} s'
+            assert tuple(out.slipping[i]) == tuple(lone.slipping[i][k]), f'robot {i} channels at t = {out.t:.3f} s'
+            values = (out.q[i], out.qd[i], out.acceleration[i], out.constraint_force[i], out.friction_force[i],
+                      out.drive[i], out.loads[i], out.use[i], out.wheel_forces[i], out.wheel_use[i], out.slip_velocity[i])
+            for key, value in zip(KEYS, values):
+                batch_history[i][key].append(np.asarray(value, dtype=float))
         batch.step()
-    for i, single in enumerate(singles):
+    for i, single_history in enumerate(lone.history):
         # floors where a quantity is round-off, 1 in its unit (the velocities of a robot that holds) and for the
         # accelerations the scale of those the contact forces make (a holding robot's are what remains of them)
-        floors = dict.fromkeys(keys, 1.0)
-        floors['acceleration'] = max(1.0, np.max(np.abs(single_history[i]['constraint force']))
-                                     / single.robot.params.wheel_spin_inertia)
-        for key in keys:
-            expected, got = np.array(single_history[i][key]), np.array(batch_history[i][key])
+        floors = dict.fromkeys(KEYS, 1.0)
+        floors['acceleration'] = max(1.0, np.max(np.abs(single_history['constraint force']))
+                                     / lone.spin_inertia[i])
+        for key in KEYS:
+            expected, got = single_history[key], np.array(batch_history[i][key])
             infinite = ~np.isfinite(expected)  # a wheel of no load with a force: use inf (ideal contact's lift-off)
             assert np.array_equal(got[infinite], expected[infinite]), f'robot {i} {key}'
             assert_agree(f'robot {i} {key}', np.where(infinite, 0.0, got), np.where(infinite, 0.0, expected),
                          floor=floors[key])
+    t_detached = lone.t_detached
     assert np.array_equal(np.isnan(batch.t_detached), np.isnan(t_detached))
     assert np.array_equal(batch.t_detached[~np.isnan(t_detached)], t_detached[~np.isnan(t_detached)])
-    assert np.array_equal(batch.detached_wheel, wheel)
-    return {'slipped': slipped, 't_detached': t_detached}
+    assert np.array_equal(batch.detached_wheel, lone.wheel)
 
 
-@pytest.mark.parametrize('engine', ENGINES)
-def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment(engine):
-    """Driven robots at rest under random torques: some stick, some slide, some peel off; each as alone, its wheels'
-    stick/slip transitions and its lift-off at the same instants, the lift-off instant's outputs included."""
+@pytest.fixture(scope='class')
+def mixed_lone_runs() -> LoneRuns:
+    """The robots of ``mixed_start`` alone, 400 steps: computed once for both engines' batches."""
     robots, q0, torques = mixed_start()
-    qd0 = np.zeros((12, DOF))
-    batch = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine=engine)
-    batch.set_motor_torque(torques)
-    singles = [Simulation(robot, None, DRIVEN, q0[i], qd0[i], contact='coulomb') for i, robot in enumerate(robots)]
+    singles = [Simulation(robot, None, DRIVEN, q0[i], np.zeros(DOF), contact='coulomb') for i, robot in enumerate(robots)]
     for single, torque in zip(singles, torques):
         single.set_motor_torque(*torque)
-    found = compare_contact(batch, singles, 400)
-    detached = ~np.isnan(found['t_detached'])
-    assert detached.any() and found['slipped'].any() and np.any(~detached & ~found['slipped']), \
-        'the batch should mix robots that detach, slide, and do neither'
-    assert np.all(found['t_detached'][detached] > 0.0), 'a robot should detach mid-run, not at the start'
+    return lone_runs(singles, 400)
+
+
+class Test_coulomb_against_lone_robots:
+    @pytest.mark.parametrize('engine', ENGINES)
+    def test_coulomb_batch_agrees_robot_by_robot_through_slip_and_detachment(self, engine, mixed_lone_runs):
+        """Driven robots at rest under random torques: some stick, some slide, some peel off; each as alone, its
+        wheels' stick/slip transitions and its lift-off at the same instants, the lift-off instant's outputs
+        included."""
+        robots, q0, torques = mixed_start()
+        batch = BatchSimulation(robots, None, DRIVEN, q0, np.zeros((12, DOF)), contact='coulomb', engine=engine)
+        batch.set_motor_torque(torques)
+        compare_contact(batch, mixed_lone_runs)
+        detached = ~np.isnan(mixed_lone_runs.t_detached)
+        slipped = mixed_lone_runs.slipped
+        assert detached.any() and slipped.any() and np.any(~detached & ~slipped), \
+            'the batch should mix robots that detach, slide, and do neither'
+        assert np.all(mixed_lone_runs.t_detached[detached] > 0.0), 'a robot should detach mid-run, not at the start'
 
 
 @pytest.mark.parametrize('engine', ENGINES)
@@ -153,8 +197,9 @@ def test_loads_and_friction_use_of_a_tracking_batch_agree(contact, engine):
     batch = BatchSimulation(robots, scenario.reference, selection, q0, qd0, contact=contact, engine=engine)
     singles = [Simulation(robot, scenario.reference, selection, q0[i], qd0[i], contact=contact)
                for i, robot in enumerate(robots)]
-    found = compare_contact(batch, singles, 150)
-    assert not found['slipped'].any() and np.all(np.isnan(found['t_detached']))
+    lone = lone_runs(singles, 150)
+    compare_contact(batch, lone)
+    assert not lone.slipped.any() and np.all(np.isnan(lone.t_detached))
 
 
 def test_an_unknown_contact_model_is_refused():
