@@ -27,6 +27,7 @@ from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_motion_row
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
+from wallbot_sim.sweep.reduce import DecidingRows
 
 if TYPE_CHECKING:
     from wallbot_sim.model.batch import BatchOutputs
@@ -44,6 +45,8 @@ OUTPUT_UNITS = {
     't_detached': 's', 'max_residual': 'm/s^2, rad/s^2', 'feasible': '0 or 1',
 }
 """The unit of each output ('-': a ratio; the residual |A qdd - b| mixes the rows' accelerations)."""
+BLOCK = 2048
+"""Instants of a chunk's robots held at once before they are reduced to the rows deciding their results."""
 FEASIBLE_USE = NumberRange(high=1.0)
 """Friction use a feasible robot stays within: above 1 a wheel would slide on a real wall."""
 
@@ -78,7 +81,8 @@ class RobotRun(NamedTuple):
     """One robot's run as ``simulate`` makes it."""
 
     steps: np.ndarray
-    """Its CSV rows (steps + 1, len(CSV_COLUMNS)), fewer if it detached."""
+    """Its CSV rows (steps + 1, len(CSV_COLUMNS)), fewer if it detached; from the batch, the few of them that
+    decide its results row (``reduce.DecidingRows``), in time order."""
     lift_off: DetachedError | None = None
     """The lift-off that ended it, as simulate reports it (exit status 3). Its load need not be in the
     rows: a command answered at the last written instant can lift a wheel at that same instant."""
@@ -144,9 +148,11 @@ def single_robot_run(settings: RunSettings, params: RobotParameters) -> RobotRun
     return RobotRun(np.array(rows, dtype=float))
 
 
-def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[RobotRun]:
+def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
+                block_size: int = BLOCK) -> Iterator[RobotRun]:
     """Every robot's run on the batch core (the compiled engine where numba is installed), under the example
-    controller if asked: each robot's rows up to its lift-off instant, as simulate writes them."""
+    controller if asked, reduced ``block_size`` instants at a time to the rows deciding its results row
+    (``reduce.DecidingRows``) of its rows up to its lift-off instant, as simulate writes them."""
     # imported here: the batch loads numba (a quarter second), which the CLI's other verbs, importing
     # the sweep's errors and spec, do not need
     from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController, kernel
@@ -160,19 +166,26 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters]) -> Ite
                                        settings.scenario.reference, ControllerGains(), CONTROL_RATE_HZ,
                                        MAX_WHEEL_TORQUE)
         answer = loop.hook(simulation)
-    steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
-    written = np.zeros(len(models), dtype=int)
-    """Each robot's rows: the instants before it detached."""
-    instant = iter(steps)
+    reduced = DecidingRows(robots, len(CSV_COLUMNS))
+    block = np.empty((min(block_size, settings.steps + 1), len(models), len(CSV_COLUMNS)))
+    written = np.empty(block.shape[:2], dtype=bool)
+    """Whether each robot's run has the row: the instants before it detached."""
+    filled = 0
 
     def on_step(out: BatchOutputs) -> None:
-        rows = next(instant)
+        nonlocal filled
+        rows = block[filled]
         fill_motion_rows(out, rows, out.wheel_torques)
         fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
-        written[~out.detached] += 1
+        written[filled] = ~out.detached
+        filled += 1
+        if filled == len(block):
+            reduced.add(block, written)
+            filled = 0
         if answer is not None:  # after the state was recorded, as simulate answers a written state
             answer(out)
 
     simulation.run(settings.steps, on_step)
+    reduced.add(block[:filled], written[:filled])
     for i in range(len(models)):
-        yield RobotRun(steps[:written[i], i], simulation.lift_off(i))
+        yield RobotRun(reduced.run(i), simulation.lift_off(i))
