@@ -138,6 +138,7 @@ def _compile_kernels() -> None:
 SHARED_FIXTURE_MODULES = frozenset({
     'test/test_cli_motors.py', 'test/test_cli_tools.py', 'test/test_constraint_table.py', 'test/test_layering.py',
     'test/test_packaging.py', 'test/test_parameter_ranges.py', 'test/test_peer_mujoco.py', 'test/test_sweep.py',
+    'test/test_sweep_reduce.py',
     'test/test_view.py',
 })
 """The modules whose tests share a module-scoped fixture (a colcon build, a sweep, MuJoCo's runs): ``make test``

@@ -29,7 +29,7 @@ from wallbot_sim.model import ParameterError
 from wallbot_sim.rundata import load_run, summarize
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.sweep import SweepError, parse_spec
-from wallbot_sim.sweep.compute import OUTPUTS, batch_supports
+from wallbot_sim.sweep.compute import OUTPUTS, batch_supports, chunk_results, result_row, single_robot_run
 from wallbot_sim.sweep.store import read_results
 
 BATCH_SPEC = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', 'duration': 0.3,
@@ -38,8 +38,12 @@ BATCH_SPEC = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', '
 """Four robots on the batch core (ideal contact, no controller)."""
 CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'coulomb', 'controller': True, 'controller_mass_scale': 1.2,
                    'duration': 0.3, 'grid': {'adhesion_force': [200.0], 'com_height': [0.05, 0.4]}, 'chunk_size': 1}
-"""Two robots on the single-robot Simulation under the controller, the one with the higher CoM tipping off
-the wall at once."""
+"""Two robots on the batch core under the controller: the robot file's slides a wheel and holds, the one with
+the higher CoM tips off the wall at once."""
+IDEAL_CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'ideal', 'controller': True, 'controller_mass_scale': 0.8,
+                         'duration': 0.3, 'grid': {'adhesion_force': [100.0, 200.0]}, 'chunk_size': 2}
+"""Two robots under the controller with every constraint held: the weaker adhesion's loads go negative (an ideal
+run's lift-off, found in its rows)."""
 ROUND_OFF = {'max_residual': 1e-9}
 """Absolute tolerances of outputs that are round-off (the constraint residual: each engine's own round-off)."""
 POLL = 0.05
@@ -132,16 +136,17 @@ def test_batch_rows_agree_with_single_simulate_runs(batch_sweep, tmp_path):
     assert_rows_match_simulate(batch_sweep, BATCH_SPEC, tmp_path, rtol=1e-9)
 
 
-def test_controller_rows_agree_with_simulate_runs_on_the_other_engine(tmp_path):
-    """The sweep's single runs compute on the Python model, simulate on its default numba engine: the same
-    rows to 1e-9, the same lift-off."""
-    spec = parse_spec(CONTROLLER_SPEC)
-    assert not batch_supports(spec.settings)
-    run_sweep(write_spec(tmp_path, CONTROLLER_SPEC), tmp_path / 'out', '--workers', 1)
-    assert_rows_match_simulate(tmp_path / 'out', CONTROLLER_SPEC, tmp_path, rtol=1e-9)
+@pytest.mark.parametrize('values, slipped, detached', [(CONTROLLER_SPEC, [1.0, 1.0], [0.0, 1.0]),
+                                                       (IDEAL_CONTROLLER_SPEC, [0.0, 0.0], [1.0, 0.0])])
+def test_controller_rows_agree_with_simulate_runs(values, slipped, detached, tmp_path):
+    """Coulomb or ideal contact under the controller, on the batch core: each row simulate's run of its robot to
+    1e-9 on every column, a robot that slides and holds and one that lifts off included."""
+    assert batch_supports(parse_spec(values).settings)
+    run_sweep(write_spec(tmp_path, values), tmp_path / 'out', '--workers', 1)
+    assert_rows_match_simulate(tmp_path / 'out', values, tmp_path, rtol=1e-9)
     names, rows = read_results(tmp_path / 'out' / 'results.csv')
-    detached = [dict(zip(names, row))['detached'] for row in rows]
-    assert detached == [0.0, 1.0]  # the higher CoM lifts a wheel, the robot file's holds
+    assert [dict(zip(names, row))['slipped'] for row in rows] == slipped
+    assert [dict(zip(names, row))['detached'] for row in rows] == detached
 
 
 def test_a_world_sweep_runs_robot_by_robot_as_simulate_world_runs_each_robot(tmp_path):
@@ -391,3 +396,8 @@ def test_a_robot_lifted_by_the_command_answered_at_its_last_row_counts_as_detach
     # simulate (numba) prints the lifted wheel's load to 0.01 N: that column agrees to its print, the others to the
     # engines' 1e-9
     assert_rows_match_simulate(tmp_path / 'out', spec, tmp_path, rtol=1e-9, printed=('min_normal_load',))
+    # the single-robot model's lift-off (python engine, its DetachedError) to 1e-9, that load included
+    params = load_robot_parameters().replace(adhesion_force=100.0, com_height=0.05)
+    alone = result_row(single_robot_run(parse_spec(spec).settings, params), params)
+    assert chunk_results(parse_spec(spec).settings, [params])[0] == pytest.approx(alone, rel=1e-9, abs=1e-9,
+                                                                                 nan_ok=True)

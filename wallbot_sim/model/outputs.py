@@ -12,6 +12,14 @@ from wallbot_sim.model.friction import FrictionUse
 from wallbot_sim.model.trajectories import ReferenceSample
 
 
+def lifted_wheels(loads: np.ndarray) -> np.ndarray:
+    """The wheel (1..4) lifting off at each instant or robot of ``loads`` (..., 4): the one of the most negative
+    load, 0 while every load is >= 0. A coulomb run stops at the first instant this is not 0: the one definition
+    of a lift-off the single robot and the batch share."""
+    lowest = np.argmin(loads, axis=-1)
+    return np.where(np.take_along_axis(loads, lowest[..., None], axis=-1)[..., 0] < 0.0, lowest + 1, 0)
+
+
 @dataclass(frozen=True)
 class DriveForces:
     """Longitudinal traction of each side and the lateral force at the centre (N)."""
@@ -76,9 +84,7 @@ class ContactOutputs:
     @property
     def detached_wheel(self) -> int | None:
         """The wheel (1..4) with the most negative load, or None while every load is >= 0."""
-        loads = self.loads.tolist()
-        lowest = min(loads)
-        return loads.index(lowest) + 1 if lowest < 0.0 else None
+        return int(lifted_wheels(self.loads)) or None
 
 
 @dataclass(frozen=True)

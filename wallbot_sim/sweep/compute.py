@@ -3,29 +3,34 @@
 Every robot runs as ``wallbot-sim simulate`` runs it (same scenario, constraints, contact, controller,
 step), and its row holds the numbers the run summary and the motor analysis of ``wallbot_sim.rundata``
 give for that run's CSV. :func:`robot_runs` is the one place that chooses how the runs are computed:
-the batch core (``wallbot_sim.model.batch``) for what it supports, the single-robot ``Simulation``
-(python engine) robot by robot otherwise: the coulomb contact, the controller, a world file.
+the batch core (``wallbot_sim.model.batch``: ideal or coulomb contact, with or without the example
+controller) on the vertical, uniform wall, the single-robot ``Simulation`` (python engine) robot by
+robot on a world file's surface, which the batch does not compute.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterator, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
-from wallbot_sim.control import TrackingController
-from wallbot_sim.control.sampling import SampledController, close_loop, controller_robot
+from wallbot_sim.control import ControllerGains, TrackingController
+from wallbot_sim.control.sampling import (
+    CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot)
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
 from wallbot_sim.model.contact import DetachedError
 from wallbot_sim.model.numbers import NumberRange
-from wallbot_sim.model.wheel_forces import split_chassis_wrench, wheel_use
 from wallbot_sim.model.world import World
-from wallbot_sim.rundata.csv_format import COLUMN, CSV_COLUMNS, csv_row, fill_motion_rows, fill_wheel_rows
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_motion_rows, fill_wheel_rows
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
+from wallbot_sim.sweep.reduce import DecidingRows
+
+if TYPE_CHECKING:
+    from wallbot_sim.model.batch import BatchOutputs
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
            'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use1', 'max_use2',
@@ -40,6 +45,8 @@ OUTPUT_UNITS = {
     't_detached': 's', 'max_residual': 'm/s^2, rad/s^2', 'feasible': '0 or 1',
 }
 """The unit of each output ('-': a ratio; the residual |A qdd - b| mixes the rows' accelerations)."""
+BLOCK = 2048
+"""Instants of a chunk's robots held at once before they are reduced to the rows deciding their results."""
 FEASIBLE_USE = NumberRange(high=1.0)
 """Friction use a feasible robot stays within: above 1 a wheel would slide on a real wall."""
 
@@ -65,16 +72,17 @@ class RunSettings:
 
 
 def batch_supports(settings: RunSettings) -> bool:
-    """Whether the batch core runs these settings (ideal contact, no controller, no world file: the batch computes
-    the vertical, uniform wall only)."""
-    return settings.contact == 'ideal' and not settings.controller and settings.world is None
+    """Whether the batch core runs these settings (no world file: the batch computes the vertical, uniform wall
+    only)."""
+    return settings.world is None
 
 
 class RobotRun(NamedTuple):
     """One robot's run as ``simulate`` makes it."""
 
     steps: np.ndarray
-    """Its CSV rows (steps + 1, len(CSV_COLUMNS)), fewer if it detached."""
+    """Its CSV rows (steps + 1, len(CSV_COLUMNS)), fewer if it detached; from the batch, the few of them that
+    decide its results row (``reduce.DecidingRows``), in time order."""
     lift_off: DetachedError | None = None
     """The lift-off that ended it, as simulate reports it (exit status 3). Its load need not be in the
     rows: a command answered at the last written instant can lift a wheel at that same instant."""
@@ -83,10 +91,10 @@ class RobotRun(NamedTuple):
 def robot_runs(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[RobotRun]:
     """Per robot, in order, its run."""
     if batch_supports(settings):
-        yield from (RobotRun(steps) for steps in _batch_steps(settings, robots))
+        yield from _batch_runs(settings, robots)
     else:
         for params in robots:
-            yield _single_run(settings, params)
+            yield single_robot_run(settings, params)
 
 
 def chunk_results(settings: RunSettings, robots: Sequence[RobotParameters]) -> list[list[float]]:
@@ -116,7 +124,8 @@ def result_row(robot_run: RobotRun, params: RobotParameters) -> list[float]:
             int(feasible)]
 
 
-def _single_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
+def single_robot_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
+    """One robot's run on the single-robot ``Simulation`` (python engine), as simulate runs it."""
     robot = Robot(params, settings.world)
     q0, qd0 = settings.scenario.initial_state(robot)
     simulation = Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0, dt=settings.dt,
@@ -139,30 +148,44 @@ def _single_run(settings: RunSettings, params: RobotParameters) -> RobotRun:
     return RobotRun(np.array(rows, dtype=float))
 
 
-def _batch_steps(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[np.ndarray]:
+def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
+                block_size: int = BLOCK) -> Iterator[RobotRun]:
+    """Every robot's run on the batch core (the compiled engine where numba is installed), under the example
+    controller if asked, reduced ``block_size`` instants at a time to the rows deciding its results row
+    (``reduce.DecidingRows``) of its rows up to its lift-off instant, as simulate writes them."""
     # imported here: the batch loads numba (a quarter second), which the CLI's other verbs, importing
     # the sweep's errors and spec, do not need
-    from wallbot_sim.model.batch import BatchSimulation
+    from wallbot_sim.model.batch import BatchSimulation, BatchTrackingController, kernel
     models = [Robot(params) for params in robots]
-    simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt)
-    steps = np.empty((settings.steps + 1, len(models), len(CSV_COLUMNS)))
-    instant = iter(steps)
-    simulation.run(settings.steps, lambda out: fill_motion_rows(out, next(instant), out.wheel_torques))
-    for i, model in enumerate(models):
-        _fill_ideal_wheel_rows(steps[:, i], model)
-        yield steps[:, i]
+    simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt,
+                                               contact=settings.contact,
+                                               engine='numba' if kernel.available() else 'numpy')
+    answer = None
+    if settings.controller:  # each controller's robot is its robot's, its mass scaled
+        loop = BatchTrackingController([controller_robot(params, settings.controller_mass_scale) for params in robots],
+                                       settings.scenario.reference, ControllerGains(), CONTROL_RATE_HZ,
+                                       MAX_WHEEL_TORQUE)
+        answer = loop.hook(simulation)
+    reduced = DecidingRows(robots, len(CSV_COLUMNS))
+    block = np.empty((min(block_size, settings.steps + 1), len(models), len(CSV_COLUMNS)))
+    written = np.empty(block.shape[:2], dtype=bool)
+    """Whether each robot's run has the row: the instants before it detached."""
+    filled = 0
 
+    def on_step(out: BatchOutputs) -> None:
+        nonlocal filled
+        rows = block[filled]
+        fill_motion_rows(out, rows, out.wheel_torques)
+        fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
+        written[filled] = ~out.detached
+        filled += 1
+        if filled == len(block):
+            reduced.add(block, written)
+            filled = 0
+        if answer is not None:  # after the state was recorded, as simulate answers a written state
+            answer(out)
 
-def _fill_ideal_wheel_rows(rows: np.ndarray, robot: Robot) -> None:
-    """The wheels' columns of a batch robot's CSV rows: ideal contact's per-wheel outputs, the split of the
-    chassis wrench by the loads (``wheel_forces.ideal_wheel_outputs``, what ``Simulation`` reports), from the rows'
-    heading, wrench and loads; nothing slides.
-
-    The batch's outputs carry no per-wheel contact yet. Once they carry ``StepTable``'s ``wheel_use``,
-    ``wheel_slipping`` and ``wheel_forces``, ``csv_format.fill_rows`` fills these columns from them at each
-    instant, and this goes.
-    """
-    loads = rows[:, COLUMN['N1']:COLUMN['N1'] + 4]
-    forces = split_chassis_wrench(rows[:, COLUMN['theta']], rows[:, COLUMN['Fx']:COLUMN['Fx'] + 3], loads,
-                                  robot.wheel_offsets)
-    fill_wheel_rows(rows, wheel_use(forces, loads, robot.params.wall_friction), np.zeros(loads.shape), forces)
+    simulation.run(settings.steps, on_step)
+    reduced.add(block[:filled], written[:filled])
+    for i in range(len(models)):
+        yield RobotRun(reduced.run(i), simulation.lift_off(i))

@@ -46,8 +46,8 @@ SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration',
             'controller_mass_scale', 'robot', 'world', 'chunk_size')
 VARIATION = ('grid', 'vary', 'samples', 'seed')
 CHUNK_ROBOT_STEPS = 1_200_000
-"""Robot-steps of a chunk by default: a chunk keeps every step of its robots in memory, 392 bytes per
-robot-step (a CSV row; about 470 MB), until each robot's run is summarized."""
+"""Robot-steps of a chunk by default: the work of one task, what a Ctrl-C loses at most per worker (its memory
+is ``compute.BLOCK`` instants of its robots at most, whatever their duration)."""
 MAX_CHUNK_SIZE = 250
 ROBOT_KEYS = tuple(f.name for f in fields(RobotParameters) if f.name not in OPTIONAL_BLOCKS)
 

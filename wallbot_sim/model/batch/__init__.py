@@ -19,7 +19,8 @@ dt, contact, engine)`` with every robot at the scenario's start.
     ``on_step(BatchOutputs)`` at every instant, both ends included, as ``Simulation.run``; it returns
     the final outputs (with no hook none are computed: the fastest way to advance). ``outputs()``:
     ``BatchOutputs`` now. ``t``, ``steps``, ``q``, ``qd``; with coulomb contact ``detached`` (N,) bool,
-    ``t_detached`` (N,) s (NaN: on the wall), ``detached_wheel`` (N,) 1..4 (0: none). A detached robot
+    ``t_detached`` (N,) s (NaN: on the wall), ``detached_wheel`` (N,) 1..4 (0: none), ``lift_off(i)`` the
+    ``DetachedError`` ``Simulation.step`` raises for robot i alone (None: on the wall). A detached robot
     keeps its state; the others go on. DivergedError names robots whose state stops being finite.
 
 ``BatchOutputs``: t; q, qd, acceleration, constraint_force (N, 7); residual (N,); motor_torque

@@ -76,12 +76,6 @@ def friction_use(robots: RobotBatch, drive: np.ndarray, loads: np.ndarray) -> np
     return np.where(limit > 0.0, ratio, np.where(force == 0.0, 0.0, np.inf))
 
 
-def detached_wheels(loads: np.ndarray) -> np.ndarray:
-    """(N,) the wheel (1..4) with the most negative load, 0 while every load is >= 0 (``detached_wheel``)."""
-    lowest = np.argmin(loads, axis=1)
-    return np.where(np.take_along_axis(loads, lowest[:, None], axis=1)[:, 0] < 0.0, lowest + 1, 0)
-
-
 class BatchCoulomb:
     """Every robot's coulomb contact per wheel: its sliding wheels and held loads, and its settled step boundary."""
 

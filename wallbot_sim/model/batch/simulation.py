@@ -9,16 +9,17 @@ import numpy as np
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, BatchWheelContact, build_batch_modules
 from wallbot_sim.model.batch.contact import (
-    BatchCoulomb, BatchMotion, detached_wheels, drive_forces, friction_use, normal_loads)
+    BatchCoulomb, BatchMotion, drive_forces, friction_use, normal_loads)
 from wallbot_sim.model.batch.outputs import BatchOutputs, StepHook
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
-from wallbot_sim.model.contact import COULOMB, IDEAL, check_contact_model, coulomb_table
+from wallbot_sim.model.contact import COULOMB, IDEAL, DetachedError, check_contact_model, coulomb_table
 from wallbot_sim.model.contact_kinematics import contact_velocities
 from wallbot_sim.model.errors import DivergedError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
+from wallbot_sim.model.outputs import lifted_wheels
 from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.scenario import Scenario
 from wallbot_sim.model.simulation import DEFAULT_STEP
@@ -85,6 +86,8 @@ class BatchSimulation:
         """When each detached robot's wheel lifted off (s); NaN for the others."""
         self.detached_wheel = np.zeros(self.size, dtype=int)
         """The wheel (1..4) that lifted off, 0 for a robot still on the wall."""
+        self._lift_off_load = np.full(self.size, np.nan)
+        """The lifted wheel's load at each detached robot's lift-off instant (N)."""
         self._cached: BatchOutputs | None = None
         self._constants: np.ndarray | None = None
         """The compiled engine's per-robot constants, made on its first step."""
@@ -259,10 +262,11 @@ class BatchSimulation:
         k1 = None
         if self.coulomb_applies:
             out = self.outputs()
-            wheel = detached_wheels(out.loads)
+            wheel = lifted_wheels(out.loads)
             newly = (wheel > 0) & ~self.detached
             self.detached_wheel[newly] = wheel[newly]
             self.t_detached[newly] = self.t
+            self._lift_off_load[newly] = out.loads[newly, wheel[newly] - 1]
             self.detached |= newly
             if self.engine == NUMBA:
                 self._compiled_contact_step()
@@ -275,6 +279,14 @@ class BatchSimulation:
         if self.detached.any():
             y[self.detached] = self._y[self.detached]
         self._advance(y, np.all(np.isfinite(y), axis=1))
+
+    def lift_off(self, robot: int) -> DetachedError | None:
+        """The lift-off that stopped robot ``robot`` (``Simulation.step``'s DetachedError for it alone), None while
+        it is on the wall."""
+        if not self.detached[robot]:
+            return None
+        return DetachedError(int(self.detached_wheel[robot]), float(self._lift_off_load[robot]),
+                             float(self.t_detached[robot]))
 
     def _advance(self, y: np.ndarray, finite: np.ndarray) -> None:
         """One step taken: the new states y, or DivergedError (states unchanged) if a robot's is not ``finite``."""
