@@ -297,6 +297,7 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
             lambda out: wallbot('sweep', str(specs[8]), '--out', str(out), '--scheduler', UNREACHABLE),
     }
     walls: dict[tuple[str, str], list[float]] = {}
+    cpus: dict[tuple[str, str], list[float]] = {}
     outcome: dict[tuple[str, str], str] = {}
     for round_ in range(rounds):
         for tree in trees:
@@ -304,23 +305,25 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
                 out = work / f'sweep-{tree.label}-{round_}-{index}'  # a fresh directory: a used one would resume
                 timing = timed(command(out), tree.env(), work)
                 walls.setdefault((tree.label, name), []).append(timing.wall)
+                cpus.setdefault((tree.label, name), []).append(timing.cpu)
                 lines = [line for line in timing.stderr.splitlines() if line.strip() and not line.startswith('  ')]
                 unexpected = [line for line in lines if not line.startswith(('sweep:', 'wrote ', 'wallbot-sim sweep'))]
                 outcome[tree.label, name] = (f'exit {timing.status}, {len(unexpected)} other lines'
                                              + (', output left behind' if out.exists() and timing.status else ''))
                 said = ''.join(f'\n    {line}' for line in (unexpected or lines[-1:] if timing.status else unexpected))
-                print(f'sweep {tree.label} {name} round {round_ + 1}: {timing.wall:.2f} s '
+                print(f'sweep {tree.label} {name} round {round_ + 1}: {timing.wall:.2f} s, {timing.cpu:.2f} s CPU '
                       f'({outcome[tree.label, name]}; load {os.getloadavg()[0]:.1f}){said}', flush=True)
     header = ['`wallbot-sim sweep`', *(f'{tree.label}: wall s' for tree in trees),
-              *(f'{tree.label}: outcome' for tree in trees)]
+              *(f'{tree.label}: CPU s, every process' for tree in trees), *(f'{tree.label}: outcome' for tree in trees)]
     if len(trees) == 2:
-        header.append(f'{trees[0].label} / {trees[1].label}')
+        header += [f'wall: {trees[0].label} / {trees[1].label}', f'CPU: {trees[0].label} / {trees[1].label}']
     rows = []
     for name in variants:
         row = [name, *(cell(walls[tree.label, name]) for tree in trees),
-               *(outcome[tree.label, name] for tree in trees)]
+               *(cell(cpus[tree.label, name]) for tree in trees), *(outcome[tree.label, name] for tree in trees)]
         if len(trees) == 2:
-            row.append(ratio(walls[trees[0].label, name], walls[trees[1].label, name]))
+            row += [ratio(walls[trees[0].label, name], walls[trees[1].label, name]),
+                    ratio(cpus[trees[0].label, name], cpus[trees[1].label, name])]
         rows.append(row)
     report.table(header, rows, 'Sweeps, whole commands (shortest / median; other lines: on stderr besides the '
                                "verb's own, such as a library's warning):")
