@@ -87,7 +87,7 @@ def main(args: argparse.Namespace) -> int:
         progress.update(len(rows), force=len(directory.pending()) == 0)
 
     # the painters start before the chunks compute: matplotlib loads in them meanwhile
-    with nullcontext() if args.no_figures else FigurePainters() as painters:
+    with nullcontext() if args.no_figures else FigurePainters(parameter_columns(spec)) as painters:
         try:
             run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
         except SweepError:
@@ -95,7 +95,7 @@ def main(args: argparse.Namespace) -> int:
                 directory.remove_unused()
             raise
         results = directory.assemble()
-        figures = painters.paint(results, parameter_columns(spec)) if painters is not None else []
+        figures = painters.paint(results) if painters is not None else []
     if not args.quiet:
         print(f'wrote {results}' + (f' and {len(figures)} figures' if figures else ''), file=sys.stderr)
     return 0

@@ -13,7 +13,9 @@ shorter than 5 s) gets no panel, nor does one that is the same for every robot (
 of a sweep that does not vary it): the title names both; legends stand outside the data.
 
 The panels stand where fixed margins put them (room for the tick labels and the axis labels), not where
-a layout engine measures them: measuring draws every tick label once more, which doubled the drawing.
+a layout engine measures them: measuring draws every tick label once more, which doubled the drawing. A
+figure is sketched (its axes and their ticks made) before it is finished with the data, so a painter
+process can sketch while the chunks compute.
 """
 
 from __future__ import annotations
@@ -43,6 +45,14 @@ LEGEND_ROOM = 0.45
 """Inches below the panels for the legend."""
 TICKS = 5
 """Intervals between a panel's ticks at most (each tick label costs its drawing)."""
+SKETCH_TICKS = TICKS + 3
+"""Ticks a sketch makes on each axis: up to TICKS + 1 within the data, one beyond each end."""
+PANEL_OUTPUTS = tuple(name for name in OUTPUTS if name != 'feasible')
+"""The outputs that may get a panel (feasibility colours the points)."""
+MAP_SIZE = (7.0, 5.8)
+MAP_AXES = (0.12, 0.19, 0.64, 0.74)
+MAP_COLORBAR = (0.8, 0.19, 0.035, 0.74)
+"""A map's size (inches) and where its axes and its colour bar stand (fractions of it)."""
 UNITLESS = ('-', '0 or 1')
 """Units a note of a value leaves out."""
 
@@ -80,7 +90,7 @@ class SweepTable:
         """The table of results (``names``: the header, ``rows``) over those ``parameters`` columns."""
         table = np.array(rows, dtype=float).reshape(len(rows), len(names))
         column = {name: table[:, i] for i, name in enumerate(names)}
-        outputs = [name for name in OUTPUTS if name != 'feasible']
+        outputs = PANEL_OUTPUTS
         without = [name for name in outputs if not np.isfinite(column[name]).any()]
         same = {name: float(column[name][0]) for name in outputs
                 if np.isfinite(column[name]).all() and np.ptp(column[name]) == 0.0}
@@ -104,24 +114,54 @@ def sweep_figures(plt: Any, names: list[str], rows: list[list[float]], parameter
         yield draw_figure(plt, table, file), file
 
 
-def draw_figure(plt: Any, table: SweepTable, file: str) -> Any:
-    """The figure ``file`` (one of ``table.files()``), laid out."""
-    kind, _, name = file.removesuffix('.png').partition('_vs_' if file.startswith('outputs_vs_') else '_')
-    if kind == 'outputs':
-        return _outputs_figure(plt, table, name)
-    return _map_figure(plt, table, name)
+def sketches(plt: Any, parameters: list[str]) -> dict[str, Any]:
+    """The sketch of every figure that results over those ``parameters`` columns may have, by file name."""
+    files = [f'outputs_vs_{parameter}.png' for parameter in parameters]
+    if len(parameters) >= 2:
+        files += [f'map_{output}.png' for output in MAP_OUTPUTS]
+    return {file: sketch(plt, file) for file in files}
 
 
-def write_figure(plt: Any, table: SweepTable, file: str, out_dir: Path) -> Path:
-    """Draw the figure ``file`` into ``out_dir``."""
-    fig = draw_figure(plt, table, file)
+def sketch(plt: Any, file: str) -> Any:
+    """The figure ``file`` before its data: its axes with their ticks made (a third of drawing a panel), for
+    :func:`draw_figure` to finish. A painter sketches while the chunks compute."""
+    if file.startswith('outputs_vs_'):
+        fig = plt.figure()
+        for output in PANEL_OUTPUTS:
+            _make_ticks(fig.add_axes((0.0, 0.0, 1.0, 1.0), label=output))
+    else:
+        fig = plt.figure(figsize=MAP_SIZE)
+        _make_ticks(fig.add_axes(MAP_AXES))
+        fig.add_axes(MAP_COLORBAR, label='<colorbar>')
+    return fig
+
+
+def draw_figure(plt: Any, table: SweepTable, file: str, sketched: Any = None) -> Any:
+    """The figure ``file`` (one of ``table.files()``), laid out: its ``sketched`` figure finished (default: sketched
+    now)."""
+    fig = sketch(plt, file) if sketched is None else sketched
+    if file.startswith('outputs_vs_'):
+        _finish_outputs(fig, table, file.removeprefix('outputs_vs_').removesuffix('.png'))
+    else:
+        _finish_map(fig, table, file.removeprefix('map_').removesuffix('.png'))
+    return fig
+
+
+def write_figure(plt: Any, table: SweepTable, file: str, out_dir: Path, sketched: Any = None) -> Path:
+    """Draw the figure ``file`` into ``out_dir`` (finishing its ``sketched`` figure)."""
+    fig = draw_figure(plt, table, file, sketched)
     path = out_dir / file
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
 
 
-def _outputs_figure(plt: Any, table: SweepTable, parameter: str) -> Any:
+def _make_ticks(ax: Any) -> None:
+    ax.xaxis.get_major_ticks(SKETCH_TICKS)
+    ax.yaxis.get_major_ticks(SKETCH_TICKS)
+
+
+def _finish_outputs(fig: Any, table: SweepTable, parameter: str) -> None:
     notes = [f'sweep outputs against {parameter} ({table.robots} robots)']
     if table.without:
         notes.append(f'no values: {", ".join(table.without)}')
@@ -132,14 +172,19 @@ def _outputs_figure(plt: Any, table: SweepTable, parameter: str) -> Any:
     rows = -(-len(table.drawn) // columns)
     title = TITLE_LINE * len(notes) + 0.1
     width, height = PANEL[0] * columns, PANEL[1] * rows + title + LEGEND_ROOM
-    fig = plt.figure(figsize=(width, height))
+    fig.set_size_inches(width, height)
+    panels = {ax.get_label(): ax for ax in fig.axes}
+    for output, ax in panels.items():
+        if output not in table.drawn:
+            fig.delaxes(ax)
     left, right, below, above = PANEL_MARGINS
     x = table.column[parameter]
     for index, output in enumerate(table.drawn):
         row, col = divmod(index, columns)
         bottom = height - title - PANEL[1] * (row + 1) + below
-        ax = fig.add_axes((((col * PANEL[0]) + left) / width, bottom / height,
-                           (PANEL[0] - left - right) / width, (PANEL[1] - below - above) / height))
+        ax = panels[output]
+        ax.set_position((((col * PANEL[0]) + left) / width, bottom / height,
+                         (PANEL[0] - left - right) / width, (PANEL[1] - below - above) / height))
         y = table.column[output]
         ax.plot(x[table.feasible], y[table.feasible], 'o', color='tab:blue', ms=4, label='feasible', clip_on=False)
         ax.plot(x[~table.feasible], y[~table.feasible], 'o', color='tab:red', ms=4, label=INFEASIBLE, clip_on=False)
@@ -149,18 +194,15 @@ def _outputs_figure(plt: Any, table: SweepTable, parameter: str) -> Any:
         ax.locator_params(nbins=TICKS)
     fig.legend(*fig.axes[0].get_legend_handles_labels(), loc='lower center', ncol=2, fontsize='small')
     fig.suptitle('\n'.join(notes), y=1 - 0.1 / height, va='top', fontsize='medium')
-    return fig
 
 
-def _map_figure(plt: Any, table: SweepTable, output: str) -> Any:
+def _finish_map(fig: Any, table: SweepTable, output: str) -> None:
     from matplotlib.tri import Triangulation
 
     first, second = table.parameters
     x, y, value, feasible = table.column[first], table.column[second], table.column[output], table.feasible
     finite = np.isfinite(value)
-    fig = plt.figure(figsize=(7, 5.8))
-    ax = fig.add_axes((0.12, 0.19, 0.64, 0.74))
-    colorbar = fig.add_axes((0.8, 0.19, 0.035, 0.74), label='<colorbar>')
+    ax, colorbar = fig.axes
     triangles = _triangulation(Triangulation, x, y)
     if triangles is not None and finite.all():
         shading = ax.tricontourf(triangles, value, levels=20, cmap='viridis')
@@ -176,7 +218,6 @@ def _map_figure(plt: Any, table: SweepTable, output: str) -> Any:
     ax.set_ylabel(axis_label(second))
     ax.set_title(f'{output} ({table.robots} robots; white line: edge of the feasible region)', fontsize='medium')
     ax.legend(fontsize='small', loc='upper center', bbox_to_anchor=(0.5, -0.12), ncol=2)
-    return fig
 
 
 def _triangulation(triangulation: type, x: np.ndarray, y: np.ndarray) -> object | None:
