@@ -86,7 +86,7 @@ def main(args: argparse.Namespace) -> int:
         directory.write_chunk(index, rows)
         progress.update(len(rows), force=len(directory.pending()) == 0)
 
-    # the painters start before the chunks compute: matplotlib loads in them meanwhile
+    # the painter starts before the chunks compute: matplotlib loads in it meanwhile
     with nullcontext() if args.no_figures else FigurePainters(parameter_columns(spec)) as painters:
         try:
             run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
