@@ -16,7 +16,12 @@ them), and the tables give the shortest and the median. ``--against TREE`` runs 
 TREE first on PYTHONPATH (another checkout of the package, e.g. the commit before a change), in turn with this
 tree's, and gives the ratios this tree / TREE.
 
-    python bench/bench_startup.py [--rounds 3] [--against TREE] [--only run,imports,sweep] [--write-docs [FILE]]
+``--realtime`` runs the bench and every command it starts at a real-time priority (SCHED_RR, root only): above
+every other job on the machine, the commands have the cores to themselves as on a quiet machine (one engineer's
+figures on a machine several share).
+
+    python bench/bench_startup.py [--rounds 3] [--against TREE] [--only run,imports,sweep] [--realtime]
+                                  [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -69,6 +74,8 @@ duration: 2.0
 chunk_size: {chunk_size}
 """
 UNREACHABLE = 'tcp://127.0.0.1:1'
+REALTIME_PRIORITY = 10
+"""SCHED_RR priority of ``--realtime`` (1-99; the kernel's own real-time threads run at 50 and above)."""
 LOG_TIME = re.compile(r'^\[\w+\] \[(\d+\.\d+)\] \[wallbot\.(\w+)\]: (.*)$')
 
 
@@ -297,6 +304,7 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
             lambda out: wallbot('sweep', str(specs[8]), '--out', str(out), '--scheduler', UNREACHABLE),
     }
     walls: dict[tuple[str, str], list[float]] = {}
+    cpus: dict[tuple[str, str], list[float]] = {}
     outcome: dict[tuple[str, str], str] = {}
     for round_ in range(rounds):
         for tree in trees:
@@ -304,23 +312,25 @@ def measure_sweep(trees: Sequence[Tree], rounds: int, work: Path, report: Report
                 out = work / f'sweep-{tree.label}-{round_}-{index}'  # a fresh directory: a used one would resume
                 timing = timed(command(out), tree.env(), work)
                 walls.setdefault((tree.label, name), []).append(timing.wall)
+                cpus.setdefault((tree.label, name), []).append(timing.cpu)
                 lines = [line for line in timing.stderr.splitlines() if line.strip() and not line.startswith('  ')]
                 unexpected = [line for line in lines if not line.startswith(('sweep:', 'wrote ', 'wallbot-sim sweep'))]
                 outcome[tree.label, name] = (f'exit {timing.status}, {len(unexpected)} other lines'
                                              + (', output left behind' if out.exists() and timing.status else ''))
                 said = ''.join(f'\n    {line}' for line in (unexpected or lines[-1:] if timing.status else unexpected))
-                print(f'sweep {tree.label} {name} round {round_ + 1}: {timing.wall:.2f} s '
+                print(f'sweep {tree.label} {name} round {round_ + 1}: {timing.wall:.2f} s, {timing.cpu:.2f} s CPU '
                       f'({outcome[tree.label, name]}; load {os.getloadavg()[0]:.1f}){said}', flush=True)
     header = ['`wallbot-sim sweep`', *(f'{tree.label}: wall s' for tree in trees),
-              *(f'{tree.label}: outcome' for tree in trees)]
+              *(f'{tree.label}: CPU s, every process' for tree in trees), *(f'{tree.label}: outcome' for tree in trees)]
     if len(trees) == 2:
-        header.append(f'{trees[0].label} / {trees[1].label}')
+        header += [f'wall: {trees[0].label} / {trees[1].label}', f'CPU: {trees[0].label} / {trees[1].label}']
     rows = []
     for name in variants:
         row = [name, *(cell(walls[tree.label, name]) for tree in trees),
-               *(outcome[tree.label, name] for tree in trees)]
+               *(cell(cpus[tree.label, name]) for tree in trees), *(outcome[tree.label, name] for tree in trees)]
         if len(trees) == 2:
-            row.append(ratio(walls[trees[0].label, name], walls[trees[1].label, name]))
+            row += [ratio(walls[trees[0].label, name], walls[trees[1].label, name]),
+                    ratio(cpus[trees[0].label, name], cpus[trees[1].label, name])]
         rows.append(row)
     report.table(header, rows, 'Sweeps, whole commands (shortest / median; other lines: on stderr besides the '
                                "verb's own, such as a library's warning):")
@@ -331,8 +341,12 @@ def main() -> int:
     parser.add_argument('--rounds', type=int, default=3, help='times each command runs (in turn with the others)')
     parser.add_argument('--against', metavar='TREE', help='another checkout to compare with (run first on PYTHONPATH)')
     parser.add_argument('--only', default='run,imports,sweep', help='which of run, imports, sweep to measure')
+    parser.add_argument('--realtime', action='store_true',
+                        help='run every command at a real-time priority, above the machine\'s other jobs (root only)')
     add_write_docs_option(parser)
     args = parser.parse_args()
+    if args.realtime:  # the commands inherit it
+        os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(REALTIME_PRIORITY))
     parts = set(args.only.split(','))
     if parts - {'run', 'imports', 'sweep'}:
         parser.error(f'--only takes run, imports and sweep, got {args.only!r}')

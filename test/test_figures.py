@@ -182,3 +182,13 @@ def test_sweep_figures_have_units_no_empty_panels_visible_robots_and_legends_bes
         else:
             feasible = [line for line in fig.axes[0].get_lines() if line.get_label() == 'feasible robot']
             assert feasible and matplotlib.colors.to_rgb(feasible[0].get_markeredgecolor()) != (1.0, 1.0, 1.0)
+
+
+def test_sweep_outputs_the_same_for_every_robot_are_named_in_the_title_not_drawn_flat():
+    names, rows = sweep_table(False)
+    figures = dict((file, fig) for fig, file in sweep_figures(plt, names, rows, ['body_mass', 'com_height']))
+    yield_figures.extend(figures.values())
+    fig = figures['outputs_vs_body_mass.png']
+    assert 'the same for every robot: slipped = 0, detached = 0' in fig.get_suptitle()
+    drawn = {ax.get_ylabel().split(' (')[0] for ax in data_axes(fig)}
+    assert drawn == set(OUTPUTS) - {'feasible', 'peak_err_after_5s', 't_detached', 'slipped', 'detached'}

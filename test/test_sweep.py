@@ -1,4 +1,5 @@
-"""``wallbot-sim sweep``: the spec, results.csv against single simulate runs, resumption, figures, Dask."""
+"""``wallbot-sim sweep``: the spec, results.csv against single simulate runs, resumption, figures (drawn by painter
+processes: as this process draws them, none outliving the command), Dask."""
 
 from __future__ import annotations
 
@@ -17,12 +18,13 @@ import time
 from pathlib import Path
 from typing import Callable
 
+import matplotlib
 import numpy as np
 import pytest
 import yaml
 
 import two_hosts
-from cli_helpers import assert_one_line_error, simulate, wallbot
+from cli_helpers import WALLBOT, assert_one_line_error, simulate, wallbot
 from wallbot_sim.cli.sweep import SweepProgress
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import ParameterError
@@ -30,6 +32,7 @@ from wallbot_sim.rundata import load_run, summarize
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.sweep import SweepError, parse_spec
 from wallbot_sim.sweep.compute import OUTPUTS, batch_supports, chunk_results, result_row, single_robot_run
+from wallbot_sim.sweep.figures import SweepTable, write_figure
 from wallbot_sim.sweep.store import read_results
 
 BATCH_SPEC = {'scenario': 'circle', 'constraints': 'belt,non_lateral,nonslip', 'duration': 0.3,
@@ -44,6 +47,8 @@ IDEAL_CONTROLLER_SPEC = {'scenario': 'circle', 'contact': 'ideal', 'controller':
                          'duration': 0.3, 'grid': {'adhesion_force': [100.0, 200.0]}, 'chunk_size': 2}
 """Two robots under the controller with every constraint held: the weaker adhesion's loads go negative (an ideal
 run's lift-off, found in its rows)."""
+ONE_CHUNK_SPEC = {**BATCH_SPEC, 'chunk_size': 4}
+"""BATCH_SPEC in one chunk: computed in the command's process."""
 ROUND_OFF = {'max_residual': 1e-9}
 """Absolute tolerances of outputs that are round-off (the constraint residual: each engine's own round-off)."""
 POLL = 0.05
@@ -193,6 +198,67 @@ def test_figures_show_each_output_against_each_parameter_and_the_map(batch_sweep
     for name in ('outputs_vs_body_mass', 'outputs_vs_com_height', 'map_least_adhesion_force'):
         png = (batch_sweep / f'{name}.png').read_bytes()
         assert png.startswith(b'\x89PNG') and len(png) > 10_000
+
+
+def processes_naming(text: str) -> list[int]:
+    """The live processes whose command line holds ``text`` (the command and its forked painters share it)."""
+    found = []
+    for entry in Path('/proc').iterdir():
+        if entry.name.isdigit():
+            try:
+                cmdline = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+                state = (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+            except OSError:  # gone meanwhile
+                continue
+            if text in cmdline and state != 'Z':
+                found.append(int(entry.name))
+    return found
+
+
+def test_the_painters_draw_every_planned_figure_as_this_process_draws_it_and_end_with_the_command(tmp_path):
+    out = tmp_path / 'out'
+    result = wallbot('sweep', write_spec(tmp_path, ONE_CHUNK_SPEC), '--out', out)
+    assert result.returncode == 0, result.stderr
+    assert not processes_naming(str(out))
+    names, rows = read_results(out / 'results.csv')
+    table = SweepTable.of(names, rows, ['body_mass', 'com_height'])
+    planned = table.files()
+    assert {'outputs_vs_body_mass.png', 'outputs_vs_com_height.png', 'map_least_adhesion_force.png'} <= set(planned)
+    assert sorted(path.name for path in out.glob('*.png')) == sorted(planned)
+    assert f'and {len(planned)} figures' in result.stderr.splitlines()[-1]
+    matplotlib.use('Agg', force=True)
+    import matplotlib.pyplot as plt
+
+    here = tmp_path / 'here'
+    here.mkdir()
+    for file in planned:
+        assert (out / file).read_bytes() == write_figure(plt, table, file, here).read_bytes(), file
+
+
+def test_an_interrupted_sweep_ends_its_painters_and_says_one_line(tmp_path):
+    """Ctrl-C reaches every process of the command (the terminal signals its process group): the command says
+    'interrupted' alone, its painters print nothing and end."""
+    out = tmp_path / 'out'
+    spec = write_spec(tmp_path, {**ONE_CHUNK_SPEC, 'duration': 60.0})  # still computing when the painters are up
+    sweep = subprocess.Popen([*WALLBOT, 'sweep', str(spec), '--out', str(out), '--quiet'], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + STALL
+        while sweep.poll() is None and len(processes_naming(str(out))) < 2 and time.monotonic() < deadline:
+            time.sleep(POLL)
+        assert sweep.poll() is None and len(processes_naming(str(out))) >= 2, 'no painter started'
+        os.killpg(sweep.pid, signal.SIGINT)
+        _, stderr = sweep.communicate(timeout=STALL)
+    finally:
+        if sweep.poll() is None:
+            os.killpg(sweep.pid, signal.SIGKILL)
+    assert sweep.returncode == 130, stderr
+    assert stderr.strip().splitlines() == ['wallbot-sim sweep: interrupted']
+    deadline = time.monotonic() + STALL
+    while processes_naming(str(out)) and time.monotonic() < deadline:
+        time.sleep(POLL)
+    assert not processes_naming(str(out))
+    assert not list((out / 'chunks').glob('*.csv')) and not list(out.glob('*.png'))
 
 
 def test_another_spec_is_refused_in_a_sweep_directory(batch_sweep, tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from contextlib import nullcontext
 from typing import TextIO
 
 from wallbot_sim.cli.errors import CliError
@@ -57,8 +58,8 @@ def main(args: argparse.Namespace) -> int:
     from wallbot_sim.sweep import load_spec
     from wallbot_sim.sweep.cluster import reach_scheduler, run_chunks
     from wallbot_sim.sweep.errors import SweepError
-    from wallbot_sim.sweep.figures import write_sweep_figures
-    from wallbot_sim.sweep.store import SweepDirectory, parameter_columns, read_results
+    from wallbot_sim.sweep.painters import FigurePainters
+    from wallbot_sim.sweep.store import SweepDirectory, parameter_columns
 
     if args.workers is not None and args.workers < 1:
         raise CliError(f'--workers must be >= 1, got {args.workers}')
@@ -85,17 +86,16 @@ def main(args: argparse.Namespace) -> int:
         directory.write_chunk(index, rows)
         progress.update(len(rows), force=len(directory.pending()) == 0)
 
-    try:
-        run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
-    except SweepError:
-        if created:
-            directory.remove_unused()
-        raise
-    results = directory.assemble()
-    figures = []
-    if not args.no_figures:
-        names, rows = read_results(results)
-        figures = write_sweep_figures(names, rows, parameter_columns(spec), directory.path)
+    # the painter starts before the chunks compute: matplotlib loads in it meanwhile
+    with nullcontext() if args.no_figures else FigurePainters(parameter_columns(spec)) as painters:
+        try:
+            run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
+        except SweepError:
+            if created:
+                directory.remove_unused()
+            raise
+        results = directory.assemble()
+        figures = painters.paint(results) if painters is not None else []
     if not args.quiet:
         print(f'wrote {results}' + (f' and {len(figures)} figures' if figures else ''), file=sys.stderr)
     return 0

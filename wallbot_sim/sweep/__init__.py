@@ -4,7 +4,8 @@
     rows = chunk_results(spec.settings, [spec.parameters(i) for i in spec.chunks()[0]])
 
 ``wallbot-sim sweep`` runs the chunks on Dask (``wallbot_sim.sweep.cluster``), stores them in the
-output directory (``wallbot_sim.sweep.store``) and draws the figures (``wallbot_sim.sweep.figures``).
+output directory (``wallbot_sim.sweep.store``) and draws the figures (``wallbot_sim.sweep.figures``) in
+a painter process started while the chunks compute (``wallbot_sim.sweep.painters``).
 """
 
 from wallbot_sim.sweep.compute import OUTPUTS, RunSettings, chunk_results
