@@ -32,7 +32,7 @@ class Monitor:
     def __init__(self, namespace: str = topics.NAMESPACE, domain_id: int | None = None) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
-        from nav_msgs.msg import Odometry
+        from nav_msgs.msg import Odometry, Path
         from rosgraph_msgs.msg import Clock
         from std_msgs.msg import Float64MultiArray
 
@@ -61,6 +61,9 @@ class Monitor:
         self.snapshot: DynamicsSnapshot | None = None
         """The newest state the dynamics published as a snapshot (at its events, and where a stop holds it)."""
         self.reference_time = -math.inf
+        self.planned = False
+        """Whether the trajectory node's path (latched, published with each plan) has arrived: it plans once a
+        recorder hears its reference, so its poses from then on are recorded."""
         self.progress_topic = topics.RECORD_PROGRESS.resolve(namespace)
         self._parameters = None
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
@@ -70,6 +73,8 @@ class Monitor:
         # only the stamp is read (100 poses per simulated second)
         self.reference_subscription = self.node.create_subscription(
             Odometry, topics.REFERENCE.name, self._on_reference, qos_profile(topics.REFERENCE), raw=True)
+        self.node.create_subscription(Path, topics.REFERENCE_PATH.name, self._on_path,
+                                      qos_profile(topics.REFERENCE_PATH), raw=True)
         self.node.create_subscription(Float64MultiArray, topics.STATE_SNAPSHOT.name, self._on_snapshot,
                                       qos_profile(topics.STATE_SNAPSHOT), raw=True)
 
@@ -80,6 +85,9 @@ class Monitor:
         stamp_ns = codec.leading_stamp_ns(data)
         if stamp_ns is not None:
             self.reference_time = stamp_ns * 1e-9
+
+    def _on_path(self, data: bytes) -> None:
+        self.planned = True
 
     def _on_snapshot(self, data: bytes) -> None:
         try:
@@ -108,9 +116,10 @@ class Monitor:
         """Whether the dynamics' latest diagnostics say it is loading its compiled kernel."""
         return self.status == messages.LOADING_KERNEL
 
-    def reference_heard(self) -> bool:
-        """Whether the trajectory node's reference reaches the monitor (the poses sent before do not)."""
-        return self.reference_subscription.get_publisher_count() > 0
+    def reference_planned(self) -> bool:
+        """Whether the trajectory node has planned for a recorder (its latched path has arrived) and its reference
+        reaches the monitor (the poses sent before do not)."""
+        return self.planned and self.reference_subscription.get_publisher_count() > 0
 
     def reference_reached(self, duration: float) -> bool:
         """Whether nothing more of the reference is to come here for a run of ``duration``: its last pose has

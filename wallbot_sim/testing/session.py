@@ -114,8 +114,10 @@ class Session:
         self._wait(self.monitor.recorder_ready, RECORDER_TIMEOUT, 'the recorder did not come up')
         for spec in specs[1:]:
             self.graph.start_node(spec)
-        if self.spec.loaded_scenario() is not None:  # before the run moves the reference on (``finish`` waits for it)
-            self._wait(self.monitor.reference_heard, RECORDER_TIMEOUT, 'the trajectory node did not come up')
+        if self.spec.loaded_scenario() is not None:
+            # before the run moves the reference on: a short run under a controller that needs no plan could otherwise
+            # end before the trajectory node has heard the recorder (seen: a 0.4 s run's bag without its reference)
+            self._wait(self.monitor.reference_planned, RECORDER_TIMEOUT, 'the trajectory node did not come up')
         self._start_controller()
         self._wait(lambda: self.monitor.recorded >= 0.0, self.spec.start_timeout + STALL,
                    'the run did not begin')
