@@ -7,16 +7,43 @@ from __future__ import annotations
 import math
 import os
 import time
-from typing import Mapping
+from contextlib import contextmanager
+from typing import Iterator, Mapping
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot
 from wallbot_sim import messages
+from wallbot_sim.heartbeat import NODE_HEARTBEAT, PROFILES_ENV, PROFILES_ENVS, profile_path
 
 PARAMETER_TIMEOUT = 10.0
 """Wall seconds a parameter set waits for the dynamics' answer."""
 REPLY_WAIT = 2.0
 """Wall seconds to wait for the reply to one parameter request before sending it again."""
+
+
+def participant_environment() -> dict[str, str]:
+    """The environment the monitor joins DDS with: localhost discovery, and (unless the user set a profile file) the
+    nodes' Fast DDS profile, so that it keeps announcing itself while the nodes join (``heartbeat``): a node joining
+    after it would otherwise often find it only at its periodic announcement, 3 s later."""
+    values = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+    if not any(os.environ.get(name) for name in PROFILES_ENVS):
+        values[PROFILES_ENV] = str(profile_path(NODE_HEARTBEAT))
+    return values
+
+
+@contextmanager
+def temporary_environment(values: Mapping[str, str]) -> Iterator[None]:
+    """``values`` in os.environ while the block runs, the previous values (or their absence) restored after."""
+    saved = {name: os.environ.get(name) for name in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 class ParameterRefused(RuntimeError):
@@ -40,17 +67,12 @@ class Monitor:
         from wallbot_sim.nodes.common import events_executor
         self._rclpy = rclpy
         self.context = rclpy.Context()
-        saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read as the context is made
-        try:
+        # read as the context and the process's first participant are made (the profile: once per process); the
+        # launcher's children, started with an environment of their own, choose their own
+        with temporary_environment(participant_environment()):
             rclpy.init(context=self.context, domain_id=domain_id,
                        signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-        finally:
-            if saved is None:
-                os.environ.pop('ROS_AUTOMATIC_DISCOVERY_RANGE')
-            else:
-                os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved
-        self.node = rclpy.create_node('run_monitor', namespace=namespace, context=self.context)
+            self.node = rclpy.create_node('run_monitor', namespace=namespace, context=self.context)
         self.executor = events_executor(self.context)  # a callback per message, no wait set per wake-up
         self.executor.add_node(self.node)
         self.recorded = -math.inf
