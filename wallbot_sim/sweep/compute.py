@@ -185,7 +185,14 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         if answer is not None:  # after the state was recorded, as simulate answers a written state
             answer(out)
 
-    simulation.run(settings.steps, on_step)
+    threads = kernel.numba.get_num_threads() if kernel.available() else 1
+    if kernel.available():  # a chunk is one core's work: the cores run chunks (workers), not a chunk's robots
+        kernel.numba.set_num_threads(1)
+    try:
+        simulation.run(settings.steps, on_step)
+    finally:
+        if kernel.available():
+            kernel.numba.set_num_threads(threads)
     reduced.add(block[:filled], written[:filled])
     for i in range(len(models)):
         yield RobotRun(reduced.run(i), simulation.lift_off(i))
