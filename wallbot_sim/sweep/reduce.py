@@ -5,13 +5,13 @@ Every output of a results row (``compute.result_row``: the run summary and the m
 instant: the first row, the last with a tracking error, each peak |value| (tracking error after 5 s, drive
 forces, residual, each side's motor torque, each wheel's friction use), the least load, the first slip and
 lift-off, and the row binding the least adhesion force (``least_adhesion``: the largest of a per-row
-figure, each row's its own: ``needed_adhesion``). That row is found without bisecting every row: the robot's
-binding row so far (at first its row of the largest friction use) gives a figure, a row holding under that
-adhesion force (``holds_with``, the bisection's test) needs no more, and only the others are bisected, every
-robot's at once. ``DecidingRows`` keeps, per robot, those rows of what it has seen: a block of instants at a time
-it picks them again from the rows it kept and the block, so it holds a few rows per robot whatever the
-duration. ``result_row`` over the kept rows then gives the row of the whole run: the same summary and
-motor analysis, over a subset holding every row that decides them.
+figure, each row's its own: ``needed_adhesion``). That row is found without bisecting every row: the largest
+figure of a few rows (the robot's binding row so far, its least loaded row, each wheel's peak friction use) is
+a lower bound, a row holding under that adhesion force (``holds_with``, the bisection's test) needs no more, and
+only the others are bisected, every robot's at once. ``DecidingRows`` keeps, per robot, those rows of what it
+has seen: a block of instants at a time it picks them again from the rows it kept and the block, so it holds a
+few rows per robot whatever the duration. ``result_row`` over the kept rows then gives the row of the whole
+run: the same summary and motor analysis, over a subset holding every row that decides them.
 """
 
 from __future__ import annotations
@@ -73,43 +73,48 @@ def deciding_rows(rows: np.ndarray, valid: np.ndarray, robots: Sequence[Robot],
                                                                             _wheels(rows, 'fy')), axis=3)
     contact = (valid & np.all(np.isfinite(loads), axis=2) & np.all(np.isfinite(use), axis=2)
                & np.all(np.isfinite(forces), axis=(2, 3)))
-    picks += [_peak(use[:, :, wheel], contact) for wheel in range(4)]
+    peak_use = [_peak(use[:, :, wheel], contact) for wheel in range(4)]
+    picks += peak_use
     picks.append(np.argmin(np.where(valid, np.where(np.isnan(loads), np.inf, loads).min(axis=2), np.inf), axis=0))
     picks.append(_first(valid & np.any(np.nan_to_num(_wheels(rows, 'slip')) > 0.5, axis=2)))
     picks.append(_first(valid & (np.nan_to_num(loads, nan=1.0).min(axis=2) < 0.0)))
-    if binding is None:
-        binding = np.full(rows.shape[1], -1)
-    start = np.where(binding >= 0, binding, np.argmax(np.where(contact, use.max(axis=2), -np.inf), axis=0))
-    binding = _binding(loads, forces, contact, robots, start)
+    least_load = np.argmin(np.where(contact, loads.min(axis=2), np.inf), axis=0)
+    starts = np.array([least_load, *peak_use] if binding is None else [binding, least_load, *peak_use])
+    binding = _binding(loads, forces, contact, robots, starts)
     picks.append(np.maximum(binding, 0))
     return np.sort(np.array(picks), axis=0), binding
 
 
 def _binding(loads: np.ndarray, forces: np.ndarray, contact: np.ndarray, robots: Sequence[Robot],
-             start: np.ndarray) -> np.ndarray:
-    """Per robot, the row of the largest ``needed_adhesion`` among its ``contact`` rows (-1: none), from the figure
-    of its row ``start``: only the rows not holding under it are bisected."""
+             starts: np.ndarray) -> np.ndarray:
+    """Per robot, the row of the largest ``needed_adhesion`` among its ``contact`` rows (-1: none), from the
+    largest figure of its rows ``starts`` (starts, robots; -1 or a row without contact: none): only the rows not
+    holding under it are bisected."""
     offsets = np.array([robot.wheel_offsets for robot in robots])
     static = np.array([robot.params.wall_friction for robot in robots])
-    robot_index = np.flatnonzero(contact.any(axis=0))
     binding = np.full(contact.shape[1], -1)
-    if not robot_index.size:
-        return binding
-    first = start[robot_index]
-    figure = np.full(contact.shape[1], np.nan)
-    figure[robot_index] = needed_adhesion_of(loads[first, robot_index], forces[first, robot_index],
-                                             offsets[robot_index], static[robot_index])
-    binding[robot_index] = first
+    figure = np.full(contact.shape[1], -np.inf)
+    owner = np.broadcast_to(np.arange(contact.shape[1]), starts.shape)
+    usable = (starts >= 0) & contact[starts.clip(0), owner]
+    _raise(binding, figure, starts[usable], owner[usable], loads, forces, offsets, static)
     row, robot = np.nonzero(contact)
-    holds = holds_with(loads[row, robot], forces[row, robot], offsets[robot], static[robot], figure[robot])
-    row, robot = row[~holds], robot[~holds]
-    if row.size:
-        needed = needed_adhesion_of(loads[row, robot], forces[row, robot], offsets[robot], static[robot])
-        order = np.lexsort((-needed, robot))  # by robot, each robot's largest first
-        leading = order[np.r_[True, robot[order][1:] != robot[order][:-1]]]
-        larger = needed[leading] > figure[robot[leading]]
-        binding[robot[leading][larger]] = row[leading][larger]
+    open_rows = ~holds_with(loads[row, robot], forces[row, robot], offsets[robot], static[robot], figure[robot])
+    _raise(binding, figure, row[open_rows], robot[open_rows], loads, forces, offsets, static)
     return binding
+
+
+def _raise(binding: np.ndarray, figure: np.ndarray, row: np.ndarray, robot: np.ndarray, loads: np.ndarray,
+           forces: np.ndarray, offsets: np.ndarray, static: np.ndarray) -> None:
+    """Each robot's ``binding`` row and its ``figure`` raised to the largest ``needed_adhesion`` of its (row, robot)
+    pairs."""
+    if not row.size:
+        return
+    needed = needed_adhesion_of(loads[row, robot], forces[row, robot], offsets[robot], static[robot])
+    order = np.lexsort((-needed, robot))  # by robot, each robot's largest first
+    leading = order[np.r_[True, robot[order][1:] != robot[order][:-1]]]
+    larger = needed[leading] > figure[robot[leading]]
+    binding[robot[leading][larger]] = row[leading][larger]
+    figure[robot[leading][larger]] = needed[leading][larger]
 
 
 class DecidingRows:
