@@ -130,7 +130,11 @@ class _Resplit:
     def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
         loads = self.loads + 0.25 * shift[:, None]
-        total, first, second = loads.sum(axis=1), _weighted(loads, self.along), _weighted(loads, self.along * self.along)
+        if self.chassis.all():  # ideal contact's samples: the chassis split alone
+            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
+            return split[:, :, 0], split[:, :, 1], loads
+        total, first = loads.sum(axis=1), _weighted(loads, self.along)
+        second = _weighted(loads, self.along * self.along)
         with np.errstate(divide='ignore', invalid='ignore'):  # a side or a row without load holds nothing
             spread = total * second - first * first
             lam = (second * self.lateral - first * self.moment) / spread
