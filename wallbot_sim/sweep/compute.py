@@ -176,19 +176,20 @@ def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
     reduced.add(np.array([[csv_row(simulation.outputs()) for simulation in simulations]]),
                 np.ones((1, len(robots)), dtype=bool))
     done = 0
+    block = np.empty((min(block_size, settings.steps), len(robots), len(CSV_COLUMNS)))  # reused: see DecidingRows
     while done < settings.steps:
         count = min(block_size, settings.steps - done)
         sampled = simulations[0].sample_reference(count)  # the same reference at the same instants for all
-        rows = np.empty((count, len(robots), len(CSV_COLUMNS)))
+        rows = block[:count]
         for robot, simulation in enumerate(simulations):
-            block = simulation.compute_block(count, sampled)
-            if block is None:  # not finite in this block: step by step, to where simulate meets it
+            steps = simulation.compute_block(count, sampled)
+            if steps is None:  # not finite in this block: step by step, to where simulate meets it
                 for instant in range(count):
                     simulation.step()
                     rows[instant, robot] = csv_row(simulation.outputs())
             else:
-                simulation.take(block)
-                fill_rows(block.table, rows[:, robot], simulation.motor_torque)
+                simulation.take(steps)
+                fill_rows(steps.table, rows[:, robot], simulation.motor_torque)
         reduced.add(rows, np.ones(rows.shape[:2], dtype=bool))
         done += count
     for robot in range(len(robots)):

@@ -127,12 +127,20 @@ class DecidingRows:
         """Whether a kept row is one of the robot's (not a repeat, nor past its end)."""
         self.binding = np.full(len(robots), -1)
         """The kept row binding each robot's least adhesion force (-1: none yet)."""
+        self._both = np.empty((0, len(robots), columns))
+        """The kept rows and the next block side by side, reused from block to block: a block of a chunk's robots
+        is tens of MB, and fresh memory of that size costs more to fault in than to reduce."""
 
     def add(self, rows: np.ndarray, valid: np.ndarray) -> None:
         """The next instants of every robot (instants, robots, columns); ``valid``: the robot's run has that row."""
-        rows, valid = np.concatenate((self.rows, rows)), np.concatenate((self.valid, valid))
-        picks, binding = deciding_rows(rows, valid, self.robots, self.binding)
-        self.rows = np.take_along_axis(rows, picks[:, :, None], axis=0)
+        kept = len(self.rows)
+        if len(self._both) < kept + len(rows):
+            self._both = np.empty((kept + len(rows), *rows.shape[1:]))
+        both = self._both[:kept + len(rows)]
+        both[:kept], both[kept:] = self.rows, rows
+        valid = np.concatenate((self.valid, valid))
+        picks, binding = deciding_rows(both, valid, self.robots, self.binding)
+        self.rows = np.take_along_axis(both, picks[:, :, None], axis=0)
         self.valid = np.take_along_axis(valid, picks, axis=0)
         self.valid[1:] &= picks[1:] != picks[:-1]
         self.binding = np.where(binding >= 0, np.argmax(picks == binding, axis=0), -1)
