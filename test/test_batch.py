@@ -13,6 +13,7 @@ from wallbot_sim.model.batch import (
     BATCH_MODULES, BatchRecorder, BatchSimulation, RobotBatch, batch_constrained_acceleration,
     minimum_norm_least_squares)
 from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.constraints import wrap_angles
 from wallbot_sim.model.constraint_set import MODULES
 from wallbot_sim.model.constraints import wrap_angle
@@ -187,6 +188,16 @@ def test_mass_matrix_and_factor_match_the_robot_model():
                            atol=1e-15)
         assert np.allclose(batch.robots.applied_force(q, qd, torques)[i], robot.applied_force(q[i], qd[i], torques[i]),
                            rtol=1e-13, atol=1e-13)
+
+
+def test_a_batch_of_one_robot_repeated_holds_what_a_batch_of_its_copies_holds():
+    robot = random_robots(np.random.default_rng(5), 1)[0]
+    copies, repeated = RobotBatch([robot] * 3), RobotBatch.repeated(robot, 3)
+    assert repeated.size == 3 and repeated.robots == copies.robots
+    assert vars(repeated).keys() == vars(copies).keys()
+    for name, value in vars(copies).items():
+        if isinstance(value, np.ndarray):
+            assert np.array_equal(getattr(repeated, name), value), name
 
 
 def test_every_constraint_module_has_a_batched_form():

@@ -8,7 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from model_helpers import random_parameters
 from wallbot_sim.config import load_robot_parameters
+from wallbot_sim.model import Robot
+from wallbot_sim.model.wheel_forces import split_chassis_wrench
+from wallbot_sim.rundata.least_adhesion import holds_with, needed_adhesion, needed_adhesion_of
 from wallbot_sim.rundata.csv_format import COLUMN
 from wallbot_sim.sweep import parse_spec
 from wallbot_sim.sweep.compute import OUTPUTS, result_row, single_robot_run
@@ -62,3 +66,28 @@ def test_kept_rows_give_the_whole_runs_results_rows(whole_runs, block):
         outcomes.add(tuple(dict(zip(OUTPUTS, want))[name] for name in ('slipped', 'detached')))
     assert {(1, 0), (1, 1), (0, 0)} <= outcomes, 'robots that slide, lift off, and do neither'
     assert not math.isnan(dict(zip(OUTPUTS, result_row(*reversed(whole_runs[-1]))))['peak_err_after_5s'])
+
+
+def test_the_least_adhesion_of_robots_side_by_side_is_each_robots_own():
+    """``needed_adhesion_of`` over samples of three robots of their own (the chassis split of ideal contact, and
+    forces that are not, re-shared as coulomb contact's) gives each robot's ``needed_adhesion``, and
+    ``holds_with``, the test the reduce screens rows by, holds just above (the bisection's last interval, within
+    round-off of F - F_run) and not just below."""
+    rng = np.random.default_rng(7)
+    robots = [Robot(random_parameters(rng)) for _ in range(3)]
+    samples = 40
+    loads = rng.uniform(-5.0, 60.0, size=(3, samples, 4))
+    wrench = rng.normal(scale=30.0, size=(3, samples, 3))
+    forces = [split_chassis_wrench(np.zeros(samples), wrench[i], loads[i], robot.wheel_offsets)
+              for i, robot in enumerate(robots)]
+    forces[1] = forces[1] + rng.normal(scale=5.0, size=forces[1].shape)
+    want = np.concatenate([needed_adhesion(loads[i], forces[i], robot) for i, robot in enumerate(robots)])
+    owner = np.repeat(np.arange(3), samples)
+    offsets = np.array([robot.wheel_offsets for robot in robots])[owner]
+    static = np.array([robot.params.wall_friction for robot in robots])[owner]
+    every_load, every_force = loads.reshape(-1, 4), np.concatenate(forces)
+    np.testing.assert_allclose(needed_adhesion_of(every_load, every_force, offsets, static), want, rtol=1e-12)
+    margin = 1e-9 * np.maximum(np.abs(want), 1.0)
+    assert np.all(holds_with(every_load, every_force, offsets, static, want + margin))
+    below = want - margin
+    assert not np.any(holds_with(every_load, every_force, offsets, static, below))

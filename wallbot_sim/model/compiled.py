@@ -311,7 +311,7 @@ class CompiledDynamics(Configured):
         shown = run.instants
         robots = self._batches.get(shown)
         if robots is None:  # built once per size: a driven run's chunks of 4 and 8 steps alternate
-            robots = self._batches[shown] = RobotBatch([self._robot] * shown)
+            robots = self._batches[shown] = RobotBatch.repeated(self._robot, shown)
         q = run.states[:shown]
         loads = normal_loads(robots, q[:, :DOF], q[:, DOF:], run.motions[:shown, 0])
         drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)

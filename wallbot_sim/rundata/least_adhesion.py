@@ -37,10 +37,11 @@ def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple
     """
     lift_off = np.max(-4.0 * loads, axis=1)  # a wheel's load is 0 here: below it the wheel is off the wall
     run_force = loads.sum(axis=1)
-    resplit = _Resplit(loads, forces, robot)
+    offsets, static = robot.wheel_offsets, robot.params.wall_friction
+    resplit = _Resplit(loads, forces, offsets, static)
     low, high = _bisect(resplit, *_bracket(resplit, lift_off, run_force), COARSE)
     candidates = np.flatnonzero(run_force + high >= np.max(run_force + low))
-    resplit = _Resplit(loads[candidates], forces[candidates], robot)
+    resplit = _Resplit(loads[candidates], forces[candidates], offsets, static)
     low, high = _bisect(resplit, low[candidates], high[candidates], BISECTIONS - COARSE)
     needed = run_force[candidates] + high
     j = int(np.argmax(needed))
@@ -53,10 +54,26 @@ def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple
 def needed_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> np.ndarray:
     """Each sample's least adhesion force keeping its wheels on the wall with their forces in their discs (T,):
     ``least_adhesion`` sample by sample, whose largest it is."""
+    return needed_adhesion_of(loads, forces, robot.wheel_offsets, robot.params.wall_friction)
+
+
+def needed_adhesion_of(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray,
+                       static: float | np.ndarray) -> np.ndarray:
+    """``needed_adhesion`` of samples of robots of their own: wheel offsets d_i (4, 2) or each sample's (T, 4, 2),
+    wall friction mu_s one or each sample's (T,)."""
     run_force = loads.sum(axis=1)
-    resplit = _Resplit(loads, forces, robot)
+    resplit = _Resplit(loads, forces, offsets, static)
     _low, high = _bisect(resplit, *_bracket(resplit, np.max(-4.0 * loads, axis=1), run_force), BISECTIONS)
     return run_force + high
+
+
+def holds_with(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray, static: float | np.ndarray,
+               adhesion: np.ndarray) -> np.ndarray:
+    """(T,) whether each sample keeps its wheels on the wall with their forces in their discs under the adhesion
+    force ``adhesion`` (T,) (``needed_adhesion_of``'s samples and robots): the test the bisection halves by, so a
+    sample that holds needs no more than it."""
+    resplit = _Resplit(loads, forces, offsets, static)
+    return resplit.holds(adhesion - loads.sum(axis=1))
 
 
 def _bracket(resplit: _Resplit, lift_off: np.ndarray, run_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -80,18 +97,23 @@ def _bisect(resplit: _Resplit, low: np.ndarray, high: np.ndarray, count: int) ->
 
 
 class _Resplit:
-    """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring)."""
+    """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring), of
+    one robot (offsets d_i (4, 2), mu_s a number) or of each sample's own (offsets (T, 4, 2), mu_s (T,))."""
 
-    def __init__(self, loads: np.ndarray, forces: np.ndarray, robot: Robot) -> None:
-        self.loads, self.static, self.offsets = loads, robot.params.wall_friction, robot.wheel_offsets
-        self.along, across = self.offsets[:, 0], self.offsets[:, 1]
-        self.same_side = (np.sign(across)[:, None] == np.sign(across)[None, :]).astype(float)
-        """(4, 4): 1 where two wheels are of one side; loads @ same_side is each wheel's side's load."""
+    def __init__(self, loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray,
+                 static: float | np.ndarray) -> None:
+        self.loads, self.offsets = loads, offsets
+        self.static = static if np.ndim(static) == 0 else np.asarray(static)[:, None]
+        self.along, across = offsets[..., 0], offsets[..., 1]
+        side = np.sign(across)
+        self.same_side = (side[..., :, None] == side[..., None, :]).astype(float)
+        """(4, 4) or (T, 4, 4): 1 where two wheels are of one side; ``_sides`` gives each wheel's side's sum."""
         longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
-        self.traction = longitudinal @ self.same_side
+        self.traction = self._sides(longitudinal)
         """Each wheel's side's traction (T, 4)."""
-        self.lateral, self.moment = lateral.sum(axis=1), lateral @ self.along
-        self.wrench = np.column_stack((longitudinal.sum(axis=1), self.lateral, self.moment - longitudinal @ across))
+        self.lateral, self.moment = lateral.sum(axis=1), _weighted(lateral, self.along)
+        self.wrench = np.column_stack((longitudinal.sum(axis=1), self.lateral,
+                                       self.moment - _weighted(longitudinal, across)))
         """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z) (T, 3)."""
         self.heading = np.zeros(len(loads))  # the wrench is in body axes already
         made = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
@@ -99,15 +121,25 @@ class _Resplit:
         self.chassis = np.all(np.abs(made - forces) <= CHASSIS_SPLIT * scale[:, None, None], axis=(1, 2))
         """(T,) the samples whose forces are their chassis wrench's split over the four wheels (ideal contact's)."""
 
+    def _sides(self, values: np.ndarray) -> np.ndarray:
+        """Each wheel's side's sum of ``values`` (T, 4)."""
+        if self.same_side.ndim == 2:
+            return values @ self.same_side
+        return np.einsum('ti,tij->tj', values, self.same_side)
+
     def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
         loads = self.loads + 0.25 * shift[:, None]
-        total, first, second = loads.sum(axis=1), loads @ self.along, loads @ (self.along * self.along)
+        if self.chassis.all():  # ideal contact's samples: the chassis split alone
+            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
+            return split[:, :, 0], split[:, :, 1], loads
+        total, first = loads.sum(axis=1), _weighted(loads, self.along)
+        second = _weighted(loads, self.along * self.along)
         with np.errstate(divide='ignore', invalid='ignore'):  # a side or a row without load holds nothing
             spread = total * second - first * first
             lam = (second * self.lateral - first * self.moment) / spread
             mu = (total * self.moment - first * self.lateral) / spread
-            along = self.traction * loads / (loads @ self.same_side)
+            along = self.traction * loads / self._sides(loads)
         across = loads * (lam[:, None] + mu[:, None] * self.along)
         if self.chassis.any():
             split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
@@ -126,3 +158,8 @@ class _Resplit:
         along, across, loads = self.components(shift)
         limit = self.static * loads
         return np.all((loads > 0.0) & (along * along + across * across <= limit * limit), axis=1)
+
+
+def _weighted(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """sum_i values_i weights_i (T,) of values (T, 4), weights (4,) or each sample's (T, 4)."""
+    return values @ weights if weights.ndim == 1 else np.einsum('ti,ti->t', values, weights)

@@ -2,10 +2,13 @@
 
 Every robot runs as ``wallbot-sim simulate`` runs it (same scenario, constraints, contact, controller,
 step), and its row holds the numbers the run summary and the motor analysis of ``wallbot_sim.rundata``
-give for that run's CSV. :func:`robot_runs` is the one place that chooses how the runs are computed:
-the batch core (``wallbot_sim.model.batch``: ideal or coulomb contact, with or without the example
-controller) on the vertical, uniform wall, the single-robot ``Simulation`` (python engine) robot by
-robot on a world file's surface, which the batch does not compute.
+give for that run's CSV. :func:`robot_runs` is the one place that chooses how the runs are computed, on the
+vertical, uniform wall: with ideal contact and no controller (constant motor torques) simulate's own compiled
+blocks (``Simulation.compute_block``: the kernel's steps and the tables of their outputs, vectorized over the
+instants of a block), robot after robot a block at a time, the reference sampled once per block for them all;
+else the batch core (``wallbot_sim.model.batch``: coulomb contact, or the example controller closing the loop
+every few steps). On a world file's surface, which neither computes, the single-robot ``Simulation`` (python
+engine) robot by robot.
 """
 
 from __future__ import annotations
@@ -20,10 +23,10 @@ from wallbot_sim.control import ControllerGains, TrackingController
 from wallbot_sim.control.sampling import (
     CONTROL_RATE_HZ, MAX_WHEEL_TORQUE, SampledController, close_loop, controller_robot)
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Scenario, Simulation, StepOutputs
-from wallbot_sim.model.contact import DetachedError
+from wallbot_sim.model.contact import IDEAL, DetachedError
 from wallbot_sim.model.numbers import NumberRange
 from wallbot_sim.model.world import World
-from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_motion_rows, fill_wheel_rows
+from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_motion_rows, fill_rows, fill_wheel_rows
 from wallbot_sim.rundata.load import run_from_columns
 from wallbot_sim.rundata.motors import motor_report
 from wallbot_sim.rundata.summary import summarize_run
@@ -77,6 +80,14 @@ def batch_supports(settings: RunSettings) -> bool:
     return settings.world is None
 
 
+def tabulates(settings: RunSettings) -> bool:
+    """Whether the runs are simulate's compiled blocks (``_tabulated_runs``): ideal contact under constant motor
+    torques (no controller) on the vertical, uniform wall, numba installed."""
+    # imported here: the kernel loads numba, which the CLI's other verbs, importing the sweep's spec, do not need
+    from wallbot_sim.model.batch import kernel
+    return batch_supports(settings) and settings.contact == IDEAL and not settings.controller and kernel.available()
+
+
 class RobotRun(NamedTuple):
     """One robot's run as ``simulate`` makes it."""
 
@@ -90,7 +101,9 @@ class RobotRun(NamedTuple):
 
 def robot_runs(settings: RunSettings, robots: Sequence[RobotParameters]) -> Iterator[RobotRun]:
     """Per robot, in order, its run."""
-    if batch_supports(settings):
+    if tabulates(settings):
+        yield from _tabulated_runs(settings, robots)
+    elif batch_supports(settings):
         yield from _batch_runs(settings, robots)
     else:
         for params in robots:
@@ -148,6 +161,41 @@ def single_robot_run(settings: RunSettings, params: RobotParameters) -> RobotRun
     return RobotRun(np.array(rows, dtype=float))
 
 
+def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
+                    block_size: int = BLOCK) -> Iterator[RobotRun]:
+    """Every robot's run as simulate takes it with ideal contact (engine 'numba'): ``block_size`` steps of each
+    robot in turn by ``Simulation.compute_block`` (its rows to the bit, as ``run`` writes them), then every
+    robot's block reduced to the rows deciding its results row (``reduce.DecidingRows``)."""
+    simulations = []
+    for params in robots:
+        robot = Robot(params)
+        q0, qd0 = settings.scenario.initial_state(robot)
+        simulations.append(Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0,
+                                      dt=settings.dt, contact=settings.contact, engine='numba'))
+    reduced = DecidingRows(robots, len(CSV_COLUMNS))
+    reduced.add(np.array([[csv_row(simulation.outputs()) for simulation in simulations]]),
+                np.ones((1, len(robots)), dtype=bool))
+    done = 0
+    block = np.empty((min(block_size, settings.steps), len(robots), len(CSV_COLUMNS)))  # reused: see DecidingRows
+    while done < settings.steps:
+        count = min(block_size, settings.steps - done)
+        sampled = simulations[0].sample_reference(count)  # the same reference at the same instants for all
+        rows = block[:count]
+        for robot, simulation in enumerate(simulations):
+            steps = simulation.compute_block(count, sampled)
+            if steps is None:  # not finite in this block: step by step, to where simulate meets it
+                for instant in range(count):
+                    simulation.step()
+                    rows[instant, robot] = csv_row(simulation.outputs())
+            else:
+                simulation.take(steps)
+                fill_rows(steps.table, rows[:, robot], simulation.motor_torque)
+        reduced.add(rows, np.ones(rows.shape[:2], dtype=bool))
+        done += count
+    for robot in range(len(robots)):
+        yield RobotRun(reduced.run(robot))
+
+
 def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
                 block_size: int = BLOCK) -> Iterator[RobotRun]:
     """Every robot's run on the batch core (the compiled engine where numba is installed), under the example
@@ -185,7 +233,14 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         if answer is not None:  # after the state was recorded, as simulate answers a written state
             answer(out)
 
-    simulation.run(settings.steps, on_step)
+    threads = kernel.numba.get_num_threads() if kernel.available() else 1
+    if kernel.available():  # a chunk is one core's work: the cores run chunks (workers), not a chunk's robots
+        kernel.numba.set_num_threads(1)
+    try:
+        simulation.run(settings.steps, on_step)
+    finally:
+        if kernel.available():
+            kernel.numba.set_num_threads(threads)
     reduced.add(block[:filled], written[:filled])
     for i in range(len(models)):
         yield RobotRun(reduced.run(i), simulation.lift_off(i))

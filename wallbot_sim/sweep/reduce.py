@@ -5,10 +5,13 @@ Every output of a results row (``compute.result_row``: the run summary and the m
 instant: the first row, the last with a tracking error, each peak |value| (tracking error after 5 s, drive
 forces, residual, each side's motor torque, each wheel's friction use), the least load, the first slip and
 lift-off, and the row binding the least adhesion force (``least_adhesion``: the largest of a per-row
-figure). ``DecidingRows`` keeps, per robot, those rows of what it has seen: a block of instants at a time
-it picks them again from the rows it kept and the block, so it holds a few rows per robot whatever the
-duration. ``result_row`` over the kept rows then gives the row of the whole run: the same summary and
-motor analysis, over a subset holding every row that decides them.
+figure, each row's its own: ``needed_adhesion``). That row is found without bisecting every row: the largest
+figure of a few rows (the robot's binding row so far, its least loaded row, each wheel's peak friction use) is
+a lower bound, a row holding under that adhesion force (``holds_with``, the bisection's test) needs no more, and
+only the others are bisected, every robot's at once. ``DecidingRows`` keeps, per robot, those rows of what it
+has seen: a block of instants at a time it picks them again from the rows it kept and the block, so it holds a
+few rows per robot whatever the duration. ``result_row`` over the kept rows then gives the row of the whole
+run: the same summary and motor analysis, over a subset holding every row that decides them.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import numpy as np
 from wallbot_sim.model import Robot, RobotParameters
 from wallbot_sim.model.outputs import DriveForces, side_motor_torques
 from wallbot_sim.rundata.csv_format import COLUMN
-from wallbot_sim.rundata.least_adhesion import least_adhesion
+from wallbot_sim.rundata.least_adhesion import holds_with, needed_adhesion_of
 
 PEAKS = ('F_left', 'F_right', 'F_lateral', 'residual')
 """Columns whose peak |value| over the run is an output."""
@@ -46,9 +49,14 @@ def _last(where: np.ndarray) -> np.ndarray:
     return len(where) - 1 - np.argmax(where[::-1], axis=0)
 
 
-def deciding_rows(rows: np.ndarray, valid: np.ndarray, robots: Sequence[Robot]) -> np.ndarray:
+def deciding_rows(rows: np.ndarray, valid: np.ndarray, robots: Sequence[Robot],
+                  binding: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per robot, the rows of ``rows`` (rows, robots, columns; ``valid``: the robot's run has that row) that
-    decide its results row (the module's docstring): (picks, robots) row indices, each robot's in time order."""
+    decide its results row (the module's docstring): (picks, robots) row indices, each robot's in time order; and
+    the row binding each robot's least adhesion force (-1: it has no row with its wheels' contact).
+
+    ``binding`` (robots,): a row of ``rows`` binding the robot's least adhesion force among the rows before them,
+    -1 where there is none."""
     column = {name: rows[:, :, COLUMN[name]] for name in ('t', 'err', 'F_lateral', *PEAKS)}
     t, err = column['t'], column['err']
     picks = [np.zeros(rows.shape[1], dtype=int), _last(valid & np.isfinite(err)),
@@ -65,17 +73,48 @@ def deciding_rows(rows: np.ndarray, valid: np.ndarray, robots: Sequence[Robot]) 
                                                                             _wheels(rows, 'fy')), axis=3)
     contact = (valid & np.all(np.isfinite(loads), axis=2) & np.all(np.isfinite(use), axis=2)
                & np.all(np.isfinite(forces), axis=(2, 3)))
-    picks += [_peak(use[:, :, wheel], contact) for wheel in range(4)]
+    peak_use = [_peak(use[:, :, wheel], contact) for wheel in range(4)]
+    picks += peak_use
     picks.append(np.argmin(np.where(valid, np.where(np.isnan(loads), np.inf, loads).min(axis=2), np.inf), axis=0))
     picks.append(_first(valid & np.any(np.nan_to_num(_wheels(rows, 'slip')) > 0.5, axis=2)))
     picks.append(_first(valid & (np.nan_to_num(loads, nan=1.0).min(axis=2) < 0.0)))
-    binding = np.zeros(rows.shape[1], dtype=int)
-    for robot, model in enumerate(robots):
-        samples = np.flatnonzero(contact[:, robot])
-        if samples.size:
-            binding[robot] = samples[least_adhesion(loads[samples, robot], forces[samples, robot], model)[1]]
-    picks.append(binding)
-    return np.sort(np.array(picks), axis=0)
+    least_load = np.argmin(np.where(contact, loads.min(axis=2), np.inf), axis=0)
+    starts = np.array([least_load, *peak_use] if binding is None else [binding, least_load, *peak_use])
+    binding = _binding(loads, forces, contact, robots, starts)
+    picks.append(np.maximum(binding, 0))
+    return np.sort(np.array(picks), axis=0), binding
+
+
+def _binding(loads: np.ndarray, forces: np.ndarray, contact: np.ndarray, robots: Sequence[Robot],
+             starts: np.ndarray) -> np.ndarray:
+    """Per robot, the row of the largest ``needed_adhesion`` among its ``contact`` rows (-1: none), from the
+    largest figure of its rows ``starts`` (starts, robots; -1 or a row without contact: none): only the rows not
+    holding under it are bisected."""
+    offsets = np.array([robot.wheel_offsets for robot in robots])
+    static = np.array([robot.params.wall_friction for robot in robots])
+    binding = np.full(contact.shape[1], -1)
+    figure = np.full(contact.shape[1], -np.inf)
+    owner = np.broadcast_to(np.arange(contact.shape[1]), starts.shape)
+    usable = (starts >= 0) & contact[starts.clip(0), owner]
+    _raise(binding, figure, starts[usable], owner[usable], loads, forces, offsets, static)
+    row, robot = np.nonzero(contact)
+    open_rows = ~holds_with(loads[row, robot], forces[row, robot], offsets[robot], static[robot], figure[robot])
+    _raise(binding, figure, row[open_rows], robot[open_rows], loads, forces, offsets, static)
+    return binding
+
+
+def _raise(binding: np.ndarray, figure: np.ndarray, row: np.ndarray, robot: np.ndarray, loads: np.ndarray,
+           forces: np.ndarray, offsets: np.ndarray, static: np.ndarray) -> None:
+    """Each robot's ``binding`` row and its ``figure`` raised to the largest ``needed_adhesion`` of its (row, robot)
+    pairs."""
+    if not row.size:
+        return
+    needed = needed_adhesion_of(loads[row, robot], forces[row, robot], offsets[robot], static[robot])
+    order = np.lexsort((-needed, robot))  # by robot, each robot's largest first
+    leading = order[np.r_[True, robot[order][1:] != robot[order][:-1]]]
+    larger = needed[leading] > figure[robot[leading]]
+    binding[robot[leading][larger]] = row[leading][larger]
+    figure[robot[leading][larger]] = needed[leading][larger]
 
 
 class DecidingRows:
@@ -86,14 +125,25 @@ class DecidingRows:
         self.rows = np.empty((0, len(robots), columns))
         self.valid = np.empty((0, len(robots)), dtype=bool)
         """Whether a kept row is one of the robot's (not a repeat, nor past its end)."""
+        self.binding = np.full(len(robots), -1)
+        """The kept row binding each robot's least adhesion force (-1: none yet)."""
+        self._both = np.empty((0, len(robots), columns))
+        """The kept rows and the next block side by side, reused from block to block: a block of a chunk's robots
+        is tens of MB, and fresh memory of that size costs more to fault in than to reduce."""
 
     def add(self, rows: np.ndarray, valid: np.ndarray) -> None:
         """The next instants of every robot (instants, robots, columns); ``valid``: the robot's run has that row."""
-        rows, valid = np.concatenate((self.rows, rows)), np.concatenate((self.valid, valid))
-        picks = deciding_rows(rows, valid, self.robots)
-        self.rows = np.take_along_axis(rows, picks[:, :, None], axis=0)
+        kept = len(self.rows)
+        if len(self._both) < kept + len(rows):
+            self._both = np.empty((kept + len(rows), *rows.shape[1:]))
+        both = self._both[:kept + len(rows)]
+        both[:kept], both[kept:] = self.rows, rows
+        valid = np.concatenate((self.valid, valid))
+        picks, binding = deciding_rows(both, valid, self.robots, self.binding)
+        self.rows = np.take_along_axis(both, picks[:, :, None], axis=0)
         self.valid = np.take_along_axis(valid, picks, axis=0)
         self.valid[1:] &= picks[1:] != picks[:-1]
+        self.binding = np.where(binding >= 0, np.argmax(picks == binding, axis=0), -1)
 
     def run(self, robot: int) -> np.ndarray:
         """The kept rows of robot ``robot``, in time order."""

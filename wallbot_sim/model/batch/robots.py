@@ -52,6 +52,17 @@ class RobotBatch:
         chassis = np.stack((self.total_mass, self.total_mass, self.yaw_inertia), axis=1)
         self._diagonal = np.concatenate((chassis, np.repeat(self.spin_inertia[:, None], 4, axis=1)), axis=1)
 
+    @classmethod
+    def repeated(cls, robot: Robot, count: int) -> RobotBatch:
+        """``count`` copies of one robot: what ``RobotBatch([robot] * count)`` holds, built from one copy (a
+        robot's outputs at ``count`` instants are computed as those of a batch of it)."""
+        one = cls([robot])
+        batch = cls.__new__(cls)
+        for name, value in vars(one).items():
+            setattr(batch, name, np.repeat(value, count, axis=0) if isinstance(value, np.ndarray) else value)
+        batch.robots, batch.size = (robot,) * count, count
+        return batch
+
     def offset_moment_arm(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """u(th) = R(th) S s for every robot: (u_x, u_y), each (N,)."""
         sx, sy = self.first_moment[:, 0], self.first_moment[:, 1]
