@@ -1,10 +1,13 @@
 """Shared pytest fixtures for wallbot_sim.
 
-* ``ros_domain`` (session, autouse): claims a private ROS_DOMAIN_ID for the
-  whole session and exports it (plus ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)
-  in os.environ so every child process and in-process rclpy context is isolated
-  from other concurrent test runs on this machine.
-* ``process_runner`` (function): starts child processes with that environment
+* ``session_domain`` (session, autouse): claims a ROS_DOMAIN_ID for the worker's
+  session and exports it (plus ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in
+  os.environ, for the module- and class-scoped fixtures.
+* ``ros_domain`` (function, autouse): each test claims a ROS_DOMAIN_ID of its own and
+  exports it while it runs, so every child process and in-process rclpy context is
+  isolated from other tests, concurrent or earlier (a node a test killed stays in
+  DDS discovery for its lease; ``wallbot_sim.domain`` chooses a just-released id last).
+* ``process_runner`` (function): starts child processes with the test's environment
   (``wallbot_sim.graph.ChildProcesses``, as ``wallbot-sim run`` starts its nodes), logs their
   output to files in tmp_path and always stops them at teardown. A test that fails reports the
   end of each of its processes' logs (``pytest_runtest_makereport``), so that a failure seen once,
@@ -17,6 +20,7 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
@@ -37,9 +41,9 @@ LOG_TAIL = 3000
 """Characters of each child process's log a failed test reports."""
 
 
-@pytest.fixture(scope='session', autouse=True)
-def ros_domain() -> Iterator[DomainClaim]:
-    """Claim a ROS_DOMAIN_ID for the test session and export it in os.environ."""
+@contextmanager
+def exported_domain() -> Iterator[DomainClaim]:
+    """A claimed ROS_DOMAIN_ID exported in os.environ while the block runs, the previous values restored after."""
     saved = {k: os.environ.get(k) for k in _ENV_KEYS}
     claim = claim_domain_id()
     os.environ.update({k: v for k, v in isolated_ros_env(claim.domain_id).items()
@@ -56,7 +60,21 @@ def ros_domain() -> Iterator[DomainClaim]:
 
 
 @pytest.fixture(scope='session', autouse=True)
-def test_process_heartbeat(ros_domain: DomainClaim) -> None:
+def session_domain() -> Iterator[DomainClaim]:
+    """The worker session's ROS_DOMAIN_ID, exported: the module- and class-scoped fixtures' domain."""
+    with exported_domain() as claim:
+        yield claim
+
+
+@pytest.fixture(autouse=True)
+def ros_domain(session_domain: DomainClaim) -> Iterator[DomainClaim]:
+    """The test's own ROS_DOMAIN_ID, exported while it runs."""
+    with exported_domain() as claim:
+        yield claim
+
+
+@pytest.fixture(scope='session', autouse=True)
+def test_process_heartbeat(session_domain: DomainClaim) -> None:
     """This process's writers (commands, parameter requests) send Fast DDS heartbeats as the nodes' do
     (``NODE_HEARTBEAT``), so a ``wait_for_all_acked`` or a lost request's repair takes about 0.1 s, not up
     to the default 3 s. Fast DDS reads the profile once, at the process's first participant: made here,
@@ -80,7 +98,7 @@ def test_process_heartbeat(ros_domain: DomainClaim) -> None:
 
 @pytest.fixture
 def process_runner(tmp_path: Path, ros_domain: DomainClaim) -> Iterator[ChildProcesses]:
-    """The product's ChildProcesses with the session's isolated ROS env and unbuffered Python
+    """The product's ChildProcesses with the test's isolated ROS env and unbuffered Python
     output; logs in ``tmp_path/logs``; every process stopped at teardown."""
     runner = ChildProcesses(tmp_path / 'logs', {**isolated_ros_env(ros_domain.domain_id), 'PYTHONUNBUFFERED': '1'},
                             stop_timeout=5.0)

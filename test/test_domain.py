@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, DomainUnavailable, claim_chosen_domain_id,
-                                claim_domain_id, isolated_ros_env)
+from wallbot_sim.domain import (MAX_DOMAIN_ID, MIN_DOMAIN_ID, RECENTLY_RELEASED, DomainUnavailable,
+                                claim_chosen_domain_id, claim_domain_id, isolated_ros_env)
 
 
 def test_concurrent_claims_get_distinct_ids(tmp_path):
@@ -42,8 +42,8 @@ def test_claim_held_by_other_process_is_skipped(tmp_path):
         child.stdin.close()
         child.wait(timeout=10)
     # the child's lock died with it: its id is free again
-    with claim_domain_id(tmp_path, rng=random.Random(0)) as again:
-        assert again.domain_id == child_id
+    with claim_chosen_domain_id(child_id, tmp_path) as again:
+        assert again.held
 
 
 def test_release_frees_the_id(tmp_path):
@@ -52,11 +52,29 @@ def test_release_frees_the_id(tmp_path):
         assert claim.held
     assert not claim.held
     claim.release()  # idempotent
-    second = claim_domain_id(tmp_path, rng=random.Random(3))
-    try:
+    with claim_chosen_domain_id(first, tmp_path) as second:
         assert second.domain_id == first
+
+
+def test_an_id_just_released_is_chosen_last(tmp_path):
+    """A process killed in a domain stays in DDS discovery for its lease: the next claim takes another id while
+    there is one, and the recent one rather than none."""
+    with claim_domain_id(tmp_path, rng=random.Random(3)) as claim:
+        recent = claim.domain_id
+    with claim_domain_id(tmp_path, rng=random.Random(3)) as again:
+        assert again.domain_id != recent
+    others = [claim_chosen_domain_id(i, tmp_path) for i in range(MIN_DOMAIN_ID, MAX_DOMAIN_ID + 1) if i != recent]
+    try:
+        with claim_domain_id(tmp_path, rng=random.Random(3)) as last:
+            assert last.domain_id == recent
     finally:
-        second.release()
+        for other in others:
+            other.release()
+    stale = time.time() - RECENTLY_RELEASED - 1.0
+    for path in tmp_path.glob('*.lock'):
+        os.utime(path, (stale, stale))
+    with claim_domain_id(tmp_path, rng=random.Random(3)) as after_the_lease:
+        assert after_the_lease.domain_id == recent
 
 
 def test_all_ids_taken_raises(tmp_path):
@@ -81,8 +99,9 @@ def test_isolated_env_sets_both_variables():
         isolated_ros_env(0)
 
 
-def test_session_fixture_exported_domain(ros_domain):
-    assert ros_domain.held
+def test_each_test_exports_a_domain_of_its_own(ros_domain, session_domain):
+    assert ros_domain.held and session_domain.held
+    assert ros_domain.domain_id != session_domain.domain_id
     assert os.environ['ROS_DOMAIN_ID'] == str(ros_domain.domain_id)
     assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
 

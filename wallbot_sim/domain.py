@@ -10,6 +10,10 @@ or dies, so stale claims never block. Pure stdlib (no ROS import).
 
 ``claim_chosen_domain_id(n)`` claims one given id, refusing it when another claim holds it.
 Domain 0 is never claimed: it is the domain of every ROS process nobody configured.
+
+An id released less than ``RECENTLY_RELEASED`` seconds ago is chosen last: a process killed in it (SIGKILL, no
+goodbye on DDS) stays in its peers' discovery until its lease runs out, and a run that claimed the id at once
+would find that ghost (a controller that never answers, a recorder that never writes).
 """
 from __future__ import annotations
 
@@ -17,12 +21,16 @@ import fcntl
 import os
 import random
 import tempfile
+import time
 from pathlib import Path
 from typing import IO, Mapping
 
 MIN_DOMAIN_ID = 1
 MAX_DOMAIN_ID = 101  # inclusive; ids above 101 collide with ephemeral ports on Linux
 DEFAULT_LOCK_DIR = Path(tempfile.gettempdir()) / 'wallbot_sim_domains'
+RECENTLY_RELEASED = 20.0
+"""Seconds after its release during which an id is chosen only if no other is free: Fast DDS's default participant
+lease duration, for which a participant that died without leaving stays discovered."""
 
 
 class DomainUnavailable(RuntimeError):
@@ -47,6 +55,7 @@ class DomainClaim:
         if self._lock_file is None:
             return
         try:
+            os.utime(self._lock_file.fileno())  # the release time, which claims read (RECENTLY_RELEASED)
             fcntl.flock(self._lock_file, fcntl.LOCK_UN)
         finally:
             self._lock_file.close()
@@ -82,12 +91,14 @@ def claim_domain_id(lock_dir: Path | str | None = None,
     """Claim a ROS_DOMAIN_ID in 1..101 that no other live claim on this machine holds.
 
     Ids are tried in order starting from a random one, so concurrent runs spread
-    out. Raises RuntimeError if every id is taken.
+    out, those released within RECENTLY_RELEASED seconds last. Raises RuntimeError if every id is taken.
     """
     lock_dir = _lock_dir(lock_dir)
     ids = list(range(MIN_DOMAIN_ID, MAX_DOMAIN_ID + 1))
     start = (rng or random.SystemRandom()).randrange(len(ids))
-    for domain_id in ids[start:] + ids[:start]:
+    ids = ids[start:] + ids[:start]
+    now = time.time()
+    for domain_id in sorted(ids, key=lambda domain_id: _released_recently(lock_dir, domain_id, now)):
         claim = _try_claim(lock_dir, domain_id)
         if claim is not None:
             return claim
@@ -117,6 +128,15 @@ def _lock_dir(lock_dir: Path | str | None) -> Path:
     except OSError:
         pass
     return lock_dir
+
+
+def _released_recently(lock_dir: Path, domain_id: int, now: float) -> bool:
+    """Whether ``domain_id``'s lock file was last written (claimed or released) within RECENTLY_RELEASED of
+    ``now``."""
+    try:
+        return now - (lock_dir / f'{domain_id}.lock').stat().st_mtime < RECENTLY_RELEASED
+    except OSError:
+        return False
 
 
 def _try_claim(lock_dir: Path, domain_id: int) -> DomainClaim | None:
