@@ -32,6 +32,7 @@ if str(REPO_ROOT) not in sys.path:  # allow running the tests without installing
 
 from wallbot_sim.domain import DomainClaim, claim_domain_id, isolated_ros_env  # noqa: E402
 from wallbot_sim.graph import ChildProcesses  # noqa: E402
+from wallbot_sim.graph_monitor import temporary_environment  # noqa: E402
 
 pytest_plugins = ('wallbot_sim.testing.plugin',)
 """The ``wallbot`` fixture, which the ``pytest11`` entry point gives a session where wallbot_sim is installed."""
@@ -44,19 +45,9 @@ LOG_TAIL = 3000
 @contextmanager
 def exported_domain() -> Iterator[DomainClaim]:
     """A claimed ROS_DOMAIN_ID exported in os.environ while the block runs, the previous values restored after."""
-    saved = {k: os.environ.get(k) for k in _ENV_KEYS}
-    claim = claim_domain_id()
-    os.environ.update({k: v for k, v in isolated_ros_env(claim.domain_id).items()
-                       if k in _ENV_KEYS})
-    try:
+    with claim_domain_id() as claim, temporary_environment(
+            {k: v for k, v in isolated_ros_env(claim.domain_id).items() if k in _ENV_KEYS}):
         yield claim
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-        claim.release()
 
 
 @pytest.fixture(scope='session', autouse=True)
