@@ -134,10 +134,10 @@ def _compile_kernels() -> None:
     from wallbot_sim.model.batch import kernel
     if not kernel.available():
         return
-    from wallbot_sim.model.compiled import compile_batch, compile_kernel
+    from wallbot_sim.model.compiled import compile_coulomb, compile_ideal
     started = time.monotonic()
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context('spawn')) as pool:
-        for compiled in [pool.submit(compile_kernel), pool.submit(compile_batch)]:
+        for compiled in [pool.submit(compile_coulomb), pool.submit(compile_ideal)]:
             compiled.result()
     took = time.monotonic() - started
     if took > 5.0:

@@ -50,15 +50,35 @@ def compile_kernel() -> None:
     compile_inverse_dynamics()
 
 
-def compile_batch() -> None:
-    """Compile the batch engine's kernel (``BatchSimulation(..., engine='numba')``, a sweep's robots): its fused
-    steps and solve with ideal contact, its boundaries and steps with coulomb contact; or load them from the cache."""
+def compile_batch(contacts: tuple[str, ...] = (IDEAL, COULOMB)) -> None:
+    """Compile the batch engine's kernel (``BatchSimulation(..., engine='numba')``, a sweep's robots) under
+    ``contacts``: its fused steps and solve with ideal contact, its boundaries and steps with coulomb contact; or
+    load them from the cache."""
     robots, start = [Robot(RobotParameters())] * 2, np.zeros((2, DOF))
-    for contact, selection in ((IDEAL, ConstraintSelection.parse('belt')),
-                               (COULOMB, ConstraintSelection.structural(trajectory=False))):
-        batch = BatchSimulation(robots, Circle(1.0, 20.0), selection, start, start, contact=contact, engine=NUMBA)
+    selections = {IDEAL: ConstraintSelection.parse('belt'), COULOMB: ConstraintSelection.structural(trajectory=False)}
+    for contact in contacts:
+        batch = BatchSimulation(robots, Circle(1.0, 20.0), selections[contact], start, start, contact=contact,
+                                engine=NUMBA)
         batch.step()
         batch.outputs()
+
+
+def compile_ideal() -> None:
+    """Compile (or load) what the trajectory task and ideal contact step by: the kernel's run, the tracking
+    controller's inverse dynamics and the batch's fused steps."""
+    compile_run(IDEAL)
+    compile_inverse_dynamics()
+    compile_batch((IDEAL,))
+
+
+def compile_coulomb() -> None:
+    """Compile (or load) what coulomb contact steps a driven robot by: the kernel's contact run and the batch's
+    boundaries and steps. In one process, as they share the settle (about half of it), which it compiles once;
+    beside ``compile_ideal`` in another, the two take about as long."""
+    still = np.zeros(DOF)
+    Simulation(Robot(RobotParameters()), Circle(1.0, 20.0), ConstraintSelection.structural(trajectory=False),
+               still, still, contact=COULOMB, engine=NUMBA).step()
+    compile_batch((COULOMB,))
 
 
 def compile_run(contact: str) -> None:
