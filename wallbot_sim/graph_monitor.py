@@ -63,7 +63,7 @@ class Monitor:
         from rosgraph_msgs.msg import Clock
         from std_msgs.msg import Float64MultiArray
 
-        from wallbot_msgs_py.qos import qos_profile
+        from wallbot_msgs_py.qos import offered_qos_profile, qos_profile
         from wallbot_sim.nodes.common import events_executor
         self._rclpy = rclpy
         self.context = rclpy.Context()
@@ -90,8 +90,10 @@ class Monitor:
         self._parameters = None
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
                                       qos_profile(topics.RECORD_PROGRESS), raw=True)
+        # transient-local, as the dynamics offers it: a status it published before this reader matched (the stop's,
+        # which the end of a run waits for) arrives with the match, not with the next one a second later
         self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
-                                      qos_profile(topics.DIAGNOSTICS), raw=True)
+                                      offered_qos_profile(topics.DIAGNOSTICS), raw=True)
         # only the stamp is read (100 poses per simulated second)
         self.reference_subscription = self.node.create_subscription(
             Odometry, topics.REFERENCE.name, self._on_reference, qos_profile(topics.REFERENCE), raw=True)

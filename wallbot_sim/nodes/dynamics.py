@@ -39,7 +39,7 @@ from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import codec, topics
-from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.qos import offered_qos_profile, qos_profile
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_snapshot
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
@@ -121,7 +121,7 @@ class DynamicsNode(Node):
         """The per-step topics' publishers (``StatePublisher``), diagnostics, snapshots and fault events."""
         self.states = StatePublisher(self, frames, self.loop.robot, self.tap)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
-                                                     qos_profile(topics.DIAGNOSTICS))
+                                                     offered_qos_profile(topics.DIAGNOSTICS))
         self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
                                                   qos_profile(topics.STATE_SNAPSHOT))
         self.fault_pub = self.create_publisher(DiagnosticArray, topics.FAULTS.name, qos_profile(topics.FAULTS))
