@@ -52,7 +52,7 @@ from wallbot_sim.model import ModelError, ParameterError, SampledReference, Step
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import NUMBA
-from wallbot_sim.nodes.common import heard_by_every, run, steady_timer
+from wallbot_sim.nodes.common import exit_process, heard_by_every, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.state_publisher import StatePublisher
 from wallbot_sim.nodes.step_tap import StepTap
@@ -335,7 +335,7 @@ class DynamicsNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL)
-    sys.exit(run(started_node, args))
+    exit_process(run(started_node, args))
 
 
 STOP_POLL = 0.05
