@@ -465,6 +465,39 @@ def test_the_monitor_hears_the_stop_its_dynamics_reported_before_it_joined(ros_d
         rclpy.try_shutdown(context=context)
 
 
+FOREIGN_STATUS_PUBLISHER = """
+import time, rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from wallbot_msgs_py import topics
+from wallbot_msgs_py.qos import qos_profile
+from wallbot_sim.graph_monitor import Monitor
+context = rclpy.Context()
+rclpy.init(context=context)
+node = rclpy.create_node('diagnostic_updater', context=context)
+node.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name, qos_profile(topics.DIAGNOSTICS))  # volatile
+monitor = Monitor()
+deadline = time.monotonic() + 30
+while not monitor.unheard_status_publishers:
+    assert time.monotonic() < deadline, 'the volatile publisher not discovered: a stall'
+    monitor.spin(0.05)
+print('unheard', monitor.unheard_status_publishers, flush=True)
+monitor.close()
+node.destroy_node()
+rclpy.try_shutdown(context=context)
+"""
+"""Another program's volatile /diagnostics publisher beside a monitor, until the monitor has counted it."""
+
+
+def test_the_monitor_passes_over_another_programs_status_publisher_without_a_warning(ros_domain):
+    """A volatile /diagnostics publisher (another program's, as a diagnostic_updater's) does not match the monitor's
+    transient-local reader: it is counted, and not warned about on run's terminal as rclpy would by default."""
+    result = subprocess.run([sys.executable, '-c', FOREIGN_STATUS_PUBLISHER], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ['unheard', '1']
+    assert 'incompatible' not in result.stderr.lower(), result.stderr
+
+
 def test_the_dynamics_diagnostics_reach_a_subscriber_with_ros_default_qos(ros_domain):
     """/diagnostics stays a topic for the ROS tools: a subscriber with rclpy's default QoS (reliable, volatile, depth
     10), as a diagnostics aggregator has, matches the dynamics' transient-local publisher and gets its statuses."""
