@@ -88,6 +88,26 @@ BURST = 5000
 3,000-5,000 (2026-12-03), the rest only at the sender's next heartbeat."""
 
 
+def test_a_node_process_ends_with_its_status_and_all_it_wrote(process_runner, tmp_path):
+    """A node's process ends at once when its nodes have left DDS (common.exit_process: Python's teardown and Fast
+    DDS's, which sleeps 100 ms, would add about 0.2 s to each exit), its output flushed first: here the recorder's
+    log lines, the last written as it stops, through C's fully buffered stdout into a file (RCUTILS_LOGGING_USE_STDOUT),
+    with Python's output buffered as well."""
+    bag = tmp_path / 'bag'
+    recorder = process_runner.start([sys.executable, '-m', 'wallbot_sim.nodes.recorder', '--ros-args', '-p',
+                                     f'output:={bag}'], 'recorder',
+                                    env={'PYTHONUNBUFFERED': '', 'RCUTILS_LOGGING_USE_STDOUT': '1'})
+    deadline = time.monotonic() + 60
+    while not any(bag.glob('*.mcap')):
+        assert recorder.poll() is None, process_runner.output('recorder')
+        assert time.monotonic() < deadline, 'no bag opened: a stall'
+        time.sleep(0.05)
+    assert process_runner.stop(recorder) == 0, process_runner.output('recorder')
+    output = process_runner.output('recorder')
+    assert 'recording ' in output and 'stopped by SIGTERM' in output, output
+    assert (bag / 'metadata.yaml').is_file()
+
+
 def test_a_node_delivers_what_a_starved_subscriber_lost_before_it_leaves(process_runner):
     """A subscriber stopped while a node publishes loses what arrives once its queue is full: here the
     end of a burst, and a last message on a topic of its own (a controller's last command among the

@@ -20,6 +20,7 @@ rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.qos import DurabilityPolicy  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import SetBool, Trigger  # noqa: E402
@@ -119,6 +120,10 @@ def test_topics_types_and_1khz_odometry(graph):
     diagnostics = graph.wait_for(lambda: graph.messages(topics.DIAGNOSTICS.name), STALL, 'diagnostics')
     values = {kv.key: kv.value for kv in diagnostics[-1].status[0].values}
     assert values['active constraints'] == 'trajectory+tangent_heading+belt+non_lateral+nonslip'
+    # heard above by this volatile subscriber, and kept for a transient-local one (wallbot-sim run's monitor)
+    offers = {info.node_name: info.qos_profile.durability
+              for info in graph.node.get_publishers_info_by_topic(topics.DIAGNOSTICS.name)}
+    assert offers.get('dynamics') == DurabilityPolicy.TRANSIENT_LOCAL, offers
     # the rate itself depends on the machine's load (bench/ measures it); here: it steps and says so
     assert float(values['achieved rate (Hz)']) > 0 and 'adsorption margin' in values
     assert values['loop priority'] == 'normal'  # by default

@@ -38,6 +38,10 @@ class Topic:
     durability: Durability = Durability.VOLATILE
     depth: int = 1000
     """History depth (KEEP_LAST, RELIABLE)."""
+    offered: Durability | None = None
+    """The durability its publishers offer where it differs from ``durability``, the one its subscribers ask for:
+    a transient-local publisher serves volatile subscribers as a volatile one would (only what it publishes after
+    they match), and a subscriber asking for transient-local also gets the ``depth`` newest it published before."""
 
     def __hash__(self) -> int:
         # the name's hash, which Python keeps: a topic keys the per-step maps of every step's messages
@@ -70,7 +74,12 @@ velocity: 1 for a sliding wheel, 0 for a sticking one, then the wheel's contact-
 along x_p and along y_p (m/s; its slip while it slides);
 effort: each wheel's normal load N_i (N), then the wall's tangential force on the robot at the wheel along
 x_p and along y_p (N)."""
-DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100)
+DIAGNOSTICS = Topic('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', depth=100,
+                    offered=Durability.TRANSIENT_LOCAL)
+"""The dynamics' status, once a wall second and at once when it stops. Its publisher is transient-local: ROS tools'
+volatile subscribers match it as any /diagnostics publisher; a transient-local subscriber (the monitor of
+``wallbot-sim run``) also gets the statuses published before it matched, so a run whose monitor discovered the
+dynamics late still has the stop's status at once, not a second later."""
 CLOCK = Topic('clock', 'rosgraph_msgs/msg/Clock')
 """The robot's simulation time, published by its dynamics, in its namespace (``/wallbot/clock``):
 two robots in one domain are two simulations whose times differ (started, paused, reset apart).

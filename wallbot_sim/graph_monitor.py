@@ -8,12 +8,15 @@ import math
 import os
 import time
 from contextlib import contextmanager
-from typing import Iterator, Mapping
+from typing import TYPE_CHECKING, Iterator, Mapping
 
 from wallbot_msgs_py import codec, topics
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot
 from wallbot_sim import messages
 from wallbot_sim.heartbeat import NODE_HEARTBEAT, PROFILES_ENV, PROFILES_ENVS, profile_path
+
+if TYPE_CHECKING:
+    from rclpy.event_handler import QoSRequestedIncompatibleQoSInfo
 
 PARAMETER_TIMEOUT = 10.0
 """Wall seconds a parameter set waits for the dynamics' answer."""
@@ -63,7 +66,9 @@ class Monitor:
         from rosgraph_msgs.msg import Clock
         from std_msgs.msg import Float64MultiArray
 
-        from wallbot_msgs_py.qos import qos_profile
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        from wallbot_msgs_py.qos import offered_qos_profile, qos_profile
         from wallbot_sim.nodes.common import events_executor
         self._rclpy = rclpy
         self.context = rclpy.Context()
@@ -90,8 +95,14 @@ class Monitor:
         self._parameters = None
         self.node.create_subscription(Clock, topics.RECORD_PROGRESS.name, self._on_progress,
                                       qos_profile(topics.RECORD_PROGRESS), raw=True)
-        self.node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics,
-                                      qos_profile(topics.DIAGNOSTICS), raw=True)
+        self.unheard_status_publishers = 0
+        """Publishers on /diagnostics this monitor does not match: volatile ones, another program's (the dynamics offers
+        transient-local), whose statuses are not its robot's; counted here, not warned about on the terminal."""
+        # transient-local, as the dynamics offers it: a status it published before this reader matched (the stop's,
+        # which the end of a run waits for) arrives with the match, not with the next one a second later
+        self.node.create_subscription(
+            DiagnosticArray, topics.DIAGNOSTICS.name, self._on_diagnostics, offered_qos_profile(topics.DIAGNOSTICS),
+            raw=True, event_callbacks=SubscriptionEventCallbacks(incompatible_qos=self._on_unheard_status_publisher))
         # only the stamp is read (100 poses per simulated second)
         self.reference_subscription = self.node.create_subscription(
             Odometry, topics.REFERENCE.name, self._on_reference, qos_profile(topics.REFERENCE), raw=True)
@@ -116,6 +127,9 @@ class Monitor:
             self.snapshot = decode_snapshot(data)
         except ValueError:
             return
+
+    def _on_unheard_status_publisher(self, event: QoSRequestedIncompatibleQoSInfo) -> None:
+        self.unheard_status_publishers = event.total_count
 
     def _on_diagnostics(self, data: bytes) -> None:
         try:  # every robot of the domain publishes on /diagnostics: its own dynamics' status only

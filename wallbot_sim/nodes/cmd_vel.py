@@ -33,7 +33,6 @@ publisher subscribes control_odom, so the commander hears the first state.
 
 from __future__ import annotations
 
-import sys
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -45,8 +44,8 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.sampling import ControlInstants, Rewind
 from wallbot_sim.control.wheel_speed import AxisLimits, WheelSpeedController, WheelSpeedSettings
-from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, HeldCommands, run, senders_listen, steady_timer,
-                                      subscribe_odom_when_recorded)
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, HeldCommands, exit_process, run, senders_listen,
+                                      steady_timer, subscribe_odom_when_recorded)
 from wallbot_sim.nodes.parameters import declare_setting, declare_typed, param_dict, parameter_result
 from wallbot_sim.settings.drives import CMD_VEL, CmdVelSettings
 from wallbot_sim.settings.table import changed, parameters
@@ -204,7 +203,7 @@ class CmdVelNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(CmdVelNode, args, events=True))
+    exit_process(run(CmdVelNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 import signal
 import sys
 import threading
 import time
-from typing import Callable, Sequence
+from typing import Callable, NoReturn, Sequence
 
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -175,6 +176,17 @@ def run_nodes(factory: Callable[[StopSignals], Sequence[Node]], args: list[str] 
         rclpy.try_shutdown()
         stop.restore()
     return status
+
+
+def exit_process(status: int) -> NoReturn:
+    """End a node's process with ``status`` once :func:`run_nodes` has returned (its nodes destroyed: the process
+    has left DDS): its output flushed, without Python's teardown and the C++ static destructors. Those add about
+    0.2 s to every process's exit (Fast DDS's DomainParticipantFactory sleeps 100 ms in its destructor), and
+    ``wallbot-sim run`` waits for its nodes' exits, then for its recorder's, in turn."""
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    ctypes.CDLL(None).fflush(None)  # C's stdio buffers (rcutils' console output), which os._exit does not flush
+    os._exit(status)
 
 
 DELIVERY_WAIT = 2.0

@@ -16,7 +16,6 @@ the bag without the set it ran under.
 
 from __future__ import annotations
 
-import sys
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
@@ -28,7 +27,7 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import BaumgarteGains
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, exit_process, run
 from wallbot_sim.nodes.parameters import declare_setting, declare_settings, param_dict, parameter_result
 from wallbot_sim.settings.config import CONSTRAINT_CONFIG, ROBOT_GAINS
 from wallbot_sim.urdf import RobotFrames, robot_urdf
@@ -91,7 +90,7 @@ class ConstraintConfigNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(ConstraintConfigNode, args, events=True))
+    exit_process(run(ConstraintConfigNode, args, events=True))
 
 
 if __name__ == '__main__':

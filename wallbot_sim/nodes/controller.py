@@ -34,7 +34,6 @@ falls back to zero torque after its ``command_timeout``).
 
 from __future__ import annotations
 
-import sys
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -51,7 +50,7 @@ from wallbot_sim.control.sampling import Rewind, SampledController, controller_r
 from wallbot_sim.model import ModelError, Robot, SampledReference
 from wallbot_sim.model.simulation import NUMBA
 from wallbot_sim.model.trajectories import STAMP_RESOLUTION
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, run, subscribe_odom_when_recorded
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, exit_process, run, subscribe_odom_when_recorded
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.settings.controller import CONTROLLER, GAIN_NAMES, ControllerSettings
 from wallbot_sim.settings.table import changed
@@ -210,7 +209,7 @@ class ControllerNode(Node):
         self.get_logger().info('parameters: ' + ', '.join(f'{k} = {v}' for k, v in changes.items()))
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(ControllerNode, args, events=True))
+    exit_process(run(ControllerNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -39,7 +39,7 @@ from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import MultiDOFJointTrajectory
 
 from wallbot_msgs_py import codec, topics
-from wallbot_msgs_py.qos import qos_profile
+from wallbot_msgs_py.qos import offered_qos_profile, qos_profile
 from wallbot_msgs_py.snapshot import DynamicsSnapshot, decode_snapshot, encode_snapshot
 from wallbot_sim import messages
 from wallbot_sim.config import load_robot_parameters, load_world
@@ -52,7 +52,7 @@ from wallbot_sim.model import ModelError, ParameterError, SampledReference, Step
 from wallbot_sim.model.contact import unheld_slip
 from wallbot_sim.model.outputs import StepBlock
 from wallbot_sim.model.simulation import NUMBA
-from wallbot_sim.nodes.common import heard_by_every, run, steady_timer
+from wallbot_sim.nodes.common import exit_process, heard_by_every, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.state_publisher import StatePublisher
 from wallbot_sim.nodes.step_tap import StepTap
@@ -121,7 +121,7 @@ class DynamicsNode(Node):
         """The per-step topics' publishers (``StatePublisher``), diagnostics, snapshots and fault events."""
         self.states = StatePublisher(self, frames, self.loop.robot, self.tap)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name,
-                                                     qos_profile(topics.DIAGNOSTICS))
+                                                     offered_qos_profile(topics.DIAGNOSTICS))
         self.snapshot_pub = self.create_publisher(Float64MultiArray, topics.STATE_SNAPSHOT.name,
                                                   qos_profile(topics.STATE_SNAPSHOT))
         self.fault_pub = self.create_publisher(DiagnosticArray, topics.FAULTS.name, qos_profile(topics.FAULTS))
@@ -335,7 +335,7 @@ class DynamicsNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL)
-    sys.exit(run(started_node, args))
+    exit_process(run(started_node, args))
 
 
 STOP_POLL = 0.05

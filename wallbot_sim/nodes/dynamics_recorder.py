@@ -29,7 +29,7 @@ import sys
 
 from rclpy.node import Node
 
-from wallbot_sim.nodes.common import StopSignals, run_nodes
+from wallbot_sim.nodes.common import StopSignals, exit_process, run_nodes
 from wallbot_sim.nodes.dynamics import SWITCH_INTERVAL, started_node
 from wallbot_sim.nodes.recorder import Recorder
 from wallbot_sim.nodes.state_publisher import STEP_TOPICS
@@ -53,7 +53,7 @@ def composed_nodes(stop: StopSignals) -> list[Node]:
 
 def main(args: list[str] | None = None) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL)
-    sys.exit(run_nodes(composed_nodes, args, events=True))  # the recorder takes the graph's other topics
+    exit_process(run_nodes(composed_nodes, args, events=True))  # the recorder takes the graph's other topics
 
 
 if __name__ == '__main__':

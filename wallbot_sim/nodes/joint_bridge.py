@@ -31,7 +31,6 @@ the controller gets the first state), and holds a command until the dynamics hea
 
 from __future__ import annotations
 
-import sys
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -42,7 +41,8 @@ from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.control.joint_interface import side_torques
 from wallbot_sim.control.sampling import ControlInstants
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, HeldCommands, WhenRecorded, heard_by_every, run, steady_timer
+from wallbot_sim.nodes.common import (ROBOT_CLOCK_ARGS, HeldCommands, WhenRecorded, exit_process, heard_by_every, run,
+                                      steady_timer)
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.settings.drives import JOINT_BRIDGE, JointBridgeSettings
 
@@ -130,7 +130,7 @@ class JointBridgeNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(JointBridgeNode, args, events=True))
+    exit_process(run(JointBridgeNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -38,7 +38,6 @@ Design (see docs/bags.md):
 from __future__ import annotations
 
 import importlib
-import sys
 import time
 from pathlib import Path
 from typing import Any, Sequence
@@ -333,4 +332,5 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == '__main__':
-    sys.exit(main())
+    from wallbot_sim.nodes.common import exit_process
+    exit_process(main())

@@ -30,7 +30,6 @@ about this node's publisher.
 
 from __future__ import annotations
 
-import sys
 import threading
 from dataclasses import dataclass
 
@@ -46,7 +45,7 @@ from wallbot_sim import messages
 from wallbot_sim.model import Circle, FigureEight, ModelError, SmoothStop, tangent_heading
 from wallbot_sim.model.trajectories import Plan, SampledReference
 from wallbot_sim.nodes.background import LatestRequestWorker
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, run, steady_timer
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, WhenRecorded, exit_process, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_settings, param_dict, parameter_result
 from wallbot_sim.settings.trajectory import MAX_PLAN_SAMPLES, PLAN_SETTINGS, TRAJECTORY
 
@@ -255,7 +254,7 @@ class TrajectoryNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(TrajectoryNode, args, events=True))
+    exit_process(run(TrajectoryNode, args, events=True))
 
 
 if __name__ == '__main__':

@@ -20,7 +20,6 @@ without new odometry.
 from __future__ import annotations
 
 import math
-import sys
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -30,7 +29,7 @@ from wallbot_msgs_py import codec, topics, view_cdr
 from wallbot_msgs_py.qos import qos_profile
 from wallbot_sim.config import load_robot_parameters, load_world
 from wallbot_sim.live_view import FoxgloveRelay
-from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, run, steady_timer
+from wallbot_sim.nodes.common import ROBOT_CLOCK_ARGS, exit_process, run, steady_timer
 from wallbot_sim.nodes.parameters import declare_typed, param_dict, parameter_result
 from wallbot_sim.nodes.recorder import message_class
 from wallbot_sim.settings.config import VIEWER, ViewerSettings
@@ -218,7 +217,7 @@ def _finite(topic: topics.Topic, values: tuple[float, ...]) -> tuple[float, ...]
 
 
 def main(args: list[str] | None = None) -> None:
-    sys.exit(run(ViewerNode, args))
+    exit_process(run(ViewerNode, args))
 
 
 if __name__ == '__main__':
