@@ -382,7 +382,9 @@ def test_reset_and_a_kill_in_a_closed_loop_every_node_carries_on(process_runner,
     # recomputes from it up to what the graph saw on the command it held, the answers between lost too.
     # Bound: what those periods make, on the same loop on the model (the first run is that loop), for
     # each control instant the resume may follow (seen at 25 Hz: up to 5.1e-3, a lost 40 ms answer in
-    # the turn onto the path; a bound of centimetres would mean the loop is not tracking)
+    # the turn onto the path; 1.3e-2 when the kill came at 1.96 s under load and every answer since the
+    # kept snapshot could be lost; more than a centimetre for each control instant that may have lost its
+    # answer would mean the loop is not tracking)
     resumed_step = round(resumed * 1e-6)
     end_step = round(max(first) * 1e-6)
     exact = model_loop_states('circle', 1.0, end_step)
@@ -392,6 +394,6 @@ def test_reset_and_a_kill_in_a_closed_loop_every_node_carries_on(process_runner,
     lost = [model_loop_states('circle', 1.0, end_step, answers)[answers[0]:] - exact[answers[0]:]
             for answers in lost_sets]
     bound = max(float(np.max(np.abs(difference))) for difference in lost)
-    assert 0.0 < bound < 1e-2
+    assert 0.0 < bound < 1e-2 * len(instants)
     assert max(after_kill) <= bound + 1e-9, f'the resumed run departs from the first run by more than one control ' \
                                             f'period on an old command ({bound:.3e})'
