@@ -240,7 +240,8 @@ def test_an_interrupted_sweep_ends_its_painters_and_says_one_line(tmp_path):
     """Ctrl-C reaches every process of the command (the terminal signals its process group): the command says
     'interrupted' alone, its painters print nothing and end."""
     out = tmp_path / 'out'
-    spec = write_spec(tmp_path, {**ONE_CHUNK_SPEC, 'duration': 60.0})  # still computing when the painters are up
+    # still computing when the painters are up: four robots for an hour each take minutes (a minute's took 2 s)
+    spec = write_spec(tmp_path, {**ONE_CHUNK_SPEC, 'duration': 3600.0})
     sweep = subprocess.Popen([*WALLBOT, 'sweep', str(spec), '--out', str(out), '--quiet'], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:

@@ -8,6 +8,7 @@ import time
 from contextlib import nullcontext
 from typing import TextIO
 
+from wallbot_sim.cli import signals
 from wallbot_sim.cli.errors import CliError
 from wallbot_sim.cli.progress import LOG_PERIOD, TERMINAL_PERIOD
 
@@ -56,7 +57,8 @@ class SweepProgress:
 
 def main(args: argparse.Namespace) -> int:
     from wallbot_sim.sweep import load_spec
-    from wallbot_sim.sweep.cluster import reach_scheduler, run_chunks
+    from wallbot_sim.sweep.cluster import computes_here, reach_scheduler, run_chunks
+    from wallbot_sim.sweep.compute import load_kernels
     from wallbot_sim.sweep.errors import SweepError
     from wallbot_sim.sweep.painters import FigurePainters
     from wallbot_sim.sweep.store import SweepDirectory, parameter_columns
@@ -88,6 +90,9 @@ def main(args: argparse.Namespace) -> int:
 
     # the painter starts before the chunks compute: matplotlib loads in it meanwhile
     with nullcontext() if args.no_figures else FigurePainters(parameter_columns(spec)) as painters:
+        if pending and computes_here(pending, args.workers, args.scheduler):
+            with signals.deferred:  # a Ctrl-C while numba loads would be lost in its callbacks: it acts after
+                load_kernels(spec.settings)
         try:
             run_chunks(spec, pending, store, workers=args.workers, scheduler=args.scheduler, security=security)
         except SweepError:

@@ -46,6 +46,11 @@ def reach_scheduler(address: str) -> None:
         raise SweepError(f'cannot reach the Dask scheduler at {address}: {reason}') from None
 
 
+def computes_here(chunks: Sequence[int], workers: int | None = None, scheduler: str | None = None) -> bool:
+    """Whether ``run_chunks`` computes ``chunks`` in this process: no scheduler given and one worker's work."""
+    return scheduler is None and min(workers or os.cpu_count() or 1, len(chunks)) == 1
+
+
 def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, list[list[float]]], None],
                workers: int | None = None, scheduler: str | None = None, security: object | None = None) -> None:
     """Compute ``chunks`` (indices into ``spec.chunks()``) and give each one's rows to ``on_done`` as it
@@ -56,7 +61,7 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     if not chunks:
         return
     count = min(workers or os.cpu_count() or 1, len(chunks))
-    if scheduler is None and count == 1:  # one worker: this process, no cluster to start
+    if computes_here(chunks, workers, scheduler):  # one worker: this process, no cluster to start
         for index in chunks:
             on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
         return

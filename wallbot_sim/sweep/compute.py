@@ -88,6 +88,18 @@ def tabulates(settings: RunSettings) -> bool:
     return batch_supports(settings) and settings.contact == IDEAL and not settings.controller and kernel.available()
 
 
+def load_kernels(settings: RunSettings) -> None:
+    """Load the compiled code ``robot_runs`` steps these runs by from numba's cache (or compile it), as its first run
+    would. numba loads it through C callbacks, which swallow a KeyboardInterrupt raised in them (the command then
+    runs on): a caller that handles Ctrl-C holds it back meanwhile."""
+    from wallbot_sim.model import compiled
+    from wallbot_sim.model.batch import kernel
+    if tabulates(settings):
+        compiled.compile_run(IDEAL)
+    elif batch_supports(settings) and kernel.available():
+        compiled.compile_batch((settings.contact,))
+
+
 class RobotRun(NamedTuple):
     """One robot's run as ``simulate`` makes it."""
 
