@@ -33,7 +33,6 @@ publisher subscribes control_odom, so the commander hears the first state.
 
 from __future__ import annotations
 
-
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node

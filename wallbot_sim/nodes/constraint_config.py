@@ -16,7 +16,6 @@ the bag without the set it ran under.
 
 from __future__ import annotations
 
-
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.node import Node
 from std_msgs.msg import String

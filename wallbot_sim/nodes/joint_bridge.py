@@ -31,7 +31,6 @@ the controller gets the first state), and holds a command until the dynamics hea
 
 from __future__ import annotations
 
-
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray

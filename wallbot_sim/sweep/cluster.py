@@ -46,9 +46,15 @@ def reach_scheduler(address: str) -> None:
         raise SweepError(f'cannot reach the Dask scheduler at {address}: {reason}') from None
 
 
+def local_workers(chunks: Sequence[int], workers: int | None = None) -> int:
+    """The processes a local cluster computes ``chunks`` with: ``workers`` (default: one per core), one per chunk
+    at most."""
+    return min(workers or os.cpu_count() or 1, len(chunks))
+
+
 def computes_here(chunks: Sequence[int], workers: int | None = None, scheduler: str | None = None) -> bool:
     """Whether ``run_chunks`` computes ``chunks`` in this process: no scheduler given and one worker's work."""
-    return scheduler is None and min(workers or os.cpu_count() or 1, len(chunks)) == 1
+    return scheduler is None and local_workers(chunks, workers) == 1
 
 
 def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, list[list[float]]], None],
@@ -60,7 +66,6 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     without Dask (a local cluster takes seconds to start)."""
     if not chunks:
         return
-    count = min(workers or os.cpu_count() or 1, len(chunks))
     if computes_here(chunks, workers, scheduler):  # one worker: this process, no cluster to start
         for index in chunks:
             on_done(index, chunk_results(spec.settings, [spec.parameters(robot) for robot in spec.chunks()[index]]))
@@ -71,7 +76,7 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     with ExitStack() as stack:
         if scheduler is None:
             cluster = stack.enter_context(LocalCluster(
-                n_workers=count, threads_per_worker=1, processes=True, host=LOCAL_HOST, dashboard_address=None,
+                n_workers=local_workers(chunks, workers), threads_per_worker=1, processes=True, host=LOCAL_HOST, dashboard_address=None,
                 silence_logs=logging.ERROR))
             client = stack.enter_context(Client(cluster))
         else:
