@@ -175,6 +175,33 @@ def test_compiled_solves_match_the_numpy_ones_robot_by_robot(rank):
                        atol=1e-9 * np.max(np.abs(expected)))
 
 
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+@pytest.mark.parametrize('rank', [7, 6])
+def test_rows_of_full_column_rank_decide_the_acceleration_whatever_mass_and_force(rank):
+    """The kernel's shortcut (``linalg._full_rank_solve``): sparse rows (a module's touch few coordinates), some
+    repeating others, with inconsistent right sides; where they have full column rank, qdd is the Udwadia-Kalaba
+    acceleration of numpy's SVD least squares for each of several W and Q; where they do not, it is refused."""
+    from wallbot_sim.model.batch.kernel import dynamics, linalg
+    rng = np.random.default_rng(23 + rank)
+    sparse = rng.normal(size=(7, DOF)) * (rng.random(size=(7, DOF)) < 0.4) + np.eye(DOF)
+    sparse[:, rank:] = sparse[:, :rank] @ rng.normal(size=(rank, DOF - rank)) if rank < DOF else sparse[:, rank:]
+    rows = np.vstack((sparse, 2.0 * sparse[1], sparse[3] - sparse[5]))
+    rhs = rng.normal(size=len(rows))
+    padded_rows, padded_rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
+    padded_rows[:len(rows)], padded_rhs[:len(rows)] = rows, rhs
+    _, _, gram, lower, _, _ = dynamics._workspace()
+    out = np.full(DOF, np.nan)
+    solved = linalg._full_rank_solve(padded_rows, padded_rhs, len(rows), gram, lower, out)
+    assert solved == (np.linalg.matrix_rank(rows) == DOF) == (rank == DOF)
+    if not solved:
+        return
+    robots = RobotBatch(random_robots(rng, 3))
+    for factor, force in zip(robots.mass_inverse_factor(rng.normal(size=(3, DOF))), rng.normal(size=(3, DOF))):
+        scaled, matrix = factor.T @ force, rows @ factor
+        expected = factor @ (scaled + np.linalg.lstsq(matrix, rhs - matrix @ scaled, rcond=None)[0])
+        assert np.allclose(out, expected, rtol=0.0, atol=1e-10 * np.max(np.abs(expected)))
+
+
 def test_mass_matrix_and_factor_match_the_robot_model():
     rng = np.random.default_rng(3)
     robots = random_robots(rng, 8)

@@ -10,7 +10,7 @@ import numpy as np
 from wallbot_sim.model.batch.kernel.compiling import jit, prange
 from wallbot_sim.model.batch.kernel.layout import (
     BELT, MAX_ROWS, NON_LATERAL, NONSLIP, ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM, TANGENT_HEADING, TRAJECTORY)
-from wallbot_sim.model.batch.kernel.linalg import _scratch, _solve
+from wallbot_sim.model.batch.kernel.linalg import _full_rank_solve, _scratch, _solve
 from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
@@ -51,18 +51,33 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
                   torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
                   rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
                   lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, ints: np.ndarray,
-                  out: np.ndarray) -> None:
+                  with_force: bool, out: np.ndarray) -> None:
     """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone (``_problem``, then
-    ``_solve``); Q, with the held friction of sliding wheels, is left in ``vectors`` row 0. With ``contact`` the
-    solve goes through the rows' own space first (``_row_space_solve``, ``mats`` and ``ints`` its scratch)."""
-    count = _problem(q, qd, reference, flags, constants, torque, gains, contact, sticking, held, rows, rhs, factor,
-                     vectors[0])
+    ``_solve``); with ``with_force`` Q, with the held friction of sliding wheels, is left in ``vectors`` row 0 (else
+    that row is scratch). With ``contact`` the solve goes through the rows' own space first (``_row_space_solve``,
+    ``mats`` and ``ints`` its scratch). Without, rows of full column rank decide qdd alone (``_full_rank_solve``):
+    Q and W are then computed only if ``with_force``."""
     if contact:
+        count = _problem(q, qd, reference, flags, constants, torque, gains, contact, sticking, held, rows, rhs,
+                         factor, vectors[0])
         rank = _prepare_rows(rows, factor, count, matrix, mats[ROW_SYSTEM], mats[ROW_FACTOR], ints[ROW_ORDER],
                              ints[ROW_KEPT])
         if _row_space_solve(factor, vectors[0], rhs, True, matrix, count, rank, ints[ROW_ORDER], ints[ROW_KEPT],
                             mats[ROW_FACTOR], vectors, out):
             return
+        _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
+        return
+    theta = q[2]
+    cos_t, sin_t = math.cos(theta), math.sin(theta)
+    count = _module_rows(q, qd, reference, flags, constants, cos_t, sin_t, False, sticking, held, rows, rhs,
+                         vectors[0])
+    if with_force:
+        _applied_force(q, qd, constants, torque, gains, cos_t, sin_t, vectors[0])
+    if count >= DOF and _full_rank_solve(rows, rhs, count, gram, lower, out):
+        return
+    if not with_force:
+        _applied_force(q, qd, constants, torque, gains, cos_t, sin_t, vectors[0])
+    _factor_of(theta, constants, factor)
     _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
 
 
@@ -89,8 +104,6 @@ def _factor_of(theta: float, constants: np.ndarray, factor: np.ndarray) -> None:
         factor[j, j] = spin
 
 
-# Long on purpose: Q and the rows of every active module in stacking order, in one pass over the shared heading
-# terms; numba inlines it into each RK4 stage of the hot loop, one frame with the row counter in registers.
 def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
              torque: np.ndarray, gains: np.ndarray, contact: bool, sticking: np.ndarray, held: np.ndarray,
              rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, force: np.ndarray) -> int:
@@ -102,12 +115,20 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
     the other modules' rows, and ``held`` (8,), the sliding wheels' forces (f_x, f_y) in body axes wheel by wheel
     (zero for the others), enters Q as sum_i J_i^T f_i (``HeldFriction``).
     """
-    sx, sy = constants[3], constants[4]
-    gravity, weight, radius, eps2 = constants[5], constants[6], constants[7], constants[9]
-    alpha, beta = constants[10], constants[11]
-    # constants[12:16] lateral offsets s_i, [16:24] S d_i = (-s_i, a_i) pairs
-    theta, thd = q[2], qd[2]
+    theta = q[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)
+    _applied_force(q, qd, constants, torque, gains, cos_t, sin_t, force)
+    _factor_of(theta, constants, factor)
+    return _module_rows(q, qd, reference, flags, constants, cos_t, sin_t, contact, sticking, held, rows, rhs, force)
+
+
+def _applied_force(q: np.ndarray, qd: np.ndarray, constants: np.ndarray, torque: np.ndarray, gains: np.ndarray,
+                   cos_t: float, sin_t: float, force: np.ndarray) -> None:
+    """Q of one robot at (q, qd), heading cos_t, sin_t (``_problem``'s ``gains``)."""
+    sx, sy = constants[3], constants[4]
+    gravity, weight, eps2 = constants[5], constants[6], constants[9]
+    # constants[16:24] S d_i = (-s_i, a_i) pairs
+    thd = qd[2]
     thd2 = thd * thd
     force[0] = thd2 * (cos_t * sx - sin_t * sy)
     force[1] = thd2 * (sin_t * sx + cos_t * sy) - weight
@@ -122,7 +143,18 @@ def _problem(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.nda
         force[2] += scale * (arm_x * vx + arm_y * vy)
     force[3] = force[4] = 0.5 * torque[0]
     force[5] = force[6] = 0.5 * torque[1]
-    _factor_of(theta, constants, factor)
+
+
+# Long on purpose: the rows of every active module in stacking order, in one pass over the shared heading terms;
+# numba inlines it into each RK4 stage of the hot loop, one frame with the row counter in registers.
+def _module_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                 cos_t: float, sin_t: float, contact: bool, sticking: np.ndarray, held: np.ndarray, rows: np.ndarray,
+                 rhs: np.ndarray, force: np.ndarray) -> int:
+    """The rows A, b of the active modules of one robot at (q, qd), heading cos_t, sin_t; the row count. With
+    ``contact``, the sticking wheels' rows and the held friction added to Q in ``force`` (``_problem``)."""
+    radius, alpha, beta = constants[7], constants[10], constants[11]
+    # constants[12:16] lateral offsets s_i
+    theta, thd = q[2], qd[2]
     # the rows of the active modules, in stacking order: their entries that are not written here stay
     # zero from the block's start (each module writes the same entries at every stage)
     gam = 2.0 * alpha
@@ -226,7 +258,7 @@ def _rk4(state: np.ndarray, references: np.ndarray, flags: np.ndarray, constants
             continue
         instant = 0 if k == 0 else (2 if k == 3 else 1)
         _acceleration(stage[:DOF], stage[DOF:], references[instant], flags, constants, torque, gains, contact,
-                      sticking, held, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, ints,
+                      sticking, held, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, ints, False,
                       slopes[k, DOF:])
     finite = True
     for i in range(2 * DOF):
@@ -284,7 +316,7 @@ def _motion(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, count: int,
     """
     acceleration, force = motion[0], motion[1]
     _acceleration(y[:DOF], y[DOF:], reference, flags, constants, torque, gains, False, no_wheels, no_held, rows, rhs,
-                  factor, matrix, gram, lower, vectors, scratch, no_mats, no_ints, acceleration)
+                  factor, matrix, gram, lower, vectors, scratch, no_mats, no_ints, True, acceleration)
     for i in range(DOF):
         force[i] = vectors[0, i]  # Q: _acceleration leaves it in vectors row 0
     return _constraint_force(y[2], constants, acceleration, force, rows, rhs, count, motion[2])
@@ -374,6 +406,8 @@ def tracking_force(y: np.ndarray, point: np.ndarray, flags: np.ndarray, constant
 
 
 _problem = jit(_problem, inline="always")
+_applied_force = jit(_applied_force, inline="always")
+_module_rows = jit(_module_rows, inline="always")
 _acceleration = jit(_acceleration, inline="always")
 _rk4 = jit(_rk4, inline="always")
 _steps = jit(_steps, parallel=True)

@@ -225,6 +225,34 @@ def _minimum_norm(matrix: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndar
         _rank_revealing(gram, moment, scratch, lower, solution)
 
 
+def _full_rank_solve(rows: np.ndarray, rhs: np.ndarray, count: int, gram: np.ndarray, lower: np.ndarray,
+                     out: np.ndarray) -> bool:
+    """qdd = (A^T A)^-1 A^T b of the first ``count`` rows A, b, where A has full column rank (its normal equations
+    well conditioned; else False, ``out`` scratch). Then the Udwadia-Kalaba acceleration W (s + B+ (b - B s)),
+    B = A W, is this whatever M and Q: B+ B = I, and W (W^T A^T A W)^-1 W^T = (A^T A)^-1 for W invertible. The
+    rows' zeros are skipped: a module's row touches few coordinates."""
+    for i in range(DOF):
+        out[i] = 0.0
+        for j in range(i + 1):
+            gram[i, j] = 0.0
+    for r in range(count):
+        for i in range(DOF):
+            entry = rows[r, i]
+            if entry != 0.0:
+                out[i] += entry * rhs[r]
+                for j in range(i + 1):
+                    gram[i, j] += entry * rows[r, j]
+    largest = 0.0
+    for i in range(DOF):
+        largest = max(largest, gram[i, i])
+        for j in range(i):
+            gram[j, i] = gram[i, j]
+    if not _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
+        return False
+    _substitute(lower, DOF, out)
+    return True
+
+
 def _scratch(rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """matrix, gram, lower, vectors and the fallback's scratch for problems of up to ``rows`` rows."""
     return (np.zeros((max(rows, 1), DOF)), np.zeros((DOF, DOF)), np.zeros((DOF, DOF)),
@@ -292,6 +320,7 @@ _factor_times = jit(_factor_times, inline="always")
 _scaled_rows = jit(_scaled_rows, inline="always")
 _misfits = jit(_misfits, inline="always")
 _solve = jit(_solve, inline="always")
+_full_rank_solve = jit(_full_rank_solve, inline="always")
 _scratch = jit(_scratch)
 _accelerations = jit(_accelerations)
 _dot = jit(_dot, inline="always")
