@@ -26,14 +26,18 @@ from wallbot_sim.model.trajectories import sample_plan
 
 pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
 
-QUANTITIES = ('q', 'qd', 'acceleration', 'constraint_force', 'drive', 'loads', 'use')
+QUANTITIES = ('q', 'qd', 'acceleration', 'constraint_force', 'drive', 'loads', 'use', 'wheel_forces', 'wheel_use',
+              'slip_velocity')
 
 
 def quantities(out: StepOutputs) -> dict[str, np.ndarray]:
-    """What a step reports, as arrays: states, motion, drive forces, normal loads, friction use, residual."""
+    """What a step reports, as arrays: states, motion, drive forces, normal loads, friction use, each wheel's force,
+    use and contact velocity, residual."""
+    contact = out.contact
     return {'q': out.q, 'qd': out.qd, 'acceleration': out.acceleration, 'constraint_force': out.constraint_force,
-            'drive': np.array([out.drive.left, out.drive.right, out.drive.lateral]), 'loads': out.contact.loads,
-            'use': np.array(out.contact.use), 'residual': np.array([out.residual])}
+            'drive': np.array([out.drive.left, out.drive.right, out.drive.lateral]), 'loads': contact.loads,
+            'use': np.array(contact.use), 'wheel_forces': contact.wheel_forces, 'wheel_use': contact.wheel_use,
+            'slip_velocity': contact.slip_velocity, 'residual': np.array([out.residual])}
 
 
 class Pair:
@@ -286,7 +290,7 @@ def assert_table_is_the_steps(tables: list[StepTable], outputs: list[StepOutputs
 @pytest.mark.parametrize('scenario_name, constraints, chunk', [
     ('circle', 'none', 1000), ('figure8', 'belt,non_lateral,nonslip', 7), ('circle', 'belt,non_lateral', 1)])
 def test_a_tabulated_run_is_the_step_by_step_run_to_the_bit(scenario_name, constraints, chunk):
-    """run_table (the kernel's robot_run a chunk at a time, loads and use by the batch's array functions)
+    """run_table (the kernel's robot_run a chunk at a time, its outputs by the kernel's ideal_outputs)
     against run's outputs step by step: chunks of 1 and 7 steps and one longer than the run, both ends."""
     scenario = load_scenario(scenario_name)
     rng = np.random.default_rng(31)

@@ -3,8 +3,8 @@
 With ideal contact the kernel's ``robot_run`` takes a chunk of one robot's RK4 steps in one call, with
 the motion at each state: the batch's derivative and step, the same forces, the module rows in
 stacking order and the same normal-equation solve as the numba batch engine (which agrees with the
-Python model to 1e-9). The loads, friction use and drive forces of a chunk are measured at once with
-the batch's array functions; the reference at the RK4 instants is sampled in Python for the chunk.
+Python model to 1e-9). The loads, friction use, drive forces and wheel outputs of a chunk's instants are
+the kernel's too (``ideal_outputs``); the reference at the RK4 instants is sampled in Python for the chunk.
 
 With coulomb contact the same is done by ``wallbot_sim.model.compiled_contact``.
 """
@@ -17,7 +17,6 @@ import numpy as np
 
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.simulation import BatchSimulation
-from wallbot_sim.model.batch.contact import drive_forces, friction_use, normal_loads
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import MODULES, ConstraintSelection
 from wallbot_sim.model.constraints import BaumgarteGains
@@ -31,7 +30,7 @@ from wallbot_sim.model.robot import DOF, Robot
 from wallbot_sim.model.simulation import NUMBA, Simulation
 from wallbot_sim.model.solver import ConstrainedMotion
 from wallbot_sim.model.trajectories import Circle, Reference
-from wallbot_sim.model.wheel_forces import WheelOutputs, ideal_wheel_outputs
+from wallbot_sim.model.wheel_forces import WheelOutputs
 
 AHEAD_FIRST, AHEAD_MOST = 4, 64
 """Steps taken ahead per kernel call: the first after a change, and the most (doubling while used up)."""
@@ -194,7 +193,7 @@ class Configured:
         self._gains: BaumgarteGains | None = None
         self._selection: ConstraintSelection | None = None
         self._reference: Reference | None = None
-        self._constants = np.empty(0)
+        self._constants, self._contact = np.empty(0), np.empty(0)
         self._flags, self._rows = np.zeros(len(kernel.MODULE_ORDER), dtype=np.bool_), 0
         self._torque_pair: tuple[float, float] | None = None
         self._torque = np.zeros(2)
@@ -206,6 +205,7 @@ class Configured:
             self._robot, self._gains = robot, gains
             self._constants = kernel.robot_constants(RobotBatch([robot]), np.array([gains.alpha]),
                                                      np.array([gains.beta]))[0]
+            self._contact = kernel.contact_constants(robot)
             self._forget(robot_changed=True)
         if selection is not self._selection:
             self._selection = selection
@@ -245,8 +245,6 @@ class CompiledDynamics(Configured):
 
     def __init__(self, initial_time: float, dt: float) -> None:
         super().__init__(initial_time, dt)
-        self._batches: dict[int, RobotBatch] = {}
-        """RobotBatch of that many copies of the robot, by size (the chunks' sizes are few)."""
         self._ahead: CompiledRun | None = None
         self._ahead_step, self._ahead_row = 0, 0
         """The simulation's step of the chunk's row 0, and the row whose state was handed out last."""
@@ -256,8 +254,6 @@ class CompiledDynamics(Configured):
         self._ahead_measured: tuple[np.ndarray, np.ndarray, np.ndarray, WheelOutputs] | None = None
 
     def _forget(self, robot_changed: bool = False) -> None:
-        if robot_changed:
-            self._batches = {}
         self._ahead = None
 
     def measured(self, y: np.ndarray, step: int, torque: tuple[float, float]) -> Measured:
@@ -329,11 +325,8 @@ class CompiledDynamics(Configured):
         """Normal loads (T, 4), friction use (T, 3), drive forces (T, 3) and the outputs per wheel at the instants
         of ``run``."""
         shown = run.instants
-        robots = self._batches.get(shown)
-        if robots is None:  # built once per size: a driven run's chunks of 4 and 8 steps alternate
-            robots = self._batches[shown] = RobotBatch.repeated(self._robot, shown)
-        q = run.states[:shown]
-        loads = normal_loads(robots, q[:, :DOF], q[:, DOF:], run.motions[:shown, 0])
-        drive = drive_forces(q[:, 2], run.motions[:shown, 2, :3], robots.half_track)
-        wheels = ideal_wheel_outputs(self._robot, q[:, :DOF], q[:, DOF:], run.motions[:shown, 2, :3], loads)
-        return loads, friction_use(robots, drive, loads), drive, wheels
+        loads, drive, use = np.empty((shown, 4)), np.empty((shown, 3)), np.empty((shown, 3))
+        forces, wheel_use, velocities = np.empty((shown, 4, 2)), np.empty((shown, 4)), np.empty((shown, 4, 2))
+        kernel.ideal_outputs(run.states, run.motions, shown, self._constants, self._contact, loads, drive, use, forces,
+                             wheel_use, velocities)
+        return loads, use, drive, WheelOutputs(forces, wheel_use, velocities)

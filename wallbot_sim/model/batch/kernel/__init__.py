@@ -25,7 +25,7 @@ contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a bat
 cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
 The package is split by concern: ``dynamics`` (the derivative and RK4 step with ideal contact, ``robot_run``,
-``tracking_force``), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the
+``tracking_force``), ``outputs`` (the outputs of a run's instants with ideal contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the
 contact arrays' layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
 ``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the steps from a boundary, the
 runs); ``compiling`` compiles them into numba's cache under one stamp of the whole package. numba is optional:
@@ -45,6 +45,7 @@ from wallbot_sim.model.batch.kernel.layout import (
     CONSTRAINT, CONTACT_ERRORS, FAILED, FORCES, FRICTION, HELD_BY, LOADS, MAX_ROWS, MODULE_ORDER, MODULE_ROWS,
     NEWTON_RESIDUAL, PREDICTED, QDD, RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY, contact_constants)
 from wallbot_sim.model.batch.kernel.linalg import _accelerations
+from wallbot_sim.model.batch.kernel.outputs import ideal_outputs
 from wallbot_sim.model.batch.kernel.settle import _batch_settle, _batch_step, robot_contact_run
 from wallbot_sim.model.batch.robots import RobotBatch
 
@@ -53,7 +54,7 @@ __all__ = [
     'robot_run', 'tracking_force', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES', 'FRICTION', 'LOADS',
     'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
     'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',
-    'batch_contact_settle', 'batch_contact_step']
+    'batch_contact_settle', 'batch_contact_step', 'ideal_outputs']
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
