@@ -242,14 +242,34 @@ def _full_rank_solve(rows: np.ndarray, rhs: np.ndarray, count: int, gram: np.nda
                 out[i] += entry * rhs[r]
                 for j in range(i + 1):
                     gram[i, j] += entry * rows[r, j]
+    # L D L^T of the gram without square roots, one division a column (its pivots D_j are the Cholesky factor's
+    # squared); ``lower`` holds L D below its diagonal and 1/D on it
     largest = 0.0
     for i in range(DOF):
         largest = max(largest, gram[i, i])
-        for j in range(i):
-            gram[j, i] = gram[i, j]
-    if not _cholesky(gram, DOF, lower) > WELL_CONDITIONED * largest:
-        return False
-    _substitute(lower, DOF, out)
+    floor = WELL_CONDITIONED * largest
+    for j in range(DOF):
+        pivot = gram[j, j]
+        for k in range(j):
+            pivot -= lower[j, k] * lower[j, k] * lower[k, k]
+        if not pivot > floor:
+            return False
+        lower[j, j] = 1.0 / pivot
+        for i in range(j + 1, DOF):
+            value = gram[i, j]
+            for k in range(j):
+                value -= lower[i, k] * lower[j, k] * lower[k, k]
+            lower[i, j] = value
+    for j in range(DOF):  # L z = A^T b
+        value = out[j]
+        for k in range(j):
+            value -= lower[j, k] * lower[k, k] * out[k]
+        out[j] = value
+    for j in range(DOF - 1, -1, -1):  # D L^T x = z
+        value = out[j]
+        for k in range(j + 1, DOF):
+            value -= lower[k, j] * out[k]
+        out[j] = value * lower[j, j]
     return True
 
 
