@@ -227,10 +227,11 @@ def test_a_diverging_state_stops_with_the_same_error_and_keeps_the_last_finite_s
 
 def test_a_state_diverging_through_an_unfactorable_mass_matrix_stops_as_the_python_engine_does():
     """A reference jumping 1 cm between two samples 1 ms apart drives the tracked state to NaN; on the way the
-    kernel's Cholesky fails and its LU fallback meets the non-finite matrix. That is a divergence, at the
-    step where the python engine meets it give or take one, not numba's LinAlgError: the growth amplifies
-    the engines' round-off differences (they agree to 1e-9, not to the bit), so on some CPUs the state
-    overflows a step earlier on one of them (seen on an Intel Xeon VM: steps 78 and 79)."""
+    kernel's solves fail and its LU fallback meets the non-finite matrix. That is a divergence, within two steps
+    of where the python engine meets it, not numba's LinAlgError. The engines agree until the state passes
+    ~1e16 (a step or two after the jump); from there the blow-up (10^5 to 10^100 a step) is round-off, and
+    where it overflows depends on the solve: the kernel solves these rows, of full column rank, from A's own
+    normal equations, the python engine by the general form (seen: steps 78 and 80)."""
     plan = sample_plan(Circle(radius=0.8, period=20.0), 0.0, 0.3, 0.001)
     jumped = [(x + 0.01, y) if t >= 0.075 else (x, y) for t, (x, y) in zip(plan.times, plan.positions)]
     reference = SampledReference(plan.times, jumped, plan.velocities, plan.accelerations)
@@ -245,7 +246,7 @@ def test_a_state_diverging_through_an_unfactorable_mass_matrix_stops_as_the_pyth
                 simulation.step()
         stopped.append(simulation.steps)
         assert str(error.value) == f'state is no longer finite at t = {simulation.t + simulation.dt:.3f} s'
-    assert abs(stopped[0] - stopped[1]) <= 1 and min(stopped) > 75
+    assert abs(stopped[0] - stopped[1]) <= 2 and min(stopped) > 75
 
 
 def test_an_unknown_engine_is_refused_by_name():
