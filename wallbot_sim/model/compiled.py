@@ -82,12 +82,13 @@ def compile_coulomb() -> None:
 
 def compile_run(contact: str) -> None:
     """Compile what a numba ``Simulation`` under ``contact`` steps by, or load it from numba's cache: the kernel's
-    run, which takes the steps under the trajectory task whatever the contact model, and with coulomb contact
-    its contact run, which takes a driven robot's."""
+    run, which takes the steps under the trajectory task whatever the contact model, and its outputs, and with
+    coulomb contact its contact run, which takes a driven robot's."""
     still = np.zeros(DOF)
     simulation = Simulation(Robot(RobotParameters()), Circle(1.0, 20.0), ConstraintSelection.parse('belt'),
                             still, still, contact=contact, engine=NUMBA)
     simulation.step()
+    simulation.outputs()
     if contact == COULOMB:
         simulation.set_constraints(ConstraintSelection.structural(trajectory=False))
         simulation.step()
