@@ -127,7 +127,8 @@ class StepOutputs:
         """Distance of the centre from the reference point (m); NaN without a reference."""
         if self.reference is None:
             return math.nan
-        return math.hypot(self.q[0] - self.reference.position[0], self.q[1] - self.reference.position[1])
+        # NumPy's hypot, as StepTable's over many instants: the same bits (Python's math.hypot may differ by an ulp)
+        return float(np.hypot(self.q[0] - self.reference.position[0], self.q[1] - self.reference.position[1]))
 
 
 class StepTable(NamedTuple):
@@ -177,7 +178,7 @@ class StepTable(NamedTuple):
         if self.reference_position is None:
             return np.full(len(self.t), np.nan)
         offset = self.q[:, :2] - self.reference_position
-        return np.array([math.hypot(x, y) for x, y in offset.tolist()])  # StepOutputs' own, to the bit
+        return np.hypot(offset[:, 0], offset[:, 1])  # StepOutputs' own, to the bit
 
 
 @dataclass(frozen=True)
