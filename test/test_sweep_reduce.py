@@ -11,12 +11,14 @@ import pytest
 from model_helpers import random_parameters
 from wallbot_sim.config import load_robot_parameters
 from wallbot_sim.model import Robot
+from wallbot_sim.model import wheel_forces
 from wallbot_sim.model.wheel_forces import split_chassis_wrench
+from wallbot_sim.rundata import least_adhesion
 from wallbot_sim.rundata.least_adhesion import holds_with, needed_adhesion, needed_adhesion_of
-from wallbot_sim.rundata.csv_format import COLUMN
-from wallbot_sim.sweep import parse_spec
+from wallbot_sim.rundata.csv_format import COLUMN, CSV_COLUMNS
+from wallbot_sim.sweep import parse_spec, screen
 from wallbot_sim.sweep.compute import OUTPUTS, result_row, single_robot_run
-from wallbot_sim.sweep.reduce import DecidingRows
+from wallbot_sim.sweep.reduce import LATE, DecidingRows, deciding_rows
 
 COULOMB = {'scenario': 'circle', 'contact': 'coulomb', 'controller': True, 'controller_mass_scale': 1.2,
            'duration': 0.3, 'grid': {'adhesion_force': [100.0, 200.0], 'com_height': [0.05, 0.4]}}
@@ -42,19 +44,26 @@ def whole_runs() -> list[tuple]:
     return runs
 
 
+def side_by_side(runs: list[tuple]) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the runs (robots, instants, columns), a robot's past its end values no run has, and whether each
+    robot's run has the row (robots, instants)."""
+    longest = max(len(run.steps) for _, run in runs)
+    rows = np.full((len(runs), longest, runs[0][1].steps.shape[1]), 1e9)
+    valid = np.zeros((len(runs), longest), dtype=bool)
+    for robot, (_, run) in enumerate(runs):
+        rows[robot, :len(run.steps)], valid[robot, :len(run.steps)] = run.steps, True
+    return rows, valid
+
+
+@pytest.mark.parametrize('compiled', [True, False], ids=['screen', 'numpy'])
 @pytest.mark.parametrize('block', [16, 1000, 100_000])
-def test_kept_rows_give_the_whole_runs_results_rows(whole_runs, block):
+def test_kept_rows_give_the_whole_runs_results_rows(whole_runs, block, compiled):
     """Robots of different lengths (lift-offs end some early) side by side, fed ``block`` instants at a time: each
     robot's results row from its kept rows equals the one from all its rows, every column."""
-    longest = max(len(run.steps) for _, run in whole_runs)
-    columns = whole_runs[0][1].steps.shape[1]
-    rows = np.full((longest, len(whole_runs), columns), 1e9)  # past a robot's end: values no run has
-    valid = np.zeros((longest, len(whole_runs)), dtype=bool)
-    for robot, (_, run) in enumerate(whole_runs):
-        rows[:len(run.steps), robot], valid[:len(run.steps), robot] = run.steps, True
-    reduced = DecidingRows([params for params, _ in whole_runs], columns)
-    for start in range(0, longest, block):
-        reduced.add(rows[start:start + block], valid[start:start + block])
+    rows, valid = side_by_side(whole_runs)
+    reduced = DecidingRows([params for params, _ in whole_runs], rows.shape[2], compiled)
+    for start in range(0, rows.shape[1], block):
+        reduced.add(rows[:, start:start + block], valid[:, start:start + block])
     outcomes = set()
     for robot, (params, run) in enumerate(whole_runs):
         kept = reduced.run(robot)
@@ -91,3 +100,82 @@ def test_the_least_adhesion_of_robots_side_by_side_is_each_robots_own():
     assert np.all(holds_with(every_load, every_force, offsets, static, want + margin))
     below = want - margin
     assert not np.any(holds_with(every_load, every_force, offsets, static, below))
+
+
+def _spoiled(runs: list[tuple]) -> list[tuple]:
+    """The runs with values a diverging run writes: a tracking error, a drive force, a wheel's load and use not
+    finite at some rows, and a negative load."""
+    rng = np.random.default_rng(3)
+    spoiled = []
+    for params, run in runs:
+        steps = run.steps.copy()
+        for name, value in (('err', math.nan), ('F_left', math.inf), ('N2', math.nan), ('use3', math.inf),
+                            ('dphi1', math.nan), ('N4', -1.0), ('fx1', -math.inf)):
+            steps[rng.integers(0, len(steps), size=3), COLUMN[name]] = value
+        spoiled.append((params, run._replace(steps=steps)))
+    return spoiled
+
+
+@pytest.mark.parametrize('spoil', [False, True], ids=['runs', 'non-finite'])
+@pytest.mark.parametrize('block', [7, 250])
+def test_the_compiled_screen_keeps_the_rows_the_numpy_reduce_keeps(whole_runs, block, spoil):
+    """The compiled screen (``sweep.screen``) and the NumPy reduce (``deciding_rows``), fed the same blocks of
+    coulomb robots that slide and lift off and of an ideal-contact robot under the controller (some blocks a robot at
+    a time), keep the same rows of every robot after every block: the same picks and binding row, to the bit."""
+    runs = _spoiled(whole_runs) if spoil else whole_runs
+    rows, valid = side_by_side(runs)
+    robots = [params for params, _ in runs]
+    screened, reference = DecidingRows(robots, rows.shape[2]), DecidingRows(robots, rows.shape[2], compiled=False)
+    for number, start in enumerate(range(0, rows.shape[1], block)):
+        subsets = [slice(None)] if number % 2 == 0 else [slice(robot, robot + 1) for robot in range(len(robots))]
+        for robots_now in subsets:
+            for reduced in (screened, reference):
+                reduced.add(rows[robots_now, start:start + block], valid[robots_now, start:start + block], robots_now)
+        np.testing.assert_array_equal(screened.valid, reference.valid)
+        np.testing.assert_array_equal(screened.rows[screened.valid], reference.rows[reference.valid])
+        np.testing.assert_array_equal(screened.binding, reference.binding)
+    assert np.count_nonzero(screened.binding >= 0) >= 3, 'robots with a binding row'
+
+
+def test_the_screens_least_adhesion_of_a_row_is_the_numpy_ones():
+    """Per row, the compiled screen's least adhesion force equals ``needed_adhesion_of``'s to the bit, and its test
+    of a row against an adhesion force (``holds_with``) gives the same answer just above and below: for the chassis
+    split of ideal contact and for forces that are not, re-shared as coulomb contact's."""
+    rng = np.random.default_rng(11)
+    for shared_as in ('chassis', 'coulomb'):
+        robot = Robot(random_parameters(rng))
+        samples = 300
+        loads = rng.uniform(-5.0, 60.0, size=(samples, 4))
+        forces = split_chassis_wrench(np.zeros(samples), rng.normal(scale=30.0, size=(samples, 3)), loads,
+                                      robot.wheel_offsets)
+        if shared_as == 'coulomb':
+            forces = forces + rng.normal(scale=5.0, size=forces.shape)
+        offsets = np.broadcast_to(robot.wheel_offsets, (samples, 4, 2))
+        static = np.full(samples, robot.params.wall_friction)
+        want = needed_adhesion_of(loads, forces, offsets, static)
+        rows = np.zeros((samples, max(COLUMN.values()) + 1))
+        rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = loads
+        rows[:, COLUMN['fx1']:COLUMN['fx1'] + 4] = forces[:, :, 0]
+        rows[:, COLUMN['fy1']:COLUMN['fy1'] + 4] = forces[:, :, 1]
+        along, across = tuple(robot.wheel_offsets[:, 0]), tuple(robot.wheel_offsets[:, 1])
+        sides = np.sign(robot.wheel_offsets[:, 1])
+        same_side = (sides[:, None] == sides[None, :]).astype(float)
+
+        def figure(row: int, above: float) -> float:
+            return screen._figure(rows[row], screen.COLUMNS, along, across, same_side, robot.params.wall_friction,
+                                  above)
+
+        got = np.array([figure(row, -math.inf) for row in range(samples)])
+        np.testing.assert_array_equal(got, want)
+        near = want * (1.0 + rng.choice([-1e-9, 1e-9], size=samples))
+        held = np.array([figure(row, near[row]) == -math.inf for row in range(samples)])
+        np.testing.assert_array_equal(held, holds_with(loads, forces, offsets, static, near))
+        assert 0 < held.sum() < samples
+
+
+def test_the_screens_constants_are_the_reduces():
+    """The screen's own copies of the constants it computes by (numba's cache of it follows its file alone)."""
+    assert (screen.LATE, screen.BISECTIONS, screen.CHASSIS_SPLIT, screen.SINGULAR) == (
+        LATE, least_adhesion.BISECTIONS, least_adhesion.CHASSIS_SPLIT, wheel_forces._SINGULAR)
+    assert screen.PICKS == len(deciding_rows(np.zeros((1, 1, len(CSV_COLUMNS))), np.ones((1, 1), dtype=bool),
+                                             [Robot(load_robot_parameters())])[0])

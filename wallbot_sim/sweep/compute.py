@@ -89,15 +89,18 @@ def tabulates(settings: RunSettings) -> bool:
 
 
 def load_kernels(settings: RunSettings) -> None:
-    """Load the compiled code ``robot_runs`` steps these runs by from numba's cache (or compile it), as its first run
-    would. numba loads it through C callbacks, which swallow a KeyboardInterrupt raised in them (the command then
-    runs on): a caller that handles Ctrl-C holds it back meanwhile."""
+    """Load the compiled code ``robot_runs`` steps and reduces these runs by from numba's cache (or compile it), as
+    its first run would. numba loads it through C callbacks, which swallow a KeyboardInterrupt raised in them (the
+    command then runs on): a caller that handles Ctrl-C holds it back meanwhile."""
     from wallbot_sim.model import compiled
     from wallbot_sim.model.batch import kernel
+    from wallbot_sim.sweep.screen import compile_screen
     if tabulates(settings):
         compiled.compile_run(IDEAL)
     elif batch_supports(settings) and kernel.available():
         compiled.compile_batch((settings.contact,))
+    if batch_supports(settings) and kernel.available():  # either reduces its rows by the compiled screen
+        compile_screen()
 
 
 class RobotRun(NamedTuple):
@@ -176,8 +179,9 @@ def single_robot_run(settings: RunSettings, params: RobotParameters) -> RobotRun
 def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
                     block_size: int = BLOCK) -> Iterator[RobotRun]:
     """Every robot's run as simulate takes it with ideal contact (engine 'numba'): ``block_size`` steps of each
-    robot in turn by ``Simulation.compute_block`` (its rows to the bit, as ``run`` writes them), then every
-    robot's block reduced to the rows deciding its results row (``reduce.DecidingRows``)."""
+    robot in turn by ``Simulation.compute_block`` (its rows to the bit, as ``run`` writes them), each robot's block
+    reduced at once to the rows deciding its results row (``reduce.DecidingRows``): one robot's block at a time,
+    written and read while in the core's cache."""
     simulations = []
     for params in robots:
         robot = Robot(params)
@@ -185,24 +189,25 @@ def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         simulations.append(Simulation(robot, settings.scenario.reference, settings.selection, q0, qd0,
                                       dt=settings.dt, contact=settings.contact, engine='numba'))
     reduced = DecidingRows(robots, len(CSV_COLUMNS))
-    reduced.add(np.array([[csv_row(simulation.outputs()) for simulation in simulations]]),
-                np.ones((1, len(robots)), dtype=bool))
+    reduced.add(np.array([[csv_row(simulation.outputs())] for simulation in simulations]),
+                np.ones((len(robots), 1), dtype=bool))
     done = 0
-    block = np.empty((min(block_size, settings.steps), len(robots), len(CSV_COLUMNS)))  # reused: see DecidingRows
+    block = np.empty((1, min(block_size, settings.steps), len(CSV_COLUMNS)))  # one robot's, reused
+    written = np.ones(block.shape[:2], dtype=bool)
     while done < settings.steps:
         count = min(block_size, settings.steps - done)
         sampled = simulations[0].sample_reference(count)  # the same reference at the same instants for all
-        rows = block[:count]
+        rows = block[0, :count]
         for robot, simulation in enumerate(simulations):
             steps = simulation.compute_block(count, sampled)
             if steps is None:  # not finite in this block: step by step, to where simulate meets it
                 for instant in range(count):
                     simulation.step()
-                    rows[instant, robot] = csv_row(simulation.outputs())
+                    rows[instant] = csv_row(simulation.outputs())
             else:
                 simulation.take(steps)
-                fill_rows(steps.table, rows[:, robot], simulation.motor_torque)
-        reduced.add(rows, np.ones(rows.shape[:2], dtype=bool))
+                fill_rows(steps.table, rows, simulation.motor_torque)
+            reduced.add(block[:, :count], written[:, :count], slice(robot, robot + 1))
         done += count
     for robot in range(len(robots)):
         yield RobotRun(reduced.run(robot))
@@ -227,19 +232,19 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
                                        MAX_WHEEL_TORQUE)
         answer = loop.hook(simulation)
     reduced = DecidingRows(robots, len(CSV_COLUMNS))
-    block = np.empty((min(block_size, settings.steps + 1), len(models), len(CSV_COLUMNS)))
+    block = np.empty((len(models), min(block_size, settings.steps + 1), len(CSV_COLUMNS)))
     written = np.empty(block.shape[:2], dtype=bool)
     """Whether each robot's run has the row: the instants before it detached."""
     filled = 0
 
     def on_step(out: BatchOutputs) -> None:
         nonlocal filled
-        rows = block[filled]
+        rows = block[:, filled]
         fill_motion_rows(out, rows, out.wheel_torques)
         fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
-        written[filled] = ~out.detached
+        written[:, filled] = ~out.detached
         filled += 1
-        if filled == len(block):
+        if filled == block.shape[1]:
             reduced.add(block, written)
             filled = 0
         if answer is not None:  # after the state was recorded, as simulate answers a written state
@@ -253,6 +258,6 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
     finally:
         if kernel.available():
             kernel.numba.set_num_threads(threads)
-    reduced.add(block[:filled], written[:filled])
+    reduced.add(block[:, :filled], written[:, :filled])
     for i in range(len(models)):
         yield RobotRun(reduced.run(i), simulation.lift_off(i))

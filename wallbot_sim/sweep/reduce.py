@@ -10,8 +10,10 @@ figure of a few rows (the robot's binding row so far, its least loaded row, each
 a lower bound, a row holding under that adhesion force (``holds_with``, the bisection's test) needs no more, and
 only the others are bisected, every robot's at once. ``DecidingRows`` keeps, per robot, those rows of what it
 has seen: a block of instants at a time it picks them again from the rows it kept and the block, so it holds a
-few rows per robot whatever the duration. ``result_row`` over the kept rows then gives the row of the whole
-run: the same summary and motor analysis, over a subset holding every row that decides them.
+few rows per robot whatever the duration, each robot's rows contiguous (robots, rows, columns). ``result_row`` over
+the kept rows then gives the row of the whole run: the same summary and motor analysis, over a subset holding every
+row that decides them. Where numba is installed the compiled screen (``sweep.screen``) picks the rows, a robot's in
+one pass; ``deciding_rows`` here, vectorized over the robots, picks the same rows without numba.
 """
 
 from __future__ import annotations
@@ -118,33 +120,53 @@ def _raise(binding: np.ndarray, figure: np.ndarray, row: np.ndarray, robot: np.n
 
 
 class DecidingRows:
-    """Per robot, the rows deciding its results row of what it has seen so far (``deciding_rows``)."""
+    """Per robot, the rows deciding its results row of what it has seen so far (``deciding_rows``): picked by the
+    compiled screen (``screen``) where numba is installed, else (or not ``compiled``) by ``deciding_rows``, the same
+    picks."""
 
-    def __init__(self, robots: Sequence[RobotParameters], columns: int) -> None:
+    def __init__(self, robots: Sequence[RobotParameters], columns: int, compiled: bool = True) -> None:
+        # imported here: the screen loads numba, which the CLI's other verbs, importing the sweep's spec, do not need
+        from wallbot_sim.model.batch import kernel
+        from wallbot_sim.sweep import screen
+        self._screen = screen
+        self._compiled = compiled and kernel.available()
         self.robots = [Robot(params) for params in robots]
-        self.rows = np.empty((0, len(robots), columns))
-        self.valid = np.empty((0, len(robots)), dtype=bool)
+        self._radius = np.array([params.wheel_radius for params in robots])
+        self._offsets = np.array([robot.wheel_offsets for robot in self.robots])
+        self._static = np.array([params.wall_friction for params in robots])
+        self.rows = np.empty((len(robots), 0, columns))
+        """The kept rows of each robot (robots, kept, columns), in time order."""
+        self.valid = np.empty((len(robots), 0), dtype=bool)
         """Whether a kept row is one of the robot's (not a repeat, nor past its end)."""
         self.binding = np.full(len(robots), -1)
         """The kept row binding each robot's least adhesion force (-1: none yet)."""
-        self._both = np.empty((0, len(robots), columns))
-        """The kept rows and the next block side by side, reused from block to block: a block of a chunk's robots
-        is tens of MB, and fresh memory of that size costs more to fault in than to reduce."""
 
-    def add(self, rows: np.ndarray, valid: np.ndarray) -> None:
-        """The next instants of every robot (instants, robots, columns); ``valid``: the robot's run has that row."""
-        kept = len(self.rows)
-        if len(self._both) < kept + len(rows):
-            self._both = np.empty((kept + len(rows), *rows.shape[1:]))
-        both = self._both[:kept + len(rows)]
-        both[:kept], both[kept:] = self.rows, rows
-        valid = np.concatenate((self.valid, valid))
-        picks, binding = deciding_rows(both, valid, self.robots, self.binding)
-        self.rows = np.take_along_axis(both, picks[:, :, None], axis=0)
-        self.valid = np.take_along_axis(valid, picks, axis=0)
-        self.valid[1:] &= picks[1:] != picks[:-1]
-        self.binding = np.where(binding >= 0, np.argmax(picks == binding, axis=0), -1)
+    def add(self, rows: np.ndarray, valid: np.ndarray, robots: slice = slice(None)) -> None:
+        """The next instants (robots, instants, columns) of the robots ``robots`` (all of them: every robot, once
+        before the others); ``valid``: the robot's run has that row."""
+        rows, valid = np.ascontiguousarray(rows), np.ascontiguousarray(valid)  # one layout: one compiled screen
+        kept, kept_valid, binding = self.rows[robots], self.valid[robots], self.binding[robots]
+        if kept.shape[1] == 0 and len(kept) < len(self.rows):
+            raise ValueError("a robot's first rows are added with every robot's")
+        picks = np.empty((len(rows), self._screen.PICKS), dtype=np.int64)
+        if self._compiled:
+            found = np.empty(len(rows), dtype=np.int64)
+            self._screen.screen(kept, kept_valid, rows, valid, binding, self._radius[robots], self._offsets[robots],
+                                self._static[robots], self._screen.COLUMNS, picks, found)
+        else:
+            both = np.concatenate((kept, rows), axis=1)
+            every = np.concatenate((kept_valid, valid), axis=1)
+            chosen, found = deciding_rows(both.transpose(1, 0, 2), every.T, self.robots[robots], binding)
+            picks[:] = chosen.T
+        new_rows = np.empty((len(rows), self._screen.PICKS, rows.shape[2]))
+        new_valid = np.empty((len(rows), self._screen.PICKS), dtype=bool)
+        new_binding = np.empty(len(rows), dtype=np.int64)
+        self._screen.gather(kept, kept_valid, rows, valid, picks, found, new_rows, new_valid, new_binding)
+        if kept.shape[1] == 0:
+            self.rows, self.valid, self.binding = new_rows, new_valid, new_binding
+        else:
+            self.rows[robots], self.valid[robots], self.binding[robots] = new_rows, new_valid, new_binding
 
     def run(self, robot: int) -> np.ndarray:
         """The kept rows of robot ``robot``, in time order."""
-        return self.rows[self.valid[:, robot], robot]
+        return self.rows[robot, self.valid[robot]]
