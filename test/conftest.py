@@ -130,14 +130,15 @@ def _compile_kernels() -> None:
     """The numba kernels compiled here, once, into numba's cache (in the checkout): a fresh clone's
     test processes would otherwise each compile them on first use, several at once, for minutes. The
     single robot's runs (every numba node and simulate) and the batch's (the batch tests, sweeps) compile
-    side by side, one process each."""
+    side by side, one process each, then the sweep's screen of the rows in the first to finish."""
     from wallbot_sim.model.batch import kernel
     if not kernel.available():
         return
     from wallbot_sim.model.compiled import compile_coulomb, compile_ideal
+    from wallbot_sim.sweep.screen import compile_screen
     started = time.monotonic()
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context('spawn')) as pool:
-        for compiled in [pool.submit(compile_coulomb), pool.submit(compile_ideal)]:
+        for compiled in [pool.submit(compile_coulomb), pool.submit(compile_ideal), pool.submit(compile_screen)]:
             compiled.result()
     took = time.monotonic() - started
     if took > 5.0:
