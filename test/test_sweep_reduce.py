@@ -10,8 +10,7 @@ import pytest
 
 from model_helpers import random_parameters
 from wallbot_sim.config import load_robot_parameters
-from wallbot_sim.model import Robot
-from wallbot_sim.model import wheel_forces
+from wallbot_sim.model import Robot, wheel_forces
 from wallbot_sim.model.wheel_forces import split_chassis_wrench
 from wallbot_sim.rundata import least_adhesion
 from wallbot_sim.rundata.least_adhesion import holds_with, needed_adhesion, needed_adhesion_of
@@ -161,14 +160,13 @@ def test_the_screens_least_adhesion_of_a_row_is_the_numpy_ones():
         sides = np.sign(robot.wheel_offsets[:, 1])
         same_side = (sides[:, None] == sides[None, :]).astype(float)
 
-        def figure(row: int, above: float) -> float:
-            return screen._figure(rows[row], screen.COLUMNS, along, across, same_side, robot.params.wall_friction,
-                                  above)
-
-        got = np.array([figure(row, -math.inf) for row in range(samples)])
+        static_friction = robot.params.wall_friction
+        got = np.array([screen._figure(row, screen.COLUMNS, along, across, same_side, static_friction, -math.inf)
+                        for row in rows])
         np.testing.assert_array_equal(got, want)
         near = want * (1.0 + rng.choice([-1e-9, 1e-9], size=samples))
-        held = np.array([figure(row, near[row]) == -math.inf for row in range(samples)])
+        held = np.array([screen._figure(row, screen.COLUMNS, along, across, same_side, static_friction, above)
+                         == -math.inf for row, above in zip(rows, near)])
         np.testing.assert_array_equal(held, holds_with(loads, forces, offsets, static, near))
         assert 0 < held.sum() < samples
 

@@ -194,6 +194,7 @@ def _robot_picks(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, va
         columns[_LATERAL]
     tau_at, dphi_at, loads_at, use_at, slip_at = columns[_TAU], columns[_DPHI], columns[_N], columns[_USE], \
         columns[_SLIP]
+    peak_at = (left_at, right_at, lateral_at, columns[_RESIDUAL])  # reduce.PEAKS
     best = np.full(PICKS, -math.inf)
     picks[:] = 0
     best[13] = math.inf  # the least load: a least, not a peak
@@ -212,8 +213,8 @@ def _robot_picks(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, va
                 last_error = index
                 if t >= late and abs(err) > best[2]:
                     best[2], picks[2] = abs(err), index
-            for pick in range(4):  # F_left, F_right, F_lateral, residual: adjacent columns
-                value = row[left_at + pick]
+            for pick in range(4):
+                value = row[peak_at[pick]]
                 if math.isfinite(value) and abs(value) > best[3 + pick]:
                     best[3 + pick], picks[3 + pick] = abs(value), index
             motor = (math.isfinite(t) and math.isfinite(row[lateral_at]) and math.isfinite(row[dphi_at])
