@@ -220,6 +220,7 @@ def _robot_picks(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, va
             motor = (math.isfinite(t) and math.isfinite(row[lateral_at]) and math.isfinite(row[dphi_at])
                      and math.isfinite(row[dphi_at + 1]) and math.isfinite(row[dphi_at + 2])
                      and math.isfinite(row[dphi_at + 3]))
+            # each side's motor torque, as model.outputs.side_motor_torques
             left = radius * row[left_at] + row[tau_at] + row[tau_at + 1]
             right = radius * row[right_at] + row[tau_at + 2] + row[tau_at + 3]
             if motor and math.isfinite(left) and math.isfinite(right):
