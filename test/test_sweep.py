@@ -397,6 +397,26 @@ def test_a_single_chunk_is_computed_without_starting_a_cluster(monkeypatch):
         run_chunks(parse_spec(BATCH_SPEC), [0, 1], done.__setitem__, workers=2)
 
 
+def test_chunks_in_one_process_reuse_their_scenarios_reference_samples_and_no_other():
+    """A worker's second chunk of a sweep takes the reference samples its first took (``compute._SAMPLES``), and
+    its rows are those it gives sampling its own; a chunk of another scenario samples its own."""
+    from wallbot_sim.sweep import compute
+    figure8 = parse_spec({**BATCH_SPEC, 'scenario': 'figure8', 'duration': 0.05})
+    circle = parse_spec({**BATCH_SPEC, 'duration': 0.05})
+    robots = [figure8.parameters(0)], [figure8.parameters(3)]
+    compute._SAMPLES.clear()
+    alone = [compute.chunk_results(figure8.settings, chunk) for chunk in robots]
+    compute._SAMPLES.clear()
+    first = compute.chunk_results(figure8.settings, robots[0])
+    kept = dict(compute._SAMPLES)
+    assert kept and all(key[0] == figure8.settings.scenario.reference for key in kept)
+    assert compute.chunk_results(figure8.settings, robots[1]) == alone[1] and first == alone[0]
+    assert all(compute._SAMPLES[key] is sampled for key, sampled in kept.items())  # taken, not sampled again
+    on_circle = compute.chunk_results(circle.settings, robots[0])
+    compute._SAMPLES.clear()
+    assert on_circle == compute.chunk_results(circle.settings, robots[0]) != first
+
+
 def start_dask(process_runner, folder: Path, *options: object, host: str = '127.0.0.1',
                place: Callable[[list], list] = list) -> str:
     """A ``dask scheduler`` listening on ``host`` (its command through ``place``: on another host); its address."""

@@ -34,6 +34,7 @@ from wallbot_sim.sweep.reduce import DecidingRows
 
 if TYPE_CHECKING:
     from wallbot_sim.model.batch import BatchOutputs
+    from wallbot_sim.model.compiled import ReferenceRows
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
            'peak_motor_torque_left', 'peak_motor_torque_right', 'min_normal_load', 'max_use1', 'max_use2',
@@ -196,7 +197,7 @@ def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
     written = np.ones(block.shape[:2], dtype=bool)
     while done < settings.steps:
         count = min(block_size, settings.steps - done)
-        sampled = simulations[0].sample_reference(count)  # the same reference at the same instants for all
+        sampled = _shared_samples(simulations[0], count)  # the same reference at the same instants for all
         rows = block[0, :count]
         for robot, simulation in enumerate(simulations):
             steps = simulation.compute_block(count, sampled)
@@ -211,6 +212,23 @@ def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         done += count
     for robot in range(len(robots)):
         yield RobotRun(reduced.run(robot))
+
+
+_SAMPLES: dict[tuple, ReferenceRows] = {}
+"""The reference's samples of the blocks this process computed, for the sweep's next chunk on it (a sweep's chunks
+share their scenario: sampling it in Python costs about 20 us a step)."""
+
+
+def _shared_samples(simulation: Simulation, count: int) -> ReferenceRows:
+    """``simulation.sample_reference(count)``, from ``_SAMPLES`` where a chunk before sampled the same reference
+    (equal by value) at the same instants; only one reference's samples are kept."""
+    key = (simulation.reference, simulation.dt, simulation.t, simulation.steps, count)
+    sampled = _SAMPLES.get(key)
+    if sampled is None:
+        if any(kept[:2] != key[:2] for kept in _SAMPLES):
+            _SAMPLES.clear()
+        sampled = _SAMPLES[key] = simulation.sample_reference(count)
+    return sampled
 
 
 def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
