@@ -6,8 +6,8 @@ load-weighted split of their wrench on the chassis over the four wheels (ideal c
 else as coulomb contact shares a sticking robot's (each side's traction between its two wheels by load,
 the belt's force being free, the lateral force and its moment by the load-weighted least-norm split).
 Either gives back the run's own forces at F_run. Per sample the least F with
-|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by bisection, and the figure is the
-largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
+|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by regula falsi (``_Resplit.least_shift``),
+and the figure is the largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
 changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
 the figure is a lower bound.
 """
@@ -19,36 +19,31 @@ import numpy as np
 from wallbot_sim.model import Robot
 from wallbot_sim.model.wheel_forces import split_chassis_wrench
 
-BISECTIONS = 60
-"""Halvings of a sample's interval of adhesion forces (to far below a newton's round-off)."""
-COARSE = 12
-"""Halvings done for every sample before those that cannot hold the largest figure are left out."""
+WIDENINGS = 60
+"""Doublings of a sample's interval of adhesion forces at most, until every wheel holds at its upper end."""
+STEPS = 400
+"""Steps of the root search at most (it ends far sooner: every fourth step at least halves the interval)."""
+RESOLUTION = 1e-14
+"""Width, relative to the forces a sample's interval spans (F_run, its ends), to which it is narrowed."""
 CHASSIS_SPLIT = 1e-9
 """Relative difference below which a sample's forces are taken for the split of their chassis wrench."""
+_SINGULAR = 1e-12
+"""Relative spread below which the chassis split makes no moment (``wheel_forces.split_chassis_wrench``'s)."""
 
 
 def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple[float, int, int, bool]:
     """The least adhesion force keeping every wheel of the samples on the wall with its force in its disc
     (the module's docstring): (F, the sample that binds, the wheel that binds there, whether by lift-off).
 
-    ``loads`` (T, 4) and ``forces`` (T, 4, 2) of the run; per sample the shift of F from the run's, F - F_run,
-    is bisected between where a load reaches 0 and where every wheel holds, first coarsely for every sample,
-    then on for those whose interval reaches the largest lower end.
+    ``loads`` (T, 4) and ``forces`` (T, 4, 2) of the run: ``needed_adhesion``'s largest.
     """
-    lift_off = np.max(-4.0 * loads, axis=1)  # a wheel's load is 0 here: below it the wheel is off the wall
-    run_force = loads.sum(axis=1)
-    offsets, static = robot.wheel_offsets, robot.params.wall_friction
-    resplit = _Resplit(loads, forces, offsets, static)
-    low, high = _bisect(resplit, *_bracket(resplit, lift_off, run_force), COARSE)
-    candidates = np.flatnonzero(run_force + high >= np.max(run_force + low))
-    resplit = _Resplit(loads[candidates], forces[candidates], offsets, static)
-    low, high = _bisect(resplit, low[candidates], high[candidates], BISECTIONS - COARSE)
-    needed = run_force[candidates] + high
-    j = int(np.argmax(needed))
-    k = int(candidates[j])
-    lifts = high[j] - lift_off[k] <= 1e-9 * max(abs(needed[j]), 1.0)
-    wheel = int(np.argmin(loads[k])) if lifts else int(np.argmax(resplit.use(np.full(len(high), high[j]))[j]))
-    return float(needed[j]), k, wheel, bool(lifts)
+    resplit = _Resplit(loads, forces, robot.wheel_offsets, robot.params.wall_friction)
+    shift = resplit.least_shift(largest=True)
+    needed = resplit.run_force + shift
+    k = int(np.argmax(needed))
+    lifts = shift[k] - resplit.lift_off[k] <= 1e-9 * max(abs(needed[k]), 1.0)
+    wheel = int(np.argmin(loads[k])) if lifts else int(np.argmax(resplit.use(shift)[k]))
+    return float(needed[k]), k, wheel, bool(lifts)
 
 
 def needed_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> np.ndarray:
@@ -61,103 +56,174 @@ def needed_adhesion_of(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarra
                        static: float | np.ndarray) -> np.ndarray:
     """``needed_adhesion`` of samples of robots of their own: wheel offsets d_i (4, 2) or each sample's (T, 4, 2),
     wall friction mu_s one or each sample's (T,)."""
-    run_force = loads.sum(axis=1)
     resplit = _Resplit(loads, forces, offsets, static)
-    _low, high = _bisect(resplit, *_bracket(resplit, np.max(-4.0 * loads, axis=1), run_force), BISECTIONS)
-    return run_force + high
+    return resplit.run_force + resplit.least_shift()
 
 
 def holds_with(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray, static: float | np.ndarray,
                adhesion: np.ndarray) -> np.ndarray:
     """(T,) whether each sample keeps its wheels on the wall with their forces in their discs under the adhesion
-    force ``adhesion`` (T,) (``needed_adhesion_of``'s samples and robots): the test the bisection halves by, so a
+    force ``adhesion`` (T,) (``needed_adhesion_of``'s samples and robots): the test the root search narrows by, so a
     sample that holds needs no more than it."""
     resplit = _Resplit(loads, forces, offsets, static)
-    return resplit.holds(adhesion - loads.sum(axis=1))
-
-
-def _bracket(resplit: _Resplit, lift_off: np.ndarray, run_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds."""
-    low, high = lift_off, np.maximum(lift_off, 0.0) + run_force + 1.0
-    for _ in range(BISECTIONS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
-        short = ~resplit.holds(high)
-        if not short.any():
-            break
-        high = np.where(short, low + 2.0 * (high - low), high)
-    return low, high
-
-
-def _bisect(resplit: _Resplit, low: np.ndarray, high: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` halvings of each interval (low: not held, high: held)."""
-    for _ in range(count):
-        middle = 0.5 * (low + high)
-        holds = resplit.holds(middle)
-        low, high = np.where(holds, low, middle), np.where(holds, middle, high)
-    return low, high
+    return resplit.holds(adhesion - resplit.run_force)
 
 
 class _Resplit:
     """The samples' wheel forces shared again by the loads of another adhesion force (the module's docstring), of
-    one robot (offsets d_i (4, 2), mu_s a number) or of each sample's own (offsets (T, 4, 2), mu_s (T,))."""
+    one robot (offsets d_i (4, 2), mu_s a number) or of each sample's own (offsets (T, 4, 2), mu_s (T,)).
+
+    Beyond lift-off every load N_i + s / 4 (s = F - F_run) is positive, so every load-weighted sum either split
+    takes is affine in s, and a wheel's force over its load, g_i = f_i / N_i, is a few operations on them per
+    sample: the samples are tested at any s without splitting their forces again.
+    """
 
     def __init__(self, loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray,
                  static: float | np.ndarray) -> None:
-        self.loads, self.offsets = loads, offsets
-        self.static = static if np.ndim(static) == 0 else np.asarray(static)[:, None]
-        self.along, across = offsets[..., 0], offsets[..., 1]
-        side = np.sign(across)
-        self.same_side = (side[..., :, None] == side[..., None, :]).astype(float)
-        """(4, 4) or (T, 4, 4): 1 where two wheels are of one side; ``_sides`` gives each wheel's side's sum."""
+        self.static = static if np.ndim(static) == 0 else np.asarray(static)
+        self.run_force = loads.sum(axis=1)
+        self.lift_off = np.max(-4.0 * loads, axis=1)
+        """(T,) s at which a load reaches 0: below it a wheel is off the wall."""
+        along, across = offsets[..., 0], offsets[..., 1]
+        self.along, self.across = along, across
+        same_side = _same_side(across)
         longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
-        self.traction = self._sides(longitudinal)
-        """Each wheel's side's traction (T, 4)."""
-        self.lateral, self.moment = lateral.sum(axis=1), _weighted(lateral, self.along)
-        self.wrench = np.column_stack((longitudinal.sum(axis=1), self.lateral,
-                                       self.moment - _weighted(longitudinal, across)))
-        """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z) (T, 3)."""
-        self.heading = np.zeros(len(loads))  # the wrench is in body axes already
-        made = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
+        self.wrench = (longitudinal.sum(axis=1), lateral.sum(axis=1),
+                       _weighted(lateral, along) - _weighted(longitudinal, across))
+        """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z), each (T,)."""
+        made = split_chassis_wrench(np.zeros(len(loads)), np.column_stack(self.wrench), loads, offsets)
         scale = 1.0 + np.max(np.abs(forces), axis=(1, 2))
         self.chassis = np.all(np.abs(made - forces) <= CHASSIS_SPLIT * scale[:, None, None], axis=(1, 2))
         """(T,) the samples whose forces are their chassis wrench's split over the four wheels (ideal contact's)."""
-
-    def _sides(self, values: np.ndarray) -> np.ndarray:
-        """Each wheel's side's sum of ``values`` (T, 4)."""
-        if self.same_side.ndim == 2:
-            return values @ self.same_side
-        return np.einsum('ti,tij->tj', values, self.same_side)
-
-    def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,)."""
-        loads = self.loads + 0.25 * shift[:, None]
-        if self.chassis.all():  # ideal contact's samples: the chassis split alone
-            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
-            return split[:, :, 0], split[:, :, 1], loads
-        total, first = loads.sum(axis=1), _weighted(loads, self.along)
-        second = _weighted(loads, self.along * self.along)
-        with np.errstate(divide='ignore', invalid='ignore'):  # a side or a row without load holds nothing
-            spread = total * second - first * first
-            lam = (second * self.lateral - first * self.moment) / spread
-            mu = (total * self.moment - first * self.lateral) / spread
-            along = self.traction * loads / self._sides(loads)
-        across = loads * (lam[:, None] + mu[:, None] * self.along)
+        # each sum of the loads, at s = 0 and its rate in s (a quarter of the sum of what each load is weighted by)
+        self.first = (_weighted(loads, along), 0.25 * along.sum(axis=-1))
+        if not self.chassis.all():
+            self.second = (_weighted(loads, along * along), 0.25 * (along * along).sum(axis=-1))
+            self.side_loads = (_sides(loads, same_side), 0.25 * same_side.sum(axis=-1))
+            """Each wheel's side's load (T, 4) and its rate."""
+            self.traction = _sides(longitudinal, same_side)
+            """Each wheel's side's traction (T, 4)."""
+            self.lateral, self.moment = self.wrench[1], _weighted(lateral, along)
         if self.chassis.any():
-            split = split_chassis_wrench(self.heading, self.wrench, loads, self.offsets)
-            along = np.where(self.chassis[:, None], split[:, :, 0], along)
-            across = np.where(self.chassis[:, None], split[:, :, 1], across)
-        return along, across, loads
+            self.across_sum = (_weighted(loads, across), 0.25 * across.sum(axis=-1))
+            radii = along * along + across * across
+            self.radii_sum = (_weighted(loads, radii), 0.25 * radii.sum(axis=-1))
+
+    def ratios(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """g_i = f_i / N_i along x_p and y_p (T, 4 each) with F - F_run = ``shift`` (T,) beyond lift-off."""
+        total = self.run_force + shift
+        first = _at(self.first, shift)
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):  # a row without load holds nothing
+            if not self.chassis.all():
+                second = _at(self.second, shift)
+                spread = total * second - first * first
+                lam = (second * self.lateral - first * self.moment) / spread
+                mu = (total * self.moment - first * self.lateral) / spread
+                along = self.traction / _at(self.side_loads, shift[:, None])
+                across = lam[:, None] + mu[:, None] * self.along
+                if not self.chassis.any():
+                    return along, across
+            force_x, force_y, moment = self.wrench
+            sum_s, sum_r = _at(self.across_sum, shift), _at(self.radii_sum, shift)
+            spread = total * sum_r - sum_s * sum_s - first * first
+            turn = np.where(spread > _SINGULAR * total * sum_r,
+                            (total * moment + sum_s * force_x - first * force_y) / spread, 0.0)
+            lam_x, lam_y = (force_x + sum_s * turn) / total, (force_y - first * turn) / total
+        chassis_along = lam_x[:, None] - self.across * turn[:, None]
+        chassis_across = lam_y[:, None] + self.along * turn[:, None]
+        if self.chassis.all():
+            return chassis_along, chassis_across
+        keep = self.chassis[:, None]
+        return np.where(keep, chassis_along, along), np.where(keep, chassis_across, across)
+
+    def excess(self, shift: np.ndarray) -> np.ndarray:
+        """(T,) F (max_i |g_i| - mu_s) with F - F_run = ``shift`` beyond lift-off: positive where a wheel's force
+        leaves its disc, nearly affine in the shift (a wheel's force over its load falls about as 1 / F)."""
+        along, across = self.ratios(shift)
+        return (self.run_force + shift) * (np.sqrt(np.max(along * along + across * across, axis=1)) - self.static)
 
     def use(self, shift: np.ndarray) -> np.ndarray:
-        """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift``."""
-        along, across, loads = self.components(shift)
-        with np.errstate(divide='ignore', invalid='ignore'):
-            return np.hypot(along, across) / (self.static * loads)
+        """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift`` beyond lift-off."""
+        along, across = self.ratios(shift)
+        return np.hypot(along, across) / (self.static if np.ndim(self.static) == 0 else self.static[:, None])
 
     def holds(self, shift: np.ndarray) -> np.ndarray:
-        """(T,) whether every wheel is on the wall with its force in its disc."""
-        along, across, loads = self.components(shift)
-        limit = self.static * loads
-        return np.all((loads > 0.0) & (along * along + across * across <= limit * limit), axis=1)
+        """(T,) whether every wheel is on the wall with its force in its disc with F - F_run = ``shift``."""
+        with np.errstate(invalid='ignore'):
+            return (shift > self.lift_off) & (self.excess(shift) <= 0.0)
+
+    def least_shift(self, largest: bool = False) -> np.ndarray:
+        """Each sample's least F - F_run at which it holds (T,); with ``largest`` only the samples that can need the
+        most adhesion are narrowed to the end (the others' figures are less than it, and otherwise rough).
+
+        Each sample's interval from lift-off to where every wheel holds is narrowed by regula falsi (the Illinois
+        variant) until it is ``RESOLUTION`` of the forces it spans wide; a step keeps half of that from either end,
+        so that one next to the root falls on its other side too, and halves the interval wherever four steps did
+        not. A sample whose wheels hold as soon as all are on the wall needs the lift-off's.
+        """
+        low, high = self._bracket()
+        resolution = RESOLUTION * (np.abs(self.run_force) + np.abs(low) + np.abs(high) + 1.0)
+        margin = 0.5 * resolution
+        with np.errstate(invalid='ignore'):
+            low_excess, high_excess = self.excess(low), self.excess(high)
+            high = np.where(low_excess <= 0.0, low, high)
+        width = high - low
+        halvings = [np.inf] * 4  # half the widths of the last four steps
+        lowered = raised = np.zeros(len(low), dtype=bool)  # which end the last step moved
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+            for _ in range(STEPS):
+                wide = width > resolution
+                if largest:
+                    wide &= self.run_force + high >= np.max(self.run_force + low)
+                if not wide.any():
+                    break
+                secant = high - high_excess * width / (high_excess - low_excess)
+                secant = np.where((width <= halvings[0]) & ~np.isnan(secant), secant, 0.5 * (low + high))
+                step = np.minimum(np.maximum(secant, low + margin), high - margin)
+                step_excess = self.excess(step)
+                held = step_excess <= 0.0
+                lower, raise_ = wide & held, wide & ~held
+                # Illinois: an end kept a second time weighs half, so that the next step falls beyond the root
+                low_excess = low_excess * np.where(lower & lowered, 0.5, 1.0)
+                high_excess = high_excess * np.where(raise_ & raised, 0.5, 1.0)
+                low, low_excess = np.where(raise_, step, low), np.where(raise_, step_excess, low_excess)
+                high, high_excess = np.where(lower, step, high), np.where(lower, step_excess, high_excess)
+                lowered, raised = lower, raise_
+                halvings = halvings[1:] + [0.5 * width]
+                width = high - low
+        return high
+
+    def _bracket(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds."""
+        low = self.lift_off
+        high = np.maximum(low, 0.0) + self.run_force + 1.0
+        for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
+            short = ~self.holds(high)
+            if not short.any():
+                break
+            high = np.where(short, low + 2.0 * (high - low), high)
+        return low, high
+
+
+def _same_side(across: np.ndarray) -> np.ndarray:
+    """(4, 4), or each sample's (T, 4, 4) where their wheels' sides differ: 1 where two wheels are of one side."""
+    side = np.sign(across)
+    if side.ndim == 2 and np.all(side == side[:1]):
+        side = side[0]
+    return (side[..., :, None] == side[..., None, :]).astype(float)
+
+
+def _sides(values: np.ndarray, same_side: np.ndarray) -> np.ndarray:
+    """Each wheel's side's sum of ``values`` (T, 4)."""
+    if same_side.ndim == 2:
+        return values @ same_side
+    return np.einsum('ti,tij->tj', values, same_side)
+
+
+def _at(affine: tuple[np.ndarray, np.ndarray | float], shift: np.ndarray) -> np.ndarray:
+    """A load-weighted sum (value at s = 0, rate) at s = ``shift``."""
+    value, rate = affine
+    return value + shift * rate
 
 
 def _weighted(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
