@@ -40,6 +40,9 @@ REFINED = 50
 """Points on each side of the largest of a grid in the next, finer one."""
 LEFT, RIGHT = 'left', 'right'
 """Turning directions: left (anticlockwise, the right side pushing forward), right."""
+_HEADINGS = np.arange(HEADING_GRID) * (2.0 * math.pi / HEADING_GRID)
+_GRID = (_HEADINGS, np.sin(_HEADINGS), np.cos(_HEADINGS))
+"""The first grid's headings, their sines and cosines."""
 
 
 class TurnThresholds(NamedTuple):
@@ -81,43 +84,58 @@ def flat_turn_threshold(params: RobotParameters, adhesion: float) -> float:
 
 def turn_thresholds(params: RobotParameters, adhesion: float, headings: np.ndarray) -> TurnThresholds:
     """The thresholds of a turn in place from rest at ``headings`` (H,), adhesion force ``adhesion`` (N)."""
-    robot = Robot(params.replace(adhesion_force=adhesion))
     headings = np.asarray(headings, dtype=float)
-    g, r, h = params.gravity, params.wheel_radius, params.com_height
-    a, b = params.half_wheelbase, params.half_track
-    weight = robot.total_mass * g
-    along, across = robot.wheel_offsets[:, 0], robot.wheel_offsets[:, 1]
-    sin_t, cos_t = np.sin(headings)[:, None], np.cos(headings)[:, None]
-    loads = adhesion / 4.0 - h * weight * (sin_t * along / (4.0 * a * a) + cos_t * across / (4.0 * b * b))
-    left = across > 0.0
-    side_loads = np.where(left, loads[:, left].sum(axis=1, keepdims=True), loads[:, ~left].sum(axis=1, keepdims=True))
-    share = loads / side_loads  # each wheel's part of its side's traction
-    hold_traction = 0.5 * weight * sin_t  # each side's, tau_0 / r
-    turn_traction = np.where(left, -1.0, 1.0) / r  # per unit T
-    total, first, second = loads.sum(axis=1), loads @ along, loads @ (along * along)
-    spread = total * second - first * first
+    return _TurnModel(params, adhesion).thresholds(headings, np.sin(headings), np.cos(headings))
 
-    def lateral(force: np.ndarray, moment: np.ndarray) -> np.ndarray:
-        """f_yi = N_i (lambda + x_i mu) with sum f_yi = force, sum x_i f_yi = moment."""
-        lam = (second * force - first * moment) / spread
-        mu = (total * moment - first * force) / spread
-        return loads * (lam[:, None] + mu[:, None] * along)
 
-    c_x, c_y = params.com_offset
-    body_moment = params.body_mass * g * (c_x * np.cos(headings) - c_y * np.sin(headings))
-    hold = np.stack((share * hold_traction, lateral(weight * np.cos(headings), body_moment)), axis=2)
-    turn = np.stack((share * turn_traction, lateral(np.zeros_like(headings), np.full_like(headings, -2.0 * b / r))),
-                    axis=2)
-    quadratic = np.sum(turn * turn, axis=2)
-    linear = np.sum(hold * turn, axis=2)
-    constant = np.sum(hold * hold, axis=2) - (params.wall_friction * loads) ** 2
-    holds = np.all(loads > 0.0, axis=1) & np.all(constant < 0.0, axis=1)
-    root = np.sqrt(np.maximum(linear * linear - quadratic * constant, 0.0))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        to_left = np.where(quadratic > 0.0, (root - linear) / quadratic, np.inf).min(axis=1)
-        to_right = np.where(quadratic > 0.0, (root + linear) / quadratic, np.inf).min(axis=1)
-    return TurnThresholds(headings, 0.5 * r * weight * np.sin(headings), np.where(holds, to_left, np.nan),
-                          np.where(holds, to_right, np.nan))
+class _TurnModel:
+    """What the thresholds of one robot with one adhesion force take, whatever the heading."""
+
+    def __init__(self, params: RobotParameters, adhesion: float) -> None:
+        robot = Robot(params)  # its mass and wheels: the same whatever its adhesion force
+        self.params, self.adhesion = params, adhesion
+        self.weight = robot.total_mass * params.gravity
+        self.along, self.across = robot.wheel_offsets[:, 0], robot.wheel_offsets[:, 1]
+        self.left = self.across > 0.0
+        self.square = self.along * self.along
+        self.turn_traction = np.where(self.left, -1.0, 1.0) / params.wheel_radius  # per unit T
+
+    def thresholds(self, headings: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray) -> TurnThresholds:
+        """``turn_thresholds`` at ``headings`` (H,), whose sines and cosines are ``sin_h``, ``cos_h``."""
+        params = self.params
+        g, r, h = params.gravity, params.wheel_radius, params.com_height
+        a, b = params.half_wheelbase, params.half_track
+        weight, along, across, left = self.weight, self.along, self.across, self.left
+        sin_t, cos_t = sin_h[:, None], cos_h[:, None]
+        loads = self.adhesion / 4.0 - h * weight * (sin_t * along / (4.0 * a * a) + cos_t * across / (4.0 * b * b))
+        left_load = loads[:, 0] + loads[:, 1] if left[0] and left[1] else loads[:, left].sum(axis=1)
+        right_load = loads[:, 2] + loads[:, 3] if not (left[2] or left[3]) else loads[:, ~left].sum(axis=1)
+        share = loads / np.where(left, left_load[:, None], right_load[:, None])  # each wheel's part of its side's
+        total, first, second = loads.sum(axis=1), loads @ along, loads @ self.square
+        spread = total * second - first * first
+
+        def lateral(force: np.ndarray | float, moment: np.ndarray | float) -> np.ndarray:
+            """f_yi = N_i (lambda + x_i mu) with sum f_yi = force, sum x_i f_yi = moment."""
+            lam = (second * force - first * moment) / spread
+            mu = (total * moment - first * force) / spread
+            return loads * (lam[:, None] + mu[:, None] * along)
+
+        c_x, c_y = params.com_offset
+        hold_along = share * (0.5 * weight * sin_t)  # each side's traction holding the robot, tau_0 / r
+        hold_across = lateral(weight * cos_h, params.body_mass * g * (c_x * cos_h - c_y * sin_h))
+        turn_along = share * self.turn_traction
+        turn_across = lateral(0.0, -2.0 * b / r)
+        quadratic = turn_along * turn_along + turn_across * turn_across
+        linear = hold_along * turn_along + hold_across * turn_across
+        limit = params.wall_friction * loads
+        constant = hold_along * hold_along + hold_across * hold_across - limit * limit
+        holds = np.all((loads > 0.0) & (constant < 0.0), axis=1)
+        root = np.sqrt(np.maximum(linear * linear - quadratic * constant, 0.0))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            to_left = np.where(quadratic > 0.0, (root - linear) / quadratic, np.inf).min(axis=1)
+            to_right = np.where(quadratic > 0.0, (root + linear) / quadratic, np.inf).min(axis=1)
+        return TurnThresholds(headings, 0.5 * r * weight * sin_h, np.where(holds, to_left, np.nan),
+                              np.where(holds, to_right, np.nan))
 
 
 def worst_turn_start(params: RobotParameters, adhesion: float) -> TurnStart | None:
@@ -127,17 +145,23 @@ def worst_turn_start(params: RobotParameters, adhesion: float) -> TurnStart | No
     Every half degree, then on grids fifty times finer around the largest: the side torque is continuous in
     the heading, with kinks where the wheel that leaves its disc first changes.
     """
-    step = 2.0 * math.pi / HEADING_GRID
-    grid = turn_thresholds(params, adhesion, np.arange(HEADING_GRID) * step)
+    model = _TurnModel(params, adhesion)
+    grid = model.thresholds(*_GRID)
     if np.isnan(grid.left).any():
         return None
+    directions = (LEFT, RIGHT)
+    centres = [grid.heading[_largest(grid, direction)] for direction in directions]
+    width = 2.0 * math.pi / HEADING_GRID
+    points = 2 * REFINED + 1
+    for _ in range(REFINEMENTS - 1):  # both directions' finer grids at once
+        offsets = (width / REFINED) * np.arange(-REFINED, REFINED + 1)
+        headings = np.concatenate([centre + offsets for centre in centres])
+        both = model.thresholds(headings, np.sin(headings), np.cos(headings))
+        grids = [TurnThresholds(*(values[k * points:(k + 1) * points] for values in both)) for k in range(2)]
+        centres = [at.heading[_largest(at, direction)] for at, direction in zip(grids, directions)]
+        width /= REFINED
     starts = []
-    for direction in (LEFT, RIGHT):
-        at, width = grid, step
-        for _ in range(REFINEMENTS - 1):
-            at = turn_thresholds(params, adhesion, at.heading[_largest(at, direction)]
-                                 + (width / REFINED) * np.arange(-REFINED, REFINED + 1))
-            width /= REFINED
+    for at, direction in zip(grids, directions):
         k = _largest(at, direction)
         starts.append(TurnStart(float(at.heading[k] % (2.0 * math.pi)), direction, float(at.hold_torque[k]),
                                 float(_threshold(at, direction)[k])))
