@@ -161,11 +161,11 @@ class _Resplit:
         so that one next to the root falls on its other side too, and halves the interval wherever four steps did
         not. A sample whose wheels hold as soon as all are on the wall needs the lift-off's.
         """
-        low, high = self._bracket()
+        low, high, high_excess = self._bracket()
         resolution = RESOLUTION * (np.abs(self.run_force) + np.abs(low) + np.abs(high) + 1.0)
         margin = 0.5 * resolution
         with np.errstate(invalid='ignore'):
-            low_excess, high_excess = self.excess(low), self.excess(high)
+            low_excess = self.excess(low)
             high = np.where(low_excess <= 0.0, low, high)
         width = high - low
         halvings = [np.inf] * 4  # half the widths of the last four steps
@@ -193,16 +193,20 @@ class _Resplit:
                 width = high - low
         return high
 
-    def _bracket(self) -> tuple[np.ndarray, np.ndarray]:
-        """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds."""
+    def _bracket(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds,
+        and ``excess`` there."""
         low = self.lift_off
         high = np.maximum(low, 0.0) + self.run_force + 1.0
-        for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
-            short = ~self.holds(high)
-            if not short.any():
-                break
-            high = np.where(short, low + 2.0 * (high - low), high)
-        return low, high
+        high_excess = self.excess(high)
+        with np.errstate(invalid='ignore'):
+            for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
+                short = ~((high > low) & (high_excess <= 0.0))
+                if not short.any():
+                    break
+                high = np.where(short, low + 2.0 * (high - low), high)
+                high_excess = self.excess(high)
+        return low, high, high_excess
 
 
 def _same_side(across: np.ndarray) -> np.ndarray:
