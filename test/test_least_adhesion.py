@@ -65,7 +65,7 @@ def scanned_least_adhesion(loads: np.ndarray, forces: np.ndarray, rows: np.ndarr
 
 
 def test_the_least_adhesion_of_each_sample_is_that_of_a_scan_of_the_adhesion_force():
-    """Samples of three robots, their loads some negative, some light: forces that are their chassis wrench's
+    """Samples of three robots, their loads some negative (in one sample their sum), some light: forces that are their chassis wrench's
     split (ideal contact's), re-shared by that split, and forces that are not, re-shared as coulomb contact shares
     them (each side's traction by load, the lateral force and moment by the least-norm split); some held as soon
     as every wheel is on the wall (lift-off binds). Each sample's figure is the scan's, and least_adhesion gives the
@@ -79,6 +79,7 @@ def test_the_least_adhesion_of_each_sample_is_that_of_a_scan_of_the_adhesion_for
         loads = rng.uniform(-10.0, 80.0, size=(samples, 4))
         wrench = rng.normal(scale=20.0, size=(samples, 3))
         wrench[:3] *= 1e-3  # lift-off binds
+        loads[-1] = (-9.0, 3.0, -6.0, 2.0)  # F_run < 0
         forces = split_chassis_wrench(np.zeros(samples), wrench, loads, robot.wheel_offsets)
         coulomb = np.arange(samples) % 2 == case % 2
         forces[coulomb] += rng.normal(scale=4.0, size=forces[coulomb].shape)

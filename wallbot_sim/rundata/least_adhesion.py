@@ -197,7 +197,7 @@ class _Resplit:
         """Each sample's interval of F - F_run from where a load reaches 0 (not held) to where every wheel holds,
         and ``excess`` there."""
         low = self.lift_off
-        high = np.maximum(low, 0.0) + self.run_force + 1.0
+        high = np.maximum(low, 0.0) + np.abs(self.run_force) + 1.0  # above lift-off whatever the loads
         high_excess = self.excess(high)
         with np.errstate(invalid='ignore'):
             for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
