@@ -95,33 +95,32 @@ class _TurnModel:
         robot = Robot(params)  # its mass and wheels: the same whatever its adhesion force
         self.params, self.adhesion = params, adhesion
         self.weight = robot.total_mass * params.gravity
-        self.along, self.across = robot.wheel_offsets[:, 0], robot.wheel_offsets[:, 1]
+        self.along, self.across = robot.wheel_offsets[:, 0, None], robot.wheel_offsets[:, 1, None]
         self.left = self.across > 0.0
         self.square = self.along * self.along
         self.turn_traction = np.where(self.left, -1.0, 1.0) / params.wheel_radius  # per unit T
 
     def thresholds(self, headings: np.ndarray, sin_h: np.ndarray, cos_h: np.ndarray) -> TurnThresholds:
-        """``turn_thresholds`` at ``headings`` (H,), whose sines and cosines are ``sin_h``, ``cos_h``."""
+        """``turn_thresholds`` at ``headings`` (H,), whose sines and cosines are ``sin_h``, ``cos_h``; the arrays
+        of the wheels' values are (4, H), each wheel's in a row."""
         params = self.params
         g, r, h = params.gravity, params.wheel_radius, params.com_height
         a, b = params.half_wheelbase, params.half_track
         weight, along, across, left = self.weight, self.along, self.across, self.left
-        sin_t, cos_t = sin_h[:, None], cos_h[:, None]
-        loads = self.adhesion / 4.0 - h * weight * (sin_t * along / (4.0 * a * a) + cos_t * across / (4.0 * b * b))
-        left_load = loads[:, 0] + loads[:, 1] if left[0] and left[1] else loads[:, left].sum(axis=1)
-        right_load = loads[:, 2] + loads[:, 3] if not (left[2] or left[3]) else loads[:, ~left].sum(axis=1)
-        share = loads / np.where(left, left_load[:, None], right_load[:, None])  # each wheel's part of its side's
-        total, first, second = loads.sum(axis=1), loads @ along, loads @ self.square
+        loads = self.adhesion / 4.0 - h * weight * (sin_h * along / (4.0 * a * a) + cos_h * across / (4.0 * b * b))
+        side_load = (loads[left[:, 0]].sum(axis=0), loads[~left[:, 0]].sum(axis=0))
+        share = loads / np.where(left, *side_load)  # each wheel's part of its side's traction
+        total, first, second = loads.sum(axis=0), _sum(loads * along), _sum(loads * self.square)
         spread = total * second - first * first
 
         def lateral(force: np.ndarray | float, moment: np.ndarray | float) -> np.ndarray:
             """f_yi = N_i (lambda + x_i mu) with sum f_yi = force, sum x_i f_yi = moment."""
             lam = (second * force - first * moment) / spread
             mu = (total * moment - first * force) / spread
-            return loads * (lam[:, None] + mu[:, None] * along)
+            return loads * (lam + mu * along)
 
         c_x, c_y = params.com_offset
-        hold_along = share * (0.5 * weight * sin_t)  # each side's traction holding the robot, tau_0 / r
+        hold_along = share * (0.5 * weight * sin_h)  # each side's traction holding the robot, tau_0 / r
         hold_across = lateral(weight * cos_h, params.body_mass * g * (c_x * cos_h - c_y * sin_h))
         turn_along = share * self.turn_traction
         turn_across = lateral(0.0, -2.0 * b / r)
@@ -129,11 +128,12 @@ class _TurnModel:
         linear = hold_along * turn_along + hold_across * turn_across
         limit = params.wall_friction * loads
         constant = hold_along * hold_along + hold_across * hold_across - limit * limit
-        holds = np.all((loads > 0.0) & (constant < 0.0), axis=1)
+        holds = np.all((loads > 0.0) & (constant < 0.0), axis=0)
         root = np.sqrt(np.maximum(linear * linear - quadratic * constant, 0.0))
         with np.errstate(divide='ignore', invalid='ignore'):
-            to_left = np.where(quadratic > 0.0, (root - linear) / quadratic, np.inf).min(axis=1)
-            to_right = np.where(quadratic > 0.0, (root + linear) / quadratic, np.inf).min(axis=1)
+            turns = quadratic > 0.0
+            to_left = np.where(turns, (root - linear) / quadratic, np.inf).min(axis=0)
+            to_right = np.where(turns, (root + linear) / quadratic, np.inf).min(axis=0)
         return TurnThresholds(headings, 0.5 * r * weight * sin_h, np.where(holds, to_left, np.nan),
                               np.where(holds, to_right, np.nan))
 
@@ -175,3 +175,9 @@ def _threshold(at: TurnThresholds, direction: str) -> np.ndarray:
 def _largest(at: TurnThresholds, direction: str) -> int:
     """The index of the largest side torque |tau_0| + T* of a turn that way."""
     return int(np.argmax(np.abs(at.hold_torque) + _threshold(at, direction)))
+
+
+def _sum(values: np.ndarray) -> np.ndarray:
+    """The sum over the wheels (H,) of values (4, H): (front + front) + (rear + rear), the order BLAS adds a product
+    (H, 4) @ (4,) in, so that the thresholds are those of either layout to the bit."""
+    return (values[0] + values[2]) + (values[1] + values[3])
