@@ -31,6 +31,11 @@ _SINGULAR = 1e-12
 """Relative spread below which the chassis split makes no moment (``wheel_forces.split_chassis_wrench``'s)."""
 
 
+def _quiet() -> np.errstate:
+    """Where a trial's row has no load, or a side none, its ratios are not finite: no warning, it does not hold."""
+    return np.errstate(divide='ignore', invalid='ignore', over='ignore')
+
+
 def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple[float, int, int, bool]:
     """The least adhesion force keeping every wheel of the samples on the wall with its force in its disc
     (the module's docstring): (F, the sample that binds, the wheel that binds there, whether by lift-off).
@@ -110,25 +115,25 @@ class _Resplit:
             self.radii_sum = (_weighted(loads, radii), 0.25 * radii.sum(axis=-1))
 
     def ratios(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """g_i = f_i / N_i along x_p and y_p (T, 4 each) with F - F_run = ``shift`` (T,) beyond lift-off."""
+        """g_i = f_i / N_i along x_p and y_p (T, 4 each) with F - F_run = ``shift`` (T,) beyond lift-off (a row without
+        load gives non-finite values: run under ``_quiet``)."""
         total = self.run_force + shift
         first = _at(self.first, shift)
-        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):  # a row without load holds nothing
-            if not self.chassis.all():
-                second = _at(self.second, shift)
-                spread = total * second - first * first
-                lam = (second * self.lateral - first * self.moment) / spread
-                mu = (total * self.moment - first * self.lateral) / spread
-                along = self.traction / _at(self.side_loads, shift[:, None])
-                across = lam[:, None] + mu[:, None] * self.along
-                if not self.chassis.any():
-                    return along, across
-            force_x, force_y, moment = self.wrench
-            sum_s, sum_r = _at(self.across_sum, shift), _at(self.radii_sum, shift)
-            spread = total * sum_r - sum_s * sum_s - first * first
-            turn = np.where(spread > _SINGULAR * total * sum_r,
-                            (total * moment + sum_s * force_x - first * force_y) / spread, 0.0)
-            lam_x, lam_y = (force_x + sum_s * turn) / total, (force_y - first * turn) / total
+        if not self.chassis.all():
+            second = _at(self.second, shift)
+            spread = total * second - first * first
+            lam = (second * self.lateral - first * self.moment) / spread
+            mu = (total * self.moment - first * self.lateral) / spread
+            along = self.traction / _at(self.side_loads, shift[:, None])
+            across = lam[:, None] + mu[:, None] * self.along
+            if not self.chassis.any():
+                return along, across
+        force_x, force_y, moment = self.wrench
+        sum_s, sum_r = _at(self.across_sum, shift), _at(self.radii_sum, shift)
+        spread = total * sum_r - sum_s * sum_s - first * first
+        turn = np.where(spread > _SINGULAR * total * sum_r,
+                        (total * moment + sum_s * force_x - first * force_y) / spread, 0.0)
+        lam_x, lam_y = (force_x + sum_s * turn) / total, (force_y - first * turn) / total
         chassis_along = lam_x[:, None] - self.across * turn[:, None]
         chassis_across = lam_y[:, None] + self.along * turn[:, None]
         if self.chassis.all():
@@ -140,16 +145,17 @@ class _Resplit:
         """(T,) F (max_i |g_i| - mu_s) with F - F_run = ``shift`` beyond lift-off: positive where a wheel's force
         leaves its disc, nearly affine in the shift (a wheel's force over its load falls about as 1 / F)."""
         along, across = self.ratios(shift)
-        return (self.run_force + shift) * (np.sqrt(np.max(along * along + across * across, axis=1)) - self.static)
+        return (self.run_force + shift) * (np.sqrt((along * along + across * across).max(axis=1)) - self.static)
 
     def use(self, shift: np.ndarray) -> np.ndarray:
         """|f_i| / (mu_s N_i) (T, 4) with F - F_run = ``shift`` beyond lift-off."""
-        along, across = self.ratios(shift)
+        with _quiet():
+            along, across = self.ratios(shift)
         return np.hypot(along, across) / (self.static if np.ndim(self.static) == 0 else self.static[:, None])
 
     def holds(self, shift: np.ndarray) -> np.ndarray:
         """(T,) whether every wheel is on the wall with its force in its disc with F - F_run = ``shift``."""
-        with np.errstate(invalid='ignore'):
+        with _quiet():
             return (shift > self.lift_off) & (self.excess(shift) <= 0.0)
 
     def least_shift(self, largest: bool = False) -> np.ndarray:
@@ -161,36 +167,39 @@ class _Resplit:
         so that one next to the root falls on its other side too, and halves the interval wherever four steps did
         not. A sample whose wheels hold as soon as all are on the wall needs the lift-off's.
         """
+        with _quiet():
+            return self._narrow(largest)
+
+    def _narrow(self, largest: bool) -> np.ndarray:
+        """``least_shift`` (under ``_quiet``)."""
         low, high, high_excess = self._bracket()
         resolution = RESOLUTION * (np.abs(self.run_force) + np.abs(low) + np.abs(high) + 1.0)
         margin = 0.5 * resolution
-        with np.errstate(invalid='ignore'):
-            low_excess = self.excess(low)
-            high = np.where(low_excess <= 0.0, low, high)
+        low_excess = self.excess(low)
+        high = np.where(low_excess <= 0.0, low, high)
         width = high - low
         halvings = [np.inf] * 4  # half the widths of the last four steps
         lowered = raised = np.zeros(len(low), dtype=bool)  # which end the last step moved
-        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-            for _ in range(STEPS):
-                wide = width > resolution
-                if largest:
-                    wide &= self.run_force + high >= np.max(self.run_force + low)
-                if not wide.any():
-                    break
-                secant = high - high_excess * width / (high_excess - low_excess)
-                secant = np.where((width <= halvings[0]) & ~np.isnan(secant), secant, 0.5 * (low + high))
-                step = np.minimum(np.maximum(secant, low + margin), high - margin)
-                step_excess = self.excess(step)
-                held = step_excess <= 0.0
-                lower, raise_ = wide & held, wide & ~held
-                # Illinois: an end kept a second time weighs half, so that the next step falls beyond the root
-                low_excess = low_excess * np.where(lower & lowered, 0.5, 1.0)
-                high_excess = high_excess * np.where(raise_ & raised, 0.5, 1.0)
-                low, low_excess = np.where(raise_, step, low), np.where(raise_, step_excess, low_excess)
-                high, high_excess = np.where(lower, step, high), np.where(lower, step_excess, high_excess)
-                lowered, raised = lower, raise_
-                halvings = halvings[1:] + [0.5 * width]
-                width = high - low
+        for _ in range(STEPS):
+            wide = width > resolution
+            if largest:
+                wide &= self.run_force + high >= (self.run_force + low).max()
+            if not wide.any():
+                break
+            secant = high - high_excess * width / (high_excess - low_excess)
+            secant = np.where((width <= halvings[0]) & ~np.isnan(secant), secant, 0.5 * (low + high))
+            step = np.minimum(np.maximum(secant, low + margin), high - margin)
+            step_excess = self.excess(step)
+            held = step_excess <= 0.0
+            lower, raise_ = wide & held, wide & ~held
+            # Illinois: an end kept a second time weighs half, so that the next step falls beyond the root
+            low_excess = low_excess * np.where(lower & lowered, 0.5, 1.0)
+            high_excess = high_excess * np.where(raise_ & raised, 0.5, 1.0)
+            low, low_excess = np.where(raise_, step, low), np.where(raise_, step_excess, low_excess)
+            high, high_excess = np.where(lower, step, high), np.where(lower, step_excess, high_excess)
+            lowered, raised = lower, raise_
+            halvings = halvings[1:] + [0.5 * width]
+            width = high - low
         return high
 
     def _bracket(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -199,13 +208,12 @@ class _Resplit:
         low = self.lift_off
         high = np.maximum(low, 0.0) + np.abs(self.run_force) + 1.0  # above lift-off whatever the loads
         high_excess = self.excess(high)
-        with np.errstate(invalid='ignore'):
-            for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
-                short = ~((high > low) & (high_excess <= 0.0))
-                if not short.any():
-                    break
-                high = np.where(short, low + 2.0 * (high - low), high)
-                high_excess = self.excess(high)
+        for _ in range(WIDENINGS):  # widen until every wheel holds (the loads grow, the forces stay bounded)
+            short = ~((high > low) & (high_excess <= 0.0))
+            if not short.any():
+                break
+            high = np.where(short, low + 2.0 * (high - low), high)
+            high_excess = self.excess(high)
         return low, high, high_excess
 
 
