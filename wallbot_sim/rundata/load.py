@@ -86,14 +86,23 @@ def _load_csv(path: Path, label: str) -> RunData:
 def run_from_columns(rows: np.ndarray, label: str) -> RunData:
     """The run whose steps are ``rows`` (steps, len(CSV_COLUMNS)), in the order of CSV_COLUMNS: a simulate
     CSV's numbers, read or still in memory."""
-    col = {name: rows[:, i] for i, name in enumerate(CSV_COLUMNS)}
+    col = {name: rows[:, i] for name, i in _COLUMN_INDEX.items()}
 
     def wheels(prefix: str) -> np.ndarray:
-        return np.column_stack([col[f'{prefix}{i}'] for i in range(1, 5)])
+        return rows[:, _WHEEL_COLUMNS[prefix]]
     return RunData(label, col['t'], col['x'], col['y'], col['theta'], col['vx'], col['vy'], col['omega'],
                    wheels('phi'), wheels('dphi'), wheels('tau'),
                    col['ref_x'], col['ref_y'], col['err'], col['Fx'], col['Fy'], col['Mz'],
                    col['F_left'], col['F_right'], col['F_lateral'], col['residual'],
                    np.where(col['t'] >= topics.RESIDUAL_SETTLED_AFTER - 1e-9, col['residual'], math.nan),
                    loads=wheels('N'), use=wheels('use'), slip=wheels('slip'),
-                   wheel_forces=np.stack((wheels('fx'), wheels('fy')), axis=2))
+                   wheel_forces=rows[:, _FORCE_COLUMNS].reshape(len(rows), 4, 2))
+
+
+_COLUMN_INDEX = {name: i for i, name in enumerate(CSV_COLUMNS)}
+"""Each column's place in a row."""
+_WHEEL_COLUMNS = {prefix: [_COLUMN_INDEX[f'{prefix}{i}'] for i in range(1, 5)]
+                  for prefix in ('phi', 'dphi', 'tau', 'N', 'use', 'slip')}
+"""Each per-wheel series' columns, wheels 1 to 4."""
+_FORCE_COLUMNS = [_COLUMN_INDEX[f'{axis}{i}'] for i in range(1, 5) for axis in ('fx', 'fy')]
+"""The wheel forces' columns, wheel by wheel, x_p then y_p."""
