@@ -72,12 +72,21 @@ def summarize_run(run: RunData, path: Path | str) -> RunSummary:
     err = run.err
     late = err[run.t >= run.t[0] + 5.0]
     finite_err = err[np.isfinite(err)]
+    series = [err, run.Fx, run.Fy, run.Mz, run.F_left, run.F_right, run.F_lateral, run.residual, run.residual_settled]
+    (peak_err, *peaks), use = _peaks(np.column_stack(series)), (math.nan,) * 4
+    if len(run.use):
+        use = tuple(_peaks(run.use))
     return RunSummary(
         Path(path), float(run.t[-1] - run.t[0]), len(run.t),
-        float(finite_err[-1]) if finite_err.size else math.nan, _peak(err), _peak(late),
-        _peak(run.Fx), _peak(run.Fy), _peak(run.Mz), _peak(run.F_left), _peak(run.F_right), _peak(run.F_lateral),
-        _peak(run.residual), _peak(run.residual_settled), run.restarts, _first_slip(run), _lift_off(run),
-        tuple(_peak(use) for use in run.use.T) if len(run.use) else (math.nan,) * 4)
+        float(finite_err[-1]) if finite_err.size else math.nan, peak_err, _peak(late), *peaks, run.restarts,
+        _first_slip(run), _lift_off(run), use)
+
+
+def _peaks(columns: np.ndarray) -> list[float]:
+    """``_peak`` of each column of ``columns`` (N, K), in one pass."""
+    magnitude = np.abs(columns)
+    largest = np.where(np.isfinite(magnitude), magnitude, -np.inf).max(axis=0, initial=-np.inf)
+    return [float(value) if value >= 0.0 else math.nan for value in largest.tolist()]
 
 
 def _first_slip(run) -> tuple[float, str] | None:
