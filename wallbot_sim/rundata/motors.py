@@ -188,7 +188,7 @@ def motor_report(run: RunData, params: RobotParameters, robot_file: str | Path =
     run_peak = max(sides['left'].peak_torque, sides['right'].peak_torque)
     return MotorReport(run.label, str(robot_file), int(valid.sum()), float(t[0]), float(t[-1]), radius,
                        sides['left'], sides['right'], adsorption,
-                       turning_figures(wheels, params, adsorption.run_adhesion, run_peak),
+                       turning_figures(wheels, robot, adsorption.run_adhesion, run_peak),
                        None if wheels is None else _contact(wheels))
 
 
@@ -247,10 +247,11 @@ def _adsorption(run: RunData, wheels: WheelSamples | None, robot: Robot) -> Adso
                              float(analysis.tipping_limit), run_adhesion / needed, bool(wheels.slip.any()))
 
 
-def turning_figures(wheels: WheelSamples | None, params: RobotParameters, run_adhesion: float,
+def turning_figures(wheels: WheelSamples | None, robot: Robot, run_adhesion: float,
                     run_peak: float) -> TurningFigures:
-    """What turning costs (``TurningFigures``); the run's adhesion force unless NaN (then the robot file's)."""
-    robot = Robot(params)
+    """What turning costs (``TurningFigures``) the robot; the run's adhesion force unless NaN (then the robot
+    file's)."""
+    params = robot.params
     adhesion = run_adhesion if math.isfinite(run_adhesion) else float(robot.adsorption.applied_force)
     radius = params.wheel_radius
     climb = 0.5 * radius * (robot.total_mass * params.gravity + params.rolling_resistance * adhesion)
