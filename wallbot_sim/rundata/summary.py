@@ -90,7 +90,7 @@ def _peaks(columns: np.ndarray) -> list[float]:
 
 
 def _first_slip(run) -> tuple[float, str] | None:
-    slipping = np.nan_to_num(run.slip) > 0.5 if len(run.slip) else np.zeros((len(run.t), 4), dtype=bool)
+    slipping = run.slip > 0.5 if len(run.slip) else np.zeros((len(run.t), 4), dtype=bool)  # NaN: not recorded
     rows = np.flatnonzero(slipping.any(axis=1))
     if not rows.size:
         return None
@@ -105,7 +105,7 @@ def sliding_wheels(flags) -> str:
 def _lift_off(run) -> tuple[float, int, float] | None:
     if not len(run.loads):
         return None
-    rows = np.flatnonzero(np.nan_to_num(run.loads, nan=1.0).min(axis=1) < 0.0)
+    rows = np.flatnonzero((run.loads < 0.0).any(axis=1))
     if not rows.size:
         return None
     wheel = int(np.argmin(run.loads[rows[0]]))
