@@ -150,6 +150,7 @@ def worst_turn_start(params: RobotParameters, adhesion: float) -> TurnStart | No
     if np.isnan(grid.left).any():
         return None
     directions = (LEFT, RIGHT)
+    grids = [grid, grid]
     centres = [grid.heading[_largest(grid, direction)] for direction in directions]
     width = 2.0 * math.pi / HEADING_GRID
     points = 2 * REFINED + 1
