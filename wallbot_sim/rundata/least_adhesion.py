@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from wallbot_sim.model import Robot
-from wallbot_sim.model.wheel_forces import split_chassis_wrench
+from wallbot_sim.model.wheel_forces import _SINGULAR, split_chassis_wrench  # the chassis split's own cut
 
 WIDENINGS = 60
 """Doublings of a sample's interval of adhesion forces at most, until every wheel holds at its upper end."""
@@ -27,8 +27,6 @@ RESOLUTION = 1e-14
 """Width, relative to the forces a sample's interval spans (F_run, its ends), to which it is narrowed."""
 CHASSIS_SPLIT = 1e-9
 """Relative difference below which a sample's forces are taken for the split of their chassis wrench."""
-_SINGULAR = 1e-12
-"""Relative spread below which the chassis split makes no moment (``wheel_forces.split_chassis_wrench``'s)."""
 
 
 def _quiet() -> np.errstate:
