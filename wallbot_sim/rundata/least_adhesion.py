@@ -6,8 +6,8 @@ load-weighted split of their wrench on the chassis over the four wheels (ideal c
 else as coulomb contact shares a sticking robot's (each side's traction between its two wheels by load,
 the belt's force being free, the lateral force and its moment by the load-weighted least-norm split).
 Either gives back the run's own forces at F_run. Per sample the least F with
-|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by regula falsi (``_Resplit.least_shift``),
-and the figure is the largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
+|f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by regula falsi (``_Resplit.least_shift``; the
+sweep's reduce bisects instead, see ``needed_adhesion_of``), and the figure is the largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
 changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
 the figure is a lower bound.
 """
@@ -21,6 +21,9 @@ from wallbot_sim.model.wheel_forces import _SINGULAR, split_chassis_wrench  # th
 
 WIDENINGS = 60
 """Doublings of a sample's interval of adhesion forces at most, until every wheel holds at its upper end."""
+BISECTIONS = 60
+"""Halvings of a sample's interval in ``needed_adhesion_of`` (to far below a newton's round-off), its doublings at
+most before."""
 STEPS = 400
 """Steps of the root search at most (it ends far sooner: every fourth step at least halves the interval)."""
 RESOLUTION = 1e-14
@@ -52,24 +55,30 @@ def least_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> tuple
 def needed_adhesion(loads: np.ndarray, forces: np.ndarray, robot: Robot) -> np.ndarray:
     """Each sample's least adhesion force keeping its wheels on the wall with their forces in their discs (T,):
     ``least_adhesion`` sample by sample, whose largest it is."""
-    return needed_adhesion_of(loads, forces, robot.wheel_offsets, robot.params.wall_friction)
+    resplit = _Resplit(loads, forces, robot.wheel_offsets, robot.params.wall_friction)
+    return resplit.run_force + resplit.least_shift()
 
 
 def needed_adhesion_of(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray,
                        static: float | np.ndarray) -> np.ndarray:
     """``needed_adhesion`` of samples of robots of their own: wheel offsets d_i (4, 2) or each sample's (T, 4, 2),
-    wall friction mu_s one or each sample's (T,)."""
+    wall friction mu_s one or each sample's (T,).
+
+    The sweep's reduce and its compiled screen (``sweep/screen.py``), which must pick the same rows, find it the
+    same way to the bit: each sample's interval bracketed, then ``BISECTIONS`` halvings, every trial splitting the
+    forces again (``_Resplit.bisected_shift``); equal to ``needed_adhesion``'s root search to round-off.
+    """
     resplit = _Resplit(loads, forces, offsets, static)
-    return resplit.run_force + resplit.least_shift()
+    return resplit.run_force + resplit.bisected_shift()
 
 
 def holds_with(loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray, static: float | np.ndarray,
                adhesion: np.ndarray) -> np.ndarray:
     """(T,) whether each sample keeps its wheels on the wall with their forces in their discs under the adhesion
-    force ``adhesion`` (T,) (``needed_adhesion_of``'s samples and robots): the test the root search narrows by, so a
-    sample that holds needs no more than it."""
+    force ``adhesion`` (T,) (``needed_adhesion_of``'s samples and robots): the test its halvings go by, so a sample
+    that holds needs no more than it."""
     resplit = _Resplit(loads, forces, offsets, static)
-    return resplit.holds(adhesion - resplit.run_force)
+    return resplit.split_holds(adhesion - resplit.run_force)
 
 
 class _Resplit:
@@ -83,18 +92,20 @@ class _Resplit:
 
     def __init__(self, loads: np.ndarray, forces: np.ndarray, offsets: np.ndarray,
                  static: float | np.ndarray) -> None:
+        self.loads, self.offsets = loads, offsets
         self.static = static if np.ndim(static) == 0 else np.asarray(static)
         self.run_force = loads.sum(axis=1)
         self.lift_off = np.max(-4.0 * loads, axis=1)
         """(T,) s at which a load reaches 0: below it a wheel is off the wall."""
         along, across = offsets[..., 0], offsets[..., 1]
         self.along, self.across = along, across
-        same_side = _same_side(across)
+        self.same_side = same_side = _same_side(across)
         longitudinal, lateral = forces[:, :, 0], forces[:, :, 1]
         self.wrench = (longitudinal.sum(axis=1), lateral.sum(axis=1),
                        _weighted(lateral, along) - _weighted(longitudinal, across))
         """The wheels' wrench on the chassis in body axes, (F_bx, F_by, M_Z), each (T,)."""
-        made = split_chassis_wrench(np.zeros(len(loads)), np.column_stack(self.wrench), loads, offsets)
+        self.heading, self.wrench_rows = np.zeros(len(loads)), np.column_stack(self.wrench)  # body axes already
+        made = split_chassis_wrench(self.heading, self.wrench_rows, loads, offsets)
         scale = 1.0 + np.max(np.abs(forces), axis=(1, 2))
         self.chassis = np.all(np.abs(made - forces) <= CHASSIS_SPLIT * scale[:, None, None], axis=(1, 2))
         """(T,) the samples whose forces are their chassis wrench's split over the four wheels (ideal contact's)."""
@@ -151,10 +162,48 @@ class _Resplit:
             along, across = self.ratios(shift)
         return np.hypot(along, across) / (self.static if np.ndim(self.static) == 0 else self.static[:, None])
 
-    def holds(self, shift: np.ndarray) -> np.ndarray:
-        """(T,) whether every wheel is on the wall with its force in its disc with F - F_run = ``shift``."""
+    def components(self, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The forces along x_p and y_p and the loads (T, 4 each) with F - F_run = ``shift`` (T,), the forces split
+        again in full."""
+        loads = self.loads + 0.25 * shift[:, None]
+        if self.chassis.all():  # ideal contact's samples: the chassis split alone
+            split = split_chassis_wrench(self.heading, self.wrench_rows, loads, self.offsets)
+            return split[:, :, 0], split[:, :, 1], loads
+        total, first = loads.sum(axis=1), _weighted(loads, self.along)
+        second = _weighted(loads, self.along * self.along)
         with _quiet():
-            return (shift > self.lift_off) & (self.excess(shift) <= 0.0)
+            spread = total * second - first * first
+            lam = (second * self.lateral - first * self.moment) / spread
+            mu = (total * self.moment - first * self.lateral) / spread
+            along = self.traction * loads / _sides(loads, self.same_side)
+        across = loads * (lam[:, None] + mu[:, None] * self.along)
+        if self.chassis.any():
+            split = split_chassis_wrench(self.heading, self.wrench_rows, loads, self.offsets)
+            along = np.where(self.chassis[:, None], split[:, :, 0], along)
+            across = np.where(self.chassis[:, None], split[:, :, 1], across)
+        return along, across, loads
+
+    def split_holds(self, shift: np.ndarray) -> np.ndarray:
+        """(T,) whether every wheel is on the wall with its force in its disc with F - F_run = ``shift``, by the
+        forces split again in full (``components``)."""
+        along, across, loads = self.components(shift)
+        limit = (self.static if np.ndim(self.static) == 0 else self.static[:, None]) * loads
+        return np.all((loads > 0.0) & (along * along + across * across <= limit * limit), axis=1)
+
+    def bisected_shift(self) -> np.ndarray:
+        """Each sample's least F - F_run at which it holds (T,) by ``split_holds``: its interval from lift-off, widened
+        until every wheel holds at its upper end, then halved ``BISECTIONS`` times."""
+        low, high = self.lift_off, np.maximum(self.lift_off, 0.0) + self.run_force + 1.0
+        for _ in range(BISECTIONS):
+            short = ~self.split_holds(high)
+            if not short.any():
+                break
+            high = np.where(short, low + 2.0 * (high - low), high)
+        for _ in range(BISECTIONS):
+            middle = 0.5 * (low + high)
+            holds = self.split_holds(middle)
+            low, high = np.where(holds, low, middle), np.where(holds, middle, high)
+        return high
 
     def least_shift(self, largest: bool = False) -> np.ndarray:
         """Each sample's least F - F_run at which it holds (T,); with ``largest`` only the samples that can need the
@@ -218,7 +267,7 @@ class _Resplit:
 def _same_side(across: np.ndarray) -> np.ndarray:
     """(4, 4), or each sample's (T, 4, 4) where their wheels' sides differ: 1 where two wheels are of one side."""
     side = np.sign(across)
-    if side.ndim == 2 and np.all(side == side[:1]):
+    if side.ndim == 2 and len(side) and np.all(side == side[:1]):
         side = side[0]
     return (side[..., :, None] == side[..., None, :]).astype(float)
 
