@@ -10,7 +10,7 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.dynamics import _constraint_force, _factor_of, _problem
-from wallbot_sim.model.batch.kernel.friction import _contact_row, _kinetic, _load_gain, _spin_loads
+from wallbot_sim.model.batch.kernel.friction import _contact_row, _kinetic, _load_gain, _normal_loads
 from wallbot_sim.model.batch.kernel.layout import (
     ADHESION, BELT, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, HELD_BY, KINETIC, LOADS, MADE,
     NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR,
@@ -135,7 +135,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
     for column in range(1 + sliders + 4):
         _responded(factor, columns[column], rhs, column == 0, count, rank, rows, matrix, gram, lower, vectors,
                    scratch, mats, ints, zero, responses[column])
-    _spin_loads(q, qd, zero, constants, contact, vecs[ORIGIN])
+    _normal_loads(q, qd, zero, constants, contact, True, vecs[ORIGIN])
     _load_gain(theta, constants, contact, mats[GAIN])
     v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
     for k in range(sliders):

@@ -30,22 +30,22 @@ def _contact_row(cos_t: float, sin_t: float, constants: np.ndarray, wheel: int, 
         row[0], row[1], row[2] = -sin_t, cos_t, constants[17 + 2 * wheel]
 
 
-def _spin_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-                out: np.ndarray) -> None:
-    """N_1..N_4 at (q, qd, qdd) with the wheels' spin momentum (``normal_loads(..., spin_momentum=True)``)."""
+def _normal_loads(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+                  spin_momentum: bool, out: np.ndarray) -> None:
+    """N_1..N_4 at (q, qd, qdd), with the wheels' spin momentum if ``spin_momentum`` (``normal_loads``)."""
     mass, spin, sx, sy, gravity = constants[0], constants[2], constants[3], constants[4], constants[5]
     cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
     thd, thdd = qd[2], qdd[2]
     rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
     inertial_x = mass * qdd[0] - thdd * rsy - thd * thd * rsx
-
-
     inertial_y = mass * qdd[1] + thdd * rsx - thd * thd * rsy
     fx, fy = -inertial_x, -mass * gravity - inertial_y
     body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
     a, b, h = contact[HALF_BASE], contact[HALF_TRACK], contact[HEIGHT]
-    moment_x = h * body_x - spin * (qdd[3] + qdd[4] + qdd[5] + qdd[6])
-    moment_y = h * body_y - spin * thd * (qd[3] + qd[4] + qd[5] + qd[6])
+    moment_x, moment_y = h * body_x, h * body_y
+    if spin_momentum:
+        moment_x -= spin * (qdd[3] + qdd[4] + qdd[5] + qdd[6])
+        moment_y -= spin * thd * (qd[3] + qd[4] + qd[5] + qd[6])
     along, across = 0.25 * moment_x / (a * a), 0.25 * moment_y / (b * b)
     for wheel in range(4):
         out[wheel] = 0.25 * contact[ADHESION] + along * contact[7 + wheel] + across * contact[11 + wheel]
@@ -235,7 +235,7 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
 
 
 _contact_row = jit(_contact_row, inline="always")
-_spin_loads = jit(_spin_loads, inline="always")
+_normal_loads = jit(_normal_loads, inline="always")
 _load_gain = jit(_load_gain, inline="always")
 _wheel_speeds = jit(_wheel_speeds, inline="always")
 _kinetic_equations = jit(_kinetic_equations)

@@ -10,7 +10,8 @@ import math
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
-from wallbot_sim.model.batch.kernel.layout import ADHESION, HALF_BASE, HALF_TRACK, HEIGHT, SPLIT_CUT, STATIC
+from wallbot_sim.model.batch.kernel.friction import _normal_loads
+from wallbot_sim.model.batch.kernel.layout import ADHESION, HALF_TRACK, SPLIT_CUT, STATIC
 from wallbot_sim.model.robot import DOF
 
 
@@ -36,28 +37,19 @@ def ideal_outputs(states: np.ndarray, motions: np.ndarray, count: int, constants
     (T, 4) and ``velocities`` (T, 4, 2). A wheel's force is its load-weighted least-norm share of the wrench
     Q_c[:3] (``split_chassis_wrench``), the loads N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2).
     """
-    mass, sx, sy, gravity, radius = constants[0], constants[3], constants[4], constants[5], constants[7]
-    adhesion, static, height = contact[ADHESION], contact[STATIC], contact[HEIGHT]
-    half_base, half_track = contact[HALF_BASE], contact[HALF_TRACK]
+    radius = constants[7]
+    adhesion, static, half_track = contact[ADHESION], contact[STATIC], contact[HALF_TRACK]
     along, across = contact[7:11], contact[11:15]
     for k in range(count):
         q, qd, qdd, wrench = states[k, :DOF], states[k, DOF:], motions[k, 0], motions[k, 2]
-        cos_t, sin_t = math.cos(q[2]), math.sin(q[2])
-        thd, thdd = qd[2], qdd[2]
-        rsx, rsy = cos_t * sx - sin_t * sy, sin_t * sx + cos_t * sy
-        inertial_x = mass * qdd[0] - thdd * rsy - thd * thd * rsx
-        inertial_y = mass * qdd[1] + thdd * rsx - thd * thd * rsy
-        fx, fy = -inertial_x, -mass * gravity - inertial_y
-        body_x, body_y = cos_t * fx + sin_t * fy, -sin_t * fx + cos_t * fy
-        pitch = 0.25 * height * body_x / (half_base * half_base)
-        roll = 0.25 * height * body_y / (half_track * half_track)
-        for wheel in range(4):
-            loads[k, wheel] = 0.25 * adhesion + pitch * along[wheel] + roll * across[wheel]
+        _normal_loads(q, qd, qdd, constants, contact, False, loads[k])
+        cos_t, sin_t, thd = math.cos(q[2]), math.sin(q[2]), qd[2]
         longitudinal = cos_t * wrench[0] + sin_t * wrench[1]
         lateral = -sin_t * wrench[0] + cos_t * wrench[1]
         differential = wrench[2] / half_track
-        drive[k, 0], drive[k, 1], drive[k, 2] = 0.5 * (longitudinal - differential), 0.5 * (longitudinal +
-                                                                                             differential), lateral
+        drive[k, 0] = 0.5 * (longitudinal - differential)
+        drive[k, 1] = 0.5 * (longitudinal + differential)
+        drive[k, 2] = lateral
         use[k, 0] = _ratio(abs(drive[k, 0]), static * (loads[k, 0] + loads[k, 1]))
         use[k, 1] = _ratio(abs(drive[k, 1]), static * (loads[k, 2] + loads[k, 3]))
         use[k, 2] = _ratio(abs(drive[k, 2]), static * adhesion)
