@@ -7,6 +7,7 @@ same blocks, the best of ``--repeats`` rounds each, and the CPU time per robot-s
 printed, with the machine's load. Both must keep the same rows; the bench says so or stops.
 
     python bench/bench_sweep_reduce.py [--spec SPEC] [--robots 20] [--duration 5] [--block 2048] [--repeats 3]
+                                       [--write-docs [FILE]]
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import time
 
 import numpy as np
 
+from report import Report, add_write_docs_option
 from wallbot_sim.model import Robot, Simulation
 from wallbot_sim.rundata.csv_format import CSV_COLUMNS, csv_row, fill_rows
 from wallbot_sim.sweep import load_spec
@@ -86,7 +88,10 @@ def main() -> None:
     parser.add_argument('--duration', type=float, default=5.0)
     parser.add_argument('--block', type=int, default=BLOCK)
     parser.add_argument('--repeats', type=int, default=3)
+    add_write_docs_option(parser)
     args = parser.parse_args()
+    report = Report('sweep-reduce')
+    load_before = os.getloadavg()[0]
     compile_screen()
     params, found = blocks(args.spec, args.robots, args.duration, args.block)
     screened, numpy_reduced = reduced(params, found, True), reduced(params, found, False)
@@ -96,11 +101,19 @@ def main() -> None:
     robot_steps = sum(block.shape[1] for block in found[1:])
     compiled_time = cpu_seconds(lambda: reduced(params, found, True), args.repeats)
     numpy_time = cpu_seconds(lambda: reduced(params, found, False), args.repeats)
+    load = f'{load_before:.2f} / {os.getloadavg()[0]:.2f}'
     print(f'{args.spec}: {args.robots} robots x {robot_steps // args.robots} instants, blocks of {args.block}; '
-          f'load {os.getloadavg()[0]:.2f}')
+          f'load {load}')
     print(f'NumPy reduce     {numpy_time / robot_steps * 1e6:7.3f} us CPU per robot-step')
     print(f'compiled screen  {compiled_time / robot_steps * 1e6:7.3f} us CPU per robot-step '
           f'({numpy_time / compiled_time:.1f}x faster, the same rows)')
+    report.table(('blocks', 'NumPy reduce: us CPU a robot-step',
+                  'compiled screen: us CPU a robot-step', 'screen / NumPy', 'rows kept'),
+                 [(f'{args.robots} robots x {robot_steps // args.robots:,} instants of {args.spec}, {args.block} '
+                   f'at a time', f'{numpy_time / robot_steps * 1e6:.3f}',
+                   f'{compiled_time / robot_steps * 1e6:.3f}', f'{numpy_time / compiled_time:.1f}x faster',
+                   'the same')])
+    report.write(args.write_docs)
 
 
 if __name__ == '__main__':

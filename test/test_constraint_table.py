@@ -17,7 +17,7 @@ from wallbot_sim import messages
 from wallbot_sim.model import ConstraintSelection, Robot
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BATCH_MODULES, BatchGains
-from wallbot_sim.model.batch.kernel import dynamics
+from wallbot_sim.model.batch.kernel import problem as kernel_problem
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import MODULES, make_module
 from wallbot_sim.model.constraints import WHEEL_DIRECTIONS, BaumgarteGains
@@ -91,7 +91,7 @@ def test_the_kernels_flags_and_rows_are_the_models(robot, state):
     t, q, qd = state
     constants = kernel.robot_constants(RobotBatch([robot]), np.array([GAINS.alpha]), np.array([GAINS.beta]))[0]
     reference = kernel.reference_samples(REFERENCE, t, 0, 1, 1e-3)[0, 0]
-    problem = getattr(dynamics._problem, 'py_func', dynamics._problem)
+    problem = getattr(kernel_problem._problem, 'py_func', kernel_problem._problem)
     for name in STACKING_ORDER:
         flags, count = kernel.module_flags((name,))
         rows, rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)

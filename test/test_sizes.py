@@ -19,7 +19,6 @@ KERNEL = 'wallbot_sim/model/batch/kernel'
 
 LONG_KERNEL_FUNCTIONS = {
     f'{KERNEL}/boundary.py:_boundary': 'a stick/slip set solved at a boundary in one compiled frame',
-    f'{KERNEL}/dynamics.py:_problem': 'Q and the rows of every module, inlined into each RK4 stage',
     f'{KERNEL}/friction.py:_kinetic_equations': "Newton's residual and Jacobian in one pass, at every trial step",
     f'{KERNEL}/friction.py:_kinetic': "Newton's iteration and line search in one compiled frame",
     f'{KERNEL}/linalg.py:_rank_revealing': "the rank-revealing least squares' stages share one frame's scratch",

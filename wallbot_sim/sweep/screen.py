@@ -186,15 +186,48 @@ def _figure(row: np.ndarray, columns: np.ndarray, along: tuple, across: tuple, s
     return run_force + high
 
 
+def _motor_peaks(row: np.ndarray, index: int, radius: float, columns: np.ndarray, best: np.ndarray,
+                 picks: np.ndarray) -> None:
+    """Each side's peak |motor torque| (picks 7 and 8) raised to the row's, as model.outputs.side_motor_torques
+    gives it, where the row has the motor analysis' columns."""
+    t_at, lateral_at, tau_at, dphi_at = columns[_T], columns[_LATERAL], columns[_TAU], columns[_DPHI]
+    motor = (math.isfinite(row[t_at]) and math.isfinite(row[lateral_at]) and math.isfinite(row[dphi_at])
+             and math.isfinite(row[dphi_at + 1]) and math.isfinite(row[dphi_at + 2])
+             and math.isfinite(row[dphi_at + 3]))
+    left = radius * row[columns[_LEFT]] + row[tau_at] + row[tau_at + 1]
+    right = radius * row[columns[_RIGHT]] + row[tau_at + 2] + row[tau_at + 3]
+    if motor and math.isfinite(left) and math.isfinite(right):
+        if abs(left) > best[7]:
+            best[7], picks[7] = abs(left), index
+        if abs(right) > best[8]:
+            best[8], picks[8] = abs(right), index
+
+
+def _wheel_picks(row: np.ndarray, index: int, contact: bool, columns: np.ndarray, best: np.ndarray,
+                 picks: np.ndarray) -> tuple[float, bool, bool]:
+    """Each wheel's peak use (picks 9-12) raised to the row's where it has the wheels' ``contact``; the row's least
+    load (NaN loads left out), whether a load is negative and whether a wheel slips."""
+    loads_at, use_at, slip_at = columns[_N], columns[_USE], columns[_SLIP]
+    least = math.inf
+    negative = slipping = False
+    for wheel in range(4):
+        load = row[loads_at + wheel]
+        if not math.isnan(load):
+            least = min(least, load)
+        negative = negative or load < 0.0
+        slipping = slipping or row[slip_at + wheel] > 0.5
+        use = abs(row[use_at + wheel])
+        if contact and use > best[9 + wheel]:
+            best[9 + wheel], picks[9 + wheel] = use, index
+    return least, negative, slipping
+
+
 def _robot_picks(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, valid: np.ndarray, binding: int,
                  radius: float, offsets: np.ndarray, static: float, columns: np.ndarray, picks: np.ndarray) -> int:
     """One robot's picks (PICKS,), in time order, of its rows counted through ``kept`` then ``block``; returns the
     row binding its least adhesion force (-1: none). ``binding``: that of the kept rows (-1: none)."""
-    t_at, err_at, left_at, right_at, lateral_at = columns[_T], columns[_ERR], columns[_LEFT], columns[_RIGHT], \
-        columns[_LATERAL]
-    tau_at, dphi_at, loads_at, use_at, slip_at = columns[_TAU], columns[_DPHI], columns[_N], columns[_USE], \
-        columns[_SLIP]
-    peak_at = (left_at, right_at, lateral_at, columns[_RESIDUAL])  # reduce.PEAKS
+    t_at, err_at = columns[_T], columns[_ERR]
+    peak_at = (columns[_LEFT], columns[_RIGHT], columns[_LATERAL], columns[_RESIDUAL])  # reduce.PEAKS
     best = np.full(PICKS, -math.inf)
     picks[:] = 0
     best[13] = math.inf  # the least load: a least, not a peak
@@ -217,29 +250,9 @@ def _robot_picks(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, va
                 value = row[peak_at[pick]]
                 if math.isfinite(value) and abs(value) > best[3 + pick]:
                     best[3 + pick], picks[3 + pick] = abs(value), index
-            motor = (math.isfinite(t) and math.isfinite(row[lateral_at]) and math.isfinite(row[dphi_at])
-                     and math.isfinite(row[dphi_at + 1]) and math.isfinite(row[dphi_at + 2])
-                     and math.isfinite(row[dphi_at + 3]))
-            # each side's motor torque, as model.outputs.side_motor_torques
-            left = radius * row[left_at] + row[tau_at] + row[tau_at + 1]
-            right = radius * row[right_at] + row[tau_at + 2] + row[tau_at + 3]
-            if motor and math.isfinite(left) and math.isfinite(right):
-                if abs(left) > best[7]:
-                    best[7], picks[7] = abs(left), index
-                if abs(right) > best[8]:
-                    best[8], picks[8] = abs(right), index
+            _motor_peaks(row, index, radius, columns, best, picks)
             contact = _contact(row, columns)
-            least = math.inf
-            negative = slipping = False
-            for wheel in range(4):
-                load = row[loads_at + wheel]
-                if not math.isnan(load):
-                    least = min(least, load)
-                negative = negative or load < 0.0
-                slipping = slipping or row[slip_at + wheel] > 0.5
-                use = abs(row[use_at + wheel])
-                if contact and use > best[9 + wheel]:
-                    best[9 + wheel], picks[9 + wheel] = use, index
+            least, negative, slipping = _wheel_picks(row, index, contact, columns, best, picks)
             if least < best[13]:
                 best[13], picks[13] = least, index
             if contact and least < least_contact_load:
@@ -315,6 +328,8 @@ _contact = jit(_contact, inline='always')
 _split = jit(_split, inline='always')
 _sides = jit(_sides, inline='always')
 _sample = jit(_sample, inline='always')
+_motor_peaks = jit(_motor_peaks, inline='always')
+_wheel_picks = jit(_wheel_picks, inline='always')
 _holds = jit(_holds, inline='always')
 _figure = jit(_figure)
 _binding = jit(_binding)

@@ -24,9 +24,10 @@ Newton's method, the split of the sticking wheels' force), and ``_held_step`` th
 contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a batch's, robot by robot over the
 cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
-The package is split by concern: ``dynamics`` (the derivative and RK4 step with ideal contact, ``robot_run``,
-``tracking_force``), ``outputs`` (the outputs of a run's instants with ideal contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the
-contact arrays' layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
+The package is split by concern: ``problem`` (a robot's Q, W and constraint rows at a state), ``dynamics`` (the
+derivative and RK4 step, ``robot_run``, ``tracking_force``), ``outputs`` (the outputs of a run's instants with ideal
+contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the contact arrays'
+layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
 ``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the steps from a boundary, the
 runs); ``compiling`` compiles them into numba's cache under one stamp of the whole package. numba is optional:
 ``available()`` says whether it imported.

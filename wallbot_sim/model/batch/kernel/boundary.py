@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
-from wallbot_sim.model.batch.kernel.dynamics import _constraint_force, _factor_of, _problem
+from wallbot_sim.model.batch.kernel.dynamics import _constraint_force
 from wallbot_sim.model.batch.kernel.friction import _contact_row, _kinetic, _load_gain, _normal_loads
 from wallbot_sim.model.batch.kernel.layout import (
     ADHESION, BELT, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, HELD_BY, KINETIC, LOADS, MADE,
@@ -18,6 +18,7 @@ from wallbot_sim.model.batch.kernel.layout import (
     SPLIT_PIVOTS, SPLIT_X, STATE, STATUS, STICKING, STUCK_ROWS, TANGENT_HEADING, TOTAL, TRAJECTORY, VELOCITY,
     WHEEL_OF, ZERO)
 from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
+from wallbot_sim.model.batch.kernel.problem import _factor_of, _problem
 from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 
