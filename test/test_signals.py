@@ -257,7 +257,7 @@ def simulated_seconds(output: str) -> float:
 def running(pid: int) -> bool:
     try:
         return 'zombie' not in Path(f'/proc/{pid}/status').read_text()
-    except FileNotFoundError:
+    except (FileNotFoundError, ProcessLookupError):  # gone, or reaped between the open and the read (ESRCH)
         return False
 
 
