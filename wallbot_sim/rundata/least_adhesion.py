@@ -7,9 +7,9 @@ else as coulomb contact shares a sticking robot's (each side's traction between 
 the belt's force being free, the lateral force and its moment by the load-weighted least-norm split).
 Either gives back the run's own forces at F_run. Per sample the least F with
 |f_i(F)| <= mu_s N_i(F) and N_i(F) >= 0 for every wheel is found by regula falsi (``_Resplit.least_shift``; the
-sweep's reduce bisects instead, see ``needed_adhesion_of``), and the figure is the largest over the run. Exact for a run that stuck throughout, up to the rolling resistance f_r F, which
-changes with F; in a run whose wheels slid, their forces are the kinetic friction they transmitted, so
-the figure is a lower bound.
+sweep's reduce bisects instead, see ``needed_adhesion_of``), and the figure is the largest over the run. Exact
+for a run that stuck throughout, up to the rolling resistance f_r F, which changes with F; in a run whose
+wheels slid, their forces are the kinetic friction they transmitted, so the figure is a lower bound.
 """
 
 from __future__ import annotations

@@ -76,8 +76,8 @@ def run_chunks(spec: SweepSpec, chunks: Sequence[int], on_done: Callable[[int, l
     with ExitStack() as stack:
         if scheduler is None:
             cluster = stack.enter_context(LocalCluster(
-                n_workers=local_workers(chunks, workers), threads_per_worker=1, processes=True, host=LOCAL_HOST, dashboard_address=None,
-                silence_logs=logging.ERROR))
+                n_workers=local_workers(chunks, workers), threads_per_worker=1, processes=True, host=LOCAL_HOST,
+                dashboard_address=None, silence_logs=logging.ERROR))
             client = stack.enter_context(Client(cluster))
         else:
             try:

@@ -96,12 +96,13 @@ def load_kernels(settings: RunSettings) -> None:
     from wallbot_sim.model import compiled
     from wallbot_sim.model.batch import kernel
     from wallbot_sim.sweep.screen import compile_screen
+    if not (batch_supports(settings) and kernel.available()):  # robot by robot on the python engine
+        return
     if tabulates(settings):
         compiled.compile_run(IDEAL)
-    elif batch_supports(settings) and kernel.available():
+    else:
         compiled.compile_batch((settings.contact,))
-    if batch_supports(settings) and kernel.available():  # either reduces its rows by the compiled screen
-        compile_screen()
+    compile_screen()  # both reduce their rows by the compiled screen
 
 
 class RobotRun(NamedTuple):
