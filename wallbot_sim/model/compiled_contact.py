@@ -53,7 +53,7 @@ class CompiledCoulomb(Configured):
     """The coulomb boundaries and RK4 steps of one robot, for what a ``Simulation`` has active now.
 
     The kernel settles boundaries and takes steps ahead, a chunk per call (``robot_contact_run``), from the
-    state and the contact state (the ``CoulombContact``'s sliding wheels and held loads) the simulation has;
+    state and the contact state (the ``CoulombContact``'s sliding wheels, held loads and friction) the simulation has;
     ``boundary`` and ``step`` answer from the chunk while the simulation goes on from what was handed out last
     (the state, the contact state written into its ``CoulombContact``), under the same configuration and motor
     torque (the same objects). Anything else starts a new chunk there, settling the boundary again as the
@@ -72,8 +72,10 @@ class CompiledCoulomb(Configured):
         before the boundary."""
         self._at_boundary = False
         self._ahead_torque: tuple[float, float] | None = None
-        self._handed: tuple[CoulombContact | None, frozenset[int] | None, np.ndarray | None] = (None, None, None)
-        """The contact state the chunk wrote last (its ``CoulombContact``, sliding wheels and loads objects)."""
+        self._handed: tuple[CoulombContact | None, frozenset[int] | None, np.ndarray | None, np.ndarray | None] = (
+            None, None, None, None)
+        """The contact state the chunk wrote last (its ``CoulombContact``, sliding wheels, loads and friction
+        objects)."""
         self._ahead_size = AHEAD_FIRST
         self._ahead_outputs: tuple | None = None
         self._directions: tuple[int, ...] = ()
@@ -107,10 +109,10 @@ class CompiledCoulomb(Configured):
                                                                                kernel.NEWTON_RESIDUAL]))
         if self._ahead_outputs is None:
             self._ahead_outputs = self._outputs(run)
-        motion, drive, contact, masks = self._ahead_outputs
+        motion, drive, contact, masks, held = self._ahead_outputs
         mask = masks[row]
-        coulomb.sliding, coulomb.loads = self._wheel_sets[mask], contact[0][row]
-        self._handed = (coulomb, coulomb.sliding, coulomb.loads)
+        coulomb.sliding, coulomb.loads, coulomb.friction = self._wheel_sets[mask], contact[0][row], held[row]
+        self._handed = (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction)
         self._ahead_row, self._ahead_state, self._at_boundary = row, run.settled[row], True
         friction = None
         if mask:
@@ -139,7 +141,7 @@ class CompiledCoulomb(Configured):
     def _same(self, step: int, torque: tuple[float, float], coulomb: CoulombContact) -> bool:
         """Whether the simulation goes on as the chunk did: its step, torque and the contact state handed out."""
         return (step == self._ahead_step + self._ahead_row and torque is self._ahead_torque
-                and self._handed == (coulomb, coulomb.sliding, coulomb.loads))
+                and self._handed == (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction))
 
     def _run(self, y: np.ndarray, step: int, torque: tuple[float, float], coulomb: CoulombContact,
              instants: int) -> ContactRun:
@@ -152,13 +154,14 @@ class CompiledCoulomb(Configured):
         slid, outcome = np.empty((instants, 4), dtype=np.bool_), np.zeros(4, dtype=np.int64)
         kernel.robot_contact_run(states, settled, self.reference_rows(step, instants).rows, self._flags,
                                  self._constants, self._contact, self._torque_array(torque), self._dt, instants,
-                                 sliding, np.array(coulomb.loads, dtype=float), solutions, slid, outcome)
-        self._handed = (coulomb, coulomb.sliding, coulomb.loads)
+                                 sliding, np.array(coulomb.loads, dtype=float),
+                                 np.array(coulomb.friction, dtype=float).reshape(8), solutions, slid, outcome)
+        self._handed = (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction)
         return ContactRun(states, settled, solutions, slid, outcome)
 
     def _outputs(self, run: ContactRun) -> tuple:
-        """The motion, drive forces and contact outputs of every boundary the chunk settled, row by row, and the bit
-        masks of its sliding wheels."""
+        """The motion, drive forces and contact outputs of every boundary the chunk settled, row by row, the bit
+        masks of its sliding wheels and the friction each boundary holds (``CoulombContact.friction``)."""
         shown = run.outcome[0]
         solutions, settled = run.solutions[:shown], run.settled[:shown]
         loads, forces = solutions[:, kernel.LOADS, :4], solutions[:, kernel.FORCES].reshape(shown, 4, 2)
@@ -173,7 +176,8 @@ class CompiledCoulomb(Configured):
         contact = (loads, [tuple(row) for row in table.use.tolist()], [tuple(row) for row in table.limits.tolist()],
                    forces, [tuple(row) for row in table.slipping.tolist()], table.wheel_use,
                    [tuple(row) for row in sliding.tolist()], velocities)
-        return motion, [tuple(row) for row in table.drive.tolist()], contact, masks
+        held = forces * sliding[:, :, None]
+        return motion, [tuple(row) for row in table.drive.tolist()], contact, masks, held
 
     def _sliding_components(self, mask: int) -> tuple[np.ndarray, np.ndarray]:
         """Each sliding component's wheel and direction, wheel by wheel (``CoulombContact._solve``'s), for the

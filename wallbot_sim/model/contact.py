@@ -139,12 +139,15 @@ class CoulombContact:
         self.sliding: frozenset[int] = frozenset()
         self.loads = np.full(4, 0.25 * robot.wall_load)
         """The loads held over the step (Newton's start at the next boundary)."""
+        self.friction = np.zeros((4, 2))
+        """The sliding wheels' forces held over the step (body axes), zero for the others (Newton's start too)."""
         self._layout = ContactLayout([], self.kinematics, gains)
 
     def reset(self, wall_load: float) -> None:
         """Every wheel sticking, loads at rest on a level share of ``wall_load`` (``Robot.wall_load``)."""
         self.sliding = frozenset()
         self.loads = np.full(4, 0.25 * wall_load)
+        self.friction = np.zeros((4, 2))
 
     def layout(self, modules: Sequence[ConstraintModule]) -> ContactLayout:
         """The layout of ``modules`` (remembered for the last list and gains)."""
@@ -214,6 +217,7 @@ class CoulombContact:
             if not any(_reverses(solution, wheel, layout.directions) for wheel in solution.sliding - stopped):
                 break
         self.sliding, self.loads = sliding, solution.loads
+        self.friction = np.where(np.isin(np.arange(4), list(sliding))[:, None], solution.wheel_forces, 0.0)
         return qd, solution
 
     def _solve(self, robot: Robot, layout: ContactLayout, sliding: frozenset[int], t: float, q: np.ndarray,
@@ -243,7 +247,7 @@ class CoulombContact:
                              normal_loads(robot, q, qd, np.zeros(7), spin_momentum=True),
                              load_acceleration_gain(robot, q, spin_momentum=True), slip_rows, slip_rows @ qd,
                              self.kinematics.drift(q, qd)[direction_of], wheel_of),
-            kinetic[wheel_of], params.velocity_epsilon, dt, self.loads,
+            kinetic[wheel_of], params.velocity_epsilon, dt, self.loads, self.friction[wheel_of, direction_of],
             robot.adsorption.applied_force or robot.total_mass * params.gravity)  # the residual's scale
         held = HeldFriction(self.kinematics, wheel_of, direction_of, solved.friction) if count else None
         friction = solved.friction @ slip_rows if count else None

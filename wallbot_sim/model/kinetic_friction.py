@@ -64,13 +64,17 @@ class KineticSolution(NamedTuple):
 
 
 def consistent_friction(response: BoundaryResponse, kinetic_friction: np.ndarray, epsilon: float, dt: float,
-                        loads: np.ndarray, adhesion_force: float) -> KineticSolution:
-    """(f, N) solving the boundary's equations (Newton's method with a halving line search from ``loads``).
+                        loads: np.ndarray, held: np.ndarray, adhesion_force: float) -> KineticSolution:
+    """(f, N) solving the boundary's equations (Newton's method with a halving line search from ``loads`` and the
+    ``held`` friction).
 
-    ``kinetic_friction``: mu_k of each sliding component's wheel (m,); ``adhesion_force`` scales the tolerance."""
+    ``kinetic_friction``: mu_k of each sliding component's wheel (m,); ``held`` (m,): each component's friction held
+    over the last step, zero where its wheel did not slide; ``adhesion_force`` scales the tolerance. Newton starts
+    from the held friction where there is one (a step changes it little: two iterations, where the cold start below
+    takes about eight), else from the friction opposing the slip predicted with none."""
     count = len(response.slip)
     state = np.concatenate((np.zeros(count), loads))
-    state[:count] = _friction_of(response, kinetic_friction, epsilon, dt, state)
+    state[:count] = np.where(held != 0.0, held, _friction_of(response, kinetic_friction, epsilon, dt, state))
     residual, jacobian, predicted = _equations(response, kinetic_friction, epsilon, dt, state)
     size = _norm(residual)
     for _ in range(_ITERATIONS):

@@ -87,6 +87,9 @@ class BatchCoulomb:
         """(N, 4): the wheels sliding over the step."""
         self.loads = np.repeat(0.25 * robots.adhesion_force[:, None], 4, axis=1)
         """(N, 4): the loads held over the step (Newton's start at the next boundary)."""
+        self.friction = np.zeros((size, 8))
+        """(N, 8): the sliding wheels' forces held over the step, (f_x, f_y) wheel by wheel, zero for the others
+        (Newton's start too)."""
         self.solutions = np.zeros((size, kernel.SOLUTION_ROWS, kernel.SOLUTION_WIDTH))
         """(N, 8, 8): each robot's settled boundary (``kernel.SOLUTION_ROWS``), kept for a robot no longer settled."""
         self.contact = np.array([kernel.contact_constants(robot) for robot in robots.robots])
@@ -104,7 +107,7 @@ class BatchCoulomb:
         in place on y (N, 14); ``references`` (3, 10): the reference at the step's RK4 instants."""
         errors = kernel.batch_contact_settle(y, references[0], tuple(self.selection.active_names()), constants,
                                              self.contact, np.ascontiguousarray(torques), dt, self.sliding,
-                                             self.loads, live, self.solutions)
+                                             self.loads, self.friction, live, self.solutions)
         failed = np.flatnonzero(errors)
         if len(failed):
             first = int(failed[0])
@@ -120,6 +123,7 @@ class BatchCoulomb:
             modules, contact = singles[robot]
             contact.sliding = frozenset(np.flatnonzero(self.sliding[robot]).tolist())
             contact.loads = self.loads[robot].copy()
+            contact.friction = self.friction[robot].reshape(4, 2).copy()
             q = y[robot, :DOF]
             try:
                 qd, solution = contact.settle(model, modules, t, q, y[robot, DOF:], dt, tuple(torques[robot].tolist()),
@@ -130,6 +134,7 @@ class BatchCoulomb:
             y[robot, DOF:] = qd
             self.sliding[robot] = [wheel in solution.sliding for wheel in range(4)]
             self.loads[robot] = solution.loads
+            self.friction[robot] = contact.friction.ravel()
             record = self.solutions[robot]
             record[kernel.QDD, :DOF] = solution.motion.acceleration
             record[kernel.CONSTRAINT, :DOF] = solution.motion.constraint_force

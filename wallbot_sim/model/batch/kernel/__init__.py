@@ -92,14 +92,14 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
 
 def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                          contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                         live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> np.ndarray:
+                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> np.ndarray:
     """Every live robot's coulomb boundary, robot by robot over the cores (``_batch_settle``): ``states`` (velocities
-    projected), ``sliding``, ``loads`` and ``solutions`` (N, 8, 8) change in place; returns each robot's error code
-    (``CONTACT_ERRORS``)."""
+    projected), ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each
+    robot's error code (``CONTACT_ERRORS``)."""
     flags, _ = module_flags(active)
     errors = np.zeros(states.shape[0], dtype=np.int64)
-    _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, live, solutions, errors,
-                  chunk)
+    _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, friction, live, solutions,
+                  errors, chunk)
     return errors
 
 

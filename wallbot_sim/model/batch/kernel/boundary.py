@@ -19,7 +19,8 @@ from wallbot_sim.model.batch.kernel.layout import (
     WHEEL_OF, ZERO)
 from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
 from wallbot_sim.model.batch.kernel.problem import _factor_of, _problem
-from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_solve
+from wallbot_sim.model.batch.kernel.row_space import (
+    _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_responses, _row_space_solve)
 from wallbot_sim.model.robot import DOF
 
 
@@ -92,13 +93,13 @@ def _responded(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs:
 # share ~20 scratch arrays in one compiled frame (numba) instead of passing them through calls; Newton (_kinetic)
 # and the split (_split) are its own calls.
 def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-              torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, rows: np.ndarray,
+              torque: np.ndarray, dt: float, sliding: np.ndarray, start: np.ndarray, held: np.ndarray, rows: np.ndarray,
               rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray,
               vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
               marks: np.ndarray, columns: np.ndarray, responses: np.ndarray, solution: np.ndarray) -> int:
     """The motion at y with the ``sliding`` wheels sliding (``CoulombContact._solve``) into ``solution``: their
-    friction and every wheel's load solved together from the ``start`` loads, the motion under them, the sticking
-    wheels' split of the constraint force; an error code (``CONTACT_ERRORS``)."""
+    friction and every wheel's load solved together from the ``start`` loads and the ``held`` friction (``_kinetic``),
+    the motion under them, the sticking wheels' split of the constraint force; an error code (``CONTACT_ERRORS``)."""
     q, qd = y[:DOF], y[DOF:]
     frictional = flags[NON_LATERAL] or flags[NONSLIP]
     sticking, zero = marks[STICKING], vecs[ZERO]
@@ -133,16 +134,17 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
         column[0], column[1], column[2] = scale * vx, scale * vy, scale * (arm_x * vx + arm_y * vy)
     order, kept, system = ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_SYSTEM]
     rank = _prepare_rows(rows, factor, count, matrix, system, mats[ROW_FACTOR], order, kept)
-    for column in range(1 + sliders + 4):
-        _responded(factor, columns[column], rhs, column == 0, count, rank, rows, matrix, gram, lower, vectors,
-                   scratch, mats, ints, zero, responses[column])
+    _responded(factor, unloaded, rhs, True, count, rank, rows, matrix, gram, lower, vectors, scratch, mats, ints, zero,
+               responses[0])
+    _row_space_responses(factor, columns, 1, 1 + sliders + 4, matrix, count, rank, order, kept, mats[ROW_FACTOR],
+                         vectors, responses)  # b = 0: consistent
     _normal_loads(q, qd, zero, constants, contact, True, vecs[ORIGIN])
     _load_gain(theta, constants, contact, mats[GAIN])
     v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
     for k in range(sliders):
         vecs[SLIP, k] = _dot(slip_rows[k], qd, DOF)
         vecs[DRIFT, k] = thd * v_lat if direction_of[k] == 0 else -thd * v_long
-    error = _kinetic(sliders, responses, mats, vecs, ints, contact[KINETIC], math.sqrt(eps2), dt, start,
+    error = _kinetic(sliders, responses, mats, vecs, ints, contact[KINETIC], math.sqrt(eps2), dt, start, held,
                      contact[ADHESION], solution)
     solution[STATUS, ERROR] = error
     if error != SOLVED:
@@ -163,8 +165,14 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
                 value += loads[wheel] * columns[1 + sliders + wheel, j]
         total[j] = value + friction[j]
     acceleration = solution[QDD]
-    _responded(factor, total, rhs, True, count, rank, rows, matrix, gram, lower, vectors, scratch, mats, ints, zero,
-               acceleration)
+    for j in range(DOF):  # qdd is affine in Q: the responses' sum, for the one solve of ``total``
+        value = responses[0, j]
+        for k in range(sliders):
+            value += state[k] * responses[1 + k, j]
+        for wheel in range(4):
+            if loads[wheel] > 0.0:
+                value += loads[wheel] * responses[1 + sliders + wheel, j]
+        acceleration[j] = value
     constraint = solution[CONSTRAINT]
     solution[STATUS, RESIDUAL] = _constraint_force(theta, constants, acceleration, total, rows, rhs, count, constraint)
     forces, predicted, velocity = solution[FORCES], solution[PREDICTED], solution[VELOCITY]

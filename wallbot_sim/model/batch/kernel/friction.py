@@ -10,10 +10,11 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.layout import (
-    ACCELERATION, ADHESION, BY_SLIP, DIRECTIONS, DRIFT, GAIN, HALF_BASE, HALF_TRACK, HEIGHT, JACOBIAN, LOAD_BY_FRICTION,
-    LOAD_BY_LOAD, LU, NEGATIVE, NEWTON_ITERATIONS, NEWTON_PREDICTED, NEWTON_RESIDUAL, NEWTON_STEP, NEWTON_TOLERANCE,
-    ORIGIN, PIVOTS, PRESSED, RESIDUALS, SINGULAR, SIZES, SLIP, SLIP_BY_FRICTION, SLIP_BY_LOAD, SLIP_ROWS, SOLVED,
-    SQUARES, STATE, STATUS, TRIAL_JACOBIAN, TRIAL_PREDICTED, TRIAL_RESIDUALS, TRIAL_STATE, UNCONVERGED, WHEEL_OF)
+    ACCELERATION, ADHESION, BLOCK_END, BLOCK_FIRST, BY_SLIP, DIRECTIONS, DIRECTION_OF, DRIFT, GAIN, HALF_BASE,
+    HALF_TRACK, HEIGHT, JACOBIAN, LOAD_BY_FRICTION, LOAD_BY_LOAD, LU, NEGATIVE, NEWTON_ITERATIONS, NEWTON_PREDICTED,
+    NEWTON_RESIDUAL, NEWTON_STEP, NEWTON_TOLERANCE, ORIGIN, PIVOTS, PRESSED, RESIDUALS, SINGULAR, SIZES, SLIP,
+    SLIP_BY_FRICTION, SLIP_BY_LOAD, SLIP_ROWS, SOLVED, SQUARES, STATE, STATUS, TRIAL_JACOBIAN, TRIAL_PREDICTED,
+    TRIAL_RESIDUALS, TRIAL_STATE, UNCONVERGED, WHEEL_OF)
 from wallbot_sim.model.batch.kernel.linalg import _dot, _lu_solve
 from wallbot_sim.model.robot import DOF
 
@@ -80,7 +81,7 @@ def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsil
 
 # Long on purpose: the residual and its Jacobian in one pass over Newton's state, called at every trial of the
 # line search; the Jacobian reuses the residual's intermediates (qdd, the slip's directions and sizes).
-def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, wheel_of: np.ndarray,
+def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
                        kinetic: float, epsilon: float, dt: float, state: np.ndarray, residual: np.ndarray,
                        jacobian: np.ndarray, predicted: np.ndarray) -> float:
     """The residual of z = (f, N) (count + 4), its Jacobian and the predicted slip w (``kinetic_friction._equations``);
@@ -88,6 +89,7 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
 
     r_f = f + mu_k max(N_i, 0) w / s,  r_N = N - N_0 - L qdd,  qdd = a + D f + R max(N, 0).
     """
+    wheel_of, first, end = ints[WHEEL_OF], ints[BLOCK_FIRST], ints[BLOCK_END]
     acceleration, pressed, sizes, direction = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES], vecs[DIRECTIONS]
     for wheel in range(4):
         pressed[wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
@@ -123,21 +125,19 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
         force = kinetic * pressed[wheel_of[k]]
         residual[k] = state[k] + force * direction[k]
         size = max(size, abs(residual[k]))
-        for p in range(count):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
-            same = wheel_of[k] == wheel_of[p]
-            by_slip[k, p] = force * ((((1.0 if k == p else 0.0) - direction[k] * direction[p]) if same else 0.0)
-                                     / sizes[k])
+        for p in range(first[k], end[k]):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
+            by_slip[k, p] = force * (((1.0 if k == p else 0.0) - direction[k] * direction[p]) / sizes[k])
     slip_by_friction, slip_by_load = mats[SLIP_BY_FRICTION], mats[SLIP_BY_LOAD]
     for k in range(count):
         for column in range(count):
             value = 0.0
-            for p in range(count):
+            for p in range(first[k], end[k]):
                 value += by_slip[k, p] * slip_by_friction[p, column]
             jacobian[k, column] = (1.0 if k == column else 0.0) + value
         for wheel in range(4):
             positive = 1.0 if state[count + wheel] > 0.0 else 0.0
             value = 0.0
-            for p in range(count):
+            for p in range(first[k], end[k]):
                 value += by_slip[k, p] * (slip_by_load[p, wheel] * positive)
             jacobian[k, count + wheel] = value
         wheel = wheel_of[k]
@@ -149,14 +149,14 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
 # Long on purpose: Newton's iteration with its line search in one compiled frame (numba): the fixed Jacobian
 # blocks, the state and the trial arrays stay local to the loop instead of being passed through calls.
 def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
-             kinetic: float, epsilon: float, dt: float, start: np.ndarray, adhesion: float,
+             kinetic: float, epsilon: float, dt: float, start: np.ndarray, held: np.ndarray, adhesion: float,
              solution: np.ndarray) -> int:
     """The sliding components' friction f (count) and the loads N (4) solving the boundary's equations, by Newton's
-    method with a halving line search from the ``start`` loads (``consistent_friction``): f and N into vecs[STATE],
+    method with a halving line search from the ``start`` loads and the ``held`` friction (8,: each wheel's (f_x, f_y),
+    zero where it did not slide) (``consistent_friction``): f and N into vecs[STATE],
     the predicted slip into vecs[NEWTON_PREDICTED]; an error code (``CONTACT_ERRORS``), the residual it stopped
     at in solution[STATUS, NEWTON_RESIDUAL]."""
     size_of = count + 4
-    wheel_of = ints[WHEEL_OF]
     slip_rows, gain = mats[SLIP_ROWS], mats[GAIN]
     # the blocks of the Jacobian that do not change: dt J_S D, dt J_S R, -L D, L R
     for k in range(count):
@@ -184,7 +184,16 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
     state, predicted = vecs[STATE], vecs[NEWTON_PREDICTED]
     for wheel in range(4):
         state[count + wheel] = start[wheel]
-    if count:  # Newton's start: the friction opposing the slip predicted with no friction (``_friction_of``)
+    wheel_of, direction_of, first, end = ints[WHEEL_OF], ints[DIRECTION_OF], ints[BLOCK_FIRST], ints[BLOCK_END]
+    for k in range(count):  # a wheel's components are consecutive; d(w/s)/dw couples them alone
+        first[k] = first[k - 1] if k > 0 and wheel_of[k - 1] == wheel_of[k] else k
+    for k in range(count - 1, -1, -1):
+        end[k] = end[k + 1] if k < count - 1 and wheel_of[k + 1] == wheel_of[k] else k + 1
+    cold = False
+    for k in range(count):  # Newton's start: the friction held over the last step where there is one
+        state[k] = held[2 * wheel_of[k] + direction_of[k]]
+        cold = cold or state[k] == 0.0
+    if cold:  # else the friction opposing the slip predicted with no friction (``_friction_of``)
         acceleration, pressed, sizes = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES]
         for wheel in range(4):
             pressed[wheel] = start[wheel] if start[wheel] > 0.0 else 0.0
@@ -197,9 +206,10 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
             predicted[k] = vecs[SLIP, k] + dt * (_dot(slip_rows[k], acceleration, DOF) + vecs[DRIFT, k])
         _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
         for k in range(count):
-            state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
+            if state[k] == 0.0:
+                state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
     residual, jacobian = vecs[RESIDUALS], mats[JACOBIAN]
-    size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, state, residual, jacobian,
+    size = _kinetic_equations(count, responses, mats, vecs, ints, kinetic, epsilon, dt, state, residual, jacobian,
                               predicted)
     trial, trial_residual, trial_predicted = vecs[TRIAL_STATE], vecs[TRIAL_RESIDUALS], vecs[TRIAL_PREDICTED]
     trial_jacobian, step, negative = mats[TRIAL_JACOBIAN], vecs[NEWTON_STEP], vecs[NEGATIVE]
@@ -218,7 +228,7 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
         while True:
             for i in range(size_of):
                 trial[i] = state[i] + scale * step[i]
-            trial_size = _kinetic_equations(count, responses, mats, vecs, wheel_of, kinetic, epsilon, dt, trial,
+            trial_size = _kinetic_equations(count, responses, mats, vecs, ints, kinetic, epsilon, dt, trial,
                                             trial_residual, trial_jacobian, trial_predicted)
             if trial_size < size or scale < 1e-6:
                 break

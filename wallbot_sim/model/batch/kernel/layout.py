@@ -64,9 +64,10 @@ rows of a projection."""
  DIRECTIONS, PRESSED, SQUARES, SLIP, DRIFT, ORIGIN, ACCELERATION, TOTAL, REDUCED, SPLIT_X, ROW_LOADS, ZERO,
  NEGATIVE, TRIAL_Y) = range(22)
 """``_contact_workspace``'s vectors (16 each)."""
-WHEEL_OF, DIRECTION_OF, PIVOTS, SPLIT_PIVOTS, SPLIT_KEPT, ROW_ORDER, ROW_KEPT = range(7)
-"""``_contact_workspace``'s integer rows (16 each): each sliding component's wheel and direction, LU's pivots, the
-split's pivots (in pivot order, and 1 on each), the rows ``_prepare_rows`` keeps (likewise)."""
+WHEEL_OF, DIRECTION_OF, BLOCK_FIRST, BLOCK_END, PIVOTS, SPLIT_PIVOTS, SPLIT_KEPT, ROW_ORDER, ROW_KEPT = range(9)
+"""``_contact_workspace``'s integer rows (16 each): each sliding component's wheel and direction, and the first and
+one past the last component of its wheel; LU's pivots, the split's pivots (in pivot order, and 1 on each), the rows
+``_prepare_rows`` keeps (likewise)."""
 STICKING, TRIAL_SLIDING, STOPPED, REVERSING, CANDIDATES, HOLDING = range(6)
 """``_contact_workspace``'s wheel sets (4 each)."""
 MATRICES, VECTORS, INTEGERS, SETS = PROJECTION + 1, TRIAL_Y + 1, ROW_KEPT + 1, HOLDING + 1

@@ -82,7 +82,25 @@ def _row_space_solve(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, wit
     inconsistent set: the heading task beside the sticking wheels' lateral rows) returns False, ``out`` untouched,
     for the caller's least squares. Cheaper than the normal equations of ``_solve`` with few rows. ``vectors``
     rows 1-3 are scratch."""
+    return _projected(factor, force, rhs, with_rhs, matrix, count, rank, order, kept, lower, vectors[1], vectors[2],
+                      vectors[3], out)
+
+
+def _row_space_responses(factor: np.ndarray, forces: np.ndarray, first: int, end: int, matrix: np.ndarray,
+                         count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
+                         vectors: np.ndarray, out: np.ndarray) -> None:
+    """``_row_space_solve`` with b = 0 of each force ``forces[c]`` into ``out[c]``, c = first..end - 1 (always
+    consistent: b - B s = -B s lies in B's range); the scratch rows taken once for them all."""
     scaled, misfit, solution = vectors[1], vectors[2], vectors[3]
+    for column in range(first, end):
+        _projected(factor, forces[column], forces[column], False, matrix, count, rank, order, kept, lower, scaled,
+                   misfit, solution, out[column])
+
+
+def _projected(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
+               count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray, scaled: np.ndarray,
+               misfit: np.ndarray, solution: np.ndarray, out: np.ndarray) -> bool:
+    """``_row_space_solve`` with its scratch vectors given (7, count and rank long)."""
     _transposed_factor_times(factor, force, scaled)
     for r in range(count):
         value = rhs[r] if with_rhs else 0.0
@@ -115,3 +133,5 @@ _pivoted_cholesky = jit(_pivoted_cholesky, inline="always")
 _pivoted_solve = jit(_pivoted_solve, inline="always")
 _prepare_rows = jit(_prepare_rows)
 _row_space_solve = jit(_row_space_solve)
+_row_space_responses = jit(_row_space_responses)
+_projected = jit(_projected, inline="always")

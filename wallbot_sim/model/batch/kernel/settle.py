@@ -41,8 +41,9 @@ def _holds(solution: np.ndarray, wheel: int, static: float) -> bool:
 
 # Long on purpose (numba): a round of transitions keeps its state, the stick/slip sets, in one compiled frame.
 def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
-            torque: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray, rows: np.ndarray, rhs: np.ndarray,
-            factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+            torque: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray,
+            rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+            lower: np.ndarray, vectors: np.ndarray,
             scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, marks: np.ndarray,
             columns: np.ndarray, responses: np.ndarray, solution: np.ndarray, trial: np.ndarray) -> int:
     """The stick/slip transitions at y's boundary, then the solution the step integrates (``CoulombContact.settle``,
@@ -51,15 +52,16 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
     In turn, until nothing changes: a sliding wheel the step would reverse is stopped by the switch projection and
     slides on from rest; sliding wheels that are stopping stick again when the solve with their rows restored
     holds them in their discs (their slip projected away); every sticking wheel whose force leaves its disc
-    slides. ``sliding`` (4,) and ``loads`` (4,) (held, Newton's start) are the contact state before, updated in
+    slides. ``sliding`` (4,), ``loads`` (4,) and ``friction`` (8,: the sliding wheels' (f_x, f_y), zero for the
+    others) are the contact state held over the last step (the loads and friction Newton's start), updated in
     place, and y's velocities are projected in place, unless an error code is returned (``CONTACT_ERRORS``).
     """
     frictional = flags[NON_LATERAL] or flags[NONSLIP]
     static, stick = contact[STATIC], contact[STICK]
     for wheel in range(4):
         sliding[wheel] = sliding[wheel] and frictional
-    error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor, matrix,
-                      gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, solution)
+    error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, friction, rows, rhs, factor,
+                      matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, solution)
     if error != SOLVED:
         return error
     sticking, trial_sliding, stopped = marks[STICKING], marks[TRIAL_SLIDING], marks[STOPPED]
@@ -77,9 +79,9 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
                 stopped[wheel] = stopped[wheel] or reversing[wheel]
                 sticking[wheel] = frictional and (not sliding[wheel] or reversing[wheel])
             _project_onto(y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors, scratch)
-            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
-                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
-                              solution)
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, friction, rows, rhs,
+                              factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
+                              responses, solution)
             if error != SOLVED:
                 return error
         searching = False
@@ -96,8 +98,8 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
             _project_onto(trial_y, flags, constants, sticking, projection, factor, matrix, gram, lower, vectors,
                           scratch)
             error = _boundary(trial_y, reference, flags, constants, contact, torque, dt, trial_sliding,
-                              loads, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
-                              marks, columns, responses, trial)
+                              loads, friction, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs,
+                              ints, marks, columns, responses, trial)
             if error != SOLVED:
                 return error
             same, searching = True, False
@@ -121,9 +123,9 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
                     sliding[wheel] = exceeded = True
             if not exceeded:
                 break
-            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, rows, rhs, factor,
-                              matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
-                              solution)
+            error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, friction, rows, rhs,
+                              factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
+                              responses, solution)
             if error != SOLVED:
                 return error
         reversed_again = False
@@ -134,6 +136,8 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
             break
     for wheel in range(4):
         loads[wheel] = solution[LOADS, wheel]
+        for direction in range(2):
+            friction[2 * wheel + direction] = solution[FORCES, 2 * wheel + direction] if sliding[wheel] else 0.0
     return SOLVED
 
 
@@ -167,15 +171,16 @@ def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, con
 
 def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                       constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
-                      sliding: np.ndarray, loads: np.ndarray, solutions: np.ndarray, slid: np.ndarray,
-                      outcome: np.ndarray) -> None:
+                      sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, solutions: np.ndarray,
+                      slid: np.ndarray, outcome: np.ndarray) -> None:
     """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
     step from it (``_held_step``).
 
     ``states`` (T + 1, 14): row 0 the state at the first instant; ``settled`` (T, 14) gets each instant's state
     with its velocities projected where a wheel stopped or stuck, ``solutions`` (T, 8, 8) its solution, ``slid``
     (T, 4) its sliding wheels, and ``states`` row k + 1 the state one step later, for k < ``steps`` (at most T).
-    ``sliding`` (4,) and ``loads`` (4,): the contact state at the start, updated instant by instant.
+    ``sliding`` (4,), ``loads`` (4,) and ``friction`` (8,): the contact state at the start (``_settle``'s), updated
+    instant by instant.
     ``outcome`` (4,): the instants settled, the steps taken, how the run ended (RAN, DETACHED at the last instant
     settled, DIVERGED after it, FAILED at the next: its error code in outcome[3]).
     """
@@ -187,9 +192,9 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     for k in range(solutions.shape[0]):
         for i in range(2 * DOF):
             settled[k, i] = states[k, i]
-        error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, rows, rhs,
-                        factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
-                        solutions[k], trial)
+        error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, friction,
+                        rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
+                        responses, solutions[k], trial)
         if error != SOLVED:
             outcome[2], outcome[3] = FAILED, error
             return
@@ -211,20 +216,23 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
 
 def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                   contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                  live: np.ndarray, solutions: np.ndarray, errors: np.ndarray, chunk: int) -> None:
+                  friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray,
+                  chunk: int) -> None:
     """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
-    (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4) and the states updated in place,
+    (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4), ``friction`` (N, 8) and the states
+    updated in place,
     ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left as they are.
     The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
     fastest around one call)."""
     for block in prange((states.shape[0] + chunk - 1) // chunk):
         _settle_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, reference, flags, constants,
-                      contact, torques, dt, sliding, loads, live, solutions, errors)
+                      contact, torques, dt, sliding, loads, friction, live, solutions, errors)
 
 
 def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarray, flags: np.ndarray,
                   constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
-                  loads: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray) -> None:
+                  loads: np.ndarray, friction: np.ndarray, live: np.ndarray, solutions: np.ndarray,
+                  errors: np.ndarray) -> None:
     """``_batch_settle`` of robots first..end - 1 on one core."""
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
@@ -233,8 +241,9 @@ def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarra
     for robot in range(first, end):
         if live[robot]:
             errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
-                                    dt, sliding[robot], loads[robot], rows, rhs, factor, matrix, gram, lower, vectors,
-                                    scratch, mats, vecs, ints, marks, columns, responses, solutions[robot], trial)
+                                    dt, sliding[robot], loads[robot], friction[robot], rows, rhs, factor, matrix,
+                                    gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
+                                    solutions[robot], trial)
 
 
 def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
