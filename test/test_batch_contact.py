@@ -231,3 +231,49 @@ def test_the_numba_engine_settles_coulomb_contact_in_the_kernel(monkeypatch):
         batch.set_motor_torque(rng.uniform(-1.5, 1.5, (4, 2)))
         batch.run(25, lambda out: None)
     assert calls == {'settle': 26, 'step': 25, 'model': 26 * 4}
+
+
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_steps_at_held_torques_in_one_kernel_call_are_the_steps_one_by_one():
+    """``run_held`` (the sweep's steps between two controller instants) gives, to the bit, the outputs and states
+    ``outputs``/``step`` give instant by instant: through slip, a lift-off inside the held steps (the robot
+    detached there, with the same instant, wheel and load) and a torque change between calls."""
+    robots, q0, torques = mixed_start()
+    batches = [BatchSimulation(robots, None, DRIVEN, q0, np.zeros((12, DOF)), contact='coulomb', engine='numba')
+               for _ in range(2)]
+    one_by_one, held = batches
+    fields = ('q', 'qd', 'constraint_force', 'friction_force', 'residual', 'drive', 'loads', 'wheel_forces',
+              'wheel_use', 'wheel_slipping', 'tracking_error', 'wheel_torques')
+    step, lifted_inside = 0, False
+    for length, scale in ((1, 1.0), (97, 0.9), (160, 1.0), (143, 1.0)):
+        for batch in batches:
+            batch.set_motor_torque(scale * torques)
+        first = held.outputs()
+        expected = one_by_one.outputs()
+        for field in ('q', 'qd', 'loads', 'wheel_forces'):
+            assert np.array_equal(getattr(first, field), getattr(expected, field)), field
+        detached_before = held.detached.copy()
+        table = held.run_held(length)
+        assert table.on_wall.shape == (12, length - 1)
+        for instant in range(length - 1):
+            one_by_one.step()
+            out = one_by_one.outputs()
+            on_wall = ~out.detached
+            assert np.array_equal(table.on_wall[:, instant], on_wall), (step, instant)
+            assert table.t[instant] == out.t
+            for field in fields:
+                value = getattr(table, field)[:, instant]
+                assert np.array_equal(value[on_wall], getattr(out, field)[on_wall], equal_nan=True), \
+                    (field, step + instant + 1)
+        one_by_one.step()
+        step += length
+        lifted_inside = lifted_inside or bool(np.any(held.detached & ~detached_before))
+        assert held.t == one_by_one.t
+        assert np.array_equal(held.q, one_by_one.q) and np.array_equal(held.qd, one_by_one.qd)
+        assert np.array_equal(held.detached, one_by_one.detached)
+        assert np.array_equal(held.detached_wheel, one_by_one.detached_wheel)
+        assert np.array_equal(held.t_detached, one_by_one.t_detached, equal_nan=True)
+        for robot in np.flatnonzero(held.detached):
+            assert held.lift_off(robot).load == one_by_one.lift_off(robot).load
+    assert lifted_inside and held.detached.any() and not held.detached.all()
+    assert np.any(held.outputs().wheel_slipping)

@@ -51,8 +51,8 @@ def compile_kernel() -> None:
 
 def compile_batch(contacts: tuple[str, ...] = (IDEAL, COULOMB)) -> None:
     """Compile the batch engine's kernel (``BatchSimulation(..., engine='numba')``, a sweep's robots) under
-    ``contacts``: its fused steps and solve with ideal contact, its boundaries and steps with coulomb contact; or
-    load them from the cache."""
+    ``contacts``: its fused steps and solve with ideal contact, its boundaries, steps and runs at held torques with
+    coulomb contact; or load them from the cache."""
     robots, start = [Robot(RobotParameters())] * 2, np.zeros((2, DOF))
     selections = {IDEAL: ConstraintSelection.parse('belt'), COULOMB: ConstraintSelection.structural(trajectory=False)}
     for contact in contacts:
@@ -60,6 +60,8 @@ def compile_batch(contacts: tuple[str, ...] = (IDEAL, COULOMB)) -> None:
                                 engine=NUMBA)
         batch.step()
         batch.outputs()
+        if batch.runs_held:
+            batch.run_held(2)
 
 
 def compile_ideal() -> None:

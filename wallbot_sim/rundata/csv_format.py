@@ -28,6 +28,7 @@ from wallbot_sim.model.outputs import StepTable
 
 if TYPE_CHECKING:  # the batch package loads numba, which the CSV does not need
     from wallbot_sim.model.batch import BatchOutputs
+    from wallbot_sim.model.batch.outputs import BatchTable
 
 
 def _reference(out: StepOutputs) -> Sequence[float]:
@@ -105,28 +106,30 @@ def fill_rows(out: StepTable, rows: np.ndarray, motor_torque: tuple[float, float
     fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
 
 
-def fill_motion_rows(out: StepTable | BatchOutputs, rows: np.ndarray, wheel_torques: np.ndarray) -> None:
-    """The columns t .. N4 of ``fill_rows`` (all but the wheels' use, slip and force), of a table or of the
-    robots of a batch at one instant, with each wheel's total torque ``wheel_torques`` (rows, 4)."""
+def fill_motion_rows(out: StepTable | BatchOutputs | BatchTable, rows: np.ndarray, wheel_torques: np.ndarray) -> None:
+    """The columns t .. N4 of ``fill_rows`` (all but the wheels' use, slip and force), of a table, of the robots
+    of a batch at one instant or of a batch's table ((robots, instants, columns) rows), with each wheel's total
+    torque ``wheel_torques`` (rows' shape, 4)."""
     position = out.reference_position
-    rows[:, COLUMN['t']] = out.t
-    rows[:, COLUMN['x']:COLUMN['x'] + 7] = out.q
-    rows[:, COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
-    rows[:, COLUMN['ref_x']:COLUMN['ref_y'] + 1] = position if position is not None else math.nan
-    rows[:, COLUMN['err']] = out.tracking_error
-    rows[:, COLUMN['Fx']:COLUMN['Fx'] + 3] = out.constraint_force[:, :3]
-    rows[:, COLUMN['tau1']:COLUMN['tau1'] + 4] = wheel_torques
-    rows[:, COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
-    rows[:, COLUMN['residual']] = out.residual
-    rows[:, COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
+    rows[..., COLUMN['t']] = out.t
+    rows[..., COLUMN['x']:COLUMN['x'] + 7] = out.q
+    rows[..., COLUMN['vx']:COLUMN['vx'] + 7] = out.qd
+    rows[..., COLUMN['ref_x']:COLUMN['ref_y'] + 1] = position if position is not None else math.nan
+    rows[..., COLUMN['err']] = out.tracking_error
+    rows[..., COLUMN['Fx']:COLUMN['Fx'] + 3] = out.constraint_force[..., :3]
+    rows[..., COLUMN['tau1']:COLUMN['tau1'] + 4] = wheel_torques
+    rows[..., COLUMN['F_left']:COLUMN['F_left'] + 3] = out.drive
+    rows[..., COLUMN['residual']] = out.residual
+    rows[..., COLUMN['N1']:COLUMN['N1'] + 4] = out.loads
 
 
 def fill_wheel_rows(rows: np.ndarray, use: np.ndarray, slipping: np.ndarray, forces: np.ndarray) -> None:
-    """The wheels' columns of ``fill_rows``: use (rows, 4), slip flags (rows, 4), forces (rows, 4, 2)."""
-    rows[:, COLUMN['use1']:COLUMN['use1'] + 4] = use
-    rows[:, _FLAGS] = slipping
-    rows[:, COLUMN['fx1']:COLUMN['fx1'] + 4] = forces[:, :, 0]
-    rows[:, COLUMN['fy1']:COLUMN['fy1'] + 4] = forces[:, :, 1]
+    """The wheels' columns of ``fill_rows``: use (rows' shape, 4), slip flags (rows' shape, 4), forces (rows' shape,
+    4, 2)."""
+    rows[..., COLUMN['use1']:COLUMN['use1'] + 4] = use
+    rows[..., _FLAGS] = slipping
+    rows[..., COLUMN['fx1']:COLUMN['fx1'] + 4] = forces[..., 0]
+    rows[..., COLUMN['fy1']:COLUMN['fy1'] + 4] = forces[..., 1]
 
 
 def csv_lines(rows: np.ndarray) -> str:

@@ -34,6 +34,7 @@ from wallbot_sim.sweep.reduce import DecidingRows
 
 if TYPE_CHECKING:
     from wallbot_sim.model.batch import BatchOutputs
+    from wallbot_sim.model.batch.outputs import BatchTable
     from wallbot_sim.model.compiled import ReferenceRows
 
 OUTPUTS = ('final_err', 'peak_err_after_5s', 'peak_abs_F_left', 'peak_abs_F_right', 'peak_abs_F_lateral',
@@ -51,6 +52,8 @@ OUTPUT_UNITS = {
 """The unit of each output ('-': a ratio; the residual |A qdd - b| mixes the rows' accelerations)."""
 BLOCK = 2048
 """Instants of a chunk's robots held at once before they are reduced to the rows deciding their results."""
+HELD_MOST = 128
+"""Steps of a chunk's robots in one kernel call at held motor torques at most (``BatchSimulation.run_held``)."""
 FEASIBLE_USE = NumberRange(high=1.0)
 """Friction use a feasible robot stays within: above 1 a wheel would slide on a real wall."""
 
@@ -244,28 +247,16 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
     simulation = BatchSimulation.from_scenario(models, settings.scenario, settings.selection, settings.dt,
                                                contact=settings.contact,
                                                engine='numba' if kernel.available() else 'numpy')
-    answer = None
+    answer, loop = None, None
     if settings.controller:  # each controller's robot is its robot's, its mass scaled
         loop = BatchTrackingController([controller_robot(params, settings.controller_mass_scale) for params in robots],
                                        settings.scenario.reference, ControllerGains(), CONTROL_RATE_HZ,
                                        MAX_WHEEL_TORQUE)
         answer = loop.hook(simulation)
-    reduced = DecidingRows(robots, len(CSV_COLUMNS))
-    block = np.empty((len(models), min(block_size, settings.steps + 1), len(CSV_COLUMNS)))
-    written = np.empty(block.shape[:2], dtype=bool)
-    """Whether each robot's run has the row: the instants before it detached."""
-    filled = 0
+    rows = _ChunkRows(DecidingRows(robots, len(CSV_COLUMNS)), len(models), min(block_size, settings.steps + 1))
 
     def on_step(out: BatchOutputs) -> None:
-        nonlocal filled
-        rows = block[:, filled]
-        fill_motion_rows(out, rows, out.wheel_torques)
-        fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
-        written[:, filled] = ~out.detached
-        filled += 1
-        if filled == block.shape[1]:
-            reduced.add(block, written)
-            filled = 0
+        rows.add_instant(out)
         if answer is not None:  # after the state was recorded, as simulate answers a written state
             answer(out)
 
@@ -273,10 +264,65 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
     if kernel.available():  # a chunk is one core's work: the cores run chunks (workers), not a chunk's robots
         kernel.numba.set_num_threads(1)
     try:
-        simulation.run(settings.steps, on_step)
+        if simulation.runs_held:  # the steps between the controller's instants in one kernel call each
+            step = 0
+            while True:
+                on_step(simulation.outputs())
+                if step == settings.steps:
+                    break
+                most = min(settings.steps - step, HELD_MOST)
+                held = most if loop is None else loop.instants_until_due(simulation, most)
+                rows.add_table(simulation.run_held(held))
+                step += held
+        else:
+            simulation.run(settings.steps, on_step)
     finally:
         if kernel.available():
             kernel.numba.set_num_threads(threads)
-    reduced.add(block[:, :filled], written[:, :filled])
+    reduced = rows.close()
     for i in range(len(models)):
         yield RobotRun(reduced.run(i), simulation.lift_off(i))
+
+
+class _ChunkRows:
+    """A chunk's CSV rows, ``instants`` of its robots at a time, each block reduced as it fills
+    (``DecidingRows.add``)."""
+
+    def __init__(self, reduced: DecidingRows, robots: int, instants: int) -> None:
+        self.reduced = reduced
+        self.block = np.empty((robots, instants, len(CSV_COLUMNS)))
+        self.written = np.empty(self.block.shape[:2], dtype=bool)
+        """Whether each robot's run has the row: the instants before it detached."""
+        self.filled = 0
+
+    def add_instant(self, out: BatchOutputs) -> None:
+        """The rows of the robots' outputs at one instant."""
+        rows = self.block[:, self.filled]
+        fill_motion_rows(out, rows, out.wheel_torques)
+        fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
+        self.written[:, self.filled] = ~out.detached
+        self._advance(1)
+
+    def add_table(self, table: BatchTable) -> None:
+        """The rows of a table of instants (``BatchSimulation.run_held``)."""
+        rows = np.empty((*table.on_wall.shape, len(CSV_COLUMNS)))
+        fill_motion_rows(table, rows, table.wheel_torques)
+        fill_wheel_rows(rows, table.wheel_use, table.wheel_slipping, table.wheel_forces)
+        done = 0
+        while done < rows.shape[1]:
+            count = min(rows.shape[1] - done, self.block.shape[1] - self.filled)
+            self.block[:, self.filled:self.filled + count] = rows[:, done:done + count]
+            self.written[:, self.filled:self.filled + count] = table.on_wall[:, done:done + count]
+            done += count
+            self._advance(count)
+
+    def _advance(self, count: int) -> None:
+        self.filled += count
+        if self.filled == self.block.shape[1]:
+            self.reduced.add(self.block, self.written)
+            self.filled = 0
+
+    def close(self) -> DecidingRows:
+        """The reduced rows, the last block's included."""
+        self.reduced.add(self.block[:, :self.filled], self.written[:, :self.filled])
+        return self.reduced

@@ -15,10 +15,11 @@ import numpy as np
 
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchGains
+from wallbot_sim.model.batch.outputs import BatchTable
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule
-from wallbot_sim.model.contact import CoulombContact
+from wallbot_sim.model.contact import CoulombContact, coulomb_table
 from wallbot_sim.model.errors import ModelError
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.constrained_problem import impulsive_projection
@@ -76,6 +77,19 @@ def friction_use(robots: RobotBatch, drive: np.ndarray, loads: np.ndarray) -> np
     return np.where(limit > 0.0, ratio, np.where(force == 0.0, 0.0, np.inf))
 
 
+class HeldRun(NamedTuple):
+    """``kernel.batch_contact_run``'s T steps of a batch at held torques: the states (N, T + 1, 14), the settled
+    states (N, T, 14), the solutions (N, T, 8, 8), the sliding wheels (N, T, 4) of each instant, each robot's
+    outcome (N, 4), and the reference at each step's RK4 instants (T, 3, 10)."""
+
+    states: np.ndarray
+    settled: np.ndarray
+    solutions: np.ndarray
+    slid: np.ndarray
+    outcomes: np.ndarray
+    references: np.ndarray
+
+
 class BatchCoulomb:
     """Every robot's coulomb contact per wheel: its sliding wheels and held loads, and its settled step boundary."""
 
@@ -113,6 +127,32 @@ class BatchCoulomb:
             first = int(failed[0])
             raise ModelError(f'robot(s) {failed[:5].tolist()}: ' + kernel.CONTACT_ERRORS[errors[first]].format(
                 self.solutions[first, kernel.STATUS, kernel.NEWTON_RESIDUAL]))
+
+    def run_compiled(self, y: np.ndarray, references: np.ndarray, constants: np.ndarray, torques: np.ndarray,
+                     dt: float, live: np.ndarray) -> HeldRun:
+        """T = len(references) steps of the ``live`` robots from their settled boundaries y (N, 14) at the held
+        ``torques`` (``kernel.batch_contact_run``), the contact state updated."""
+        return HeldRun(*kernel.batch_contact_run(y, references, tuple(self.selection.active_names()), constants,
+                                                 self.contact, torques, dt, self.sliding, self.loads, self.friction,
+                                                 live, self.solutions), references)
+
+    def table(self, run: HeldRun, robots: RobotBatch, times: np.ndarray, torques: np.ndarray,
+              reference: Reference | None) -> BatchTable:
+        """The outputs of the instants after the first of ``run`` (at ``times[1:]``), as ``BatchSimulation.outputs``
+        gives each (``coulomb_table``)."""
+        solutions, settled = run.solutions[:, 1:], run.settled[:, 1:]
+        size, instants = solutions.shape[:2]
+        loads = solutions[..., kernel.LOADS, :4]
+        forces = solutions[..., kernel.FORCES, :].reshape(size, instants, 4, 2)
+        flat = coulomb_table(loads.reshape(-1, 4), forces.reshape(-1, 4, 2), run.slid[:, 1:].reshape(-1, 4),
+                             self.directions, np.repeat(robots.static_friction, instants),
+                             np.repeat(robots.adhesion_force, instants))
+        on_wall = (np.arange(1, instants + 1) < run.outcomes[:, :1]) & (run.outcomes[:, 2:3] != kernel.FAILED)
+        return BatchTable(times[1:], settled[..., :DOF], settled[..., DOF:], solutions[..., kernel.CONSTRAINT, :DOF],
+                          solutions[..., kernel.FRICTION, :DOF], solutions[..., kernel.STATUS, kernel.RESIDUAL],
+                          torques.copy(), flat.drive.reshape(size, instants, 3), loads, forces,
+                          flat.wheel_use.reshape(size, instants, 4), run.slid[:, 1:],
+                          run.references[1:, 0, :2] if reference is not None else None, on_wall)
 
     def settle_each(self, t: float, y: np.ndarray, torques: np.ndarray, dt: float, live: np.ndarray) -> None:
         """The ``live`` robots' boundaries by the model's ``CoulombContact``, one robot at a time, their velocities

@@ -60,6 +60,14 @@ class BatchTrackingController:
         """Whether the states stamped ``stamp_ns`` are ones the controller acts on."""
         return self.next_due_ns is None or stamp_ns >= self.next_due_ns
 
+    def instants_until_due(self, simulation: BatchSimulation, most: int) -> int:
+        """Steps from ``simulation``'s instant to the next one the controller acts on (``due``, stamped as ``hook``
+        stamps them), ``most`` at most."""
+        for ahead in range(1, most):
+            if self.due(round((simulation.initial_time + (simulation.steps + ahead) * simulation.dt) * 1e9)):
+                return ahead
+        return most
+
     def command(self, stamp_ns: int, q: np.ndarray, qd: np.ndarray, live: np.ndarray | None = None) -> np.ndarray:
         """The clamped torques (N, 2) for the plant states (N, 7) stamped ``stamp_ns``; the next are due a period on.
 

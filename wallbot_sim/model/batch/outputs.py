@@ -73,6 +73,55 @@ class BatchOutputs(NamedTuple):
 
 
 
+class BatchTable(NamedTuple):
+    """The outputs of every robot at T consecutive instants (``BatchOutputs`` with the instant second), the motor
+    torques held over them: ``BatchSimulation.run_held``'s."""
+
+    t: np.ndarray
+    """(T,)."""
+    q: np.ndarray
+    """(N, T, 7)."""
+    qd: np.ndarray
+    """(N, T, 7)."""
+    constraint_force: np.ndarray
+    """(N, T, 7)."""
+    friction_force: np.ndarray
+    """(N, T, 7)."""
+    residual: np.ndarray
+    """(N, T)."""
+    motor_torque: np.ndarray
+    """(N, 2), held over every instant."""
+    drive: np.ndarray
+    """(N, T, 3)."""
+    loads: np.ndarray
+    """(N, T, 4)."""
+    wheel_forces: np.ndarray
+    """(N, T, 4, 2)."""
+    wheel_use: np.ndarray
+    """(N, T, 4)."""
+    wheel_slipping: np.ndarray
+    """(N, T, 4) bool."""
+    reference_position: np.ndarray | None
+    """(T, 2): the reference point at each instant, None without a reference."""
+    on_wall: np.ndarray
+    """(N, T) bool: the instants each robot reached on the wall (up to its lift-off instant, included); its values
+    after them are not outputs."""
+
+    @property
+    def tracking_error(self) -> np.ndarray:
+        """(N, T) (m); NaN without a reference."""
+        if self.reference_position is None:
+            return np.full(self.residual.shape, np.nan)
+        offset = self.q[..., :2] - self.reference_position
+        return np.hypot(offset[..., 0], offset[..., 1])
+
+    @property
+    def wheel_torques(self) -> np.ndarray:
+        """(N, T, 4): ``BatchOutputs.wheel_torques`` at every instant."""
+        motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)[:, None]
+        return self.constraint_force[..., 3:] + motor + self.friction_force[..., 3:]
+
+
 StepHook = Callable[[BatchOutputs], None]
 """Called with the outputs of every instant (``Simulation.run``'s ``on_step`` over a batch)."""
 

@@ -9,14 +9,14 @@ import numpy as np
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, BatchWheelContact, build_batch_modules
 from wallbot_sim.model.batch.contact import (
-    BatchCoulomb, BatchMotion, drive_forces, friction_use, normal_loads)
-from wallbot_sim.model.batch.outputs import BatchOutputs, StepHook
+    BatchCoulomb, BatchMotion, HeldRun, drive_forces, friction_use, normal_loads)
+from wallbot_sim.model.batch.outputs import BatchOutputs, BatchTable, StepHook
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.contact import COULOMB, IDEAL, DetachedError, check_contact_model, coulomb_table
 from wallbot_sim.model.contact_kinematics import contact_velocities
-from wallbot_sim.model.errors import DivergedError, ParameterError
+from wallbot_sim.model.errors import DivergedError, ModelError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.outputs import lifted_wheels
@@ -262,12 +262,7 @@ class BatchSimulation:
         k1 = None
         if self.coulomb_applies:
             out = self.outputs()
-            wheel = lifted_wheels(out.loads)
-            newly = (wheel > 0) & ~self.detached
-            self.detached_wheel[newly] = wheel[newly]
-            self.t_detached[newly] = self.t
-            self._lift_off_load[newly] = out.loads[newly, wheel[newly] - 1]
-            self.detached |= newly
+            self._detach(lifted_wheels(out.loads), out.loads, self.t)
             if self.engine == NUMBA:
                 self._compiled_contact_step()
                 return
@@ -279,6 +274,71 @@ class BatchSimulation:
         if self.detached.any():
             y[self.detached] = self._y[self.detached]
         self._advance(y, np.all(np.isfinite(y), axis=1))
+
+    def _detach(self, wheel: np.ndarray, loads: np.ndarray, t: float | np.ndarray) -> None:
+        """Detach the robots on the wall whose ``wheel`` (1..4, 0: none) (N,) lifted off at ``t``, ``loads`` (N, 4)
+        their loads then."""
+        newly = (wheel > 0) & ~self.detached
+        self.detached_wheel[newly] = wheel[newly]
+        self.t_detached[newly] = t if np.isscalar(t) else t[newly]
+        self._lift_off_load[newly] = loads[newly, wheel[newly] - 1]
+        self.detached |= newly
+
+    @property
+    def runs_held(self) -> bool:
+        """Whether ``run_held`` can run: the compiled engine with coulomb contact."""
+        return self.engine == NUMBA and self.coulomb_applies
+
+    def run_held(self, steps: int) -> BatchTable:
+        """``steps`` steps at the motor torques held now, as ``steps`` calls of ``step`` take them, in one call of
+        the kernel (``kernel.batch_contact_run``; ``runs_held`` only): the outputs of the ``steps - 1`` instants
+        between now and then (``outputs`` gives those at both ends). A robot that lifts off at one of them is
+        detached there; DivergedError or ModelError where ``step`` would raise them."""
+        coulomb = self._coulomb
+        assert coulomb is not None and self.runs_held and steps >= 1
+        out = self.outputs()
+        self._detach(lifted_wheels(out.loads), out.loads, self.t)
+        live = ~self.detached
+        references = kernel.reference_samples(self.reference, self.initial_time, self.steps, steps, self.dt)
+        run = coulomb.run_compiled(self._y, references, self._kernel_constants(), self.motor_torque, self.dt, live)
+        times = self.initial_time + (self.steps + np.arange(steps)) * self.dt  # as ``t`` at each instant
+        self._raise_run_error(run, live, times)
+        table = coulomb.table(run, self.robots, times, self.motor_torque, self.reference)
+        ended = np.flatnonzero(live & (run.outcomes[:, 2] == kernel.DETACHED))
+        at = run.outcomes[ended, 0] - 1  # the lift-off instant
+        moved = live.copy()
+        moved[ended] = False
+        self._y[moved] = run.states[moved, steps]
+        self._y[ended] = run.settled[ended, at]
+        coulomb.solutions[ended] = run.solutions[ended, at]
+        loads = np.zeros((self.size, 4))
+        loads[ended] = run.solutions[ended, at, kernel.LOADS, :4]
+        wheel = np.zeros(self.size, dtype=int)
+        wheel[ended] = lifted_wheels(loads[ended])
+        lifted_at = np.zeros(self.size)
+        lifted_at[ended] = times[at]
+        self._detach(wheel, loads, lifted_at)
+        self.steps += steps
+        self._cached = None
+        return table
+
+    def _raise_run_error(self, run: HeldRun, live: np.ndarray, times: np.ndarray) -> None:
+        """The error ``step`` would have raised first in ``run`` (a boundary without a solution, or a state no
+        longer finite), if any, at ``times`` (each instant's t)."""
+        ends = run.outcomes[:, 2]
+        failed, diverged = live & (ends == kernel.FAILED), live & (ends == kernel.DIVERGED)
+        # in time order: instant k's boundary (2 k), then its step (2 k + 1)
+        when = np.where(failed, 2 * run.outcomes[:, 0], np.where(diverged, 2 * run.outcomes[:, 1] + 1, -1))
+        if not (failed | diverged).any():
+            return
+        first = int(np.min(when[when >= 0]))
+        robots = np.flatnonzero(when == first)
+        if first % 2 == 0:
+            robot = int(robots[0])
+            raise ModelError(f'robot(s) {robots[:5].tolist()}: ' + kernel.CONTACT_ERRORS[run.outcomes[robot, 3]].format(
+                run.solutions[robot, first // 2, kernel.STATUS, kernel.NEWTON_RESIDUAL]))
+        raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
+                            f'at t = {times[first // 2] + self.dt:.3f} s')
 
     def lift_off(self, robot: int) -> DetachedError | None:
         """The lift-off that stopped robot ``robot`` (``Simulation.step``'s DetachedError for it alone), None while

@@ -22,7 +22,8 @@ of the Python model (its transitions, the solve of each stick/slip set with the 
 Newton's method, the split of the sticking wheels' force), and ``_held_step`` the RK4 step from it.
 ``robot_contact_run`` takes one robot's boundaries and steps a chunk at a time (``Simulation(..., engine='numba',
 contact='coulomb')``), ``batch_contact_settle`` and ``batch_contact_step`` a batch's, robot by robot over the
-cores. They agree with the Python model to 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
+cores, and ``batch_contact_run`` a batch's chunk of steps at held torques. They agree with the Python model to
+1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
 The package is split by concern: ``problem`` (a robot's Q, W and constraint rows at a state), ``dynamics`` (the
 derivative and RK4 step, ``robot_run``, ``tracking_force``), ``outputs`` (the outputs of a run's instants with ideal
@@ -43,11 +44,13 @@ from wallbot_sim.model.batch.kernel.compiling import available, numba
 from wallbot_sim.model.batch.kernel.dynamics import (
     REFERENCE_FIELDS, _steps, reference_samples, robot_run, tracking_force)
 from wallbot_sim.model.batch.kernel.layout import (
-    CONSTRAINT, CONTACT_ERRORS, FAILED, FORCES, FRICTION, HELD_BY, LOADS, MAX_ROWS, MODULE_ORDER, MODULE_ROWS,
-    NEWTON_RESIDUAL, PREDICTED, QDD, RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY, contact_constants)
+    CONSTRAINT, CONTACT_ERRORS, DETACHED, DIVERGED, FAILED, FORCES, FRICTION, HELD_BY, LOADS, MAX_ROWS, MODULE_ORDER,
+    MODULE_ROWS, NEWTON_RESIDUAL, PREDICTED, QDD, RAN, RESIDUAL, SOLUTION_ROWS, SOLUTION_WIDTH, STATUS, VELOCITY,
+    contact_constants)
 from wallbot_sim.model.batch.kernel.linalg import _accelerations
 from wallbot_sim.model.batch.kernel.outputs import ideal_outputs
-from wallbot_sim.model.batch.kernel.settle import _batch_settle, _batch_step, robot_contact_run
+from wallbot_sim.model.batch.kernel.settle import (
+    _batch_contact_run, _batch_settle, _batch_step, robot_contact_run)
 from wallbot_sim.model.batch.robots import RobotBatch
 
 __all__ = [
@@ -55,7 +58,7 @@ __all__ = [
     'robot_run', 'tracking_force', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES', 'FRICTION', 'LOADS',
     'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
     'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',
-    'batch_contact_settle', 'batch_contact_step', 'ideal_outputs']
+    'batch_contact_settle', 'batch_contact_step', 'batch_contact_run', 'ideal_outputs', 'DETACHED', 'DIVERGED']
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -112,3 +115,27 @@ def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple
     _batch_step(states, references, flags, constants, contact, torques, dt, sliding, live, solutions, out, finite,
                 chunk)
     return out, finite
+
+
+def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
+                      contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
+                      friction: np.ndarray, live: np.ndarray, solutions: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """T steps of every live robot from its settled boundary (``_batch_contact_run``), T = len(references), at
+    the held ``torques``: ``states`` (N, 14) the boundaries, ``solutions`` (N, 8, 8) theirs; the contact state
+    (``sliding``, ``loads``, ``friction``) updated in place. Returns the states (N, T + 1, 14), the settled states
+    (N, T, 14), the solutions (N, T, 8, 8), the sliding wheels (N, T, 4) of each instant, and each robot's
+    ``robot_contact_run`` outcome (N, 4)."""
+    flags, _ = module_flags(active)
+    size, instants = states.shape[0], references.shape[0]
+    run_states = np.zeros((size, instants + 1, states.shape[1]))
+    run_states[:, 0] = states
+    settled = np.zeros((size, instants, states.shape[1]))
+    run_solutions = np.zeros((size, instants, SOLUTION_ROWS, SOLUTION_WIDTH))
+    run_solutions[:, 0] = solutions
+    slid = np.zeros((size, instants, 4), dtype=np.bool_)
+    outcomes = np.zeros((size, 4), dtype=np.int64)
+    _batch_contact_run(run_states, settled, np.ascontiguousarray(references), flags, constants, contact,
+                       np.ascontiguousarray(torques), dt, instants, sliding, loads, friction, live, run_solutions,
+                       slid, outcomes)
+    return run_states, settled, run_solutions, slid, outcomes

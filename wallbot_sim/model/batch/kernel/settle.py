@@ -172,7 +172,7 @@ def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, con
 def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                       constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
                       sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, solutions: np.ndarray,
-                      slid: np.ndarray, outcome: np.ndarray) -> None:
+                      slid: np.ndarray, outcome: np.ndarray, settled_first: bool = False) -> None:
     """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
     step from it (``_held_step``).
 
@@ -182,7 +182,9 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     ``sliding`` (4,), ``loads`` (4,) and ``friction`` (8,): the contact state at the start (``_settle``'s), updated
     instant by instant.
     ``outcome`` (4,): the instants settled, the steps taken, how the run ended (RAN, DETACHED at the last instant
-    settled, DIVERGED after it, FAILED at the next: its error code in outcome[3]).
+    settled, DIVERGED after it, FAILED at the next: its error code in outcome[3]). ``settled_first``: row 0 of
+    ``states`` is settled already, ``solutions[0]`` its solution and the contact state the one after it (a
+    boundary the caller settled): the run steps from it.
     """
     rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
     factor, matrix, gram, lower, vectors, scratch = _workspace()
@@ -192,6 +194,17 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     for k in range(solutions.shape[0]):
         for i in range(2 * DOF):
             settled[k, i] = states[k, i]
+        if k == 0 and settled_first:
+            outcome[0] = 1
+            for wheel in range(4):
+                slid[k, wheel] = sliding[wheel]
+            if not _held_step(settled[k], references[k], flags, constants, contact, torque, dt, solutions[k],
+                              sliding, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
+                              marks, states[k + 1], slopes):
+                outcome[2] = DIVERGED
+                return
+            outcome[1] = 1
+            continue
         error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, friction,
                         rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
                         responses, solutions[k], trial)
@@ -246,6 +259,21 @@ def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarra
                                     solutions[robot], trial)
 
 
+def _batch_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                       constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, steps: int,
+                       sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, live: np.ndarray,
+                       solutions: np.ndarray, slid: np.ndarray, outcomes: np.ndarray) -> None:
+    """``robot_contact_run`` of every ``live`` robot from its settled boundary (row 0: ``settled_first``) over the
+    same instants, robot by robot over the cores: ``states`` (N, T + 1, 14), ``settled`` (N, T, 14), ``solutions``
+    (N, T, 8, 8), ``slid`` (N, T, 4), ``outcomes`` (N, 4) each robot's ``robot_contact_run``'s, ``references``
+    (T, 3, 10) theirs; ``sliding``, ``loads`` and ``friction`` (N, ...) each robot's contact state, updated."""
+    for robot in prange(states.shape[0]):
+        if live[robot]:
+            robot_contact_run(states[robot], settled[robot], references, flags, constants[robot], contact[robot],
+                              torques[robot], dt, steps, sliding[robot], loads[robot], friction[robot],
+                              solutions[robot], slid[robot], outcomes[robot], True)
+
+
 def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                 contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
                 solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
@@ -286,3 +314,4 @@ _settle_block = jit(_settle_block)
 _step_block = jit(_step_block)
 _batch_settle = jit(_batch_settle, parallel=True)
 _batch_step = jit(_batch_step, parallel=True)
+_batch_contact_run = jit(_batch_contact_run, parallel=True)
