@@ -88,61 +88,70 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
     returns the residual's largest magnitude.
 
     r_f = f + mu_k max(N_i, 0) w / s,  r_N = N - N_0 - L qdd,  qdd = a + D f + R max(N, 0).
+
+    The workspace rows are indexed in place (vecs[PRESSED, i] for N_i^+, ...), not taken as views: a view costs
+    two atomic reference counts, and this runs three times a boundary.
     """
-    wheel_of, first, end = ints[WHEEL_OF], ints[BLOCK_FIRST], ints[BLOCK_END]
-    acceleration, pressed, sizes, direction = vecs[ACCELERATION], vecs[PRESSED], vecs[SIZES], vecs[DIRECTIONS]
     for wheel in range(4):
-        pressed[wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
-    for j in range(DOF):
+        vecs[PRESSED, wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
+    for j in range(DOF):  # qdd
         by_friction, by_load = 0.0, 0.0
         for k in range(count):
             by_friction += responses[1 + k, j] * state[k]
         for wheel in range(4):
-            by_load += responses[1 + count + wheel, j] * pressed[wheel]
-        acceleration[j] = (responses[0, j] + by_friction) + by_load
-    gain, origin = mats[GAIN], vecs[ORIGIN]
-    load_by_friction, load_by_load = mats[LOAD_BY_FRICTION], mats[LOAD_BY_LOAD]
+            by_load += responses[1 + count + wheel, j] * vecs[PRESSED, wheel]
+        vecs[ACCELERATION, j] = (responses[0, j] + by_friction) + by_load
     size = 0.0
     for wheel in range(4):
         row = count + wheel
-        residual[row] = (state[row] - origin[wheel]) - _dot(gain[wheel], acceleration, DOF)
+        gained = 0.0  # L qdd
+        for j in range(DOF):
+            gained += mats[GAIN, wheel, j] * vecs[ACCELERATION, j]
+        residual[row] = (state[row] - vecs[ORIGIN, wheel]) - gained
         size = max(size, abs(residual[row]))
         for k in range(count):
-            jacobian[row, k] = load_by_friction[wheel, k]
+            jacobian[row, k] = mats[LOAD_BY_FRICTION, wheel, k]
         for other in range(4):
             positive = 1.0 if state[count + other] > 0.0 else 0.0
-            jacobian[row, count + other] = (1.0 if other == wheel else 0.0) - load_by_load[wheel, other] * positive
+            jacobian[row, count + other] = ((1.0 if other == wheel else 0.0)
+                                            - mats[LOAD_BY_LOAD, wheel, other] * positive)
     if count == 0:
         return size
-    slip_rows, slip, drift = mats[SLIP_ROWS], vecs[SLIP], vecs[DRIFT]
+    for k in range(count):  # w = v_S + dt (J_S qdd + c_S)
+        along = 0.0
+        for j in range(DOF):
+            along += mats[SLIP_ROWS, k, j] * vecs[ACCELERATION, j]
+        predicted[k] = vecs[SLIP, k] + dt * (along + vecs[DRIFT, k])
+    for wheel in range(4):  # s = sqrt(|w_i|^2 + eps^2) (``_wheel_speeds``)
+        vecs[SQUARES, wheel] = 0.0
     for k in range(count):
-        predicted[k] = slip[k] + dt * (_dot(slip_rows[k], acceleration, DOF) + drift[k])
-    _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
-    by_slip = mats[BY_SLIP]
+        vecs[SQUARES, ints[WHEEL_OF, k]] += predicted[k] * predicted[k]
     for k in range(count):
-        direction[k] = predicted[k] / sizes[k]
+        vecs[SIZES, k] = math.sqrt(vecs[SQUARES, ints[WHEEL_OF, k]] + epsilon * epsilon)
+        vecs[DIRECTIONS, k] = predicted[k] / vecs[SIZES, k]
     for k in range(count):
-        force = kinetic * pressed[wheel_of[k]]
-        residual[k] = state[k] + force * direction[k]
+        force = kinetic * vecs[PRESSED, ints[WHEEL_OF, k]]
+        residual[k] = state[k] + force * vecs[DIRECTIONS, k]
         size = max(size, abs(residual[k]))
-        for p in range(first[k], end[k]):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
-            by_slip[k, p] = force * (((1.0 if k == p else 0.0) - direction[k] * direction[p]) / sizes[k])
-    slip_by_friction, slip_by_load = mats[SLIP_BY_FRICTION], mats[SLIP_BY_LOAD]
+        for p in range(ints[BLOCK_FIRST, k], ints[BLOCK_END, k]):  # d(w/s)/dw within each wheel: I/s - w w^T/s^3
+            mats[BY_SLIP, k, p] = force * (((1.0 if k == p else 0.0) - vecs[DIRECTIONS, k] * vecs[DIRECTIONS, p])
+                                           / vecs[SIZES, k])
     for k in range(count):
+        first, end = ints[BLOCK_FIRST, k], ints[BLOCK_END, k]
         for column in range(count):
             value = 0.0
-            for p in range(first[k], end[k]):
-                value += by_slip[k, p] * slip_by_friction[p, column]
+            for p in range(first, end):
+                value += mats[BY_SLIP, k, p] * mats[SLIP_BY_FRICTION, p, column]
             jacobian[k, column] = (1.0 if k == column else 0.0) + value
         for wheel in range(4):
             positive = 1.0 if state[count + wheel] > 0.0 else 0.0
             value = 0.0
-            for p in range(first[k], end[k]):
-                value += by_slip[k, p] * (slip_by_load[p, wheel] * positive)
+            for p in range(first, end):
+                value += mats[BY_SLIP, k, p] * (mats[SLIP_BY_LOAD, p, wheel] * positive)
             jacobian[k, count + wheel] = value
-        wheel = wheel_of[k]
+        wheel = ints[WHEEL_OF, k]
         if state[count + wheel] > 0.0:
-            jacobian[k, count + wheel] += kinetic * direction[k]
+            jacobian[k, count + wheel] += kinetic * vecs[DIRECTIONS, k]
     return size
 
 
