@@ -39,7 +39,9 @@ def main(argv: list[str]) -> int:
 
 class Answering:
     """Answers each state it gets with one command, once its publisher is matched to every subscriber discovered (a
-    command sent before the simulator hears it would be lost)."""
+    command sent before the simulator hears it would be lost). Discovery can still lag: a subscriber not yet
+    discovered misses the answer, and the simulator, with no answer, sends the state again; that state is answered
+    again, unless its answer is still held."""
 
     def __init__(self, node, a: float, b: float, mute_after: float | None, drive: str) -> None:
         from geometry_msgs.msg import TwistStamped
@@ -64,7 +66,7 @@ class Answering:
         stamp = message.header.stamp
         if self.mute_after is not None and stamp.sec + 1e-9 * stamp.nanosec >= self.mute_after - 1e-9:
             return
-        if (stamp.sec, stamp.nanosec) == self.answered:  # sent again by a dynamics that saw no answer yet
+        if (stamp.sec, stamp.nanosec) == self.answered and self.held:  # sent again while its answer is held
             return
         self.answered = (stamp.sec, stamp.nanosec)
         command = self.kind()

@@ -103,9 +103,13 @@ def test_the_headless_loop_is_the_graph_lockstep_loop(tmp_path, contact, engine,
         expected = getattr(computed, name)
         assert np.max(np.abs(getattr(recorded, name) - expected)) < 1e-9 * max(1.0, scale * np.max(np.abs(expected)))
     assert np.max(np.abs(np.angle(np.exp(1j * (recorded.theta - computed.theta))))) < 1e-9  # odometry's yaw is wrapped
-    for name in ('phi', 'dphi', 'loads', 'use'):  # slipping wheels spin up to hundreds of rad/s
+    # slipping wheels spin up to hundreds of rad/s; a sticking wheel's use is its share of the constraint force by
+    # the load-weighted least-norm split, which carries the round-off about seven times further than the loads
+    # (seen: loads 1.5e-10, use 0.95e-9 to 1.06e-9 as Newton's start changed)
+    for name, tolerance in (('phi', 1e-9), ('dphi', 1e-9), ('loads', 1e-9), ('use', 1e-8)):
         expected = getattr(computed, name)
-        assert np.max(np.abs(getattr(recorded, name) - expected)) < 1e-9 * max(1.0, np.max(np.abs(expected))), name
+        assert np.max(np.abs(getattr(recorded, name) - expected)) < tolerance * max(1.0, np.max(np.abs(expected))), \
+            name
     assert np.array_equal(recorded.slip, computed.slip)
     slipped = computed.slip.any(axis=0)
     assert slipped.tolist() == [contact == 'coulomb'] * 4
