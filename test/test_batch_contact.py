@@ -10,10 +10,11 @@ import pytest
 
 from model_helpers import random_parameters
 from batch_helpers import ENGINES, assert_agree, perturbed_starts, random_robots
-from wallbot_sim.config import load_scenario
+from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.model.batch import BatchSimulation, kernel
 from wallbot_sim.model.contact import CoulombContact, DetachedError
+from wallbot_sim.model.errors import ModelError
 from wallbot_sim.model.robot import DOF
 
 DRIVEN = ConstraintSelection.structural(trajectory=False)
@@ -277,3 +278,27 @@ def test_steps_at_held_torques_in_one_kernel_call_are_the_steps_one_by_one():
             assert held.lift_off(robot).load == one_by_one.lift_off(robot).load
     assert lifted_inside and held.detached.any() and not held.detached.all()
     assert np.any(held.outputs().wheel_slipping)
+
+
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_held_steps_raise_what_the_steps_one_by_one_raise_first():
+    """A robot whose boundary has no solution one step in (its yaw rate 1e153: Newton's residual overflows): the
+    held steps raise the error the steps one by one raise, naming the same robot and residual, and leave the states
+    and time where the call began."""
+    params = load_robot_parameters().replace(com_offset=(0.03, 0.0))
+    robots = [Robot(params), Robot(params)]
+    q0, qd0 = np.zeros((2, DOF)), np.zeros((2, DOF))
+    qd0[1, 2] = 1e153
+    one_by_one = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine='numba')
+    with pytest.raises(ModelError) as by_step:
+        for _ in range(50):
+            one_by_one.outputs()
+            one_by_one.step()
+    assert one_by_one.steps == 1
+    held = BatchSimulation(robots, None, DRIVEN, q0, qd0, contact='coulomb', engine='numba')
+    settled = held.outputs().qd  # the boundary the call begins at
+    with pytest.raises(ModelError) as by_held:
+        held.run_held(50)
+    assert type(by_held.value) is type(by_step.value) and str(by_held.value) == str(by_step.value)
+    assert 'robot(s) [1]: kinetic friction and normal loads did not converge' in str(by_held.value)
+    assert held.steps == 0 and np.array_equal(held.qd, settled) and np.array_equal(held.q, q0)

@@ -293,7 +293,8 @@ class BatchSimulation:
         """``steps`` steps at the motor torques held now, as ``steps`` calls of ``step`` take them, in one call of
         the kernel (``kernel.batch_contact_run``; ``runs_held`` only): the outputs of the ``steps - 1`` instants
         between now and then (``outputs`` gives those at both ends). A robot that lifts off at one of them is
-        detached there; DivergedError or ModelError where ``step`` would raise them."""
+        detached there. DivergedError or ModelError, with the message ``step`` or ``outputs`` would raise at the
+        first instant they would, leave the robots' states and time where the call began (its boundary settled)."""
         coulomb = self._coulomb
         assert coulomb is not None and self.runs_held and steps >= 1
         out = self.outputs()
