@@ -6,7 +6,9 @@ test_model_wheel_contact.py.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,10 +18,13 @@ from model_helpers import (
     wheel_offsets)
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, RobotParameters, Simulation
+from wallbot_sim.model import contact as contact_module, kinetic_friction
 from wallbot_sim.model.batch import kernel
+from wallbot_sim.sweep import compute, load_spec
 from wallbot_sim.model.contact import WHEEL_POSITIONS, DetachedError, unheld_slip
 from wallbot_sim.model.normal_loads import load_acceleration_gain, normal_loads
 
+REPO_ROOT = Path(__file__).resolve().parents[1]
 DRIVEN = ConstraintSelection(trajectory=False, belt=True, non_lateral=True, nonslip=True)
 ALL_SLIDING = (True, True, True, True)
 
@@ -417,3 +422,38 @@ def test_a_new_reference_reaches_the_solver():
     direct.run(0.2)
     switched.run(0.2)
     assert np.array_equal(direct.q, switched.q)
+
+
+def test_newton_from_the_held_friction_takes_fewer_iterations_to_the_cold_starts_solution(monkeypatch):
+    """Kinetic friction and loads at every boundary of a sweep's robot under the example controller (slips near eps,
+    where the friction's direction turns fast with the slip): from the friction each wheel held over the last step,
+    Newton's method evaluates its equations about 3 times (the start and two iterations); from the friction opposing
+    the frictionless slip, the cold start, about 10. Both reach the same friction and loads to Newton's tolerance
+    (1e-12 of F_ad, checked at 1e-10)."""
+    calls = {'evaluations': 0}
+    equations, solve = kinetic_friction._equations, kinetic_friction.consistent_friction
+
+    def counted(*args):
+        calls['evaluations'] += 1
+        return equations(*args)
+
+    counts: dict[str, list[int]] = {'warm': [], 'cold': []}
+
+    def both(response, mu, epsilon, dt, loads, held, adhesion):
+        calls['evaluations'] = 0
+        cold = solve(response, mu, epsilon, dt, loads, np.zeros_like(held), adhesion)
+        cold_count, calls['evaluations'] = calls['evaluations'], 0
+        warm = solve(response, mu, epsilon, dt, loads, held, adhesion)
+        if len(held) and np.all(held != 0.0):  # every component has a held friction
+            counts['cold'].append(cold_count)
+            counts['warm'].append(calls['evaluations'])
+            assert np.allclose(warm.friction, cold.friction, rtol=0, atol=1e-10 * adhesion)
+            assert np.allclose(warm.loads, cold.loads, rtol=0, atol=1e-10 * adhesion)
+        return warm
+
+    monkeypatch.setattr(kinetic_friction, '_equations', counted)
+    monkeypatch.setattr(contact_module, 'consistent_friction', both)
+    spec = load_spec(REPO_ROOT / 'bench' / 'sweep_coulomb_controller.yaml')
+    compute.single_robot_run(dataclasses.replace(spec.settings, duration=1.5), spec.parameters(0))
+    assert len(counts['warm']) > 200
+    assert np.mean(counts['warm']) < 3.5 and np.mean(counts['cold']) > 6.0
