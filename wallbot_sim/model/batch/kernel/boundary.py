@@ -10,7 +10,8 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.dynamics import _constraint_force
-from wallbot_sim.model.batch.kernel.friction import _contact_row, _kinetic, _load_gain, _normal_loads
+from wallbot_sim.model.batch.kernel.friction import (
+    _affine_acceleration, _contact_row, _kinetic, _load_gain, _normal_loads)
 from wallbot_sim.model.batch.kernel.layout import (
     ADHESION, BELT, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, HELD_BY, KINETIC, LOADS, MADE,
     NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR,
@@ -165,14 +166,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
                 value += loads[wheel] * columns[1 + sliders + wheel, j]
         total[j] = value + friction[j]
     acceleration = solution[QDD]
-    for j in range(DOF):  # qdd is affine in Q: the responses' sum, for the one solve of ``total``
-        value = responses[0, j]
-        for k in range(sliders):
-            value += state[k] * responses[1 + k, j]
-        for wheel in range(4):
-            if loads[wheel] > 0.0:
-                value += loads[wheel] * responses[1 + sliders + wheel, j]
-        acceleration[j] = value
+    _affine_acceleration(sliders, responses, state, acceleration)  # qdd is affine in Q: the solve of ``total``
     constraint = solution[CONSTRAINT]
     solution[STATUS, RESIDUAL] = _constraint_force(theta, constants, acceleration, total, rows, rhs, count, constraint)
     forces, predicted, velocity = solution[FORCES], solution[PREDICTED], solution[VELOCITY]

@@ -68,15 +68,28 @@ def _load_gain(theta: float, constants: np.ndarray, contact: np.ndarray, out: np
             out[wheel, j] = along * -spin
 
 
-def _wheel_speeds(count: int, predicted: np.ndarray, wheel_of: np.ndarray, epsilon: float, squares: np.ndarray,
-                  sizes: np.ndarray) -> None:
-    """sqrt(|w_i|^2 + eps^2) of each component's wheel (``kinetic_friction._wheel_speeds``)."""
+def _wheel_speeds(count: int, predicted: np.ndarray, ints: np.ndarray, epsilon: float, vecs: np.ndarray) -> None:
+    """s = sqrt(|w_i|^2 + eps^2) of each component's wheel into vecs[SIZES] (``kinetic_friction._wheel_speeds``), the
+    workspace indexed in place (``_kinetic_equations``)."""
     for wheel in range(4):
-        squares[wheel] = 0.0
+        vecs[SQUARES, wheel] = 0.0
     for k in range(count):
-        squares[wheel_of[k]] += predicted[k] * predicted[k]
+        vecs[SQUARES, ints[WHEEL_OF, k]] += predicted[k] * predicted[k]
     for k in range(count):
-        sizes[k] = math.sqrt(squares[wheel_of[k]] + epsilon * epsilon)
+        vecs[SIZES, k] = math.sqrt(vecs[SQUARES, ints[WHEEL_OF, k]] + epsilon * epsilon)
+
+
+def _affine_acceleration(count: int, responses: np.ndarray, state: np.ndarray, out: np.ndarray) -> None:
+    """qdd = a + D f + R max(N, 0) at z = (f, N) (count + 4) from the boundary's ``responses`` (a, then D's and R's
+    columns as rows) into ``out`` (7,)."""
+    for j in range(DOF):
+        by_friction, by_load = 0.0, 0.0
+        for k in range(count):
+            by_friction += responses[1 + k, j] * state[k]
+        for wheel in range(4):
+            load = state[count + wheel]
+            by_load += responses[1 + count + wheel, j] * (load if load > 0.0 else 0.0)
+        out[j] = (responses[0, j] + by_friction) + by_load
 
 
 # Long on purpose: the residual and its Jacobian in one pass over Newton's state, called at every trial of the
@@ -94,13 +107,7 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
     """
     for wheel in range(4):
         vecs[PRESSED, wheel] = state[count + wheel] if state[count + wheel] > 0.0 else 0.0
-    for j in range(DOF):  # qdd
-        by_friction, by_load = 0.0, 0.0
-        for k in range(count):
-            by_friction += responses[1 + k, j] * state[k]
-        for wheel in range(4):
-            by_load += responses[1 + count + wheel, j] * vecs[PRESSED, wheel]
-        vecs[ACCELERATION, j] = (responses[0, j] + by_friction) + by_load
+    _affine_acceleration(count, responses, state, vecs[ACCELERATION])
     size = 0.0
     for wheel in range(4):
         row = count + wheel
@@ -122,12 +129,8 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
         for j in range(DOF):
             along += mats[SLIP_ROWS, k, j] * vecs[ACCELERATION, j]
         predicted[k] = vecs[SLIP, k] + dt * (along + vecs[DRIFT, k])
-    for wheel in range(4):  # s = sqrt(|w_i|^2 + eps^2) (``_wheel_speeds``)
-        vecs[SQUARES, wheel] = 0.0
+    _wheel_speeds(count, predicted, ints, epsilon, vecs)
     for k in range(count):
-        vecs[SQUARES, ints[WHEEL_OF, k]] += predicted[k] * predicted[k]
-    for k in range(count):
-        vecs[SIZES, k] = math.sqrt(vecs[SQUARES, ints[WHEEL_OF, k]] + epsilon * epsilon)
         vecs[DIRECTIONS, k] = predicted[k] / vecs[SIZES, k]
     for k in range(count):
         force = kinetic * vecs[PRESSED, ints[WHEEL_OF, k]]
@@ -213,7 +216,7 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
             acceleration[j] = responses[0, j] + value
         for k in range(count):
             predicted[k] = vecs[SLIP, k] + dt * (_dot(slip_rows[k], acceleration, DOF) + vecs[DRIFT, k])
-        _wheel_speeds(count, predicted, wheel_of, epsilon, vecs[SQUARES], sizes)
+        _wheel_speeds(count, predicted, ints, epsilon, vecs)
         for k in range(count):
             if state[k] == 0.0:
                 state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
@@ -257,5 +260,6 @@ _contact_row = jit(_contact_row, inline="always")
 _normal_loads = jit(_normal_loads, inline="always")
 _load_gain = jit(_load_gain, inline="always")
 _wheel_speeds = jit(_wheel_speeds, inline="always")
+_affine_acceleration = jit(_affine_acceleration, inline="always")
 _kinetic_equations = jit(_kinetic_equations)
 _kinetic = jit(_kinetic)

@@ -194,23 +194,13 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     for k in range(solutions.shape[0]):
         for i in range(2 * DOF):
             settled[k, i] = states[k, i]
-        if k == 0 and settled_first:
-            outcome[0] = 1
-            for wheel in range(4):
-                slid[k, wheel] = sliding[wheel]
-            if not _held_step(settled[k], references[k], flags, constants, contact, torque, dt, solutions[k],
-                              sliding, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
-                              marks, states[k + 1], slopes):
-                outcome[2] = DIVERGED
+        if k > 0 or not settled_first:
+            error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads,
+                            friction, rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints,
+                            marks, columns, responses, solutions[k], trial)
+            if error != SOLVED:
+                outcome[2], outcome[3] = FAILED, error
                 return
-            outcome[1] = 1
-            continue
-        error = _settle(settled[k], references[k, 0], flags, constants, contact, torque, dt, sliding, loads, friction,
-                        rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
-                        responses, solutions[k], trial)
-        if error != SOLVED:
-            outcome[2], outcome[3] = FAILED, error
-            return
         outcome[0] = k + 1
         for wheel in range(4):
             slid[k, wheel] = sliding[wheel]
@@ -233,8 +223,8 @@ def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, 
                   chunk: int) -> None:
     """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
     (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4), ``friction`` (N, 8) and the states
-    updated in place,
-    ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left as they are.
+    updated in place, ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left
+    as they are.
     The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
     fastest around one call)."""
     for block in prange((states.shape[0] + chunk - 1) // chunk):
