@@ -297,17 +297,14 @@ class _ChunkRows:
 
     def add_instant(self, out: BatchOutputs) -> None:
         """The rows of the robots' outputs at one instant."""
-        rows = self.block[:, self.filled]
-        fill_motion_rows(out, rows, out.wheel_torques)
-        fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)
+        _fill(out, self.block[:, self.filled])
         self.written[:, self.filled] = ~out.detached
         self._advance(1)
 
     def add_table(self, table: BatchTable) -> None:
         """The rows of a table of instants (``BatchSimulation.run_held``)."""
         rows = np.empty((*table.on_wall.shape, len(CSV_COLUMNS)))
-        fill_motion_rows(table, rows, table.wheel_torques)
-        fill_wheel_rows(rows, table.wheel_use, table.wheel_slipping, table.wheel_forces)
+        _fill(table, rows)
         done = 0
         while done < rows.shape[1]:
             count = min(rows.shape[1] - done, self.block.shape[1] - self.filled)
@@ -326,3 +323,10 @@ class _ChunkRows:
         """The reduced rows, the last block's included."""
         self.reduced.add(self.block[:, :self.filled], self.written[:, :self.filled])
         return self.reduced
+
+
+def _fill(out: BatchOutputs | BatchTable, rows: np.ndarray) -> None:
+    """The CSV rows of a batch's outputs at one instant (rows (robots, columns)) or of a table of them (rows
+    (robots, instants, columns))."""
+    fill_motion_rows(out, rows, out.wheel_torques)
+    fill_wheel_rows(rows, out.wheel_use, out.wheel_slipping, out.wheel_forces)

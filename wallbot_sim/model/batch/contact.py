@@ -2,9 +2,9 @@
 
 Each function reads like its single-robot counterpart (``normal_loads``, ``drive_forces``,
 ``friction_use``) with the robot index first. ``BatchCoulomb`` is every robot's coulomb contact per wheel
-(``CoulombContact``): its state is each robot's sliding wheels (N, 4) and held loads (N, 4), and each
-step boundary is settled robot by robot, by the compiled kernel (engine 'numba', ``kernel.settle``) or by
-the model's own ``CoulombContact`` (engine 'numpy'), into the kernel's solution layout.
+(``CoulombContact``): its state is each robot's sliding wheels (N, 4), held loads (N, 4) and held friction
+(N, 8), and each step boundary is settled robot by robot, by the compiled kernel (engine 'numba',
+``kernel.settle``) or by the model's own ``CoulombContact`` (engine 'numpy'), into the kernel's solution layout.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule
 from wallbot_sim.model.contact import CoulombContact, coulomb_table
-from wallbot_sim.model.errors import ModelError
+from wallbot_sim.model.errors import DivergedError, ModelError
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.constrained_problem import impulsive_projection
 from wallbot_sim.model.trajectories import LastSample, Reference
@@ -89,6 +89,33 @@ class HeldRun(NamedTuple):
     outcomes: np.ndarray
     references: np.ndarray
 
+    def first_error(self, live: np.ndarray, times: np.ndarray, dt: float) -> ModelError | None:
+        """The error stepping the ``live`` robots one step at a time would raise first (a boundary without a solution,
+        or a state no longer finite), with its message, for ``times`` each instant's t; None if the run has none."""
+        ends = self.outcomes[:, 2]
+        failed, diverged = live & (ends == kernel.FAILED), live & (ends == kernel.DIVERGED)
+        if not (failed | diverged).any():
+            return None
+        # in time order: instant k's boundary (2 k), then its step (2 k + 1)
+        when = np.where(failed, 2 * self.outcomes[:, 0], np.where(diverged, 2 * self.outcomes[:, 1] + 1, -1))
+        first = int(np.min(when[when >= 0]))
+        robots = np.flatnonzero(when == first)
+        if first % 2 == 0:
+            return contact_error(robots, self.outcomes[robots[0], 3], self.solutions[robots[0], first // 2])
+        return diverged_error(robots, times[first // 2] + dt)
+
+
+def contact_error(robots: np.ndarray, code: int, solution: np.ndarray) -> ModelError:
+    """The error of the ``robots`` whose boundary has no solution, the first's error ``code`` (``CONTACT_ERRORS``)
+    and its ``solution`` (8, 8)."""
+    return ModelError(f'robot(s) {robots[:5].tolist()}: '
+                      + kernel.CONTACT_ERRORS[code].format(solution[kernel.STATUS, kernel.NEWTON_RESIDUAL]))
+
+
+def diverged_error(robots: np.ndarray, t: float) -> DivergedError:
+    """The error of the ``robots`` whose state is no longer finite at ``t``."""
+    return DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite at t = {t:.3f} s')
+
 
 class BatchCoulomb:
     """Every robot's coulomb contact per wheel: its sliding wheels and held loads, and its settled step boundary."""
@@ -124,9 +151,7 @@ class BatchCoulomb:
                                              self.loads, self.friction, live, self.solutions)
         failed = np.flatnonzero(errors)
         if len(failed):
-            first = int(failed[0])
-            raise ModelError(f'robot(s) {failed[:5].tolist()}: ' + kernel.CONTACT_ERRORS[errors[first]].format(
-                self.solutions[first, kernel.STATUS, kernel.NEWTON_RESIDUAL]))
+            raise contact_error(failed, errors[failed[0]], self.solutions[failed[0]])
 
     def run_compiled(self, y: np.ndarray, references: np.ndarray, constants: np.ndarray, torques: np.ndarray,
                      dt: float, live: np.ndarray) -> HeldRun:
@@ -147,7 +172,7 @@ class BatchCoulomb:
         flat = coulomb_table(loads.reshape(-1, 4), forces.reshape(-1, 4, 2), run.slid[:, 1:].reshape(-1, 4),
                              self.directions, np.repeat(robots.static_friction, instants),
                              np.repeat(robots.adhesion_force, instants))
-        on_wall = (np.arange(1, instants + 1) < run.outcomes[:, :1]) & (run.outcomes[:, 2:3] != kernel.FAILED)
+        on_wall = np.arange(1, instants + 1) < run.outcomes[:, :1]  # the instants each robot's run settled
         return BatchTable(times[1:], settled[..., :DOF], settled[..., DOF:], solutions[..., kernel.CONSTRAINT, :DOF],
                           solutions[..., kernel.FRICTION, :DOF], solutions[..., kernel.STATUS, kernel.RESIDUAL],
                           torques.copy(), flat.drive.reshape(size, instants, 3), loads, forces,

@@ -64,7 +64,7 @@ class BatchTrackingController:
         """Steps from ``simulation``'s instant to the next one the controller acts on (``due``, stamped as ``hook``
         stamps them), ``most`` at most."""
         for ahead in range(1, most):
-            if self.due(round((simulation.initial_time + (simulation.steps + ahead) * simulation.dt) * 1e9)):
+            if self.due(round(simulation.time_at(simulation.steps + ahead) * 1e9)):
                 return ahead
         return most
 

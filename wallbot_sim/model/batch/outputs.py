@@ -55,8 +55,7 @@ class BatchOutputs(NamedTuple):
     @property
     def wheel_torques(self) -> np.ndarray:
         """Total torque on each wheel (N, 4): constraint torque, kinetic friction and its share of the motor."""
-        motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)
-        return self.constraint_force[:, 3:] + motor + self.friction_force[:, 3:]
+        return _wheel_torques(self.constraint_force, self.motor_torque, self.friction_force)
 
     @property
     def reference_position(self) -> Vec2 | None:
@@ -66,10 +65,7 @@ class BatchOutputs(NamedTuple):
     @property
     def tracking_error(self) -> np.ndarray:
         """Distance of each centre from the reference point (N,) (m); NaN without a reference."""
-        if self.reference is None:
-            return np.full(self.size, np.nan)
-        offset = self.q[:, :2] - np.asarray(self.reference.position)
-        return np.hypot(offset[:, 0], offset[:, 1])
+        return _tracking_error(self.q, self.reference_position)
 
 
 
@@ -110,16 +106,28 @@ class BatchTable(NamedTuple):
     @property
     def tracking_error(self) -> np.ndarray:
         """(N, T) (m); NaN without a reference."""
-        if self.reference_position is None:
-            return np.full(self.residual.shape, np.nan)
-        offset = self.q[..., :2] - self.reference_position
-        return np.hypot(offset[..., 0], offset[..., 1])
+        return _tracking_error(self.q, self.reference_position)
 
     @property
     def wheel_torques(self) -> np.ndarray:
         """(N, T, 4): ``BatchOutputs.wheel_torques`` at every instant."""
-        motor = 0.5 * np.repeat(self.motor_torque, 2, axis=1)[:, None]
-        return self.constraint_force[..., 3:] + motor + self.friction_force[..., 3:]
+        return _wheel_torques(self.constraint_force, self.motor_torque[:, None], self.friction_force)
+
+
+def _tracking_error(q: np.ndarray, position: Vec2 | np.ndarray | None) -> np.ndarray:
+    """Distance of each centre in ``q`` (..., 7) from the reference point ``position`` ((2,), or (..., 2) an instant
+    each) (m); NaN without a reference."""
+    if position is None:
+        return np.full(q.shape[:-1], np.nan)
+    offset = q[..., :2] - np.asarray(position)
+    return np.hypot(offset[..., 0], offset[..., 1])
+
+
+def _wheel_torques(constraint_force: np.ndarray, motor_torque: np.ndarray, friction_force: np.ndarray) -> np.ndarray:
+    """Total torque on each wheel (..., 4) from Q_c and Q_f (..., 7) and the side torques (..., 2): constraint torque,
+    kinetic friction and its share of the motor."""
+    motor = 0.5 * np.repeat(motor_torque, 2, axis=-1)
+    return constraint_force[..., 3:] + motor + friction_force[..., 3:]
 
 
 StepHook = Callable[[BatchOutputs], None]

@@ -9,14 +9,14 @@ import numpy as np
 from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchConstraint, BatchGains, BatchWheelContact, build_batch_modules
 from wallbot_sim.model.batch.contact import (
-    BatchCoulomb, BatchMotion, HeldRun, drive_forces, friction_use, normal_loads)
+    BatchCoulomb, BatchMotion, diverged_error, drive_forces, friction_use, normal_loads)
 from wallbot_sim.model.batch.outputs import BatchOutputs, BatchTable, StepHook
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.batch.solver import batch_constrained_acceleration, stacked_product
 from wallbot_sim.model.constraint_set import ConstraintSelection
 from wallbot_sim.model.contact import COULOMB, IDEAL, DetachedError, check_contact_model, coulomb_table
 from wallbot_sim.model.contact_kinematics import contact_velocities
-from wallbot_sim.model.errors import DivergedError, ModelError, ParameterError
+from wallbot_sim.model.errors import ParameterError
 from wallbot_sim.model.integrator import rk4_step
 from wallbot_sim.model.numbers import POSITIVE
 from wallbot_sim.model.outputs import lifted_wheels
@@ -110,7 +110,12 @@ class BatchSimulation:
     @property
     def t(self) -> float:
         """Simulation time (s), the same for every robot."""
-        return self.initial_time + self.steps * self.dt
+        return self.time_at(self.steps)
+
+    def time_at(self, steps: int | np.ndarray) -> float | np.ndarray:
+        """The time after ``steps`` steps from the initial time (each of an array of step counts), as ``t`` is
+        computed."""
+        return self.initial_time + steps * self.dt
 
     @property
     def q(self) -> np.ndarray:
@@ -243,9 +248,7 @@ class BatchSimulation:
             first = int(np.min(diverged[diverged >= 0]))
             if first > 0:
                 self._compiled_steps(first)
-            robots = np.flatnonzero(diverged == first)
-            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
-                                f'at t = {self.t + self.dt:.3f} s')
+            raise diverged_error(np.flatnonzero(diverged == first), self.t + self.dt)
         self._y = y
         self.steps += steps
         self._cached = None
@@ -261,8 +264,7 @@ class BatchSimulation:
             return
         k1 = None
         if self.coulomb_applies:
-            out = self.outputs()
-            self._detach(lifted_wheels(out.loads), out.loads, self.t)
+            out = self._boundary_now()
             if self.engine == NUMBA:
                 self._compiled_contact_step()
                 return
@@ -274,6 +276,13 @@ class BatchSimulation:
         if self.detached.any():
             y[self.detached] = self._y[self.detached]
         self._advance(y, np.all(np.isfinite(y), axis=1))
+
+    def _boundary_now(self) -> BatchOutputs:
+        """The outputs now (coulomb contact: the settled boundary a step starts from), each robot a wheel of which
+        lifts off at them detached."""
+        out = self.outputs()
+        self._detach(lifted_wheels(out.loads), out.loads, self.t)
+        return out
 
     def _detach(self, wheel: np.ndarray, loads: np.ndarray, t: float | np.ndarray) -> None:
         """Detach the robots on the wall whose ``wheel`` (1..4, 0: none) (N,) lifted off at ``t``, ``loads`` (N, 4)
@@ -297,13 +306,14 @@ class BatchSimulation:
         first instant they would, leave the robots' states and time where the call began (its boundary settled)."""
         coulomb = self._coulomb
         assert coulomb is not None and self.runs_held and steps >= 1
-        out = self.outputs()
-        self._detach(lifted_wheels(out.loads), out.loads, self.t)
+        self._boundary_now()
         live = ~self.detached
         references = kernel.reference_samples(self.reference, self.initial_time, self.steps, steps, self.dt)
         run = coulomb.run_compiled(self._y, references, self._kernel_constants(), self.motor_torque, self.dt, live)
-        times = self.initial_time + (self.steps + np.arange(steps)) * self.dt  # as ``t`` at each instant
-        self._raise_run_error(run, live, times)
+        times = self.time_at(self.steps + np.arange(steps))
+        error = run.first_error(live, times, self.dt)
+        if error is not None:
+            raise error
         table = coulomb.table(run, self.robots, times, self.motor_torque, self.reference)
         ended = np.flatnonzero(live & (run.outcomes[:, 2] == kernel.DETACHED))
         at = run.outcomes[ended, 0] - 1  # the lift-off instant
@@ -323,24 +333,6 @@ class BatchSimulation:
         self._cached = None
         return table
 
-    def _raise_run_error(self, run: HeldRun, live: np.ndarray, times: np.ndarray) -> None:
-        """The error ``step`` would have raised first in ``run`` (a boundary without a solution, or a state no
-        longer finite), if any, at ``times`` (each instant's t)."""
-        ends = run.outcomes[:, 2]
-        failed, diverged = live & (ends == kernel.FAILED), live & (ends == kernel.DIVERGED)
-        # in time order: instant k's boundary (2 k), then its step (2 k + 1)
-        when = np.where(failed, 2 * run.outcomes[:, 0], np.where(diverged, 2 * run.outcomes[:, 1] + 1, -1))
-        if not (failed | diverged).any():
-            return
-        first = int(np.min(when[when >= 0]))
-        robots = np.flatnonzero(when == first)
-        if first % 2 == 0:
-            robot = int(robots[0])
-            raise ModelError(f'robot(s) {robots[:5].tolist()}: ' + kernel.CONTACT_ERRORS[run.outcomes[robot, 3]].format(
-                run.solutions[robot, first // 2, kernel.STATUS, kernel.NEWTON_RESIDUAL]))
-        raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
-                            f'at t = {times[first // 2] + self.dt:.3f} s')
-
     def lift_off(self, robot: int) -> DetachedError | None:
         """The lift-off that stopped robot ``robot`` (``Simulation.step``'s DetachedError for it alone), None while
         it is on the wall."""
@@ -352,9 +344,7 @@ class BatchSimulation:
     def _advance(self, y: np.ndarray, finite: np.ndarray) -> None:
         """One step taken: the new states y, or DivergedError (states unchanged) if a robot's is not ``finite``."""
         if not finite.all():
-            robots = np.flatnonzero(~finite)
-            raise DivergedError(f'state of robot(s) {robots[:5].tolist()} is no longer finite '
-                                f'at t = {self.t + self.dt:.3f} s')
+            raise diverged_error(np.flatnonzero(~finite), self.t + self.dt)
         self.steps += 1
         self._y = y
         self._cached = None
