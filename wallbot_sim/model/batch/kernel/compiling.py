@@ -14,12 +14,15 @@ import hashlib
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
 from wallbot_sim.model.constraint_set import MODULES
 
 try:
     import numba
-    from numba import prange
-    from numba.core import caching
+    from numba import prange, types
+    from numba.core import caching, cgutils
+    from numba.extending import intrinsic
 except ImportError:  # the NumPy path needs nothing more
     numba = None
     prange = range
@@ -70,3 +73,30 @@ def jit(function: Any, **options: Any) -> Any:
     """``function`` compiled by numba, cached; as written without numba."""
     # error_model 'numpy': a division by zero gives inf or NaN as in NumPy, unchecked (the caller checks the results)
     return numba.njit(cache=True, error_model='numpy', **options)(function) if numba is not None else function
+
+
+
+def unowned(array: np.ndarray) -> np.ndarray:
+    """A view of the C-contiguous ``array`` without its reference count, in compiled code: every view of it and
+    every call it is passed to then skips numba's two atomic counts (some 20 arrays go through each call of a
+    boundary: the counts were half of a coulomb step). The caller must hold ``array`` while the view is in use:
+    take the view of an argument, never of an array the function itself allocates. Without numba, ``array``."""
+    return array
+
+
+if numba is not None:
+    @intrinsic
+    def _data_of(typing_context: Any, array: Any) -> Any:
+        """The address of a C-contiguous array's first element: a raw pointer, no reference to the array."""
+        if not isinstance(array, types.Array) or array.layout != 'C':
+            return None
+
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            data = context.make_array(signature.args[0])(context, builder, args[0]).data
+            return builder.bitcast(data, cgutils.voidptr_t)
+        return types.voidptr(array), codegen
+
+    def _unowned(array: np.ndarray) -> np.ndarray:
+        return numba.carray(_data_of(array), array.shape, array.dtype)
+
+    unowned = jit(_unowned, inline="always")  # noqa: F811 (the compiled view replaces the identity)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
-from wallbot_sim.model.batch.kernel.compiling import jit, prange
+from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.dynamics import _rk4, _workspace
 from wallbot_sim.model.batch.kernel.layout import (
     AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, MAX_ROWS, NON_LATERAL, NONSLIP, PREDICTED,
@@ -190,6 +190,28 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     factor, matrix, gram, lower, vectors, scratch = _workspace()
     mats, vecs, ints, marks, columns, responses = _contact_workspace()
     trial, slopes = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF))
+    _contact_run(states, settled, references, flags, constants, contact, torque, dt, steps, sliding, loads, friction,
+                 solutions, slid, outcome, settled_first, rows, rhs, factor, matrix, gram, lower, vectors, scratch,
+                 mats, vecs, ints, marks, columns, responses, trial, slopes)
+
+
+def _contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
+                 constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
+                 sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, solutions: np.ndarray,
+                 slid: np.ndarray, outcome: np.ndarray, settled_first: bool, rows: np.ndarray, rhs: np.ndarray,
+                 factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
+                 scratch: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, marks: np.ndarray,
+                 columns: np.ndarray, responses: np.ndarray, trial: np.ndarray, slopes: np.ndarray) -> None:
+    """``robot_contact_run`` in its workspace (``_settle``'s and ``_held_step``'s scratch), every array taken
+    ``unowned``: the caller holds them all for the run."""
+    states, settled, references, flags = unowned(states), unowned(settled), unowned(references), unowned(flags)
+    constants, contact, torque = unowned(constants), unowned(contact), unowned(torque)
+    sliding, loads, friction = unowned(sliding), unowned(loads), unowned(friction)
+    solutions, slid, outcome = unowned(solutions), unowned(slid), unowned(outcome)
+    rows, rhs, factor, matrix, gram = unowned(rows), unowned(rhs), unowned(factor), unowned(matrix), unowned(gram)
+    lower, vectors, scratch, mats, vecs = unowned(lower), unowned(vectors), unowned(scratch), unowned(mats), unowned(vecs)
+    ints, marks, columns, responses = unowned(ints), unowned(marks), unowned(columns), unowned(responses)
+    trial, slopes = unowned(trial), unowned(slopes)
     outcome[0], outcome[1], outcome[2], outcome[3] = 0, 0, RAN, SOLVED
     for k in range(solutions.shape[0]):
         for i in range(2 * DOF):
@@ -300,6 +322,7 @@ _settle = jit(_settle)
 _hold = jit(_hold, inline="always")
 _held_step = jit(_held_step)
 robot_contact_run = jit(robot_contact_run)
+_contact_run = jit(_contact_run)
 _settle_block = jit(_settle_block)
 _step_block = jit(_step_block)
 _batch_settle = jit(_batch_settle, parallel=True)
