@@ -19,6 +19,7 @@ import argparse
 import math
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -61,7 +62,8 @@ def main() -> int:
     parser.add_argument('--spec', action='append', help='a sweep spec (repeatable; default: the two of SPECS)')
     parser.add_argument('--samples', type=int, help="robots of each spec (default: the spec's)")
     parser.add_argument('--duration', type=float, help="seconds each robot runs (default: the spec's)")
-    parser.add_argument('--out', default=str(REPO / 'runs' / 'bench_sweep'))
+    parser.add_argument('--out', default=str(REPO / 'runs' / 'bench_sweep'),
+                        help="where each spec's sweep is written (its folder emptied before the timed run)")
     parser.add_argument('--workers', type=int, help='local cluster size (default: one per core)')
     parser.add_argument('--check', type=int, default=3, help='robots of each spec to compare with single simulate runs')
     parser.add_argument('--check-only', action='store_true', help='only check the results already in --out')
@@ -120,6 +122,7 @@ def measure(args: argparse.Namespace, spec_path: Path, spec, out: Path) -> tuple
         load_single = uptime_load()
         single = timed(single_run, allowed=(0, 3))
     single_rate = steps / single
+    shutil.rmtree(out, ignore_errors=True)  # a sweep resumes into its folder: the timed one starts from nothing
     command = [*WALLBOT, 'sweep', str(spec_path), '--out', str(out)]
     if args.workers:
         command += ['--workers', str(args.workers)]
