@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.kernel.compiling import jit, unowned
 from wallbot_sim.rundata.csv_format import COLUMN
 
 PICKS = 17
@@ -300,7 +300,11 @@ def _screen(kept: np.ndarray, kept_valid: np.ndarray, block: np.ndarray, valid: 
             radius: np.ndarray, offsets: np.ndarray, static: np.ndarray, columns: np.ndarray, picks: np.ndarray,
             new_binding: np.ndarray) -> None:
     """Every robot's picks (robots, PICKS) and binding row (robots,) of its kept rows (robots, kept, columns), then
-    its block's (robots, instants, columns); ``kept_valid`` and ``valid``: the robot's run has the row."""
+    its block's (robots, instants, columns); ``kept_valid`` and ``valid``: the robot's run has the row. The arrays
+    are taken ``unowned`` (the rows' views then cost no reference counts)."""
+    kept, kept_valid, block, valid = unowned(kept), unowned(kept_valid), unowned(block), unowned(valid)
+    binding, radius, offsets, static = unowned(binding), unowned(radius), unowned(offsets), unowned(static)
+    columns, picks, new_binding = unowned(columns), unowned(picks), unowned(new_binding)
     for robot in range(block.shape[0]):
         new_binding[robot] = _robot_picks(kept[robot], kept_valid[robot], block[robot], valid[robot], binding[robot],
                                           radius[robot], offsets[robot], static[robot], columns, picks[robot])

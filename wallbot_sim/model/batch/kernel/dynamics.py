@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from wallbot_sim.model.batch.kernel.compiling import jit, prange
+from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.layout import MAX_ROWS, ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM
 from wallbot_sim.model.batch.kernel.linalg import _full_rank_solve, _scratch, _solve
 from wallbot_sim.model.batch.kernel.problem import _applied_force, _factor_of, _module_rows, _problem
@@ -207,6 +207,23 @@ def robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, cou
     slopes = np.zeros((4, 2 * DOF))
     gains, no_wheels, no_held = np.full(4, constants[8]), np.zeros(4, dtype=np.bool_), np.zeros(8)
     no_mats, no_ints = np.zeros((1, 1, 1)), np.zeros((1, 1), dtype=np.int64)
+    return _robot_run(states, references, flags, count, constants, torque, dt, steps, motions, residuals, rows, rhs,
+                      factor, matrix, gram, lower, vectors, scratch, slopes, gains, no_wheels, no_held, no_mats,
+                      no_ints)
+
+
+def _robot_run(states: np.ndarray, references: np.ndarray, flags: np.ndarray, count: int, constants: np.ndarray,
+               torque: np.ndarray, dt: float, steps: int, motions: np.ndarray, residuals: np.ndarray,
+               rows: np.ndarray, rhs: np.ndarray, factor: np.ndarray, matrix: np.ndarray, gram: np.ndarray,
+               lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, slopes: np.ndarray, gains: np.ndarray,
+               no_wheels: np.ndarray, no_held: np.ndarray, no_mats: np.ndarray, no_ints: np.ndarray) -> int:
+    """``robot_run`` in its workspace, every array taken ``unowned``: the caller holds them all for the run."""
+    states, references, flags, constants = unowned(states), unowned(references), unowned(flags), unowned(constants)
+    torque, motions, residuals = unowned(torque), unowned(motions), unowned(residuals)
+    rows, rhs, factor, matrix, gram = unowned(rows), unowned(rhs), unowned(factor), unowned(matrix), unowned(gram)
+    lower, vectors, scratch, slopes = unowned(lower), unowned(vectors), unowned(scratch), unowned(slopes)
+    gains, no_wheels, no_held = unowned(gains), unowned(no_wheels), unowned(no_held)
+    no_mats, no_ints = unowned(no_mats), unowned(no_ints)
     for k in range(motions.shape[0]):
         residuals[k] = _motion(states[k], references[k, 0], flags, count, constants, torque, gains, no_wheels, no_held,
                                no_mats, no_ints, motions[k], rows, rhs, factor, matrix, gram, lower, vectors, scratch)
@@ -261,4 +278,5 @@ _workspace = jit(_workspace, inline="always")
 _constraint_force = jit(_constraint_force, inline="always")
 _motion = jit(_motion, inline="always")
 robot_run = jit(robot_run)
+_robot_run = jit(_robot_run)
 tracking_force = jit(tracking_force)

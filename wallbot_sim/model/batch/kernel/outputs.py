@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.kernel.compiling import jit, unowned
 from wallbot_sim.model.batch.kernel.friction import _normal_loads
 from wallbot_sim.model.batch.kernel.layout import ADHESION, HALF_TRACK, SPLIT_CUT, STATIC
 from wallbot_sim.model.robot import DOF
@@ -36,7 +36,11 @@ def ideal_outputs(states: np.ndarray, motions: np.ndarray, count: int, constants
     ``drive`` (T, 3: F_L, F_R, F_lat), ``use`` (T, 3: per channel), ``forces`` (T, 4, 2: body axes), ``wheel_use``
     (T, 4) and ``velocities`` (T, 4, 2). A wheel's force is its load-weighted least-norm share of the wrench
     Q_c[:3] (``split_chassis_wrench``), the loads N_i = F_ad/4 + h F_bx x_i/(4 a^2) + h F_by y_i/(4 b^2).
+    Every array is taken ``unowned``: an instant's views of them cost no reference counts.
     """
+    states, motions, constants, contact = unowned(states), unowned(motions), unowned(constants), unowned(contact)
+    loads, drive, use, forces = unowned(loads), unowned(drive), unowned(use), unowned(forces)
+    wheel_use, velocities = unowned(wheel_use), unowned(velocities)
     radius = constants[7]
     adhesion, static, half_track = contact[ADHESION], contact[STATIC], contact[HALF_TRACK]
     along, across = contact[7:11], contact[11:15]
