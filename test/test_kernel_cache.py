@@ -62,3 +62,25 @@ def test_functions_outside_the_package_keep_numbas_own_cache(tmp_path):
         assert locator.get_source_stamp() != compiling.STAMP
     finally:
         del sys.modules['elsewhere']
+
+
+def test_an_unowned_view_is_the_array_itself_and_a_strided_array_is_refused():
+    import numba
+    import numpy as np
+
+    @numba.njit
+    def write_through(array):
+        view = compiling.unowned(array)
+        view[1, 2] = 5.0
+        return view.shape[0] * 10 + view.shape[1]
+
+    owner = np.zeros((3, 4))
+    assert write_through(owner) == 34
+    assert owner[1, 2] == 5.0 and np.count_nonzero(owner) == 1  # the same memory, no copy
+
+    @numba.njit
+    def column_of(array):
+        return compiling.unowned(array[:, 1])[0]
+
+    with pytest.raises(numba.core.errors.TypingError, match='_data_of'):  # a raw view needs C order
+        column_of(owner)
