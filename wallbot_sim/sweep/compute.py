@@ -253,7 +253,7 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
                                        settings.scenario.reference, ControllerGains(), CONTROL_RATE_HZ,
                                        MAX_WHEEL_TORQUE)
         answer = loop.hook(simulation)
-    rows = _ChunkRows(DecidingRows(robots, len(CSV_COLUMNS)), len(models), min(block_size, settings.steps + 1))
+    rows = _ChunkRows(DecidingRows(robots, len(CSV_COLUMNS)), len(models), block_size, settings.steps + 1)
 
     def on_step(out: BatchOutputs) -> None:
         rows.add_instant(out)
@@ -285,15 +285,21 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
 
 
 class _ChunkRows:
-    """A chunk's CSV rows, ``instants`` of its robots at a time, each block reduced as it fills
-    (``DecidingRows.add``)."""
+    """A chunk's CSV rows of its ``total`` instants, ``instants`` of its robots at a time, each block reduced as it
+    fills (``DecidingRows.add``); the last block as long as the instants left, so that it too is reduced whole (a
+    part of a block would be copied first)."""
 
-    def __init__(self, reduced: DecidingRows, robots: int, instants: int) -> None:
+    def __init__(self, reduced: DecidingRows, robots: int, instants: int, total: int) -> None:
         self.reduced = reduced
+        self.left = total
+        """The instants not yet in a block."""
+        self.filled = 0
+        self._new_block(robots, min(instants, total))
+
+    def _new_block(self, robots: int, instants: int) -> None:
         self.block = np.empty((robots, instants, len(CSV_COLUMNS)))
         self.written = np.empty(self.block.shape[:2], dtype=bool)
         """Whether each robot's run has the row: the instants before it detached."""
-        self.filled = 0
 
     def add_instant(self, out: BatchOutputs) -> None:
         """The rows of the robots' outputs at one instant."""
@@ -317,7 +323,10 @@ class _ChunkRows:
         self.filled += count
         if self.filled == self.block.shape[1]:
             self.reduced.add(self.block, self.written)
+            self.left -= self.filled
             self.filled = 0
+            if 0 < self.left < self.block.shape[1]:
+                self._new_block(self.block.shape[0], self.left)
 
     def close(self) -> DecidingRows:
         """The reduced rows, the last block's included."""
