@@ -75,12 +75,8 @@ def jit(function: Any, **options: Any) -> Any:
     return numba.njit(cache=True, error_model='numpy', **options)(function) if numba is not None else function
 
 
-
-def unowned(array: np.ndarray) -> np.ndarray:
-    """A view of the C-contiguous ``array`` without its reference count, in compiled code: every view of it and
-    every call it is passed to then skips numba's two atomic counts (some 20 arrays go through each call of a
-    boundary: the counts were half of a coulomb step). The caller must hold ``array`` while the view is in use:
-    take the view of an argument, never of an array the function itself allocates. Without numba, ``array``."""
+def _identity(array: np.ndarray) -> np.ndarray:
+    """``array`` itself: without numba there are no reference counts to skip."""
     return array
 
 
@@ -96,7 +92,12 @@ if numba is not None:
             return builder.bitcast(data, cgutils.voidptr_t)
         return types.voidptr(array), codegen
 
-    def _unowned(array: np.ndarray) -> np.ndarray:
+    def _raw_view(array: np.ndarray) -> np.ndarray:
+        """``array``'s elements as a new array that owns nothing (``numba.carray`` of its data)."""
         return numba.carray(_data_of(array), array.shape, array.dtype)
 
-    unowned = jit(_unowned, inline="always")  # noqa: F811 (the compiled view replaces the identity)
+unowned = jit(_raw_view, inline="always") if numba is not None else _identity
+"""A view of a C-contiguous array without its reference count, in compiled code: every view of it and every call it
+is passed to then skips numba's two atomic counts (some 20 arrays go through each call of a boundary: the counts
+were half of a coulomb step). The caller must hold the array while the view is in use: take the view of an
+argument, never of an array the function itself allocates. Without numba, the array itself."""
