@@ -209,8 +209,9 @@ def _contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray
     sliding, loads, friction = unowned(sliding), unowned(loads), unowned(friction)
     solutions, slid, outcome = unowned(solutions), unowned(slid), unowned(outcome)
     rows, rhs, factor, matrix, gram = unowned(rows), unowned(rhs), unowned(factor), unowned(matrix), unowned(gram)
-    lower, vectors, scratch, mats, vecs = unowned(lower), unowned(vectors), unowned(scratch), unowned(mats), unowned(vecs)
-    ints, marks, columns, responses = unowned(ints), unowned(marks), unowned(columns), unowned(responses)
+    lower, vectors, scratch = unowned(lower), unowned(vectors), unowned(scratch)
+    mats, vecs, ints, marks = unowned(mats), unowned(vecs), unowned(ints), unowned(marks)
+    columns, responses = unowned(columns), unowned(responses)
     trial, slopes = unowned(trial), unowned(slopes)
     outcome[0], outcome[1], outcome[2], outcome[3] = 0, 0, RAN, SOLVED
     for k in range(solutions.shape[0]):
