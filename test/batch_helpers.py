@@ -1,4 +1,5 @@
-"""What the batch agreement tests share: its engines, the agreement asked, random robots and starts."""
+"""What the batch agreement tests share: its engines, the agreement asked, random robots and starts, and the
+minimum-norm motion by numpy's least squares the kernel's solves are held to."""
 
 from __future__ import annotations
 
@@ -43,3 +44,10 @@ def assert_agree(name: str, batch_values: np.ndarray, single_values: np.ndarray,
     scale = max(float(np.max(np.abs(single_values))), floor)
     error = np.max(np.abs(batch_values - single_values))
     assert error <= TOLERANCE * scale, f'{name}: batch differs by {error:.3g}, {error / scale:.3g} relative'
+
+
+def minimum_norm_motion(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """qdd = W (s + B+ (b - B s)), s = W^T Q, B = A W, by numpy's least squares (SVD)."""
+    scaled = factor.T @ force
+    matrix = rows @ factor
+    return factor @ (scaled + np.linalg.lstsq(matrix, rhs - matrix @ scaled, rcond=None)[0])

@@ -111,7 +111,8 @@ def pytest_runtest_makereport(item: pytest.Item):
 FAST_MODULES = frozenset({
     'test_batch', 'test_batch_contact', 'test_batch_control', 'test_compiled_contact', 'test_compiled_simulation',
     'test_constraint_table', 'test_control_tracking', 'test_controller_testing', 'test_doc_examples', 'test_docs',
-    'test_dynamics_loop', 'test_figures', 'test_input_files', 'test_launch_description', 'test_messages',
+    'test_dynamics_loop', 'test_figures', 'test_input_files', 'test_kernel_frame', 'test_launch_description',
+    'test_messages',
     'test_model_contact',
     'test_model_parameters', 'test_model_robot', 'test_model_simulation', 'test_model_solver',
     'test_model_trajectories', 'test_model_wheel_contact', 'test_pacing', 'test_peer_mujoco', 'test_resume',

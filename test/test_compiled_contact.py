@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from batch_helpers import TOLERANCE, random_robots
+from batch_helpers import TOLERANCE, minimum_norm_motion, random_robots
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation, StepOutputs
 from wallbot_sim.model import contact as python_contact
@@ -195,16 +195,9 @@ def test_detachment_mid_run_stops_both_engines_at_the_same_instant():
         assert np.all(out.contact.wheel_forces[lifted] == 0.0)
 
 
-def minimum_norm_motion(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """qdd = W (s + B+ (b - B s)), s = W^T Q, B = A W, by numpy's least squares (SVD)."""
-    scaled = factor.T @ force
-    matrix = rows @ factor
-    return factor @ (scaled + np.linalg.lstsq(matrix, rhs - matrix @ scaled, rcond=None)[0])
-
-
 @pytest.mark.parametrize('consistent', [True, False])
 def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing_ones(consistent):
-    """``_prepare_rows`` then ``_row_space_solve``: with rows that repeat others (as a side's contact rows repeat its
+    """``_prepare_rows`` then its solve (``_projected``): with rows that repeat others (as a side's contact rows repeat its
     belt row), each motion is the minimum-norm one numpy's SVD least squares gives (the rows' b for the first,
     0 for the others); where a repeated row's b disagrees, the first is left to the least squares (False)."""
     rng = np.random.default_rng(5)
@@ -219,12 +212,14 @@ def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing
     _, matrix, _, _, vectors, _ = dynamics._workspace()
     mats, _, ints, *_ = layout._contact_workspace()
     order, kept, lower = ints[layout.ROW_ORDER], ints[layout.ROW_KEPT], mats[layout.ROW_FACTOR]
-    rank = row_space._prepare_rows(padded_rows, factor, count, matrix, mats[layout.ROW_SYSTEM], lower, order, kept)
+    gram = mats[layout.FRAME_GRAM]
+    rank = row_space._prepare_rows(padded_rows, factor, count, matrix, gram, mats[layout.ROW_SYSTEM], lower, order,
+                                   kept)
     assert rank == 6
     for column, force in enumerate(rng.normal(size=(4, DOF))):
         out = np.full(DOF, np.nan)
-        solved = row_space._row_space_solve(factor, force, padded_rhs, column == 0, matrix, count, rank, order, kept,
-                                         lower, vectors, out)
+        solved = row_space._projected(factor, force, padded_rhs, column == 0, matrix, gram, count, rank, order, kept,
+                                      lower, vectors[1], vectors[2], vectors[3], out)
         assert solved == (consistent or column > 0)
         if solved:
             expected = minimum_norm_motion(factor, force, rows, rhs if column == 0 else np.zeros(count))

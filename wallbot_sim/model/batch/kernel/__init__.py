@@ -27,7 +27,8 @@ cores, and ``batch_contact_run`` a batch's chunk of steps at held torques. They 
 
 The package is split by concern: ``problem`` (a robot's Q, W and constraint rows at a state), ``dynamics`` (the
 derivative and RK4 step, ``robot_run``, ``tracking_force``), ``outputs`` (the outputs of a run's instants with ideal
-contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``layout`` (the contact arrays'
+contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``frame`` (coulomb's solves in the
+body axes, a stick/slip set's rows factored once), ``layout`` (the contact arrays'
 layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
 ``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the steps from a boundary, the
 runs); ``compiling`` compiles them into numba's cache under one stamp of the whole package. numba is optional:

@@ -10,18 +10,17 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.dynamics import _constraint_force
+from wallbot_sim.model.batch.kernel.frame import _frame_responses, _frame_rows, _frame_solve
 from wallbot_sim.model.batch.kernel.friction import (
     _affine_acceleration, _contact_row, _kinetic, _load_gain, _normal_loads)
 from wallbot_sim.model.batch.kernel.layout import (
     ADHESION, BELT, CONSTRAINT, DIRECTION_OF, DRIFT, ERROR, FORCES, FRICTION, GAIN, HELD_BY, KINETIC, LOADS, MADE,
-    NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_FACTOR,
-    ROW_KEPT, ROW_LOADS, ROW_ORDER, ROW_SYSTEM, SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER,
-    SPLIT_PIVOTS, SPLIT_X, STATE, STATUS, STICKING, STUCK_ROWS, TANGENT_HEADING, TOTAL, TRAJECTORY, VELOCITY,
-    WHEEL_OF, ZERO)
+    NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_LOADS,
+    SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER, SPLIT_PIVOTS, SPLIT_X, STATE, STATUS, STICKING,
+    STUCK_ROWS, TANGENT_HEADING, TOTAL, TRAJECTORY, VELOCITY, WHEEL_OF, ZERO)
 from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
 from wallbot_sim.model.batch.kernel.problem import _factor_of, _problem
-from wallbot_sim.model.batch.kernel.row_space import (
-    _pivoted_cholesky, _pivoted_solve, _prepare_rows, _row_space_responses, _row_space_solve)
+from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve
 from wallbot_sim.model.robot import DOF
 
 
@@ -80,13 +79,13 @@ def _split(count: int, flags: np.ndarray, force: np.ndarray, mats: np.ndarray, v
         out[k] = weight * value
 
 
-def _responded(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, count: int, rank: int,
-               rows: np.ndarray, matrix: np.ndarray, gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray,
-               scratch: np.ndarray, mats: np.ndarray, ints: np.ndarray, zero: np.ndarray, out: np.ndarray) -> None:
-    """qdd under ``force`` and the rows (b = 0 unless ``with_rhs``) by ``_row_space_solve`` after ``_prepare_rows``,
-    or by ``_solve``'s least squares where the rows disagree: one column of ``constrained_acceleration``."""
-    if not _row_space_solve(factor, force, rhs, with_rhs, matrix, count, rank, ints[ROW_ORDER], ints[ROW_KEPT],
-                            mats[ROW_FACTOR], vectors, out):
+def _responded(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.ndarray, force: np.ndarray,
+               rhs: np.ndarray, with_rhs: bool, count: int, rank: int, rows: np.ndarray, matrix: np.ndarray,
+               gram: np.ndarray, lower: np.ndarray, vectors: np.ndarray, scratch: np.ndarray, mats: np.ndarray,
+               ints: np.ndarray, zero: np.ndarray, out: np.ndarray) -> None:
+    """qdd under ``force`` and the rows (b = 0 unless ``with_rhs``) by ``_frame_solve`` after ``_frame_rows``, or by
+    ``_solve``'s least squares where the rows disagree: one column of ``constrained_acceleration``."""
+    if not _frame_solve(cos_t, sin_t, flags, factor, force, rhs, with_rhs, count, rank, mats, ints, vectors, out):
         _solve(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch, out)
 
 
@@ -133,12 +132,11 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
         vx, vy = qd[0] + thd * arm_x, qd[1] + thd * arm_y
         scale = -rolling / math.sqrt(vx * vx + vy * vy + eps2)
         column[0], column[1], column[2] = scale * vx, scale * vy, scale * (arm_x * vx + arm_y * vy)
-    order, kept, system = ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_SYSTEM]
-    rank = _prepare_rows(rows, factor, count, matrix, system, mats[ROW_FACTOR], order, kept)
-    _responded(factor, unloaded, rhs, True, count, rank, rows, matrix, gram, lower, vectors, scratch, mats, ints, zero,
-               responses[0])
-    _row_space_responses(factor, columns, 1, 1 + sliders + 4, matrix, count, rank, order, kept, mats[ROW_FACTOR],
-                         vectors, responses)  # b = 0: consistent
+    rank = _frame_rows(q, qd, reference, flags, constants, sticking, rows, factor, count, mats, ints)
+    _responded(cos_t, sin_t, flags, factor, unloaded, rhs, True, count, rank, rows, matrix, gram, lower, vectors,
+               scratch, mats, ints, zero, responses[0])
+    _frame_responses(cos_t, sin_t, flags, factor, columns, 1, 1 + sliders + 4, count, rank, mats, ints, vectors,
+                     responses)  # b = 0: consistent
     _normal_loads(q, qd, zero, constants, contact, True, vecs[ORIGIN])
     _load_gain(theta, constants, contact, mats[GAIN])
     v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]

@@ -8,10 +8,10 @@ import math
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
-from wallbot_sim.model.batch.kernel.layout import MAX_ROWS, ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM
+from wallbot_sim.model.batch.kernel.frame import _frame_rows, _frame_solve
+from wallbot_sim.model.batch.kernel.layout import MAX_ROWS
 from wallbot_sim.model.batch.kernel.linalg import _full_rank_solve, _scratch, _solve
 from wallbot_sim.model.batch.kernel.problem import _applied_force, _factor_of, _module_rows, _problem
-from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _row_space_solve
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
 
@@ -54,16 +54,15 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
                   with_force: bool, out: np.ndarray) -> None:
     """qdd of one robot at (q, qd): ``BatchSimulation._derivative`` for that robot alone (``_problem``, then
     ``_solve``); with ``with_force`` Q, with the held friction of sliding wheels, is left in ``vectors`` row 0 (else
-    that row is scratch). With ``contact`` the solve goes through the rows' own space first (``_row_space_solve``,
-    ``mats`` and ``ints`` its scratch). Without, rows of full column rank decide qdd alone (``_full_rank_solve``):
-    Q and W are then computed only if ``with_force``."""
+    that row is scratch). With ``contact`` the solve goes through the rows' own space first, in the body
+    axes (``frame``: ``mats`` and ``ints`` hold its factored rows). Without, rows of full column rank decide qdd
+    alone (``_full_rank_solve``): Q and W are then computed only if ``with_force``."""
     if contact:
         count = _problem(q, qd, reference, flags, constants, torque, gains, contact, sticking, held, rows, rhs,
                          factor, vectors[0])
-        rank = _prepare_rows(rows, factor, count, matrix, mats[ROW_SYSTEM], mats[ROW_FACTOR], ints[ROW_ORDER],
-                             ints[ROW_KEPT])
-        if _row_space_solve(factor, vectors[0], rhs, True, matrix, count, rank, ints[ROW_ORDER], ints[ROW_KEPT],
-                            mats[ROW_FACTOR], vectors, out):
+        rank = _frame_rows(q, qd, reference, flags, constants, sticking, rows, factor, count, mats, ints)
+        if _frame_solve(math.cos(q[2]), math.sin(q[2]), flags, factor, vectors[0], rhs, True, count, rank, mats, ints,
+                        vectors, out):
             return
         _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
         return

@@ -16,11 +16,12 @@ CONSISTENT = 1e-9
 """Relative misfit up to which a row ``_prepare_rows`` drops agrees with the rows it keeps."""
 
 
-def _prepare_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, system: np.ndarray,
-                  lower: np.ndarray, order: np.ndarray, kept: np.ndarray) -> int:
-    """B = A W into ``matrix``, and the independent rows K of B a pivoted Cholesky of B B^T keeps with its factor,
-    for ``_row_space_solve``: ``order`` the kept rows in pivot order, ``kept`` 1 on each, ``lower[r, i]`` column r
-    of the factor at row i; returns the rank. (The cut is the normal equations' of ``_minimum_norm``.)"""
+def _prepare_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.ndarray, gram: np.ndarray,
+                  system: np.ndarray, lower: np.ndarray, order: np.ndarray, kept: np.ndarray) -> int:
+    """B = A W into ``matrix``, B B^T into ``gram``, and the independent rows K of B a pivoted Cholesky of B B^T
+    keeps with its factor, for ``_projected``: ``order`` the kept rows in pivot order, ``kept`` 1 on each,
+    ``lower[r, i]`` column r of the factor at row i (``system`` its scratch); returns the rank. (The cut is the
+    normal equations' of ``_minimum_norm``.)"""
     _scaled_rows(rows, factor, count, matrix)
     largest = 0.0
     for i in range(count):
@@ -28,7 +29,7 @@ def _prepare_rows(rows: np.ndarray, factor: np.ndarray, count: int, matrix: np.n
             value = 0.0
             for k in range(DOF):
                 value += matrix[i, k] * matrix[j, k]
-            system[i, j] = system[j, i] = value
+            gram[i, j] = gram[j, i] = system[i, j] = system[j, i] = value
         largest = max(largest, system[i, i])
     return _pivoted_cholesky(system, count, RANK_CUTOFF * largest, order, kept, lower)
 
@@ -73,34 +74,16 @@ def _pivoted_solve(lower: np.ndarray, order: np.ndarray, rank: int, target: np.n
         x[a] = value / lower[a, order[a]]
 
 
-def _row_space_solve(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
-                     count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
-                     vectors: np.ndarray, out: np.ndarray) -> bool:
+def _projected(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
+               gram: np.ndarray, count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
+               scaled: np.ndarray, misfit: np.ndarray, solution: np.ndarray, out: np.ndarray) -> bool:
     """qdd = W (s + B_K^T (B_K B_K^T)^-1 (b - B s)_K), s = W^T Q, by ``_prepare_rows``' factor (b = 0 unless
     ``with_rhs``): the minimum-norm least-squares solution wherever the rows off K agree with those on it, which
     the contact rows and the belt do (a side's contact rows repeat its belt row); where they do not (an
-    inconsistent set: the heading task beside the sticking wheels' lateral rows) returns False, ``out`` untouched,
-    for the caller's least squares. Cheaper than the normal equations of ``_solve`` with few rows. ``vectors``
-    rows 1-3 are scratch."""
-    return _projected(factor, force, rhs, with_rhs, matrix, count, rank, order, kept, lower, vectors[1], vectors[2],
-                      vectors[3], out)
-
-
-def _row_space_responses(factor: np.ndarray, forces: np.ndarray, first: int, end: int, matrix: np.ndarray,
-                         count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray,
-                         vectors: np.ndarray, out: np.ndarray) -> None:
-    """``_row_space_solve`` with b = 0 of each force ``forces[c]`` into ``out[c]``, c = first..end - 1 (always
-    consistent: b - B s = -B s lies in B's range); the scratch rows taken once for them all."""
-    scaled, misfit, solution = vectors[1], vectors[2], vectors[3]
-    for column in range(first, end):
-        _projected(factor, forces[column], forces[column], False, matrix, count, rank, order, kept, lower, scaled,
-                   misfit, solution, out[column])
-
-
-def _projected(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs: bool, matrix: np.ndarray,
-               count: int, rank: int, order: np.ndarray, kept: np.ndarray, lower: np.ndarray, scaled: np.ndarray,
-               misfit: np.ndarray, solution: np.ndarray, out: np.ndarray) -> bool:
-    """``_row_space_solve`` with its scratch vectors given (7, count and rank long)."""
+    inconsistent set: the heading task beside the sticking wheels' lateral rows) returns False, ``out`` untouched
+    unless it is ``force``, for the caller's least squares. Cheaper than the normal equations of ``_solve`` with
+    few rows. ``scaled``, ``misfit``, ``solution``: scratch (7, count and rank long); ``force`` is read before
+    ``out`` is written (they may be one array)."""
     _transposed_factor_times(factor, force, scaled)
     for r in range(count):
         value = rhs[r] if with_rhs else 0.0
@@ -113,9 +96,7 @@ def _projected(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs:
             if kept[d] == 0:
                 reached, size = 0.0, abs(misfit[d])
                 for a in range(rank):
-                    along = 0.0
-                    for k in range(DOF):
-                        along += matrix[d, k] * matrix[order[a], k]
+                    along = gram[d, order[a]]  # B_d . B_a
                     reached += along * solution[a]
                     size += abs(along * solution[a])
                 if abs(misfit[d] - reached) > CONSISTENT * (1.0 + size):
@@ -132,6 +113,4 @@ def _projected(factor: np.ndarray, force: np.ndarray, rhs: np.ndarray, with_rhs:
 _pivoted_cholesky = jit(_pivoted_cholesky, inline="always")
 _pivoted_solve = jit(_pivoted_solve, inline="always")
 _prepare_rows = jit(_prepare_rows)
-_row_space_solve = jit(_row_space_solve)
-_row_space_responses = jit(_row_space_responses)
 _projected = jit(_projected, inline="always")

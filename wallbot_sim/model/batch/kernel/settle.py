@@ -11,6 +11,7 @@ import numpy as np
 from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
 from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.dynamics import _rk4, _workspace
+from wallbot_sim.model.batch.kernel.frame import _forget_frame
 from wallbot_sim.model.batch.kernel.layout import (
     AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, MAX_ROWS, NON_LATERAL, NONSLIP, PREDICTED,
     PRESSED, PROJECTION, QDD, RAN, REVERSING, ROLLING, SETTLE_PASSES, SOLUTION_ROWS, SOLUTION_WIDTH, SOLVED, STATIC,
@@ -265,6 +266,7 @@ def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarra
     mats, vecs, ints, marks, columns, responses = _contact_workspace()
     trial = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH))
     for robot in range(first, end):
+        _forget_frame(ints)
         if live[robot]:
             errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
                                     dt, sliding[robot], loads[robot], friction[robot], rows, rhs, factor, matrix,
@@ -306,6 +308,7 @@ def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray
     mats, vecs, ints, marks, _, _ = _contact_workspace()
     slopes = np.zeros((4, 2 * DOF))
     for robot in range(first, end):
+        _forget_frame(ints)
         if live[robot]:
             finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
                                        torques[robot], dt, solutions[robot], sliding[robot], rows, rhs, factor, matrix,

@@ -1,0 +1,66 @@
+"""The coulomb solves in the body axes (``kernel.frame``): a stick/slip set's rows factored once and reused at every
+heading give the motion numpy's least squares gives for the world's rows there, set after set, robot after robot."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from batch_helpers import minimum_norm_motion, random_robots
+from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.batch.kernel import dynamics, frame, layout, problem
+from wallbot_sim.model.batch.robots import RobotBatch
+from wallbot_sim.model.robot import DOF
+
+pytestmark = pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+
+
+def world_problem(constants: np.ndarray, flags: np.ndarray, y: np.ndarray, reference: np.ndarray,
+                  sticking: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The row count, rows A, b, W and Q ``_problem`` gives at y with the ``sticking`` wheels."""
+    rows, rhs = np.zeros((kernel.MAX_ROWS, DOF)), np.zeros(kernel.MAX_ROWS)
+    factor, force = np.zeros((DOF, DOF)), np.zeros(DOF)
+    count = problem._problem(y[:DOF], y[DOF:], reference, flags, constants, np.array([0.4, -0.3]), np.full(4, 2.0),
+                             True, sticking, np.zeros(8), rows, rhs, factor, force)
+    return count, rows, rhs, factor, force
+
+
+@pytest.mark.parametrize('active', [('belt', 'non_lateral', 'nonslip'),
+                                    ('tangent_heading', 'belt', 'non_lateral', 'nonslip'),
+                                    ('trajectory', 'belt', 'nonslip')])
+def test_the_body_frame_solve_is_the_world_least_squares_at_every_heading(active):
+    """One workspace through two robots (forgotten between them), every sticking set twice at new headings and
+    speeds (the second time from the factored rows kept): qdd for the rows' b and for a force alone (b = 0) are
+    the minimum-norm motions of the world's rows, to 1e-9 of their size, wherever b lies in the rows' range, and
+    refused where it does not. With the trajectory task (rows fixed in the world) nothing is kept."""
+    rng = np.random.default_rng(11)
+    robots = random_robots(rng, 2)
+    constants = kernel.robot_constants(RobotBatch(robots), np.full(2, 10.0), np.full(2, 20.0))
+    flags, _ = kernel.module_flags(active)
+    _, matrix, gram, lower, vectors, scratch = dynamics._workspace()
+    mats, _, ints, *_ = layout._contact_workspace()
+    reference = rng.normal(size=dynamics.REFERENCE_FIELDS)
+    sets = [np.array(bits, dtype=np.bool_) for bits in itertools.product((False, True), repeat=4)]
+    for robot in range(2):
+        frame._forget_frame(ints)
+        for sticking in sets + sets[::-1]:
+            y = rng.normal(size=2 * DOF)
+            y[2] = rng.uniform(-np.pi, np.pi)
+            count, rows, rhs, factor, force = world_problem(constants[robot], flags, y, reference, sticking)
+            rank = frame._frame_rows(y[:DOF], y[DOF:], reference, flags, constants[robot], sticking, rows, factor,
+                                     count, mats, ints)
+            assert (ints[layout.FRAME, frame.KEY] != 0) == (not flags[layout.TRAJECTORY])
+            for with_rhs, applied in ((True, force), (False, rng.normal(size=DOF))):
+                b = rhs[:count] if with_rhs else np.zeros(count)
+                consistent = np.allclose(rows[:count] @ np.linalg.lstsq(rows[:count], b, rcond=None)[0], b)
+                out = np.full(DOF, np.nan)
+                solved = frame._frame_solve(np.cos(y[2]), np.sin(y[2]), flags, factor, applied, rhs, with_rhs, count,
+                                            rank, mats, ints, vectors, out)
+                assert solved == consistent, (robot, sticking, with_rhs)
+                if not solved:  # the heading task's b beside two lateral rows: left to the least squares
+                    continue
+                expected = minimum_norm_motion(factor, applied, rows[:count], b)
+                scale = max(np.max(np.abs(factor @ (factor.T @ applied))), np.max(np.abs(expected)))
+                assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * scale), (robot, sticking, with_rhs)

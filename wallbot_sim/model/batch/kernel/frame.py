@@ -1,0 +1,96 @@
+"""The frame coulomb contact's solves run in: the chassis' body axes, where the rows and the mass matrix are
+constant, so that a stick/slip set's rows are factored once while the set holds instead of at every solve.
+
+With T the rotation of the chassis' (x, y) by theta (the spins unturned), every contact row, the belt's and the
+heading task's satisfy A(theta) T = A(0), and M(theta) = T M(0) T^T. T W(0) is then a factor of M(theta)^-1 and
+B = A(theta) T W(0) = A(0) W(0) depends on the sticking set alone. The Udwadia-Kalaba motion is the same for any
+factor of M^-1 (replacing W by W U, U orthogonal, gives (B U)+ = U^T B+), so qdd = T W(0) (s + B+ (b - B s)),
+s = W(0)^T T^T Q: the force turned into the body axes, the constant problem solved, the motion turned back.
+The trajectory task's rows are fixed in the world instead: with it the world's rows are factored at every solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.kernel.layout import (
+    FRAME, FRAME_FACTOR, FRAME_GRAM, FRAME_MATRIX, FRAME_ROWS, FRAME_SCRATCH, ROW_FACTOR, ROW_KEPT, ROW_ORDER,
+    ROW_SYSTEM, TRAJECTORY)
+from wallbot_sim.model.batch.kernel.problem import _factor_of, _module_rows
+from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _projected
+from wallbot_sim.model.robot import DOF
+
+KEY, COUNT, RANK = range(3)
+"""ints[FRAME]: the sticking set whose rows are factored (0: none, else 1 + its wheels as bits), their count and
+rank."""
+
+
+def _forget_frame(ints: np.ndarray) -> None:
+    """No set factored: the workspace's next robot, whose constants differ, factors its own."""
+    ints[FRAME, KEY] = 0
+
+
+def _frame_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                sticking: np.ndarray, rows: np.ndarray, factor: np.ndarray, count: int, mats: np.ndarray,
+                ints: np.ndarray) -> int:
+    """The factored rows ``_frame_solve`` solves with, for the ``count`` rows ``rows`` and factor ``factor`` that
+    ``_problem`` gave at (q, qd) with the ``sticking`` wheels; their rank. In the body axes (no trajectory task) the
+    set's rows are factored once and kept in the workspace (mats[FRAME_*], ints[FRAME]) while the set holds; with
+    the task, the world's rows are factored each time."""
+    if flags[TRAJECTORY]:
+        ints[FRAME, KEY] = 0
+        return _prepare_rows(rows, factor, count, mats[FRAME_MATRIX], mats[FRAME_GRAM], mats[ROW_SYSTEM],
+                             mats[ROW_FACTOR], ints[ROW_ORDER], ints[ROW_KEPT])
+    key = 1
+    for wheel in range(4):
+        if sticking[wheel]:
+            key += 1 << wheel
+    if ints[FRAME, KEY] == key:
+        return ints[FRAME, RANK]
+    body_rows, scratch = mats[FRAME_ROWS], mats[FRAME_SCRATCH]
+    for i in range(16):
+        scratch[2, i] = 0.0
+    _module_rows(q, qd, reference, flags, constants, 1.0, 0.0, True, sticking, scratch[2], body_rows, scratch[0],
+                 scratch[1])  # A(0): only the rows are kept
+    _factor_of(0.0, constants, mats[FRAME_FACTOR])
+    rank = _prepare_rows(body_rows, mats[FRAME_FACTOR], count, mats[FRAME_MATRIX], mats[FRAME_GRAM],
+                         mats[ROW_SYSTEM], mats[ROW_FACTOR], ints[ROW_ORDER], ints[ROW_KEPT])
+    ints[FRAME, KEY], ints[FRAME, COUNT], ints[FRAME, RANK] = key, count, rank
+    return rank
+
+
+def _frame_solve(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.ndarray, force: np.ndarray,
+                 rhs: np.ndarray, with_rhs: bool, count: int, rank: int, mats: np.ndarray, ints: np.ndarray,
+                 vectors: np.ndarray, out: np.ndarray) -> bool:
+    """qdd under ``force`` and the rows factored by ``_frame_rows`` (b = 0 unless ``with_rhs``), as ``_projected``
+    gives it in the world, at heading theta (cos_t, sin_t); False where the rows disagree (``out`` then
+    scratch)."""
+    if flags[TRAJECTORY]:
+        return _projected(factor, force, rhs, with_rhs, mats[FRAME_MATRIX], mats[FRAME_GRAM], count, rank,
+                          ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_FACTOR], vectors[1], vectors[2], vectors[3], out)
+    out[0], out[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]  # T^T Q
+    for j in range(2, DOF):
+        out[j] = force[j]
+    if not _projected(mats[FRAME_FACTOR], out, rhs, with_rhs, mats[FRAME_MATRIX], mats[FRAME_GRAM], count, rank,
+                      ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_FACTOR], vectors[1], vectors[2], vectors[3], out):
+        return False
+    along, across = out[0], out[1]
+    out[0], out[1] = cos_t * along - sin_t * across, sin_t * along + cos_t * across
+    return True
+
+
+def _frame_responses(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.ndarray, forces: np.ndarray,
+                     first: int, end: int, count: int, rank: int, mats: np.ndarray, ints: np.ndarray,
+                     vectors: np.ndarray, out: np.ndarray) -> None:
+    """``_frame_solve`` with b = 0 of each force ``forces[c]`` into ``out[c]``, c = first..end - 1 (always
+    consistent: b - B s = -B s lies in B's range)."""
+    for column in range(first, end):
+        _frame_solve(cos_t, sin_t, flags, factor, forces[column], forces[column], False, count, rank, mats, ints,
+                     vectors, out[column])
+
+
+_forget_frame = jit(_forget_frame, inline="always")
+_frame_rows = jit(_frame_rows)
+_frame_solve = jit(_frame_solve, inline="always")
+_frame_responses = jit(_frame_responses)
