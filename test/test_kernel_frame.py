@@ -32,9 +32,10 @@ def world_problem(constants: np.ndarray, flags: np.ndarray, y: np.ndarray, refer
                                     ('trajectory', 'belt', 'nonslip')])
 def test_the_body_frame_solve_is_the_world_least_squares_at_every_heading(active):
     """One workspace through two robots (forgotten between them), every sticking set twice at new headings and
-    speeds (the second time from the factored rows kept): qdd for the rows' b and for a force alone (b = 0) are
-    the minimum-norm motions of the world's rows, to 1e-9 of their size, wherever b lies in the rows' range, and
-    refused where it does not. With the trajectory task (rows fixed in the world) nothing is kept."""
+    speeds (the second time from the factored rows kept): qdd for the rows' b, for a force alone (b = 0) and for
+    a batch of forces (the responses) are the minimum-norm motions of the world's rows, to 1e-9 of their size,
+    wherever b lies in the rows' range, and refused where it does not. With the trajectory task (rows fixed in the
+    world) nothing is kept."""
     rng = np.random.default_rng(11)
     robots = random_robots(rng, 2)
     constants = kernel.robot_constants(RobotBatch(robots), np.full(2, 10.0), np.full(2, 20.0))
@@ -52,15 +53,25 @@ def test_the_body_frame_solve_is_the_world_least_squares_at_every_heading(active
             rank = frame._frame_rows(y[:DOF], y[DOF:], reference, flags, constants[robot], sticking, rows, factor,
                                      count, mats, ints)
             assert (ints[layout.FRAME, frame.KEY] != 0) == (not flags[layout.TRAJECTORY])
+            cos_t, sin_t = np.cos(y[2]), np.sin(y[2])
             for with_rhs, applied in ((True, force), (False, rng.normal(size=DOF))):
                 b = rhs[:count] if with_rhs else np.zeros(count)
                 consistent = np.allclose(rows[:count] @ np.linalg.lstsq(rows[:count], b, rcond=None)[0], b)
                 out = np.full(DOF, np.nan)
-                solved = frame._frame_solve(np.cos(y[2]), np.sin(y[2]), flags, factor, applied, rhs, with_rhs, count,
-                                            rank, mats, ints, vectors, out)
+                solved = frame._frame_solve(cos_t, sin_t, flags, factor, applied, rhs, with_rhs, count, rank, mats,
+                                            ints, vectors, out)
                 assert solved == consistent, (robot, sticking, with_rhs)
-                if not solved:  # the heading task's b beside two lateral rows: left to the least squares
-                    continue
-                expected = minimum_norm_motion(factor, applied, rows[:count], b)
-                scale = max(np.max(np.abs(factor @ (factor.T @ applied))), np.max(np.abs(expected)))
-                assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * scale), (robot, sticking, with_rhs)
+                if solved:  # else the heading task's b beside two lateral rows: left to the least squares
+                    assert_motion(out, factor, applied, rows[:count], b)
+            columns, responses = rng.normal(size=(3, DOF)), np.full((3, DOF), np.nan)
+            frame._frame_responses(cos_t, sin_t, flags, factor, columns, 0, 3, count, rank, mats, ints, vectors,
+                                   responses)
+            for column, response in zip(columns, responses):
+                assert_motion(response, factor, column, rows[:count], np.zeros(count))
+
+
+def assert_motion(out: np.ndarray, factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> None:
+    """``out`` is the minimum-norm motion under ``force`` and the rows, to 1e-9 of its size or of the free motion's."""
+    expected = minimum_norm_motion(factor, force, rows, rhs)
+    scale = max(np.max(np.abs(factor @ (factor.T @ force))), np.max(np.abs(expected)))
+    assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * scale)

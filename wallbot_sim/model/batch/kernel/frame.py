@@ -5,8 +5,10 @@ With T the rotation of the chassis' (x, y) by theta (the spins unturned), every 
 heading task's satisfy A(theta) T = A(0), and M(theta) = T M(0) T^T. T W(0) is then a factor of M(theta)^-1 and
 B = A(theta) T W(0) = A(0) W(0) depends on the sticking set alone. The Udwadia-Kalaba motion is the same for any
 factor of M^-1 (replacing W by W U, U orthogonal, gives (B U)+ = U^T B+), so qdd = T W(0) (s + B+ (b - B s)),
-s = W(0)^T T^T Q: the force turned into the body axes, the constant problem solved, the motion turned back.
-The trajectory task's rows are fixed in the world instead: with it the world's rows are factored at every solve.
+s = W(0)^T T^T Q: the force turned into the body axes, the constant problem solved, the motion turned back. A
+force's response with b = 0 (a sliding component's, a load's) is then a constant matrix's product, T P T^T f with
+P = W(0) (I - B+ B) W(0)^T, kept with the set's factorization. The trajectory task's rows are fixed in the world
+instead: with it the world's rows are factored at every solve.
 """
 
 from __future__ import annotations
@@ -15,15 +17,14 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.layout import (
-    FRAME, FRAME_FACTOR, FRAME_GRAM, FRAME_MATRIX, FRAME_ROWS, FRAME_SCRATCH, ROW_FACTOR, ROW_KEPT, ROW_ORDER,
-    ROW_SYSTEM, TRAJECTORY)
+    FRAME, FRAME_FACTOR, FRAME_GRAM, FRAME_MATRIX, FRAME_PROJECTION, FRAME_ROWS, FRAME_SCRATCH, ROW_FACTOR,
+    ROW_KEPT, ROW_ORDER, ROW_SYSTEM, TRAJECTORY)
 from wallbot_sim.model.batch.kernel.problem import _factor_of, _module_rows
 from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _projected
 from wallbot_sim.model.robot import DOF
 
-KEY, COUNT, RANK = range(3)
-"""ints[FRAME]: the sticking set whose rows are factored (0: none, else 1 + its wheels as bits), their count and
-rank."""
+KEY, RANK = range(2)
+"""ints[FRAME]: the sticking set whose rows are factored (0: none, else 1 + its wheels as bits), their rank."""
 
 
 def _forget_frame(ints: np.ndarray) -> None:
@@ -36,8 +37,8 @@ def _frame_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.
                 ints: np.ndarray) -> int:
     """The factored rows ``_frame_solve`` solves with, for the ``count`` rows ``rows`` and factor ``factor`` that
     ``_problem`` gave at (q, qd) with the ``sticking`` wheels; their rank. In the body axes (no trajectory task) the
-    set's rows are factored once and kept in the workspace (mats[FRAME_*], ints[FRAME]) while the set holds; with
-    the task, the world's rows are factored each time."""
+    set's rows are factored once, with the responses' matrix P, and kept in the workspace (mats[FRAME_*],
+    ints[FRAME]) while the set holds; with the task, the world's rows are factored each time."""
     if flags[TRAJECTORY]:
         ints[FRAME, KEY] = 0
         return _prepare_rows(rows, factor, count, mats[FRAME_MATRIX], mats[FRAME_GRAM], mats[ROW_SYSTEM],
@@ -56,7 +57,15 @@ def _frame_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.
     _factor_of(0.0, constants, mats[FRAME_FACTOR])
     rank = _prepare_rows(body_rows, mats[FRAME_FACTOR], count, mats[FRAME_MATRIX], mats[FRAME_GRAM],
                          mats[ROW_SYSTEM], mats[ROW_FACTOR], ints[ROW_ORDER], ints[ROW_KEPT])
-    ints[FRAME, KEY], ints[FRAME, COUNT], ints[FRAME, RANK] = key, count, rank
+    ints[FRAME, KEY], ints[FRAME, RANK] = key, rank
+    projection, unit = mats[FRAME_PROJECTION], scratch[3]
+    for j in range(DOF):  # P = W (I - B_K^T (B_K B_K^T)^-1 B_K) W^T, column by column: the motion under e_j, b = 0
+        for i in range(DOF):
+            unit[i] = 1.0 if i == j else 0.0
+        _projected(mats[FRAME_FACTOR], unit, unit, False, mats[FRAME_MATRIX], mats[FRAME_GRAM], count, rank,
+                   ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_FACTOR], scratch[4], scratch[5], scratch[6], scratch[7])
+        for i in range(DOF):
+            projection[i, j] = scratch[7, i]
     return rank
 
 
@@ -84,10 +93,27 @@ def _frame_responses(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.n
                      first: int, end: int, count: int, rank: int, mats: np.ndarray, ints: np.ndarray,
                      vectors: np.ndarray, out: np.ndarray) -> None:
     """``_frame_solve`` with b = 0 of each force ``forces[c]`` into ``out[c]``, c = first..end - 1 (always
-    consistent: b - B s = -B s lies in B's range)."""
+    consistent: b - B s = -B s lies in B's range): in the body axes T P T^T f by the set's P of ``_frame_rows``,
+    P being the same for every force."""
+    if flags[TRAJECTORY]:
+        for column in range(first, end):
+            _frame_solve(cos_t, sin_t, flags, factor, forces[column], forces[column], False, count, rank, mats,
+                         ints, vectors, out[column])
+        return
+    projection, turned = mats[FRAME_PROJECTION], vectors[1]
     for column in range(first, end):
-        _frame_solve(cos_t, sin_t, flags, factor, forces[column], forces[column], False, count, rank, mats, ints,
-                     vectors, out[column])
+        force = forces[column]
+        turned[0], turned[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]
+        for j in range(2, DOF):
+            turned[j] = force[j]
+        motion = out[column]
+        for i in range(DOF):
+            value = 0.0
+            for j in range(DOF):
+                value += projection[i, j] * turned[j]
+            motion[i] = value
+        along, across = motion[0], motion[1]
+        motion[0], motion[1] = cos_t * along - sin_t * across, sin_t * along + cos_t * across
 
 
 _forget_frame = jit(_forget_frame, inline="always")
