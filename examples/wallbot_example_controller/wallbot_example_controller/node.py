@@ -22,6 +22,8 @@ from std_msgs.msg import Float64MultiArray
 from wallbot_example_controller.law import FigureEightLaw, Gains, Robot
 
 RELIABLE = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'
+"""The node name rmw gives an endpoint whose node it has not yet discovered."""
 
 
 class ExampleController(Node):
@@ -33,7 +35,7 @@ class ExampleController(Node):
         self.law = FigureEightLaw(Robot(), gains, self.declare_parameter('amplitude', 1.0).value,
                                   self.declare_parameter('period', 30.0).value)
         self.publisher = self.create_publisher(Float64MultiArray, 'wheel_torque_cmd', RELIABLE)
-        self.create_subscription(Odometry, 'control_odom', self.on_odom, RELIABLE)
+        self.subscription = self.create_subscription(Odometry, 'control_odom', self.on_odom, RELIABLE)
         self.unsent: list[Float64MultiArray] = []
         self.answered: tuple[int, int] | None = None
         self.create_timer(0.02, self.send)
@@ -54,11 +56,22 @@ class ExampleController(Node):
         self.send()
 
     def send(self) -> None:
-        matched = self.publisher.get_subscription_count()
-        if matched and matched >= self.count_subscribers(self.publisher.topic_name):
+        if self.unsent and self.simulator_listens():
             for command in self.unsent:
                 self.publisher.publish(command)
             self.unsent = []
+
+    def simulator_listens(self) -> bool:
+        """Whether the node sending control_odom (the simulator) subscribes wheel_torque_cmd and every subscription
+        of it the graph shows is matched: a command published sooner can miss the simulator's reader (the
+        recorder's matched first), and the state it answered, sent again, gets no second answer."""
+        writers = self.get_publishers_info_by_topic(self.subscription.topic_name)
+        readers = self.get_subscriptions_info_by_topic(self.publisher.topic_name)
+        senders = {(i.node_namespace, i.node_name) for i in writers}
+        listeners = {(i.node_namespace, i.node_name) for i in readers}
+        identified = all(name != UNKNOWN_NODE for _, name in senders | listeners)
+        return (bool(senders) and identified and senders <= listeners
+                and self.publisher.get_subscription_count() >= len(readers))
 
 
 def main() -> None:
