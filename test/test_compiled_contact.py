@@ -197,9 +197,9 @@ def test_detachment_mid_run_stops_both_engines_at_the_same_instant():
 
 @pytest.mark.parametrize('consistent', [True, False])
 def test_the_rows_own_space_solve_keeps_independent_rows_and_refuses_disagreeing_ones(consistent):
-    """``_prepare_rows`` then its solve (``_projected``): with rows that repeat others (as a side's contact rows repeat its
-    belt row), each motion is the minimum-norm one numpy's SVD least squares gives (the rows' b for the first,
-    0 for the others); where a repeated row's b disagrees, the first is left to the least squares (False)."""
+    """``_prepare_rows`` then its solve (``_projected``): with rows that repeat others (as a side's contact rows
+    repeat its belt row), each motion is the minimum-norm one numpy's SVD least squares gives (the rows' b for the
+    first, 0 for the others); where a repeated row's b disagrees, the first is left to the least squares (False)."""
     rng = np.random.default_rng(5)
     factor = RobotBatch(random_robots(rng, 1)).mass_inverse_factor(rng.normal(size=(1, DOF)))[0]
     independent = rng.normal(size=(6, DOF))
