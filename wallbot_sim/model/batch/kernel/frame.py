@@ -32,6 +32,19 @@ def _forget_frame(ints: np.ndarray) -> None:
     ints[FRAME, KEY] = 0
 
 
+def _into_body(cos_t: float, sin_t: float, force: np.ndarray, out: np.ndarray) -> None:
+    """T^T Q into ``out``: the chassis' force components turned into the body axes at heading theta."""
+    out[0], out[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]
+    for j in range(2, DOF):
+        out[j] = force[j]
+
+
+def _into_world(cos_t: float, sin_t: float, motion: np.ndarray) -> None:
+    """T qdd in place: the chassis' acceleration components turned back into the world's axes."""
+    along, across = motion[0], motion[1]
+    motion[0], motion[1] = cos_t * along - sin_t * across, sin_t * along + cos_t * across
+
+
 def _frame_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                 sticking: np.ndarray, rows: np.ndarray, factor: np.ndarray, count: int, mats: np.ndarray,
                 ints: np.ndarray) -> int:
@@ -78,14 +91,11 @@ def _frame_solve(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.ndarr
     if flags[TRAJECTORY]:
         return _projected(factor, force, rhs, with_rhs, mats[FRAME_MATRIX], mats[FRAME_GRAM], count, rank,
                           ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_FACTOR], vectors[1], vectors[2], vectors[3], out)
-    out[0], out[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]  # T^T Q
-    for j in range(2, DOF):
-        out[j] = force[j]
+    _into_body(cos_t, sin_t, force, out)
     if not _projected(mats[FRAME_FACTOR], out, rhs, with_rhs, mats[FRAME_MATRIX], mats[FRAME_GRAM], count, rank,
                       ints[ROW_ORDER], ints[ROW_KEPT], mats[ROW_FACTOR], vectors[1], vectors[2], vectors[3], out):
         return False
-    along, across = out[0], out[1]
-    out[0], out[1] = cos_t * along - sin_t * across, sin_t * along + cos_t * across
+    _into_world(cos_t, sin_t, out)
     return True
 
 
@@ -102,21 +112,19 @@ def _frame_responses(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.n
         return
     projection, turned = mats[FRAME_PROJECTION], vectors[1]
     for column in range(first, end):
-        force = forces[column]
-        turned[0], turned[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]
-        for j in range(2, DOF):
-            turned[j] = force[j]
+        _into_body(cos_t, sin_t, forces[column], turned)
         motion = out[column]
         for i in range(DOF):
             value = 0.0
             for j in range(DOF):
                 value += projection[i, j] * turned[j]
             motion[i] = value
-        along, across = motion[0], motion[1]
-        motion[0], motion[1] = cos_t * along - sin_t * across, sin_t * along + cos_t * across
+        _into_world(cos_t, sin_t, motion)
 
 
 _forget_frame = jit(_forget_frame, inline="always")
+_into_body = jit(_into_body, inline="always")
+_into_world = jit(_into_world, inline="always")
 _frame_rows = jit(_frame_rows)
 _frame_solve = jit(_frame_solve, inline="always")
 _frame_responses = jit(_frame_responses)
