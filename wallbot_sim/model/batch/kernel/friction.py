@@ -1,6 +1,7 @@
 """Coulomb contact per wheel (docs/model.md 11.3): a wheel's contact rows, the loads' dependence on the motion
 (with the wheels' spin momentum), and the sliding wheels' kinetic friction solved with the loads it holds by
-Newton's method (``consistent_friction`` of the Python model)."""
+Newton's method (``consistent_friction`` of the Python model): on the friction alone while every wheel stays
+pressed (the loads are then affine in it), else on the friction and the loads together."""
 
 from __future__ import annotations
 
@@ -10,12 +11,12 @@ import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
 from wallbot_sim.model.batch.kernel.layout import (
-    ACCELERATION, ADHESION, BLOCK_END, BLOCK_FIRST, BY_SLIP, DIRECTIONS, DIRECTION_OF, DRIFT, GAIN, HALF_BASE,
-    HALF_TRACK, HEIGHT, JACOBIAN, LOAD_BY_FRICTION, LOAD_BY_LOAD, LU, NEGATIVE, NEWTON_ITERATIONS, NEWTON_PREDICTED,
-    NEWTON_RESIDUAL, NEWTON_STEP, NEWTON_TOLERANCE, ORIGIN, PIVOTS, PRESSED, RESIDUALS, SINGULAR, SIZES, SLIP,
-    SLIP_BY_FRICTION, SLIP_BY_LOAD, SLIP_ROWS, SOLVED, SQUARES, STATE, STATUS, TRIAL_JACOBIAN, TRIAL_PREDICTED,
-    TRIAL_RESIDUALS, TRIAL_STATE, UNCONVERGED, WHEEL_OF)
-from wallbot_sim.model.batch.kernel.linalg import _dot, _lu_solve
+    ACCELERATION, ADHESION, BLOCK_END, BLOCK_FIRST, BY_SLIP, DIRECTIONS, DIRECTION_OF, DRIFT, FREE_LOADS, FREE_SLIP,
+    GAIN, HALF_BASE, HALF_TRACK, HEIGHT, JACOBIAN, LOAD_BY_FRICTION, LOAD_BY_LOAD, LOAD_RESPONSE, LU, NEGATIVE,
+    NEWTON_ITERATIONS, NEWTON_PREDICTED, NEWTON_RESIDUAL, NEWTON_START, NEWTON_STEP, NEWTON_TOLERANCE, ORIGIN, PIVOTS,
+    PRESSED, RESIDUALS, SINGULAR, SIZES, SLIP, SLIP_BY_FRICTION, SLIP_BY_LOAD, SLIP_RESPONSE, SLIP_ROWS, SOLVED,
+    SQUARES, STATE, STATUS, TRIAL_JACOBIAN, TRIAL_PREDICTED, TRIAL_RESIDUALS, TRIAL_STATE, UNCONVERGED, WHEEL_OF)
+from wallbot_sim.model.batch.kernel.linalg import _dot, _lu_factor, _lu_solve, _lu_substitute
 from wallbot_sim.model.robot import DOF
 
 
@@ -220,6 +221,13 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
         for k in range(count):
             if state[k] == 0.0:
                 state[k] = -kinetic * pressed[wheel_of[k]] * predicted[k] / sizes[k]
+    begun = vecs[NEWTON_START]
+    for i in range(size_of):
+        begun[i] = state[i]
+    if _pressed_kinetic(count, responses, mats, vecs, ints, kinetic, epsilon, dt, adhesion, solution):
+        return SOLVED
+    for i in range(size_of):  # a load left zero or below: Newton on the friction and the loads, from the start
+        state[i] = begun[i]
     residual, jacobian = vecs[RESIDUALS], mats[JACOBIAN]
     size = _kinetic_equations(count, responses, mats, vecs, ints, kinetic, epsilon, dt, state, residual, jacobian,
                               predicted)
@@ -256,10 +264,128 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
     return UNCONVERGED
 
 
+def _pressed_residual(count: int, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, kinetic: float,
+                      epsilon: float, state: np.ndarray, predicted: np.ndarray, residual: np.ndarray) -> float:
+    """r_f = f + mu_k N_i w / s at the friction f of ``state`` (its first ``count`` entries), with the loads it gives,
+    N = N_a + G f (into ``state`` after f), and the predicted slip, w = w_a + H f (into ``predicted``); returns the
+    residual's largest magnitude, or -1 where a load is not positive (the loads are not affine in f there)."""
+    load_response, slip_response = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE]
+    for wheel in range(4):
+        load = vecs[FREE_LOADS, wheel]
+        for column in range(count):
+            load += load_response[wheel, column] * state[column]
+        if not load > 0.0:
+            return -1.0
+        state[count + wheel] = load
+    for k in range(count):
+        slip = vecs[FREE_SLIP, k]
+        for column in range(count):
+            slip += slip_response[k, column] * state[column]
+        predicted[k] = slip
+    _wheel_speeds(count, predicted, ints, epsilon, vecs)
+    size = 0.0
+    for k in range(count):
+        residual[k] = state[k] + kinetic * state[count + ints[WHEEL_OF, k]] * predicted[k] / vecs[SIZES, k]
+        size = max(size, abs(residual[k]))
+    return size
+
+
+def _pressed_jacobian(count: int, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, kinetic: float,
+                      state: np.ndarray, predicted: np.ndarray, jacobian: np.ndarray) -> None:
+    """dr_f/df at the state ``_pressed_residual`` evaluated last (its speeds in vecs[SIZES]):
+    I + mu_k N_i d(w/s)/dw H + mu_k (w / s) G_i."""
+    load_response, slip_response = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE]
+    for k in range(count):
+        wheel, size = ints[WHEEL_OF, k], vecs[SIZES, k]
+        direction, force = predicted[k] / size, kinetic * state[count + ints[WHEEL_OF, k]]
+        for column in range(count):
+            turning = 0.0  # d(w_k/s)/dw_p within the wheel: (delta_kp - w_k w_p / s^2) / s
+            for p in range(ints[BLOCK_FIRST, k], ints[BLOCK_END, k]):
+                turning += ((1.0 if p == k else 0.0) - direction * predicted[p] / size) * slip_response[p, column]
+            jacobian[k, column] = ((1.0 if k == column else 0.0) + force * turning / size
+                                   + kinetic * direction * load_response[wheel, column])
+
+
+# Long on purpose, as _kinetic: the elimination and Newton's iteration share the workspace in one compiled frame.
+def _pressed_kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
+                     kinetic: float, epsilon: float, dt: float, adhesion: float, solution: np.ndarray) -> bool:
+    """``_kinetic``'s equations solved on the friction alone, from the friction in vecs[STATE], while every load stays
+    positive: N = N_0 + L qdd with qdd = a + D f + R N gives N = N_a + G f, (I - L R) N_a = N_0 + L a,
+    (I - L R) G = L D, and the predicted slip w = w_a + H f, H = dt J_S (D + R G); Newton's method with the same
+    halving line search on r_f(f) alone (the Schur complement of the whole Jacobian). Whether it solved them (f and N
+    into vecs[STATE], w into vecs[NEWTON_PREDICTED]); False where a load reached zero or below or a system was
+    singular, leaving ``_kinetic``'s scratch changed."""
+    system, factors, pivots = mats[JACOBIAN], mats[LU], ints[PIVOTS]
+    load_response, slip_response, gain = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE], mats[GAIN]
+    known, column_of = vecs[NEGATIVE], vecs[NEWTON_STEP]
+    for wheel in range(4):
+        for other in range(4):
+            system[wheel, other] = (1.0 if wheel == other else 0.0) - mats[LOAD_BY_LOAD, wheel, other]
+        known[wheel] = vecs[ORIGIN, wheel] + _dot(gain[wheel], responses[0], DOF)
+    if not _lu_factor(system, 4, factors, pivots):
+        return False
+    _lu_substitute(factors, pivots, 4, known, vecs[FREE_LOADS])
+    for column in range(count):  # G's columns: L D is -LOAD_BY_FRICTION
+        for wheel in range(4):
+            known[wheel] = -mats[LOAD_BY_FRICTION, wheel, column]
+        _lu_substitute(factors, pivots, 4, known, column_of)
+        for wheel in range(4):
+            load_response[wheel, column] = column_of[wheel]
+    slip_rows, free = mats[SLIP_ROWS], vecs[ACCELERATION]
+    for j in range(DOF):  # qdd at f = 0: a + R N_a
+        value = responses[0, j]
+        for wheel in range(4):
+            value += responses[1 + count + wheel, j] * vecs[FREE_LOADS, wheel]
+        free[j] = value
+    for k in range(count):
+        vecs[FREE_SLIP, k] = vecs[SLIP, k] + dt * (_dot(slip_rows[k], free, DOF) + vecs[DRIFT, k])
+        for column in range(count):
+            value = mats[SLIP_BY_FRICTION, k, column]
+            for wheel in range(4):
+                value += mats[SLIP_BY_LOAD, k, wheel] * load_response[wheel, column]
+            slip_response[k, column] = value
+    state, predicted, residual = vecs[STATE], vecs[NEWTON_PREDICTED], vecs[RESIDUALS]
+    trial, trial_predicted, trial_residual = vecs[TRIAL_STATE], vecs[TRIAL_PREDICTED], vecs[TRIAL_RESIDUALS]
+    jacobian, step, negative = mats[TRIAL_JACOBIAN], vecs[NEWTON_STEP], vecs[NEGATIVE]
+    size = _pressed_residual(count, mats, vecs, ints, kinetic, epsilon, state, predicted, residual)
+    if size < 0.0:
+        return False
+    for _ in range(NEWTON_ITERATIONS):
+        if size <= NEWTON_TOLERANCE * adhesion:
+            solution[STATUS, NEWTON_RESIDUAL] = size
+            return True
+        _pressed_jacobian(count, mats, vecs, ints, kinetic, state, predicted, jacobian)
+        for k in range(count):
+            negative[k] = -residual[k]
+        if not _lu_factor(jacobian, count, factors, pivots):
+            return False
+        _lu_substitute(factors, pivots, count, negative, step)
+        scale = 1.0
+        while True:
+            for k in range(count):
+                trial[k] = state[k] + scale * step[k]
+            trial_size = _pressed_residual(count, mats, vecs, ints, kinetic, epsilon, trial, trial_predicted,
+                                           trial_residual)
+            if trial_size < 0.0:
+                return False
+            if trial_size < size or scale < 1e-6:
+                break
+            scale *= 0.5
+        for i in range(count + 4):
+            state[i] = trial[i]
+        for k in range(count):
+            predicted[k], residual[k] = trial_predicted[k], trial_residual[k]
+        size = trial_size
+    return False
+
+
 _contact_row = jit(_contact_row, inline="always")
 _normal_loads = jit(_normal_loads, inline="always")
 _load_gain = jit(_load_gain, inline="always")
 _wheel_speeds = jit(_wheel_speeds, inline="always")
 _affine_acceleration = jit(_affine_acceleration, inline="always")
 _kinetic_equations = jit(_kinetic_equations)
+_pressed_residual = jit(_pressed_residual, inline="always")
+_pressed_jacobian = jit(_pressed_jacobian, inline="always")
+_pressed_kinetic = jit(_pressed_kinetic)
 _kinetic = jit(_kinetic)

@@ -296,11 +296,10 @@ def _dot(a: np.ndarray, b: np.ndarray, size: int) -> float:
     return value
 
 
-def _lu_solve(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.ndarray, rhs: np.ndarray,
-              out: np.ndarray) -> bool:
-    """out = matrix^-1 rhs by LU with partial pivoting (LAPACK's dgesv); False where a pivot is exactly 0 (singular)."""
+def _lu_factor(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.ndarray) -> bool:
+    """P matrix = L U into ``factors`` (L's multipliers below the diagonal) by partial pivoting (LAPACK's dgetrf),
+    each step's pivot row in ``pivots``; False where a pivot is exactly 0 (singular)."""
     for i in range(size):
-        out[i] = rhs[i]
         for j in range(size):
             factors[i, j] = matrix[i, j]
     for k in range(size):
@@ -314,18 +313,38 @@ def _lu_solve(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.nda
         if best != k:
             for j in range(size):
                 factors[k, j], factors[best, j] = factors[best, j], factors[k, j]
-            out[k], out[best] = out[best], out[k]
         for i in range(k + 1, size):
             scale = factors[i, k] / factors[k, k]
             factors[i, k] = scale
             for j in range(k + 1, size):
                 factors[i, j] -= scale * factors[k, j]
-            out[i] -= scale * out[k]
+    return True
+
+
+def _lu_substitute(factors: np.ndarray, pivots: np.ndarray, size: int, rhs: np.ndarray, out: np.ndarray) -> None:
+    """out = matrix^-1 rhs from ``_lu_factor``'s factors and pivots (LAPACK's dgetrs)."""
+    for i in range(size):
+        out[i] = rhs[i]
+    for k in range(size):  # the rows' swaps first: a later swap moved the multipliers of the earlier columns too
+        best = pivots[k]
+        if best != k:
+            out[k], out[best] = out[best], out[k]
+    for k in range(size):
+        for i in range(k + 1, size):
+            out[i] -= factors[i, k] * out[k]
     for i in range(size - 1, -1, -1):
         value = out[i]
         for j in range(i + 1, size):
             value -= factors[i, j] * out[j]
         out[i] = value / factors[i, i]
+
+
+def _lu_solve(matrix: np.ndarray, size: int, factors: np.ndarray, pivots: np.ndarray, rhs: np.ndarray,
+              out: np.ndarray) -> bool:
+    """out = matrix^-1 rhs by LU with partial pivoting (LAPACK's dgesv); False where a pivot is exactly 0 (singular)."""
+    if not _lu_factor(matrix, size, factors, pivots):
+        return False
+    _lu_substitute(factors, pivots, size, rhs, out)
     return True
 
 
@@ -344,4 +363,6 @@ _full_rank_solve = jit(_full_rank_solve, inline="always")
 _scratch = jit(_scratch)
 _accelerations = jit(_accelerations)
 _dot = jit(_dot, inline="always")
+_lu_factor = jit(_lu_factor, inline="always")
+_lu_substitute = jit(_lu_substitute, inline="always")
 _lu_solve = jit(_lu_solve)
