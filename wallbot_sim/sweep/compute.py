@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterator, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
@@ -218,21 +218,26 @@ def _tabulated_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         yield RobotRun(reduced.run(robot))
 
 
-_SAMPLES: dict[tuple, ReferenceRows] = {}
-"""The reference's samples of the blocks this process computed, for the sweep's next chunk on it (a sweep's chunks
-share their scenario: sampling it in Python costs about 20 us a step)."""
+_SAMPLES: dict[tuple, ReferenceRows | np.ndarray] = {}
+"""The reference's samples of the blocks and runs this process computed, for the sweep's next chunk on it (a
+sweep's chunks share their scenario: sampling it in Python costs about 20 us a step)."""
 
 
-def _shared_samples(simulation: Simulation, count: int) -> ReferenceRows:
-    """``simulation.sample_reference(count)``, from ``_SAMPLES`` where a chunk before sampled the same reference
-    (equal by value) at the same instants; only one reference's samples are kept."""
-    key = (simulation.reference, simulation.dt, simulation.t, simulation.steps, count)
+def _shared(key: tuple, sample: Callable[[], ReferenceRows | np.ndarray]) -> ReferenceRows | np.ndarray:
+    """``sample()``, from ``_SAMPLES`` where a chunk before sampled the same reference (equal by value) at the same
+    instants (``key``: the reference, dt, then what says the instants); only one reference's samples are kept."""
     sampled = _SAMPLES.get(key)
     if sampled is None:
         if any(kept[:2] != key[:2] for kept in _SAMPLES):
             _SAMPLES.clear()
-        sampled = _SAMPLES[key] = simulation.sample_reference(count)
+        sampled = _SAMPLES[key] = sample()
     return sampled
+
+
+def _shared_samples(simulation: Simulation, count: int) -> ReferenceRows:
+    """``simulation.sample_reference(count)``, shared (``_shared``)."""
+    return _shared((simulation.reference, simulation.dt, simulation.t, simulation.steps, count),
+                   lambda: simulation.sample_reference(count))
 
 
 def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
@@ -265,6 +270,9 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
         kernel.numba.set_num_threads(1)
     try:
         if simulation.runs_held:  # the steps between the controller's instants in one kernel call each
+            sampled = _shared((simulation.reference, simulation.dt, 'run', simulation.initial_time, settings.steps),
+                              lambda: kernel.reference_samples(simulation.reference, simulation.initial_time, 0,
+                                                               settings.steps, simulation.dt))
             step = 0
             while True:
                 on_step(simulation.outputs())
@@ -272,7 +280,7 @@ def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
                     break
                 most = min(settings.steps - step, HELD_MOST)
                 held = most if loop is None else loop.instants_until_due(simulation, most)
-                rows.add_table(simulation.run_held(held))
+                rows.add_table(simulation.run_held(held, sampled[step:step + held]))
                 step += held
         else:
             simulation.run(settings.steps, on_step)
