@@ -21,6 +21,7 @@ LONG_KERNEL_FUNCTIONS = {
     f'{KERNEL}/boundary.py:_boundary': 'a stick/slip set solved at a boundary in one compiled frame',
     f'{KERNEL}/friction.py:_kinetic_equations': "Newton's residual and Jacobian in one pass, at every trial step",
     f'{KERNEL}/friction.py:_kinetic': "Newton's iteration and line search in one compiled frame",
+    f'{KERNEL}/friction.py:_pressed_kinetic': "the loads' elimination and Newton's iteration in one compiled frame",
     f'{KERNEL}/linalg.py:_rank_revealing': "the rank-revealing least squares' stages share one frame's scratch",
     f'{KERNEL}/settle.py:_settle': "a round of stick/slip transitions keeps its sets in one compiled frame",
 }
