@@ -293,17 +293,21 @@ def _pressed_residual(count: int, mats: np.ndarray, vecs: np.ndarray, ints: np.n
 def _pressed_jacobian(count: int, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray, kinetic: float,
                       state: np.ndarray, predicted: np.ndarray, jacobian: np.ndarray) -> None:
     """dr_f/df at the state ``_pressed_residual`` evaluated last (its speeds in vecs[SIZES]):
-    I + mu_k N_i d(w/s)/dw H + mu_k (w / s) G_i."""
-    load_response, slip_response = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE]
+    I + mu_k N_i d(w/s)/dw H + mu_k (w / s) G_i, with d(w_k/s)/dw = (e_k - (w_k/s) w^T/s) / s within the wheel."""
+    load_response, slip_response, directions = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE], vecs[DIRECTIONS]
     for k in range(count):
-        wheel, size = ints[WHEEL_OF, k], vecs[SIZES, k]
-        direction, force = predicted[k] / size, kinetic * state[count + ints[WHEEL_OF, k]]
+        directions[k] = predicted[k] / vecs[SIZES, k]
+    for k in range(count):
+        wheel, direction = ints[WHEEL_OF, k], directions[k]
+        pressing = kinetic * state[count + wheel] / vecs[SIZES, k]  # mu_k N_i / s
+        first, end = ints[BLOCK_FIRST, k], ints[BLOCK_END, k]
         for column in range(count):
-            turning = 0.0  # d(w_k/s)/dw_p within the wheel: (delta_kp - w_k w_p / s^2) / s
-            for p in range(ints[BLOCK_FIRST, k], ints[BLOCK_END, k]):
-                turning += ((1.0 if p == k else 0.0) - direction * predicted[p] / size) * slip_response[p, column]
-            jacobian[k, column] = ((1.0 if k == column else 0.0) + force * turning / size
+            along = 0.0  # the slip's response along the wheel's slip direction
+            for p in range(first, end):
+                along += directions[p] * slip_response[p, column]
+            jacobian[k, column] = (pressing * (slip_response[k, column] - direction * along)
                                    + kinetic * direction * load_response[wheel, column])
+        jacobian[k, k] += 1.0
 
 
 # Long on purpose, as _kinetic: the elimination and Newton's iteration share the workspace in one compiled frame.
