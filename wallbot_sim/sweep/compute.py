@@ -51,7 +51,10 @@ OUTPUT_UNITS = {
 }
 """The unit of each output ('-': a ratio; the residual |A qdd - b| mixes the rows' accelerations)."""
 BLOCK = 2048
-"""Instants of a chunk's robots held at once before they are reduced to the rows deciding their results."""
+"""Instants of a robot held at once before they are reduced to the rows deciding its results (simulate's blocks)."""
+BATCH_BLOCK = 256
+"""Instants of a batch chunk's robots held at once before they are reduced: 100 robots' rows are then 10 MB (at
+2048 instants, 80 MB, a coulomb chunk of 100 robots x 10 s took some 78,000 page faults, at 256 a dozen)."""
 HELD_MOST = 128
 """Steps of a chunk's robots in one kernel call at held motor torques at most (``BatchSimulation.run_held``)."""
 FEASIBLE_USE = NumberRange(high=1.0)
@@ -241,7 +244,7 @@ def _shared_samples(simulation: Simulation, count: int) -> ReferenceRows:
 
 
 def _batch_runs(settings: RunSettings, robots: Sequence[RobotParameters],
-                block_size: int = BLOCK) -> Iterator[RobotRun]:
+                block_size: int = BATCH_BLOCK) -> Iterator[RobotRun]:
     """Every robot's run on the batch core (the compiled engine where numba is installed), under the example
     controller if asked, reduced ``block_size`` instants at a time to the rows deciding its results row
     (``reduce.DecidingRows``) of its rows up to its lift-off instant, as simulate writes them."""

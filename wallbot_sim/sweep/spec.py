@@ -47,7 +47,7 @@ SETTINGS = ('scenario', 'constraints', 'tangent_heading', 'contact', 'duration',
 VARIATION = ('grid', 'vary', 'samples', 'seed')
 CHUNK_ROBOT_STEPS = 1_200_000
 """Robot-steps of a chunk by default: the work of one task, what a Ctrl-C loses at most per worker (its memory
-is ``compute.BLOCK`` instants of its robots at most, whatever their duration)."""
+is ``compute.BLOCK`` or ``compute.BATCH_BLOCK`` instants of its robots at most, whatever their duration)."""
 MAX_CHUNK_SIZE = 250
 ROBOT_KEYS = tuple(f.name for f in fields(RobotParameters) if f.name not in OPTIONAL_BLOCKS)
 
