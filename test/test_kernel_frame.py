@@ -10,7 +10,7 @@ import pytest
 
 from batch_helpers import minimum_norm_motion, random_robots
 from wallbot_sim.model.batch import kernel
-from wallbot_sim.model.batch.kernel import dynamics, frame, layout, problem
+from wallbot_sim.model.batch.kernel import dynamics, frame, friction, layout, problem
 from wallbot_sim.model.batch.robots import RobotBatch
 from wallbot_sim.model.robot import DOF
 
@@ -75,3 +75,52 @@ def assert_motion(out: np.ndarray, factor: np.ndarray, force: np.ndarray, rows: 
     expected = minimum_norm_motion(factor, force, rows, rhs)
     scale = max(np.max(np.abs(factor @ (factor.T @ force))), np.max(np.abs(expected)))
     assert np.allclose(out, expected, rtol=0.0, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize('active', [('belt', 'non_lateral', 'nonslip'), ('tangent_heading', 'belt', 'nonslip'),
+                                    ('trajectory', 'belt', 'nonslip')])
+def test_the_sliding_components_responses_and_newtons_blocks_kept_per_set_are_the_worlds(active):
+    """Each sliding component's response and Newton's blocks dt J_S D and -L D, from the set's body-axes constants
+    kept while it holds (every set twice, robot after robot), are the world's: the minimum-norm motion under the
+    component's unit force J_S^T e_k, and J_S(theta), L(theta) times it, to 1e-9 of their size. With the trajectory
+    task they are left to the caller."""
+    rng = np.random.default_rng(12)
+    robots = random_robots(rng, 2)
+    constants = kernel.robot_constants(RobotBatch(robots), np.full(2, 10.0), np.full(2, 20.0))
+    flags, _ = kernel.module_flags(active)
+    mats, _, ints, *_ = layout._contact_workspace()
+    reference, dt = rng.normal(size=dynamics.REFERENCE_FIELDS), 1e-3
+    directions = [direction for direction in range(2) if flags[layout.HELD_BY[direction]]]
+    sets = [np.array(bits, dtype=np.bool_) for bits in itertools.product((False, True), repeat=4)]
+    for robot in range(2):
+        contact = kernel.contact_constants(robots[robot])
+        frame._forget_frame(ints)
+        for sticking in sets + sets[::-1]:
+            y = rng.normal(size=2 * DOF)
+            y[2] = rng.uniform(-np.pi, np.pi)
+            components = [(wheel, direction) for wheel in range(4) if not sticking[wheel] for direction in directions]
+            for k, (wheel, direction) in enumerate(components):
+                ints[layout.WHEEL_OF, k], ints[layout.DIRECTION_OF, k] = wheel, direction
+            count, rows, rhs, factor, force = world_problem(constants[robot], flags, y, reference, sticking)
+            frame._frame_rows(y[:DOF], y[DOF:], reference, flags, constants[robot], sticking, rows, factor, count,
+                              mats, ints)
+            responses = np.full((layout.COLUMNS, DOF), np.nan)
+            kept = frame._sliding_responses(np.cos(y[2]), np.sin(y[2]), flags, constants[robot], contact, dt,
+                                            len(components), mats, ints, responses)
+            assert kept == (not flags[layout.TRAJECTORY])
+            if not kept:
+                continue
+            slip_rows, gain = np.zeros((len(components), DOF)), np.zeros((4, DOF))
+            for k, (wheel, direction) in enumerate(components):
+                friction._contact_row(np.cos(y[2]), np.sin(y[2]), constants[robot], wheel, direction, slip_rows[k])
+            friction._load_gain(y[2], constants[robot], contact, gain)
+            expected = np.array([minimum_norm_motion(factor, row, rows[:count], np.zeros(count))
+                                 for row in slip_rows]).reshape(-1, DOF)
+            scale = np.max(np.abs(factor @ factor.T))
+            assert np.allclose(responses[1:1 + len(components)], expected, rtol=0.0, atol=1e-9 * scale)
+            size = len(components)
+            assert np.allclose(mats[layout.SLIP_BY_FRICTION, :size, :size], dt * slip_rows @ expected.T, rtol=0.0,
+                               atol=1e-9 * dt * scale)
+            load_scale = scale * np.max(np.abs(gain))
+            assert np.allclose(mats[layout.LOAD_BY_FRICTION, :4, :size], -gain @ expected.T, rtol=0.0,
+                               atol=1e-9 * load_scale)

@@ -7,8 +7,10 @@ B = A(theta) T W(0) = A(0) W(0) depends on the sticking set alone. The Udwadia-K
 factor of M^-1 (replacing W by W U, U orthogonal, gives (B U)+ = U^T B+), so qdd = T W(0) (s + B+ (b - B s)),
 s = W(0)^T T^T Q: the force turned into the body axes, the constant problem solved, the motion turned back. A
 force's response with b = 0 (a sliding component's, a load's) is then a constant matrix's product, T P T^T f with
-P = W(0) (I - B+ B) W(0)^T, kept with the set's factorization. The trajectory task's rows are fixed in the world
-instead: with it the world's rows are factored at every solve.
+P = W(0) (I - B+ B) W(0)^T, kept with the set's factorization. The sliding wheels' contact rows and the loads' gain
+turn the same way (J_S = J_S(0) T^T, L = L(0) T^T), so the friction's responses T P J_S(0)^T and Newton's blocks
+dt J_S D = dt J_S(0) P J_S(0)^T and L D = L(0) P J_S(0)^T are the set's constants too. The trajectory task's rows
+are fixed in the world instead: with it the world's rows are factored at every solve.
 """
 
 from __future__ import annotations
@@ -16,20 +18,23 @@ from __future__ import annotations
 import numpy as np
 
 from wallbot_sim.model.batch.kernel.compiling import jit
+from wallbot_sim.model.batch.kernel.friction import _contact_row, _load_gain
 from wallbot_sim.model.batch.kernel.layout import (
-    FRAME, FRAME_FACTOR, FRAME_GRAM, FRAME_MATRIX, FRAME_PROJECTION, FRAME_ROWS, FRAME_SCRATCH, ROW_FACTOR,
-    ROW_KEPT, ROW_ORDER, ROW_SYSTEM, TRAJECTORY)
+    DIRECTION_OF, FRAME, FRAME_FACTOR, FRAME_GRAM, FRAME_MATRIX, FRAME_PROJECTION, FRAME_ROWS, FRAME_SCRATCH,
+    LOAD_BY_FRICTION, ROW_FACTOR, ROW_KEPT, ROW_ORDER, ROW_SYSTEM, SLIDING_MOTION, SLIP_BY_FRICTION, TRAJECTORY,
+    WHEEL_OF)
 from wallbot_sim.model.batch.kernel.problem import _factor_of, _module_rows
 from wallbot_sim.model.batch.kernel.row_space import _prepare_rows, _projected
 from wallbot_sim.model.robot import DOF
 
-KEY, RANK = range(2)
-"""ints[FRAME]: the sticking set whose rows are factored (0: none, else 1 + its wheels as bits), their rank."""
+KEY, RANK, SLID = range(3)
+"""ints[FRAME]: the sticking set whose rows are factored (0: none, else 1 + its wheels as bits), their rank, and the
+set whose sliding components' responses and blocks are kept (``_sliding_responses``)."""
 
 
 def _forget_frame(ints: np.ndarray) -> None:
     """No set factored: the workspace's next robot, whose constants differ, factors its own."""
-    ints[FRAME, KEY] = 0
+    ints[FRAME, KEY] = ints[FRAME, SLID] = 0
 
 
 def _into_body(cos_t: float, sin_t: float, force: np.ndarray, out: np.ndarray) -> None:
@@ -122,9 +127,50 @@ def _frame_responses(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.n
         _into_world(cos_t, sin_t, motion)
 
 
+def _sliding_responses(cos_t: float, sin_t: float, flags: np.ndarray, constants: np.ndarray, contact: np.ndarray,
+                       dt: float, sliders: int, mats: np.ndarray, ints: np.ndarray, responses: np.ndarray) -> bool:
+    """After ``_frame_rows``, in the body axes: each sliding component's response (D's columns, T P J_S(0)^T) into
+    ``responses[1..sliders]`` and Newton's blocks dt J_S D and -L D into mats[SLIP_BY_FRICTION] and
+    mats[LOAD_BY_FRICTION], those computed once while the set holds (its components in ints[WHEEL_OF],
+    ints[DIRECTION_OF]). False with the trajectory task: the caller computes them in the world's axes."""
+    if flags[TRAJECTORY]:
+        return False
+    kept, scratch = mats[SLIDING_MOTION], mats[FRAME_SCRATCH]
+    if ints[FRAME, SLID] != ints[FRAME, KEY]:
+        projection, gain = mats[FRAME_PROJECTION], scratch[:4]
+        _load_gain(0.0, constants, contact, gain)  # L(0); J_S(0)'s rows in scratch[8:]
+        for k in range(sliders):
+            row = scratch[8 + k]
+            _contact_row(1.0, 0.0, constants, ints[WHEEL_OF, k], ints[DIRECTION_OF, k], row)
+            for i in range(DOF):
+                value = 0.0
+                for j in range(DOF):
+                    value += projection[i, j] * row[j]
+                kept[k, i] = value
+        for column in range(sliders):
+            for k in range(sliders):
+                value = 0.0
+                for j in range(DOF):
+                    value += scratch[8 + k, j] * kept[column, j]
+                mats[SLIP_BY_FRICTION, k, column] = dt * value
+            for wheel in range(4):
+                value = 0.0
+                for j in range(DOF):
+                    value += -gain[wheel, j] * kept[column, j]
+                mats[LOAD_BY_FRICTION, wheel, column] = value
+        ints[FRAME, SLID] = ints[FRAME, KEY]
+    for k in range(sliders):
+        motion = responses[1 + k]
+        for i in range(DOF):
+            motion[i] = kept[k, i]
+        _into_world(cos_t, sin_t, motion)
+    return True
+
+
 _forget_frame = jit(_forget_frame, inline="always")
 _into_body = jit(_into_body, inline="always")
 _into_world = jit(_into_world, inline="always")
 _frame_rows = jit(_frame_rows)
 _frame_solve = jit(_frame_solve, inline="always")
 _frame_responses = jit(_frame_responses)
+_sliding_responses = jit(_sliding_responses)

@@ -163,17 +163,17 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
 # blocks, the state and the trial arrays stay local to the loop instead of being passed through calls.
 def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
              kinetic: float, epsilon: float, dt: float, start: np.ndarray, held: np.ndarray, adhesion: float,
-             solution: np.ndarray) -> int:
+             solution: np.ndarray, known: bool) -> int:
     """The sliding components' friction f (count) and the loads N (4) solving the boundary's equations, by Newton's
     method with a halving line search from the ``start`` loads and the ``held`` friction (8,: each wheel's (f_x, f_y),
     zero where it did not slide) (``consistent_friction``): f and N into vecs[STATE],
     the predicted slip into vecs[NEWTON_PREDICTED]; an error code (``CONTACT_ERRORS``), the residual it stopped
-    at in solution[STATUS, NEWTON_RESIDUAL]."""
+    at in solution[STATUS, NEWTON_RESIDUAL]. ``known``: the blocks dt J_S D and -L D are in mats already."""
     size_of = count + 4
     slip_rows, gain = mats[SLIP_ROWS], mats[GAIN]
     # the blocks of the Jacobian that do not change: dt J_S D, dt J_S R, -L D, L R
     for k in range(count):
-        for column in range(count):
+        for column in range(0 if known else count):
             value = 0.0
             for j in range(DOF):
                 value += slip_rows[k, j] * responses[1 + column, j]
@@ -184,7 +184,7 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
                 value += slip_rows[k, j] * responses[1 + count + wheel, j]
             mats[SLIP_BY_LOAD, k, wheel] = dt * value
     for wheel in range(4):
-        for column in range(count):
+        for column in range(0 if known else count):
             value = 0.0
             for j in range(DOF):
                 value += -gain[wheel, j] * responses[1 + column, j]

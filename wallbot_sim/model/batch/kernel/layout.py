@@ -56,12 +56,13 @@ COLUMNS = 1 + 8 + 4
 """A boundary's right-hand sides at most: the forces, each sliding component's unit force, each wheel's unit load."""
 (JACOBIAN, TRIAL_JACOBIAN, LU, SLIP_ROWS, GAIN, SLIP_BY_FRICTION, SLIP_BY_LOAD, LOAD_BY_FRICTION, LOAD_BY_LOAD,
  BY_SLIP, STUCK_ROWS, MADE, SPLIT, SPLIT_LOWER, ROW_SYSTEM, ROW_FACTOR, PROJECTION, FRAME_ROWS, FRAME_FACTOR,
- FRAME_MATRIX, FRAME_GRAM, FRAME_PROJECTION, FRAME_SCRATCH, LOAD_RESPONSE, SLIP_RESPONSE) = range(25)
+ FRAME_MATRIX, FRAME_GRAM, FRAME_PROJECTION, FRAME_SCRATCH, SLIDING_MOTION, LOAD_RESPONSE, SLIP_RESPONSE) = range(26)
 """``_contact_workspace``'s matrices (16 x 16 each): the Newton Jacobian, its trial and LU factors; J_S, L, the
 constant blocks dt J_S D, dt J_S R, -L D, L R and the Newton step's d(f mu N w / s)/dw; the sticking rows, the
 split's U^T J^T, its weighted system and factor; the scratch of B B^T's pivoted factorization and that factor
 (``_prepare_rows``); the rows of a projection; the rows the solves use, in the body axes (``frame``), their
-factor W of M^-1, B = A W, B B^T, the motion's response to a force W (I - B+ B) W^T, and scratch rows; the loads'
+factor W of M^-1, B = A W, B B^T, the motion's response to a force W (I - B+ B) W^T, scratch rows, and the
+sliding components' responses P J_S^T in the body axes (``_sliding_responses``); the loads'
 and the predicted slip's responses to the friction with the loads eliminated, G and H (``_pressed_kinetic``)."""
 (STATE, TRIAL_STATE, NEWTON_STEP, RESIDUALS, TRIAL_RESIDUALS, NEWTON_PREDICTED, TRIAL_PREDICTED, SIZES,
  DIRECTIONS, PRESSED, SQUARES, SLIP, DRIFT, ORIGIN, ACCELERATION, TOTAL, REDUCED, SPLIT_X, ROW_LOADS, ZERO,
