@@ -11,6 +11,7 @@ from typing import Protocol, Sequence
 
 import numpy as np
 
+from wallbot_sim.model.batch import kernel
 from wallbot_sim.model.batch.constraints import BatchGains, build_batch_modules
 from wallbot_sim.model.batch.contact import drive_forces
 from wallbot_sim.model.batch.robots import RobotBatch
@@ -47,8 +48,11 @@ class BatchTrackingController:
         self.max_wheel_torque = max_wheel_torque
         size = self.robots.size
         baumgarte = BatchGains(np.full(size, float(gains.alpha)), np.full(size, float(gains.beta)))
-        self.modules = build_batch_modules(ConstraintSelection.structural(trajectory=False), self.robots, None,
-                                           baumgarte)
+        selection = ConstraintSelection.structural(trajectory=False)
+        self.modules = build_batch_modules(selection, self.robots, None, baumgarte)
+        if kernel.available():  # the inverse dynamics robot by robot in the kernel (kernel.tracking_force)
+            self._flags = kernel.module_flags(selection.active_names())[0]
+            self._constants = kernel.robot_constants(self.robots, baumgarte.alpha, baumgarte.beta)
         self.error_integral = np.zeros((size, 2))
         self.next_due_ns: int | None = None
 
@@ -103,7 +107,14 @@ class BatchTrackingController:
         return np.where(finite[:, None], np.clip(requested, -limit, limit), 0.0)
 
     def _constraint_force(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Q_c (N, 7) of the controller's robots under the driven set and the look-ahead point task."""
+        """Q_c (N, 7) of the controller's robots under the driven set and the look-ahead point task (the kernel's
+        ``batch_tracking_forces`` where numba is installed, as the single robot's ``CompiledInverseDynamics``)."""
+        if kernel.available():
+            out = np.empty(q.shape)
+            point = np.array(point_reference(self.reference.sample(t), self.gains.look_ahead)[:3])
+            kernel.batch_tracking_forces(np.concatenate((q, qd), axis=1), point, self._flags, self._constants,
+                                         float(self.gains.look_ahead), out)
+            return out
         parts = [module.rows(t, q, qd) for module in self.modules] + [self._look_ahead_rows(t, q, qd)]
         rows = np.concatenate([part[0] for part in parts], axis=1)
         rhs = np.concatenate([part[1] for part in parts], axis=1)
