@@ -91,3 +91,20 @@ def test_commands_come_at_the_control_rate_and_are_clamped():
     torques = loop.command(0, q, qd)
     assert np.all(np.abs(torques) <= 0.5) and np.any(np.abs(torques) == 0.5)
     assert not loop.due(4_000_000) and loop.due(5_000_000)
+
+
+@pytest.mark.skipif(not kernel.available(), reason='numba is not installed')
+def test_the_compiled_inverse_dynamics_is_numpys_batched_solve(monkeypatch):
+    """The controller's constraint force robot by robot in the kernel equals the NumPy batched solve (the path
+    without numba) at random states of robots with their masses scaled, to 1e-9 of its size."""
+    rng = np.random.default_rng(5)
+    base = load_robot_parameters()
+    robots = [controller_robot(base.replace(body_mass=float(rng.uniform(6.0, 12.0))), float(rng.uniform(0.7, 1.3)))
+              for _ in range(5)]
+    loop = BatchTrackingController(robots, load_scenario('figure8').reference, ControllerGains(), CONTROL_RATE_HZ,
+                                   MAX_WHEEL_TORQUE)
+    q, qd = rng.normal(size=(5, 7)), rng.normal(size=(5, 7))
+    compiled = loop._constraint_force(1.3, q, qd)
+    monkeypatch.setattr(kernel, 'available', lambda: False)
+    batched = loop._constraint_force(1.3, q, qd)
+    assert np.allclose(compiled, batched, rtol=0.0, atol=1e-9 * np.max(np.abs(batched)))
