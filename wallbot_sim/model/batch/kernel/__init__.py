@@ -26,13 +26,13 @@ cores, and ``batch_contact_run`` a batch's chunk of steps at held torques. They 
 1e-9 (``test/test_compiled_contact.py``, ``test/test_batch_contact.py``).
 
 The package is split by concern: ``problem`` (a robot's Q, W and constraint rows at a state), ``dynamics`` (the
-derivative and RK4 step, ``robot_run``, ``tracking_force`` and a batch's ``batch_tracking_forces``), ``outputs`` (the outputs of a run's instants with ideal
-contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own space), ``frame`` (coulomb's solves in the
-body axes, a stick/slip set's rows factored once), ``layout`` (the contact arrays'
-layout and tolerances), ``friction`` (the contact rows, loads and Newton's kinetic friction),
-``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the steps from a boundary, the
-runs); ``compiling`` compiles them into numba's cache under one stamp of the whole package. numba is optional:
-``available()`` says whether it imported.
+derivative and RK4 step, ``robot_run``, ``tracking_force`` and a batch's ``batch_tracking_forces``), ``outputs`` (the
+outputs of a run's instants with ideal contact), ``linalg`` (the solves), ``row_space`` (the solve in the rows' own
+space), ``frame`` (coulomb's solves in the body axes: a stick/slip set's rows, responses and Newton's blocks kept
+while it holds), ``layout`` (the contact arrays' layout and tolerances), ``friction`` (the contact rows, loads and
+Newton's kinetic friction), ``boundary`` (one stick/slip set's solve and split) and ``settle`` (the transitions, the
+steps from a boundary, the runs); ``compiling`` compiles them into numba's cache under one stamp of the whole
+package. numba is optional: ``available()`` says whether it imported.
 """
 
 from __future__ import annotations
@@ -56,7 +56,8 @@ from wallbot_sim.model.batch.robots import RobotBatch
 
 __all__ = [
     'available', 'numba', 'HELD_BY', 'MAX_ROWS', 'MODULE_ORDER', 'MODULE_ROWS', 'REFERENCE_FIELDS', 'reference_samples',
-    'robot_run', 'tracking_force', 'batch_tracking_forces', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES', 'FRICTION', 'LOADS',
+    'robot_run', 'tracking_force', 'batch_tracking_forces', 'CONSTRAINT', 'CONTACT_ERRORS', 'FAILED', 'FORCES',
+    'FRICTION', 'LOADS',
     'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
     'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',
     'batch_contact_settle', 'batch_contact_step', 'batch_contact_run', 'ideal_outputs', 'DETACHED', 'DIVERGED']

@@ -135,9 +135,10 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
     rank = _frame_rows(q, qd, reference, flags, constants, sticking, rows, factor, count, mats, ints)
     _responded(cos_t, sin_t, flags, factor, unloaded, rhs, True, count, rank, rows, matrix, gram, lower, vectors,
                scratch, mats, ints, zero, responses[0])
-    known = _sliding_responses(cos_t, sin_t, flags, constants, contact, dt, sliders, mats, ints, responses)
-    _frame_responses(cos_t, sin_t, flags, factor, columns, 1 + sliders if known else 1, 1 + sliders + 4, count, rank,
-                     mats, ints, vectors, responses)  # b = 0: consistent
+    kept_blocks = _sliding_responses(cos_t, sin_t, flags, constants, contact, dt, sliders, mats, ints, responses)
+    first = 1 + sliders if kept_blocks else 1  # the loads' responses, and the sliders' unless kept
+    _frame_responses(cos_t, sin_t, flags, factor, columns, first, 1 + sliders + 4, count, rank, mats, ints, vectors,
+                     responses)  # b = 0: consistent
     _normal_loads(q, qd, zero, constants, contact, True, vecs[ORIGIN])
     _load_gain(theta, constants, contact, mats[GAIN])
     v_long, v_lat = cos_t * qd[0] + sin_t * qd[1], -sin_t * qd[0] + cos_t * qd[1]
@@ -145,7 +146,7 @@ def _boundary(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants
         vecs[SLIP, k] = _dot(slip_rows[k], qd, DOF)
         vecs[DRIFT, k] = thd * v_lat if direction_of[k] == 0 else -thd * v_long
     error = _kinetic(sliders, responses, mats, vecs, ints, contact[KINETIC], math.sqrt(eps2), dt, start, held,
-                     contact[ADHESION], solution, known)
+                     contact[ADHESION], solution, kept_blocks)
     solution[STATUS, ERROR] = error
     if error != SOLVED:
         return error

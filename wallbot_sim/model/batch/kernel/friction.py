@@ -163,17 +163,17 @@ def _kinetic_equations(count: int, responses: np.ndarray, mats: np.ndarray, vecs
 # blocks, the state and the trial arrays stay local to the loop instead of being passed through calls.
 def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarray, ints: np.ndarray,
              kinetic: float, epsilon: float, dt: float, start: np.ndarray, held: np.ndarray, adhesion: float,
-             solution: np.ndarray, known: bool) -> int:
+             solution: np.ndarray, kept_blocks: bool) -> int:
     """The sliding components' friction f (count) and the loads N (4) solving the boundary's equations, by Newton's
     method with a halving line search from the ``start`` loads and the ``held`` friction (8,: each wheel's (f_x, f_y),
     zero where it did not slide) (``consistent_friction``): f and N into vecs[STATE],
     the predicted slip into vecs[NEWTON_PREDICTED]; an error code (``CONTACT_ERRORS``), the residual it stopped
-    at in solution[STATUS, NEWTON_RESIDUAL]. ``known``: the blocks dt J_S D and -L D are in mats already."""
+    at in solution[STATUS, NEWTON_RESIDUAL]. ``kept_blocks``: the blocks dt J_S D and -L D are in mats already."""
     size_of = count + 4
     slip_rows, gain = mats[SLIP_ROWS], mats[GAIN]
     # the blocks of the Jacobian that do not change: dt J_S D, dt J_S R, -L D, L R
     for k in range(count):
-        for column in range(0 if known else count):
+        for column in range(0 if kept_blocks else count):
             value = 0.0
             for j in range(DOF):
                 value += slip_rows[k, j] * responses[1 + column, j]
@@ -184,7 +184,7 @@ def _kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: np.ndarr
                 value += slip_rows[k, j] * responses[1 + count + wheel, j]
             mats[SLIP_BY_LOAD, k, wheel] = dt * value
     for wheel in range(4):
-        for column in range(0 if known else count):
+        for column in range(0 if kept_blocks else count):
             value = 0.0
             for j in range(DOF):
                 value += -gain[wheel, j] * responses[1 + column, j]
@@ -321,18 +321,18 @@ def _pressed_kinetic(count: int, responses: np.ndarray, mats: np.ndarray, vecs: 
     singular, leaving ``_kinetic``'s scratch changed."""
     system, factors, pivots = mats[JACOBIAN], mats[LU], ints[PIVOTS]
     load_response, slip_response, gain = mats[LOAD_RESPONSE], mats[SLIP_RESPONSE], mats[GAIN]
-    known, column_of = vecs[NEGATIVE], vecs[NEWTON_STEP]
+    right_side, column_of = vecs[NEGATIVE], vecs[NEWTON_STEP]
     for wheel in range(4):
         for other in range(4):
             system[wheel, other] = (1.0 if wheel == other else 0.0) - mats[LOAD_BY_LOAD, wheel, other]
-        known[wheel] = vecs[ORIGIN, wheel] + _dot(gain[wheel], responses[0], DOF)
+        right_side[wheel] = vecs[ORIGIN, wheel] + _dot(gain[wheel], responses[0], DOF)
     if not _lu_factor(system, 4, factors, pivots):
         return False
-    _lu_substitute(factors, pivots, 4, known, vecs[FREE_LOADS])
+    _lu_substitute(factors, pivots, 4, right_side, vecs[FREE_LOADS])
     for column in range(count):  # G's columns: L D is -LOAD_BY_FRICTION
         for wheel in range(4):
-            known[wheel] = -mats[LOAD_BY_FRICTION, wheel, column]
-        _lu_substitute(factors, pivots, 4, known, column_of)
+            right_side[wheel] = -mats[LOAD_BY_FRICTION, wheel, column]
+        _lu_substitute(factors, pivots, 4, right_side, column_of)
         for wheel in range(4):
             load_response[wheel, column] = column_of[wheel]
     slip_rows, free = mats[SLIP_ROWS], vecs[ACCELERATION]
