@@ -340,8 +340,9 @@ class _ChunkRows:
                 self._new_block(self.block.shape[0], self.left)
 
     def close(self) -> DecidingRows:
-        """The reduced rows, the last block's included."""
-        self.reduced.add(self.block[:, :self.filled], self.written[:, :self.filled])
+        """The reduced rows, the last block's included (none left when the instants filled whole blocks)."""
+        if self.filled:
+            self.reduced.add(self.block[:, :self.filled], self.written[:, :self.filled])
         return self.reduced
 
 
