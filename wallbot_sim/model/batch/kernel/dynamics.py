@@ -270,13 +270,13 @@ def tracking_force(y: np.ndarray, point: np.ndarray, flags: np.ndarray, constant
         out[i] = motion[2, i]
 
 
-
 def batch_tracking_forces(states: np.ndarray, point: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                           distance: float, out: np.ndarray) -> None:
     """``tracking_force`` of every robot of a batch into ``out`` (N, 7): ``states`` (N, 14), ``constants`` (N, 24),
     the same ``point`` (3, 2) and ``distance`` for all (one controller instant of a batch)."""
     for robot in range(states.shape[0]):
         tracking_force(states[robot], point, flags, constants[robot], distance, out[robot])
+
 
 _acceleration = jit(_acceleration, inline="always")
 _rk4 = jit(_rk4, inline="always")
