@@ -428,9 +428,21 @@ def start_dask(process_runner, folder: Path, *options: object, host: str = '127.
     process_runner.start(place([DASK, 'scheduler', '--host', host, '--port', 0, '--no-dashboard',
                                 '--scheduler-file', scheduler_file, *options]), 'scheduler')
     deadline = time.monotonic() + STALL
-    while not scheduler_file.exists() and time.monotonic() < deadline:
+    while time.monotonic() < deadline:
+        address = _written_address(scheduler_file)
+        if address is not None:
+            return address
         time.sleep(POLL)
-    return json.loads(scheduler_file.read_text())['address']
+    raise AssertionError(f'the scheduler wrote no address to {scheduler_file} in {STALL} s')
+
+
+def _written_address(scheduler_file: Path) -> str | None:
+    """The address in the scheduler's file once the scheduler has written it whole (it creates the file, then
+    writes it: a read between the two finds it empty)."""
+    try:
+        return json.loads(scheduler_file.read_text())['address']
+    except (FileNotFoundError, json.JSONDecodeError, KeyError):
+        return None
 
 
 def start_worker(process_runner, address: str, name: str, *options: object, host: str = '127.0.0.1',
