@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from wallbot_msgs_py import bagio, topics
-from wallbot_msgs_py.snapshot import LENGTH, DynamicsSnapshot, SnapshotKeeper, decode_snapshot, encode_snapshot
+from wallbot_msgs_py.snapshot import (
+    LENGTH, LENGTH_V1, ContactState, DynamicsSnapshot, SnapshotKeeper, decode_snapshot, encode_snapshot)
 from wallbot_sim.config import load_robot_parameters, load_scenario
 from wallbot_sim.model import ConstraintSelection, Robot, Simulation
 from wallbot_sim.loop.resume import KEEPER_ANSWER, ResumeGate
@@ -35,10 +36,28 @@ def test_snapshot_values_round_trip_exactly():
     assert kept.t == 0.25 + 1234 * 1e-3 and kept.stamp_ns == 1_484 * MS
     without_command = snapshot(command=None)
     assert DynamicsSnapshot.from_values(without_command.to_values()).command is None
+    assert kept.contact is None and values[33:] == [0.0] * (LENGTH - 33)
+    contact = ContactState(sliding=(True, False, False, True), loads=(61.25, 0.5, 1e-17, 80.0),
+                           friction=(-3.5, 0.25, 0.0, 0.0, 0.0, 0.0, 1.0 / 3.0, -math.pi))
+    sliding = snapshot(contact=contact)
+    assert DynamicsSnapshot.from_values(sliding.to_values()) == sliding
+    assert sliding.to_values()[33:38] == [1.0, 1.0, 0.0, 0.0, 1.0]
+
+
+def test_a_v1_snapshot_is_read_without_a_contact_state():
+    """The first layout (33 values under its own label), as a keeper of an older build holds it."""
+    kept = snapshot(contact=ContactState((True,) * 4, (1.0,) * 4, (0.5,) * 8))
+    v1 = bagio.deserialize(encode_snapshot(kept), topics.STATE_SNAPSHOT.type)
+    v1.layout.dim[0].label, v1.data = 'wallbot_dynamics_snapshot_v1', v1.data[:LENGTH_V1]
+    assert decode_snapshot(bagio.serialize(v1, topics.STATE_SNAPSHOT.type)) == snapshot()
+    v1.data = np.array(kept.to_values())
+    with pytest.raises(ValueError, match=r'\(wallbot_dynamics_snapshot_v1\) has 33 values, got 50'):
+        decode_snapshot(bagio.serialize(v1, topics.STATE_SNAPSHOT.type))
 
 
 @pytest.mark.parametrize('edit, reason', [
-    (lambda v: v[:-1], 'has 33 values, got 32'),
+    (lambda v: v[:-1], r'has 50 values \(33 in v1\), got 49'),
+    (lambda v: v[:35] + [0.5] + v[36:], 'neither 0 nor 1'),
     (lambda v: v[:5] + [math.nan] + v[6:], 'not finite'),
     (lambda v: v[:1] + [2.5] + v[2:], 'whole numbers'),
     (lambda v: v[:2] + [0.0] + v[3:], 'dt must be > 0'),
@@ -54,15 +73,15 @@ def test_snapshot_message_carries_the_label_and_an_empty_one_means_nothing_held(
     kept = snapshot()
     data = encode_snapshot(kept)
     msg = bagio.deserialize(data, topics.STATE_SNAPSHOT.type)
-    assert [dim.label for dim in msg.layout.dim] == ['wallbot_dynamics_snapshot_v1']
+    assert [dim.label for dim in msg.layout.dim] == ['wallbot_dynamics_snapshot_v2']
     assert list(msg.data) == kept.to_values() and bagio.serialize(msg, topics.STATE_SNAPSHOT.type) == data
     assert decode_snapshot(data) == kept
     assert decode_snapshot(encode_snapshot(None)) is None
     msg.layout.dim[0].label = 'something else'
     with pytest.raises(ValueError, match='not a dynamics snapshot'):
         decode_snapshot(bagio.serialize(msg, topics.STATE_SNAPSHOT.type))
-    msg.layout.dim[0].label, msg.data = 'wallbot_dynamics_snapshot_v1', msg.data[:5]
-    with pytest.raises(ValueError, match='has 33 values, got 5'):
+    msg.layout.dim[0].label, msg.data = 'wallbot_dynamics_snapshot_v2', msg.data[:5]
+    with pytest.raises(ValueError, match='has 50 values, got 5'):
         decode_snapshot(bagio.serialize(msg, topics.STATE_SNAPSHOT.type))
 
 

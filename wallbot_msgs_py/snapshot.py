@@ -26,7 +26,19 @@ index      meaning
 31         1 if the simulation is paused, else 0
 32         seen until (ns): the newest step stamp the rest of the graph has received; the
            dynamics writes the snapshot's own stamp, a keeper the newest it received
+33         1 if coulomb contact's state follows (the contact model is coulomb), else 0 and
+           34 .. 49 are 0
+34 .. 37   the wheels sliding over the step from this state, 1/0, wheel 1 .. 4
+38 .. 41   the wheels' normal loads N_1 .. N_4 held over that step (N)
+42 .. 49   the sliding wheels' friction (f_x, f_y) in body axes, wheel 1 .. 4 (N), 0 for the
+           others
 =========  ======================================================================
+
+Coulomb contact's state is that of the boundary the state was published at (after its stick/slip
+transitions): a restarted dynamics settles that boundary again from it and continues the run bit
+for bit. A ``wallbot_dynamics_snapshot_v1`` message (the first 33 values) is still read, without
+the contact state: a coulomb run resumed from one finds its sliding wheels again from every wheel
+sticking.
 
 A keeper that holds nothing yet publishes the LABEL with empty ``data`` ("nothing to resume
 from"), so a dynamics starting fresh beside it need not wait. ``encode_snapshot`` and
@@ -42,11 +54,28 @@ from typing import Sequence
 from wallbot_msgs_py import cdr, constraint_modules
 
 TYPE = 'std_msgs/msg/Float64MultiArray'
-LABEL = 'wallbot_dynamics_snapshot_v1'
-LENGTH = 33
+LABEL = 'wallbot_dynamics_snapshot_v2'
+LENGTH = 50
 """Values in a snapshot."""
+LABEL_V1 = 'wallbot_dynamics_snapshot_v1'
+LENGTH_V1 = 33
+"""Values in a snapshot of the first layout (no contact state), still read."""
 SWITCHES = constraint_modules.CONSTRAINT_SWITCHES
 """The order of the constraint switches at indices 24 .. 28."""
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """Coulomb contact's state at a step boundary: what the step from it holds."""
+
+    sliding: tuple[bool, bool, bool, bool]
+    loads: tuple[float, float, float, float]
+    """N_1 .. N_4 (N)."""
+    friction: tuple[float, ...]
+    """(f_x, f_y) of each wheel in body axes (8 values, N), 0 where it does not slide."""
+
+    def to_values(self) -> list[float]:
+        return [*(float(s) for s in self.sliding), *map(float, self.loads), *map(float, self.friction)]
 
 
 @dataclass(frozen=True)
@@ -66,6 +95,8 @@ class DynamicsSnapshot:
     gains: tuple[float, float]
     paused: bool
     seen_until_ns: int
+    contact: ContactState | None = None
+    """Coulomb contact's state (None: ideal contact, or a v1 snapshot)."""
 
     @property
     def t(self) -> float:
@@ -83,14 +114,16 @@ class DynamicsSnapshot:
         return [float(self.anchor), float(self.steps), float(self.dt), *map(float, self.q), *map(float, self.qd),
                 *map(float, self.motor_torque), float(self.command is not None), *map(float, command),
                 float(self.command_since), float(self.command_expired), *(float(s) for s in self.switches),
-                *map(float, self.gains), float(self.paused), float(self.seen_until_ns)]
+                *map(float, self.gains), float(self.paused), float(self.seen_until_ns),
+                float(self.contact is not None), *(self.contact.to_values() if self.contact else [0.0] * 16)]
 
     @classmethod
     def from_values(cls, values: Sequence[float]) -> DynamicsSnapshot:
-        """The snapshot in a message's ``data``; ValueError naming what is wrong."""
+        """The snapshot in a message's ``data`` (LENGTH values, or LENGTH_V1 of the first layout); ValueError
+        naming what is wrong."""
         values = [float(v) for v in values]
-        if len(values) != LENGTH:
-            raise ValueError(f'a dynamics snapshot has {LENGTH} values, got {len(values)}')
+        if len(values) not in (LENGTH, LENGTH_V1):
+            raise ValueError(f'a dynamics snapshot has {LENGTH} values ({LENGTH_V1} in v1), got {len(values)}')
         if not all(math.isfinite(v) for v in values):
             raise ValueError('a dynamics snapshot holds a value that is not finite')
         steps, dt, seen = values[1], values[2], values[32]
@@ -98,14 +131,20 @@ class DynamicsSnapshot:
             raise ValueError(f'dynamics snapshot: steps and seen until must be whole numbers, got {steps}, {seen}')
         if dt <= 0.0:
             raise ValueError(f'dynamics snapshot: dt must be > 0, got {dt}')
-        flags = [values[i] for i in (19, 23, 24, 25, 26, 27, 28, 31)]
+        contact_flags = range(33, 38) if len(values) == LENGTH else range(0)
+        flags = [values[i] for i in (19, 23, 24, 25, 26, 27, 28, 31, *contact_flags)]
         if any(flag not in (0.0, 1.0) for flag in flags):
             raise ValueError('dynamics snapshot: a flag is neither 0 nor 1')
+        contact = None
+        if len(values) == LENGTH and values[33]:
+            contact = ContactState(sliding=tuple(bool(v) for v in values[34:38]), loads=tuple(values[38:42]),
+                                   friction=tuple(values[42:50]))
         return cls(anchor=values[0], steps=int(steps), dt=dt, q=tuple(values[3:10]), qd=tuple(values[10:17]),
                    motor_torque=(values[17], values[18]),
                    command=(values[20], values[21]) if values[19] else None, command_since=values[22],
                    command_expired=bool(values[23]), switches=tuple(bool(v) for v in values[24:29]),
-                   gains=(values[29], values[30]), paused=bool(values[31]), seen_until_ns=int(seen))
+                   gains=(values[29], values[30]), paused=bool(values[31]), seen_until_ns=int(seen),
+                   contact=contact)
 
 
 @cdr.encoder('state_snapshot', TYPE)
@@ -122,8 +161,11 @@ def decode_snapshot(message: cdr.Reader) -> DynamicsSnapshot | None:
     """The snapshot in a serialized message (None: the keeper holds nothing); ValueError if it is no snapshot."""
     dims, values = message.float64_multiarray()
     labels = [label for label, _size, _stride in dims]
-    if labels != [LABEL]:
+    if labels not in ([LABEL], [LABEL_V1]):
         raise ValueError(f'not a dynamics snapshot: layout labels {labels}, expected [{LABEL!r}]')
+    length = LENGTH if labels == [LABEL] else LENGTH_V1
+    if values and len(values) != length:
+        raise ValueError(f'a dynamics snapshot ({labels[0]}) has {length} values, got {len(values)}')
     return DynamicsSnapshot.from_values(values) if values else None
 
 

@@ -14,7 +14,7 @@ from wallbot_msgs_py.snapshot import DynamicsSnapshot
 from wallbot_sim.loop.events import ConstraintSwitch
 from wallbot_sim.loop.faults import faults_on
 from wallbot_sim.loop.graph import Log
-from wallbot_sim.loop.snapshots import kept_constraints
+from wallbot_sim.loop.snapshots import kept_constraints, kept_contact
 from wallbot_sim.loop.status import RunState, Status
 from wallbot_sim.settings.dynamics import DynamicsSettings
 
@@ -201,9 +201,10 @@ class StartGate:
         loop.selection, loop.gains = kept_constraints(kept, switch, loop.plan is not None)
         if kept.dt == 1.0 / loop.settings.rate_hz:
             loop.sim = loop.segments.simulation(kept.q, kept.qd, kept.anchor, kept.motor_torque)
-            loop.sim.restore(kept.steps, kept.q, kept.qd)
+            loop.sim.restore(kept.steps, kept.q, kept.qd, kept_contact(kept))
         else:  # another rate_hz: a new run segment from the kept time, as a rate change makes
             loop.sim = loop.segments.simulation(kept.q, kept.qd, kept.t, kept.motor_torque)
+            loop.sim.restore(0, kept.q, kept.qd, kept_contact(kept))
         loop.commands.command = (kept.command, kept.command_since) if kept.command is not None else None
         loop.commands.expired = kept.command_expired
         loop.paused = kept.paused

@@ -130,6 +130,17 @@ Project = Callable[[Sequence[ConstraintModule], np.ndarray], np.ndarray]
 """(modules, qd) -> qd projected onto their velocity constraints (the constraint-switch impulse)."""
 
 
+class CoulombState(NamedTuple):
+    """What coulomb contact holds over the step from a settled boundary: a restarted run takes it up again."""
+
+    sliding: frozenset[int]
+    """The sliding wheels (0..3)."""
+    loads: np.ndarray
+    """(4,): the loads held over the step (N)."""
+    friction: np.ndarray
+    """(4, 2): the sliding wheels' forces (body axes), zero for the others (N)."""
+
+
 class CoulombContact:
     """Which wheels slide, and the loads their friction and rolling resistance hold over a step."""
 
@@ -148,6 +159,18 @@ class CoulombContact:
         self.sliding = frozenset()
         self.loads = np.full(4, 0.25 * wall_load)
         self.friction = np.zeros((4, 2))
+
+    @property
+    def state(self) -> CoulombState:
+        """The sliding wheels, loads and friction held now (copies)."""
+        return CoulombState(self.sliding, self.loads.copy(), self.friction.copy())
+
+    def take_up(self, state: CoulombState) -> None:
+        """Hold ``state`` (a run's, at the boundary it is restored at) as if this contact had settled it."""
+        loads, friction = np.array(state.loads, dtype=float), np.array(state.friction, dtype=float)
+        if loads.shape != (4,) or friction.shape != (4, 2) or not set(state.sliding) <= set(range(4)):
+            raise ParameterError('a coulomb contact state has 4 loads, 4 x 2 friction components and wheels 0..3')
+        self.sliding, self.loads, self.friction = frozenset(state.sliding), loads, friction
 
     def layout(self, modules: Sequence[ConstraintModule]) -> ContactLayout:
         """The layout of ``modules`` (remembered for the last list and gains)."""

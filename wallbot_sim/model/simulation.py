@@ -11,7 +11,8 @@ from wallbot_sim.model.constraint_set import ConstraintSelection, build_modules
 from wallbot_sim.model.constrained_problem import (constrained_motion, constrained_rows, impulsive_projection, row_keys,
                                                    stack_problem)
 from wallbot_sim.model.constraints import BaumgarteGains, ConstraintModule, VelocityConstraint, WheelContact
-from wallbot_sim.model.contact import IDEAL, CoulombContact, DetachedError, HeldFriction, check_contact_model
+from wallbot_sim.model.contact import (
+    IDEAL, CoulombContact, CoulombState, DetachedError, HeldFriction, check_contact_model)
 from wallbot_sim.model.contact_outputs import coulomb_contact, ideal_contact, ideal_measures
 from wallbot_sim.model.errors import DivergedError, ParameterError
 from wallbot_sim.model.integrator import rk4_step
@@ -159,14 +160,22 @@ class Simulation(CompiledSteps):
         """Whether friction limits the contact now: coulomb contact and no trajectory task (9.3)."""
         return self._coulomb is not None and not self._selection.trajectory
 
-    def restore(self, steps: int, q: np.ndarray, qd: np.ndarray) -> None:
-        """Continue from the state (q, qd) a run reached after ``steps`` steps from the initial time.
+    @property
+    def contact_state(self) -> CoulombState | None:
+        """Coulomb contact's state at the current boundary (after ``outputs`` settled it); None with ideal contact."""
+        return None if self._coulomb is None else self._coulomb.state
+
+    def restore(self, steps: int, q: np.ndarray, qd: np.ndarray, contact: CoulombState | None = None) -> None:
+        """Continue from the state (q, qd) a run reached after ``steps`` steps from the initial time, and with
+        coulomb contact from its ``contact_state`` there (None: as it stands).
 
         Time is computed as ``step`` computes it (from the initial time and the step count), so a
         run restored from a saved state continues bit for bit.
         """
         if steps < 0:
             raise ParameterError(f'steps must be >= 0, got {steps}')
+        if contact is not None and self._coulomb is not None:
+            self._coulomb.take_up(contact)
         self._y = _state_vector(q, qd)
         self.steps = int(steps)
         self._t = self._initial[0] + self.steps * self.dt
