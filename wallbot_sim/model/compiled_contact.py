@@ -140,8 +140,9 @@ class CompiledCoulomb(Configured):
 
     def _same(self, step: int, torque: tuple[float, float], coulomb: CoulombContact) -> bool:
         """Whether the simulation goes on as the chunk did: its step, torque and the contact state handed out."""
+        held = (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction)
         return (step == self._ahead_step + self._ahead_row and torque is self._ahead_torque
-                and self._handed == (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction))
+                and all(handed is now for handed, now in zip(self._handed, held)))
 
     def _run(self, y: np.ndarray, step: int, torque: tuple[float, float], coulomb: CoulombContact,
              instants: int) -> ContactRun:
