@@ -31,7 +31,7 @@ def world_problem(constants: np.ndarray, flags: np.ndarray, y: np.ndarray, refer
                                     ('tangent_heading', 'belt', 'non_lateral', 'nonslip'),
                                     ('trajectory', 'belt', 'nonslip')])
 def test_the_body_frame_solve_is_the_world_least_squares_at_every_heading(active):
-    """One workspace through two robots (forgotten between them), every sticking set twice at new headings and
+    """Two robots, each in its own workspace, every sticking set twice at new headings and
     speeds (the second time from the factored rows kept): qdd for the rows' b, for a force alone (b = 0) and for
     a batch of forces (the responses) are the minimum-norm motions of the world's rows, to 1e-9 of their size,
     wherever b lies in the rows' range, and refused where it does not. With the trajectory task (rows fixed in the
@@ -41,11 +41,10 @@ def test_the_body_frame_solve_is_the_world_least_squares_at_every_heading(active
     constants = kernel.robot_constants(RobotBatch(robots), np.full(2, 10.0), np.full(2, 20.0))
     flags, _ = kernel.module_flags(active)
     _, matrix, gram, lower, vectors, scratch = dynamics._workspace()
-    mats, _, ints, *_ = layout._contact_workspace()
     reference = rng.normal(size=dynamics.REFERENCE_FIELDS)
     sets = [np.array(bits, dtype=np.bool_) for bits in itertools.product((False, True), repeat=4)]
     for robot in range(2):
-        frame._forget_frame(ints)
+        mats, _, ints, *_ = layout._contact_workspace()  # each robot's own, as the batch gives it
         for sticking in sets + sets[::-1]:
             y = rng.normal(size=2 * DOF)
             y[2] = rng.uniform(-np.pi, np.pi)
@@ -88,13 +87,12 @@ def test_the_sliding_components_responses_and_newtons_blocks_kept_per_set_are_th
     robots = random_robots(rng, 2)
     constants = kernel.robot_constants(RobotBatch(robots), np.full(2, 10.0), np.full(2, 20.0))
     flags, _ = kernel.module_flags(active)
-    mats, _, ints, *_ = layout._contact_workspace()
     reference, dt = rng.normal(size=dynamics.REFERENCE_FIELDS), 1e-3
     directions = [direction for direction in range(2) if flags[layout.HELD_BY[direction]]]
     sets = [np.array(bits, dtype=np.bool_) for bits in itertools.product((False, True), repeat=4)]
     for robot in range(2):
         contact = kernel.contact_constants(robots[robot])
-        frame._forget_frame(ints)
+        mats, _, ints, *_ = layout._contact_workspace()
         for sticking in sets + sets[::-1]:
             y = rng.normal(size=2 * DOF)
             y[2] = rng.uniform(-np.pi, np.pi)

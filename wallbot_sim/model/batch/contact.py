@@ -135,7 +135,16 @@ class BatchCoulomb:
         """(N, 8, 8): each robot's settled boundary (``kernel.SOLUTION_ROWS``), kept for a robot no longer settled."""
         self.contact = np.array([kernel.contact_constants(robot) for robot in robots.robots])
         """(N, 16): each robot's ``kernel.contact_constants``."""
+        self._workspaces: tuple | None = None
+        """Each robot's scratch in the kernel's calls (``kernel.contact_workspaces``), made at the first."""
         self._singles: list[tuple[list[ConstraintModule], CoulombContact]] | None = None
+
+    @property
+    def workspaces(self) -> tuple:
+        """The robots' workspaces for the kernel (a batch's configuration never changes: they hold for its life)."""
+        if self._workspaces is None:
+            self._workspaces = kernel.contact_workspaces(self.robots.size)
+        return self._workspaces
 
     @property
     def directions(self) -> tuple[int, ...]:
@@ -148,7 +157,7 @@ class BatchCoulomb:
         in place on y (N, 14); ``references`` (3, 10): the reference at the step's RK4 instants."""
         errors = kernel.batch_contact_settle(y, references[0], tuple(self.selection.active_names()), constants,
                                              self.contact, np.ascontiguousarray(torques), dt, self.sliding,
-                                             self.loads, self.friction, live, self.solutions)
+                                             self.loads, self.friction, live, self.solutions, self.workspaces)
         failed = np.flatnonzero(errors)
         if len(failed):
             raise contact_error(failed, errors[failed[0]], self.solutions[failed[0]])
@@ -159,7 +168,7 @@ class BatchCoulomb:
         ``torques`` (``kernel.batch_contact_run``), the contact state updated."""
         return HeldRun(*kernel.batch_contact_run(y, references, tuple(self.selection.active_names()), constants,
                                                  self.contact, torques, dt, self.sliding, self.loads, self.friction,
-                                                 live, self.solutions), references)
+                                                 live, self.solutions, self.workspaces), references)
 
     def table(self, run: HeldRun, robots: RobotBatch, times: np.ndarray, torques: np.ndarray,
               reference: Reference | None) -> BatchTable:

@@ -358,7 +358,8 @@ class BatchSimulation:
         assert coulomb is not None
         y, finite = kernel.batch_contact_step(self._y, self._step_references, tuple(self.selection.active_names()),
                                               self._kernel_constants(), coulomb.contact, self.motor_torque,
-                                              self.dt, coulomb.sliding, ~self.detached, coulomb.solutions)
+                                              self.dt, coulomb.sliding, ~self.detached, coulomb.solutions,
+                                              coulomb.workspaces)
         self._advance(y, finite)
 
     def run(self, steps: int, on_step: StepHook | None = None) -> BatchOutputs | None:

@@ -51,7 +51,7 @@ from wallbot_sim.model.batch.kernel.layout import (
 from wallbot_sim.model.batch.kernel.linalg import _accelerations
 from wallbot_sim.model.batch.kernel.outputs import ideal_outputs
 from wallbot_sim.model.batch.kernel.settle import (
-    _batch_contact_run, _batch_settle, _batch_step, robot_contact_run)
+    _batch_contact_run, _batch_settle, _batch_step, contact_workspaces, robot_contact_run)
 from wallbot_sim.model.batch.robots import RobotBatch
 
 __all__ = [
@@ -60,7 +60,8 @@ __all__ = [
     'FRICTION', 'LOADS',
     'NEWTON_RESIDUAL', 'PREDICTED', 'QDD', 'RAN', 'RESIDUAL', 'SOLUTION_ROWS', 'SOLUTION_WIDTH', 'STATUS', 'VELOCITY',
     'contact_constants', 'robot_contact_run', 'constrained_accelerations', 'robot_constants', 'module_flags', 'advance',
-    'batch_contact_settle', 'batch_contact_step', 'batch_contact_run', 'ideal_outputs', 'DETACHED', 'DIVERGED']
+    'batch_contact_settle', 'batch_contact_step', 'batch_contact_run', 'contact_workspaces', 'ideal_outputs',
+    'DETACHED', 'DIVERGED']
 
 
 def constrained_accelerations(factor: np.ndarray, force: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -97,37 +98,40 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
 
 def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                          contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, chunk: int = 64) -> np.ndarray:
+                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple,
+                         chunk: int = 64) -> np.ndarray:
     """Every live robot's coulomb boundary, robot by robot over the cores (``_batch_settle``): ``states`` (velocities
     projected), ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each
-    robot's error code (``CONTACT_ERRORS``)."""
+    robot's error code (``CONTACT_ERRORS``). ``workspaces``: the robots' own (``contact_workspaces``), for the batch's
+    calls under one configuration (active modules, constants, dt)."""
     flags, _ = module_flags(active)
     errors = np.zeros(states.shape[0], dtype=np.int64)
     _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, friction, live, solutions,
-                  errors, chunk)
+                  errors, workspaces, chunk)
     return errors
 
 
 def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                        contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
-                       solutions: np.ndarray, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
-    """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite."""
+                       solutions: np.ndarray, workspaces: tuple, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite.
+    ``workspaces`` as ``batch_contact_settle``'s."""
     flags, _ = module_flags(active)
     out, finite = np.empty_like(states), np.ones(states.shape[0], dtype=np.bool_)
     _batch_step(states, references, flags, constants, contact, torques, dt, sliding, live, solutions, out, finite,
-                chunk)
+                workspaces, chunk)
     return out, finite
 
 
 def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                       contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                      friction: np.ndarray, live: np.ndarray, solutions: np.ndarray
+                      friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """T steps of every live robot from its settled boundary (``_batch_contact_run``), T = len(references), at
     the held ``torques``: ``states`` (N, 14) the boundaries, ``solutions`` (N, 8, 8) theirs; the contact state
     (``sliding``, ``loads``, ``friction``) updated in place. Returns the states (N, T + 1, 14), the settled states
     (N, T, 14), the solutions (N, T, 8, 8), the sliding wheels (N, T, 4) of each instant, and each robot's
-    ``robot_contact_run`` outcome (N, 4)."""
+    ``robot_contact_run`` outcome (N, 4). ``workspaces`` as ``batch_contact_settle``'s."""
     flags, _ = module_flags(active)
     size, instants = states.shape[0], references.shape[0]
     run_states = np.zeros((size, instants + 1, states.shape[1]))
@@ -139,5 +143,5 @@ def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[
     outcomes = np.zeros((size, 4), dtype=np.int64)
     _batch_contact_run(run_states, settled, np.ascontiguousarray(references), flags, constants, contact,
                        np.ascontiguousarray(torques), dt, instants, sliding, loads, friction, live, run_solutions,
-                       slid, outcomes)
+                       slid, outcomes, workspaces)
     return run_states, settled, run_solutions, slid, outcomes

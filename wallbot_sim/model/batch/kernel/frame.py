@@ -32,11 +32,6 @@ KEY, RANK, SLID = range(3)
 set whose sliding components' responses and blocks are kept (``_sliding_responses``)."""
 
 
-def _forget_frame(ints: np.ndarray) -> None:
-    """No set factored: the workspace's next robot, whose constants differ, factors its own."""
-    ints[FRAME, KEY] = ints[FRAME, SLID] = 0
-
-
 def _into_body(cos_t: float, sin_t: float, force: np.ndarray, out: np.ndarray) -> None:
     """T^T Q into ``out``: the chassis' force components turned into the body axes at heading theta."""
     out[0], out[1] = cos_t * force[0] + sin_t * force[1], -sin_t * force[0] + cos_t * force[1]
@@ -167,7 +162,6 @@ def _sliding_responses(cos_t: float, sin_t: float, flags: np.ndarray, constants:
     return True
 
 
-_forget_frame = jit(_forget_frame, inline="always")
 _into_body = jit(_into_body, inline="always")
 _into_world = jit(_into_world, inline="always")
 _frame_rows = jit(_frame_rows)

@@ -11,7 +11,6 @@ import numpy as np
 from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
 from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.dynamics import _rk4, _workspace
-from wallbot_sim.model.batch.kernel.frame import _forget_frame
 from wallbot_sim.model.batch.kernel.layout import (
     AT_REST, CANDIDATES, DETACHED, DIVERGED, FAILED, FORCES, HOLDING, LOADS, MAX_ROWS, NON_LATERAL, NONSLIP, PREDICTED,
     PRESSED, PROJECTION, QDD, RAN, REVERSING, ROLLING, SETTLE_PASSES, SOLUTION_ROWS, SOLUTION_WIDTH, SOLVED, STATIC,
@@ -241,78 +240,91 @@ def _contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray
         outcome[1] = k + 1
 
 
+def contact_workspaces(size: int) -> tuple:
+    """Each of ``size`` robots' own scratch for its boundaries and steps (``_contact_run``'s workspace, 16 arrays
+    with the robot first, ~60 kB a robot), kept over a batch's calls: a robot's stick/slip set stays factored
+    (``frame``) from one call to the next instead of being factored again at the start of each (three times a
+    controller period: its two boundaries and its run)."""
+    one = (np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS), *_workspace(), *_contact_workspace(),
+           np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF)))
+    return tuple(np.zeros((size, *array.shape), dtype=array.dtype) for array in one)
+
+
 def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                   contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
                   friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray,
-                  chunk: int) -> None:
+                  workspaces: tuple, chunk: int) -> None:
     """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
     (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4), ``friction`` (N, 8) and the states
     updated in place, ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left
-    as they are.
+    as they are. ``workspaces``: each robot's (``contact_workspaces``).
     The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
     fastest around one call)."""
     for block in prange((states.shape[0] + chunk - 1) // chunk):
         _settle_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, reference, flags, constants,
-                      contact, torques, dt, sliding, loads, friction, live, solutions, errors)
+                      contact, torques, dt, sliding, loads, friction, live, solutions, errors, workspaces)
 
 
 def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarray, flags: np.ndarray,
                   constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
                   loads: np.ndarray, friction: np.ndarray, live: np.ndarray, solutions: np.ndarray,
-                  errors: np.ndarray) -> None:
+                  errors: np.ndarray, workspaces: tuple) -> None:
     """``_batch_settle`` of robots first..end - 1 on one core."""
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    mats, vecs, ints, marks, columns, responses = _contact_workspace()
-    trial = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH))
+    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
+    mats, vecs, ints, marks, columns, responses, trial = workspaces[8:15]
     for robot in range(first, end):
-        _forget_frame(ints)
         if live[robot]:
             errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
-                                    dt, sliding[robot], loads[robot], friction[robot], rows, rhs, factor, matrix,
-                                    gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses,
-                                    solutions[robot], trial)
+                                    dt, sliding[robot], loads[robot], friction[robot], rows[robot], rhs[robot],
+                                    factor[robot], matrix[robot], gram[robot], lower[robot], vectors[robot],
+                                    scratch[robot], mats[robot], vecs[robot], ints[robot], marks[robot],
+                                    columns[robot], responses[robot], solutions[robot], trial[robot])
 
 
 def _batch_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                        constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, steps: int,
                        sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, live: np.ndarray,
-                       solutions: np.ndarray, slid: np.ndarray, outcomes: np.ndarray) -> None:
+                       solutions: np.ndarray, slid: np.ndarray, outcomes: np.ndarray, workspaces: tuple) -> None:
     """``robot_contact_run`` of every ``live`` robot from its settled boundary (row 0: ``settled_first``) over the
-    same instants, robot by robot over the cores: ``states`` (N, T + 1, 14), ``settled`` (N, T, 14), ``solutions``
-    (N, T, 8, 8), ``slid`` (N, T, 4), ``outcomes`` (N, 4) each robot's ``robot_contact_run``'s, ``references``
-    (T, 3, 10) theirs; ``sliding``, ``loads`` and ``friction`` (N, ...) each robot's contact state, updated."""
+    same instants, robot by robot over the cores, each in its own workspace (``contact_workspaces``): ``states``
+    (N, T + 1, 14), ``settled`` (N, T, 14), ``solutions`` (N, T, 8, 8), ``slid`` (N, T, 4), ``outcomes`` (N, 4) each
+    robot's ``robot_contact_run``'s, ``references`` (T, 3, 10) theirs; ``sliding``, ``loads`` and ``friction``
+    (N, ...) each robot's contact state, updated."""
+    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
+    mats, vecs, ints, marks, columns, responses, trial, slopes = workspaces[8:]
     for robot in prange(states.shape[0]):
         if live[robot]:
-            robot_contact_run(states[robot], settled[robot], references, flags, constants[robot], contact[robot],
-                              torques[robot], dt, steps, sliding[robot], loads[robot], friction[robot],
-                              solutions[robot], slid[robot], outcomes[robot], True)
+            _contact_run(states[robot], settled[robot], references, flags, constants[robot], contact[robot],
+                         torques[robot], dt, steps, sliding[robot], loads[robot], friction[robot], solutions[robot],
+                         slid[robot], outcomes[robot], True, rows[robot], rhs[robot], factor[robot], matrix[robot],
+                         gram[robot], lower[robot], vectors[robot], scratch[robot], mats[robot], vecs[robot],
+                         ints[robot], marks[robot], columns[robot], responses[robot], trial[robot], slopes[robot])
 
 
 def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
                 contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
-                solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, chunk: int) -> None:
+                solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, workspaces: tuple, chunk: int) -> None:
     """The RK4 step of every ``live`` robot from its settled boundary (``_held_step``) into ``out``; the others keep
     their state. ``finite`` (N,) says whether each new state is finite. Over the cores as ``_batch_settle``."""
     for block in prange((states.shape[0] + chunk - 1) // chunk):
         _step_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, references, flags, constants,
-                    contact, torques, dt, sliding, live, solutions, out, finite)
+                    contact, torques, dt, sliding, live, solutions, out, finite, workspaces)
 
 
 def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray, flags: np.ndarray,
                 constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
-                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray) -> None:
+                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray,
+                workspaces: tuple) -> None:
     """``_batch_step`` of robots first..end - 1 on one core."""
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    mats, vecs, ints, marks, _, _ = _contact_workspace()
-    slopes = np.zeros((4, 2 * DOF))
+    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
+    mats, vecs, ints, marks, slopes = workspaces[8], workspaces[9], workspaces[10], workspaces[11], workspaces[15]
     for robot in range(first, end):
-        _forget_frame(ints)
         if live[robot]:
             finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
-                                       torques[robot], dt, solutions[robot], sliding[robot], rows, rhs, factor, matrix,
-                                       gram, lower, vectors, scratch, mats, vecs, ints, marks, out[robot], slopes)
+                                       torques[robot], dt, solutions[robot], sliding[robot], rows[robot], rhs[robot],
+                                       factor[robot], matrix[robot], gram[robot], lower[robot], vectors[robot],
+                                       scratch[robot], mats[robot], vecs[robot], ints[robot], marks[robot],
+                                       out[robot], slopes[robot])
         else:
             for i in range(2 * DOF):
                 out[robot, i] = states[robot, i]
