@@ -135,12 +135,12 @@ class BatchCoulomb:
         """(N, 8, 8): each robot's settled boundary (``kernel.SOLUTION_ROWS``), kept for a robot no longer settled."""
         self.contact = np.array([kernel.contact_constants(robot) for robot in robots.robots])
         """(N, 16): each robot's ``kernel.contact_constants``."""
-        self._workspaces: tuple | None = None
+        self._workspaces: tuple[np.ndarray, ...] | None = None
         """Each robot's scratch in the kernel's calls (``kernel.contact_workspaces``), made at the first."""
         self._singles: list[tuple[list[ConstraintModule], CoulombContact]] | None = None
 
     @property
-    def workspaces(self) -> tuple:
+    def workspaces(self) -> tuple[np.ndarray, ...]:
         """The robots' workspaces for the kernel (a batch's configuration never changes: they hold for its life)."""
         if self._workspaces is None:
             self._workspaces = kernel.contact_workspaces(self.robots.size)

@@ -240,7 +240,7 @@ def _contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray
         outcome[1] = k + 1
 
 
-def contact_workspaces(size: int) -> tuple:
+def contact_workspaces(size: int) -> tuple[np.ndarray, ...]:
     """Each of ``size`` robots' own scratch for its boundaries and steps (``_contact_run``'s workspace, 16 arrays
     with the robot first, ~60 kB a robot), kept over a batch's calls: a robot's stick/slip set stays factored
     (``frame``) from one call to the next instead of being factored again at the start of each (three times a
