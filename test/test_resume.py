@@ -12,7 +12,10 @@ from wallbot_msgs_py import bagio, topics
 from wallbot_msgs_py.snapshot import (
     LENGTH, LENGTH_V1, ContactState, DynamicsSnapshot, SnapshotKeeper, decode_snapshot, encode_snapshot)
 from wallbot_sim.config import load_robot_parameters, load_scenario
-from wallbot_sim.model import ConstraintSelection, Robot, Simulation
+from wallbot_sim.model import ConstraintSelection, ParameterError, Robot, Simulation
+from wallbot_sim.model.batch import kernel
+from wallbot_sim.model.contact import CoulombState
+from wallbot_sim.model.simulation import NUMBA, PYTHON
 from wallbot_sim.loop.resume import KEEPER_ANSWER, ResumeGate
 
 MS = 1_000_000
@@ -168,6 +171,16 @@ def test_catch_up_publishes_from_the_first_stamp_the_graph_has_not_seen():
     assert gate.publishes(0)
 
 
+def settled_states(sim: Simulation, until: int) -> list[np.ndarray]:
+    """Each state and its solve after a step, as the node takes them, up to step ``until``."""
+    out = []
+    while sim.steps < until:
+        sim.step()
+        result = sim.outputs()  # as the node does after every step
+        out.append(np.concatenate(([result.t], result.q, result.qd, result.constraint_force, result.contact.loads)))
+    return out
+
+
 def test_a_simulation_restored_from_a_snapshot_continues_bit_for_bit():
     robot = Robot(load_robot_parameters())
     scenario = load_scenario('circle')
@@ -179,19 +192,11 @@ def test_a_simulation_restored_from_a_snapshot_continues_bit_for_bit():
         sim.set_motor_torque(0.0, 0.0)
         return sim
 
-    def states(sim: Simulation, until: int) -> list[np.ndarray]:
-        out = []
-        while sim.steps < until:
-            sim.step()
-            result = sim.outputs()  # as the node does after every step
-            out.append(np.concatenate(([result.t], result.q, result.qd, result.constraint_force)))
-        return out
-
     t0 = 0.3  # a run segment that does not start at 0 (a rate change re-anchors there)
     whole = simulation(t0)
-    reference = states(whole, 400)
+    reference = settled_states(whole, 400)
     first = simulation(t0)
-    states(first, 137)
+    settled_states(first, 137)
     kept = DynamicsSnapshot.from_values(snapshot(
         anchor=first.initial_time, steps=first.steps, dt=first.dt, q=tuple(first.q), qd=tuple(first.qd),
         motor_torque=first.motor_torque).to_values())
@@ -199,5 +204,38 @@ def test_a_simulation_restored_from_a_snapshot_continues_bit_for_bit():
     second.restore(kept.steps, np.array(kept.q), np.array(kept.qd))
     assert second.t == first.t
     second.outputs()
-    continued = states(second, 400)
+    continued = settled_states(second, 400)
     assert np.array_equal(np.array(continued), np.array(reference[137:])), 'the restored run differs'
+
+
+@pytest.mark.parametrize('engine', [PYTHON, pytest.param(NUMBA, marks=pytest.mark.skipif(
+    not kernel.available(), reason='numba is not installed'))])
+def test_a_coulomb_simulation_restored_with_its_contact_state_continues_bit_for_bit(engine):
+    """Two wheels sliding at the restored boundary: the contact state taken up with the state, the run goes on to
+    the bit; a state that is no contact state is refused, the simulation as it was."""
+    robot = Robot(load_robot_parameters())
+    scenario = load_scenario('circle')
+    q0, qd0 = scenario.initial_state(robot)
+
+    def simulation() -> Simulation:
+        sim = Simulation(robot, scenario.reference, ConstraintSelection.structural(trajectory=False), q0, qd0,
+                         contact='coulomb', engine=engine)
+        sim.set_motor_torque(1.0, -1.0)
+        return sim
+
+    reference = settled_states(simulation(), 60)
+    first = simulation()
+    settled_states(first, 25)
+    held = first.contact_state
+    assert held is not None and 0 < len(held.sliding) < 4
+    second = simulation()
+    second.restore(first.steps, first.q, first.qd, held)
+    taken = second.contact_state
+    assert taken.sliding == held.sliding and np.array_equal(taken.loads, held.loads)
+    assert np.array_equal(taken.friction, held.friction)
+    with pytest.raises(ParameterError, match='4 loads, 4 x 2 friction components and wheels 0..3'):
+        second.restore(first.steps, first.q, first.qd, CoulombState(frozenset({4}), held.loads, held.friction))
+    assert second.contact_state.sliding == held.sliding
+    second.outputs()
+    continued = settled_states(second, 60)
+    assert np.array_equal(np.array(continued), np.array(reference[25:])), 'the restored run differs'
