@@ -169,6 +169,13 @@ def _held_step(state: np.ndarray, references: np.ndarray, flags: np.ndarray, con
                 matrix, gram, lower, vectors, scratch, mats, ints, out, slopes)
 
 
+def _robot_workspace() -> tuple[np.ndarray, ...]:
+    """One robot's scratch for its boundaries and steps, in ``_contact_run``'s order: rows, rhs, ``_workspace``'s
+    six arrays, ``_contact_workspace``'s six, the trial solution and the RK4 slopes."""
+    return ((np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)) + _workspace() + _contact_workspace()
+            + (np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF))))
+
+
 def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                       constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
                       sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, solutions: np.ndarray,
@@ -186,10 +193,8 @@ def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.nd
     ``states`` is settled already, ``solutions[0]`` its solution and the contact state the one after it (a
     boundary the caller settled): the run steps from it.
     """
-    rows, rhs = np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS)
-    factor, matrix, gram, lower, vectors, scratch = _workspace()
-    mats, vecs, ints, marks, columns, responses = _contact_workspace()
-    trial, slopes = np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF))
+    (rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, trial,
+     slopes) = _robot_workspace()
     _contact_run(states, settled, references, flags, constants, contact, torque, dt, steps, sliding, loads, friction,
                  solutions, slid, outcome, settled_first, rows, rhs, factor, matrix, gram, lower, vectors, scratch,
                  mats, vecs, ints, marks, columns, responses, trial, slopes)
@@ -245,9 +250,7 @@ def contact_workspaces(size: int) -> tuple[np.ndarray, ...]:
     with the robot first, ~60 kB a robot), kept over a batch's calls: a robot's stick/slip set stays factored
     (``frame``) from one call to the next instead of being factored again at the start of each (three times a
     controller period: its two boundaries and its run)."""
-    one = (np.zeros((MAX_ROWS, DOF)), np.zeros(MAX_ROWS), *_workspace(), *_contact_workspace(),
-           np.zeros((SOLUTION_ROWS, SOLUTION_WIDTH)), np.zeros((4, 2 * DOF)))
-    return tuple(np.zeros((size, *array.shape), dtype=array.dtype) for array in one)
+    return tuple(np.zeros((size, *array.shape), dtype=array.dtype) for array in _robot_workspace())
 
 
 def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
@@ -270,8 +273,8 @@ def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarra
                   loads: np.ndarray, friction: np.ndarray, live: np.ndarray, solutions: np.ndarray,
                   errors: np.ndarray, workspaces: tuple) -> None:
     """``_batch_settle`` of robots first..end - 1 on one core."""
-    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
-    mats, vecs, ints, marks, columns, responses, trial = workspaces[8:15]
+    (rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, trial,
+     _) = workspaces
     for robot in range(first, end):
         if live[robot]:
             errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
@@ -290,8 +293,8 @@ def _batch_contact_run(states: np.ndarray, settled: np.ndarray, references: np.n
     (N, T + 1, 14), ``settled`` (N, T, 14), ``solutions`` (N, T, 8, 8), ``slid`` (N, T, 4), ``outcomes`` (N, 4) each
     robot's ``robot_contact_run``'s, ``references`` (T, 3, 10) theirs; ``sliding``, ``loads`` and ``friction``
     (N, ...) each robot's contact state, updated."""
-    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
-    mats, vecs, ints, marks, columns, responses, trial, slopes = workspaces[8:]
+    (rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, trial,
+     slopes) = workspaces
     for robot in prange(states.shape[0]):
         if live[robot]:
             _contact_run(states[robot], settled[robot], references, flags, constants[robot], contact[robot],
@@ -316,8 +319,7 @@ def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray
                 live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray,
                 workspaces: tuple) -> None:
     """``_batch_step`` of robots first..end - 1 on one core."""
-    rows, rhs, factor, matrix, gram, lower, vectors, scratch = workspaces[:8]
-    mats, vecs, ints, marks, slopes = workspaces[8], workspaces[9], workspaces[10], workspaces[11], workspaces[15]
+    rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, _, _, _, slopes = workspaces
     for robot in range(first, end):
         if live[robot]:
             finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
@@ -337,6 +339,7 @@ _holds = jit(_holds, inline="always")
 _settle = jit(_settle)
 _hold = jit(_hold, inline="always")
 _held_step = jit(_held_step)
+_robot_workspace = jit(_robot_workspace, inline="always")
 robot_contact_run = jit(robot_contact_run)
 _contact_run = jit(_contact_run)
 _settle_block = jit(_settle_block)
