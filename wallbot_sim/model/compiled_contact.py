@@ -156,7 +156,7 @@ class CompiledCoulomb(Configured):
         kernel.robot_contact_run(states, settled, self.reference_rows(step, instants).rows, self._flags,
                                  self._constants, self._contact, self._torque_array(torque), self._dt, instants,
                                  sliding, np.array(coulomb.loads, dtype=float),
-                                 np.array(coulomb.friction, dtype=float).reshape(8), solutions, slid, outcome)
+                                 np.array(coulomb.friction, dtype=float).reshape(8), solutions, slid, outcome, False)
         self._handed = (coulomb, coulomb.sliding, coulomb.loads, coulomb.friction)
         return ContactRun(states, settled, solutions, slid, outcome)
 

@@ -50,8 +50,7 @@ from wallbot_sim.model.batch.kernel.layout import (
     contact_constants)
 from wallbot_sim.model.batch.kernel.linalg import _accelerations
 from wallbot_sim.model.batch.kernel.outputs import ideal_outputs
-from wallbot_sim.model.batch.kernel.settle import (
-    _batch_contact_run, _batch_settle, _batch_step, contact_workspaces, robot_contact_run)
+from wallbot_sim.model.batch.kernel.settle import _batch_contact_run, contact_workspaces, robot_contact_run
 from wallbot_sim.model.batch.robots import RobotBatch
 
 __all__ = [
@@ -98,29 +97,43 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
 
 def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                          contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple,
-                         chunk: int = 64) -> np.ndarray:
-    """Every live robot's coulomb boundary, robot by robot over the cores (``_batch_settle``): ``states`` (velocities
-    projected), ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each
-    robot's error code (``CONTACT_ERRORS``). ``workspaces``: the robots' own (``contact_workspaces``), for the batch's
-    calls under one configuration (active modules, constants, dt)."""
+                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple) -> np.ndarray:
+    """Every live robot's coulomb boundary, robot by robot over the cores: ``states`` (velocities projected),
+    ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each robot's
+    error code (``CONTACT_ERRORS``). ``workspaces``: the robots' own (``contact_workspaces``), for the batch's calls
+    under one configuration (active modules, constants, dt). A run of one instant and no step
+    (``_batch_contact_run``): the settle is compiled once, in the run."""
     flags, _ = module_flags(active)
-    errors = np.zeros(states.shape[0], dtype=np.int64)
-    _batch_settle(states, reference, flags, constants, contact, torques, dt, sliding, loads, friction, live, solutions,
-                  errors, workspaces, chunk)
-    return errors
+    references = np.zeros((1, 3, REFERENCE_FIELDS))
+    references[0, 0] = reference
+    boundaries = np.ascontiguousarray(states[:, None])
+    settled = np.ascontiguousarray(solutions[:, None])
+    outcomes = np.zeros((states.shape[0], 4), dtype=np.int64)
+    _batch_contact_run(boundaries, boundaries, references, flags, constants, contact, np.ascontiguousarray(torques),
+                       dt, 0, sliding, loads, friction, live, settled, np.zeros((states.shape[0], 1, 4), dtype=np.bool_),
+                       outcomes, False, workspaces)
+    states[live], solutions[live] = boundaries[live, 0], settled[live, 0]
+    return outcomes[:, 3]
 
 
 def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                        contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
-                       solutions: np.ndarray, workspaces: tuple, chunk: int = 64) -> tuple[np.ndarray, np.ndarray]:
-    """Every live robot's RK4 step from its settled boundary (``_batch_step``): the new states and which are finite.
-    ``workspaces`` as ``batch_contact_settle``'s."""
+                       solutions: np.ndarray, workspaces: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """Every live robot's RK4 step from its settled boundary: the new states (the others' as they were) and which
+    are finite. ``workspaces`` as ``batch_contact_settle``'s. A run of one step from a settled boundary
+    (``_batch_contact_run``), which settles nothing: the contact state it is handed (zero loads and friction) only
+    passes its lift-off check."""
     flags, _ = module_flags(active)
-    out, finite = np.empty_like(states), np.ones(states.shape[0], dtype=np.bool_)
-    _batch_step(states, references, flags, constants, contact, torques, dt, sliding, live, solutions, out, finite,
-                workspaces, chunk)
-    return out, finite
+    size = states.shape[0]
+    run_states = np.zeros((size, 2, states.shape[1]))
+    run_states[:, 0] = states
+    outcomes = np.zeros((size, 4), dtype=np.int64)
+    _batch_contact_run(run_states, np.zeros((size, 1, states.shape[1])), np.ascontiguousarray(references[None]),
+                       flags, constants, contact, np.ascontiguousarray(torques), dt, 1, sliding, np.zeros((size, 4)),
+                       np.zeros((size, 8)), live, np.ascontiguousarray(solutions[:, None]),
+                       np.zeros((size, 1, 4), dtype=np.bool_), outcomes, True, workspaces)
+    out = np.where(live[:, None], run_states[:, 1], states)
+    return out, ~live | (outcomes[:, 2] != DIVERGED)
 
 
 def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
@@ -143,5 +156,5 @@ def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[
     outcomes = np.zeros((size, 4), dtype=np.int64)
     _batch_contact_run(run_states, settled, np.ascontiguousarray(references), flags, constants, contact,
                        np.ascontiguousarray(torques), dt, instants, sliding, loads, friction, live, run_solutions,
-                       slid, outcomes, workspaces)
+                       slid, outcomes, True, workspaces)
     return run_states, settled, run_solutions, slid, outcomes

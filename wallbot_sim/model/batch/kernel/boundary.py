@@ -18,7 +18,7 @@ from wallbot_sim.model.batch.kernel.layout import (
     NEWTON_PREDICTED, NON_LATERAL, NONSLIP, ORIGIN, PREDICTED, QDD, REDUCED, RESIDUAL, RESIDUALS, ROLLING, ROW_LOADS,
     SLIP, SLIP_ROWS, SOLVED, SPLIT, SPLIT_CUT, SPLIT_KEPT, SPLIT_LOWER, SPLIT_PIVOTS, SPLIT_X, STATE, STATUS, STICKING,
     STUCK_ROWS, TANGENT_HEADING, TOTAL, TRAJECTORY, VELOCITY, WHEEL_OF, ZERO)
-from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _minimum_norm, _scaled_rows, _solve
+from wallbot_sim.model.batch.kernel.linalg import _dot, _factor_times, _least_squares, _minimum_norm, _scaled_rows
 from wallbot_sim.model.batch.kernel.problem import _factor_of, _problem
 from wallbot_sim.model.batch.kernel.row_space import _pivoted_cholesky, _pivoted_solve
 from wallbot_sim.model.robot import DOF
@@ -86,7 +86,8 @@ def _responded(cos_t: float, sin_t: float, flags: np.ndarray, factor: np.ndarray
     """qdd under ``force`` and the rows (b = 0 unless ``with_rhs``) by ``_frame_solve`` after ``_frame_rows``, or by
     ``_solve``'s least squares where the rows disagree: one column of ``constrained_acceleration``."""
     if not _frame_solve(cos_t, sin_t, flags, factor, force, rhs, with_rhs, count, rank, mats, ints, vectors, out):
-        _solve(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch, out)
+        _least_squares(factor, force, rows, rhs if with_rhs else zero, count, matrix, gram, lower, vectors, scratch,
+                       out)
 
 
 # Long on purpose: a boundary's set-up (rows, the response to each column) and its outputs from Newton's result
@@ -231,8 +232,11 @@ def _project_onto(y: np.ndarray, flags: np.ndarray, constants: np.ndarray, stick
         y[DOF + j] -= vectors[1, j]
 
 
-_responded = jit(_responded)
+_responded = jit(_responded, inline="always")
 _reduce = jit(_reduce, inline="always")
-_split = jit(_split)
+_split = jit(_split, inline="always")
+_inline_boundary = jit(_boundary, inline="always")
+"""``_boundary`` compiled into its caller: for the boundary every step begins with (``_settle``'s first), where a
+call would pass its ~25 arrays field by field; the transitions' boundaries, rarer, call the one ``_boundary``."""
 _boundary = jit(_boundary)
 _project_onto = jit(_project_onto)

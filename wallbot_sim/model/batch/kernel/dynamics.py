@@ -10,7 +10,7 @@ import numpy as np
 from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.frame import _frame_rows, _frame_solve
 from wallbot_sim.model.batch.kernel.layout import MAX_ROWS
-from wallbot_sim.model.batch.kernel.linalg import _full_rank_solve, _scratch, _solve
+from wallbot_sim.model.batch.kernel.linalg import _full_rank_solve, _least_squares, _scratch, _solve
 from wallbot_sim.model.batch.kernel.problem import _applied_force, _factor_of, _module_rows, _problem
 from wallbot_sim.model.robot import DOF
 from wallbot_sim.model.trajectories import LastSample, Reference, tangent_heading
@@ -64,7 +64,7 @@ def _acceleration(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: n
         if _frame_solve(math.cos(q[2]), math.sin(q[2]), flags, factor, vectors[0], rhs, True, count, rank, mats, ints,
                         vectors, out):
             return
-        _solve(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
+        _least_squares(factor, vectors[0], rows, rhs, count, matrix, gram, lower, vectors, scratch, out)
         return
     theta = q[2]
     cos_t, sin_t = math.cos(theta), math.sin(theta)

@@ -62,6 +62,13 @@ def _frame_rows(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.
             key += 1 << wheel
     if ints[FRAME, KEY] == key:
         return ints[FRAME, RANK]
+    return _factor_frame(q, qd, reference, flags, constants, sticking, count, key, mats, ints)
+
+
+def _factor_frame(q: np.ndarray, qd: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
+                  sticking: np.ndarray, count: int, key: int, mats: np.ndarray, ints: np.ndarray) -> int:
+    """``_frame_rows``' factoring of a new sticking set (``key``: 1 + its wheels as bits) in the body axes, kept in
+    the workspace; its rank."""
     body_rows, scratch = mats[FRAME_ROWS], mats[FRAME_SCRATCH]
     for i in range(16):
         scratch[2, i] = 0.0
@@ -164,7 +171,8 @@ def _sliding_responses(cos_t: float, sin_t: float, flags: np.ndarray, constants:
 
 _into_body = jit(_into_body, inline="always")
 _into_world = jit(_into_world, inline="always")
-_frame_rows = jit(_frame_rows)
+_frame_rows = jit(_frame_rows, inline="always")  # every solve's check; the factoring, rare, stays a call
+_factor_frame = jit(_factor_frame)
 _frame_solve = jit(_frame_solve, inline="always")
-_frame_responses = jit(_frame_responses)
-_sliding_responses = jit(_sliding_responses)
+_frame_responses = jit(_frame_responses, inline="always")
+_sliding_responses = jit(_sliding_responses, inline="always")

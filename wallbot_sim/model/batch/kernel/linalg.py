@@ -358,6 +358,8 @@ _transposed_factor_times = jit(_transposed_factor_times, inline="always")
 _factor_times = jit(_factor_times, inline="always")
 _scaled_rows = jit(_scaled_rows, inline="always")
 _misfits = jit(_misfits, inline="always")
+_least_squares = jit(_solve)
+"""``_solve`` as a call, for the coulomb solves' rare fallback: a compiled run holds their every solve inline."""
 _solve = jit(_solve, inline="always")
 _full_rank_solve = jit(_full_rank_solve, inline="always")
 _scratch = jit(_scratch)

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from wallbot_sim.model.batch.kernel.boundary import _boundary, _project_onto
+from wallbot_sim.model.batch.kernel.boundary import _boundary, _inline_boundary, _project_onto
 from wallbot_sim.model.batch.kernel.compiling import jit, prange, unowned
 from wallbot_sim.model.batch.kernel.dynamics import _rk4, _workspace
 from wallbot_sim.model.batch.kernel.layout import (
@@ -60,8 +60,9 @@ def _settle(y: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: 
     static, stick = contact[STATIC], contact[STICK]
     for wheel in range(4):
         sliding[wheel] = sliding[wheel] and frictional
-    error = _boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, friction, rows, rhs, factor,
-                      matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, solution)
+    error = _inline_boundary(y, reference, flags, constants, contact, torque, dt, sliding, loads, friction, rows, rhs,
+                             factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns,
+                             responses, solution)
     if error != SOLVED:
         return error
     sticking, trial_sliding, stopped = marks[STICKING], marks[TRIAL_SLIDING], marks[STOPPED]
@@ -179,7 +180,7 @@ def _robot_workspace() -> tuple[np.ndarray, ...]:
 def robot_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                       constants: np.ndarray, contact: np.ndarray, torque: np.ndarray, dt: float, steps: int,
                       sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, solutions: np.ndarray,
-                      slid: np.ndarray, outcome: np.ndarray, settled_first: bool = False) -> None:
+                      slid: np.ndarray, outcome: np.ndarray, settled_first: bool) -> None:
     """One robot with coulomb contact over consecutive instants: each boundary settled (``_settle``), then the
     step from it (``_held_step``).
 
@@ -253,42 +254,12 @@ def contact_workspaces(size: int) -> tuple[np.ndarray, ...]:
     return tuple(np.zeros((size, *array.shape), dtype=array.dtype) for array in _robot_workspace())
 
 
-def _batch_settle(states: np.ndarray, reference: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                  contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                  friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, errors: np.ndarray,
-                  workspaces: tuple, chunk: int) -> None:
-    """The boundary of every ``live`` robot (N robots: ``states`` (N, 14), ``constants`` (N, 24), ``contact``
-    (N, 16), ...) settled (``_settle``): ``sliding`` (N, 4), ``loads`` (N, 4), ``friction`` (N, 8) and the states
-    updated in place, ``solutions`` (N, 8, 8) filled, ``errors`` (N,) each robot's error code; the others are left
-    as they are. ``workspaces``: each robot's (``contact_workspaces``).
-    The robots are split over the cores in blocks of ``chunk`` (``_settle_block``: a parallel loop compiles
-    fastest around one call)."""
-    for block in prange((states.shape[0] + chunk - 1) // chunk):
-        _settle_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, reference, flags, constants,
-                      contact, torques, dt, sliding, loads, friction, live, solutions, errors, workspaces)
-
-
-def _settle_block(first: int, end: int, states: np.ndarray, reference: np.ndarray, flags: np.ndarray,
-                  constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
-                  loads: np.ndarray, friction: np.ndarray, live: np.ndarray, solutions: np.ndarray,
-                  errors: np.ndarray, workspaces: tuple) -> None:
-    """``_batch_settle`` of robots first..end - 1 on one core."""
-    (rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, columns, responses, trial,
-     _) = workspaces
-    for robot in range(first, end):
-        if live[robot]:
-            errors[robot] = _settle(states[robot], reference, flags, constants[robot], contact[robot], torques[robot],
-                                    dt, sliding[robot], loads[robot], friction[robot], rows[robot], rhs[robot],
-                                    factor[robot], matrix[robot], gram[robot], lower[robot], vectors[robot],
-                                    scratch[robot], mats[robot], vecs[robot], ints[robot], marks[robot],
-                                    columns[robot], responses[robot], solutions[robot], trial[robot])
-
-
 def _batch_contact_run(states: np.ndarray, settled: np.ndarray, references: np.ndarray, flags: np.ndarray,
                        constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, steps: int,
                        sliding: np.ndarray, loads: np.ndarray, friction: np.ndarray, live: np.ndarray,
-                       solutions: np.ndarray, slid: np.ndarray, outcomes: np.ndarray, workspaces: tuple) -> None:
-    """``robot_contact_run`` of every ``live`` robot from its settled boundary (row 0: ``settled_first``) over the
+                       solutions: np.ndarray, slid: np.ndarray, outcomes: np.ndarray, settled_first: bool,
+                       workspaces: tuple) -> None:
+    """``robot_contact_run`` of every ``live`` robot (``settled_first``: from its settled boundary) over the
     same instants, robot by robot over the cores, each in its own workspace (``contact_workspaces``): ``states``
     (N, T + 1, 14), ``settled`` (N, T, 14), ``solutions`` (N, T, 8, 8), ``slid`` (N, T, 4), ``outcomes`` (N, 4) each
     robot's ``robot_contact_run``'s, ``references`` (T, 3, 10) theirs; ``sliding``, ``loads`` and ``friction``
@@ -299,51 +270,22 @@ def _batch_contact_run(states: np.ndarray, settled: np.ndarray, references: np.n
         if live[robot]:
             _contact_run(states[robot], settled[robot], references, flags, constants[robot], contact[robot],
                          torques[robot], dt, steps, sliding[robot], loads[robot], friction[robot], solutions[robot],
-                         slid[robot], outcomes[robot], True, rows[robot], rhs[robot], factor[robot], matrix[robot],
-                         gram[robot], lower[robot], vectors[robot], scratch[robot], mats[robot], vecs[robot],
-                         ints[robot], marks[robot], columns[robot], responses[robot], trial[robot], slopes[robot])
-
-
-def _batch_step(states: np.ndarray, references: np.ndarray, flags: np.ndarray, constants: np.ndarray,
-                contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
-                solutions: np.ndarray, out: np.ndarray, finite: np.ndarray, workspaces: tuple, chunk: int) -> None:
-    """The RK4 step of every ``live`` robot from its settled boundary (``_held_step``) into ``out``; the others keep
-    their state. ``finite`` (N,) says whether each new state is finite. Over the cores as ``_batch_settle``."""
-    for block in prange((states.shape[0] + chunk - 1) // chunk):
-        _step_block(block * chunk, min(states.shape[0], (block + 1) * chunk), states, references, flags, constants,
-                    contact, torques, dt, sliding, live, solutions, out, finite, workspaces)
-
-
-def _step_block(first: int, end: int, states: np.ndarray, references: np.ndarray, flags: np.ndarray,
-                constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
-                live: np.ndarray, solutions: np.ndarray, out: np.ndarray, finite: np.ndarray,
-                workspaces: tuple) -> None:
-    """``_batch_step`` of robots first..end - 1 on one core."""
-    rows, rhs, factor, matrix, gram, lower, vectors, scratch, mats, vecs, ints, marks, _, _, _, slopes = workspaces
-    for robot in range(first, end):
-        if live[robot]:
-            finite[robot] = _held_step(states[robot], references, flags, constants[robot], contact[robot],
-                                       torques[robot], dt, solutions[robot], sliding[robot], rows[robot], rhs[robot],
-                                       factor[robot], matrix[robot], gram[robot], lower[robot], vectors[robot],
-                                       scratch[robot], mats[robot], vecs[robot], ints[robot], marks[robot],
-                                       out[robot], slopes[robot])
-        else:
-            for i in range(2 * DOF):
-                out[robot, i] = states[robot, i]
-            finite[robot] = True
+                         slid[robot], outcomes[robot], settled_first, rows[robot], rhs[robot], factor[robot],
+                         matrix[robot], gram[robot], lower[robot], vectors[robot], scratch[robot], mats[robot],
+                         vecs[robot], ints[robot], marks[robot], columns[robot], responses[robot], trial[robot],
+                         slopes[robot])
 
 
 _speed = jit(_speed, inline="always")
 _reverses = jit(_reverses, inline="always")
 _holds = jit(_holds, inline="always")
-_settle = jit(_settle)
+# A step's boundary and RK4 step compile into the run's own frame (inline): numba passes an array argument as its
+# seven to nine fields, so a call with the ~25 arrays of a boundary moves some 200 values, and the optimizer sees
+# no further than a call; inlined, a coulomb step takes ~40% less time (docs/performance.md)
+_settle = jit(_settle, inline="always")
 _hold = jit(_hold, inline="always")
-_held_step = jit(_held_step)
+_held_step = jit(_held_step, inline="always")
 _robot_workspace = jit(_robot_workspace, inline="always")
 robot_contact_run = jit(robot_contact_run)
 _contact_run = jit(_contact_run)
-_settle_block = jit(_settle_block)
-_step_block = jit(_step_block)
-_batch_settle = jit(_batch_settle, parallel=True)
-_batch_step = jit(_batch_step, parallel=True)
 _batch_contact_run = jit(_batch_contact_run, parallel=True)
