@@ -74,7 +74,7 @@ def compile_ideal() -> None:
 
 def compile_coulomb() -> None:
     """Compile (or load) what coulomb contact steps a driven robot by: the kernel's contact run and the batch's
-    boundaries and steps. In one process, as they share the settle (about half of it), which it compiles once;
+    boundaries and steps. In one process, as they share the run (nearly all of it), which it compiles once;
     beside ``compile_ideal`` in another, the two take about as long."""
     still = np.zeros(DOF)
     Simulation(Robot(RobotParameters()), Circle(1.0, 20.0), ConstraintSelection.structural(trajectory=False),
