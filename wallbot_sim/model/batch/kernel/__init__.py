@@ -97,7 +97,8 @@ def advance(y: np.ndarray, steps: int, dt: float, references: np.ndarray, active
 
 def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tuple[str, ...], constants: np.ndarray,
                          contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, loads: np.ndarray,
-                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple) -> np.ndarray:
+                         friction: np.ndarray, live: np.ndarray, solutions: np.ndarray,
+                         workspaces: tuple) -> np.ndarray:
     """Every live robot's coulomb boundary, robot by robot over the cores: ``states`` (velocities projected),
     ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each robot's
     error code (``CONTACT_ERRORS``). ``workspaces``: the robots' own (``contact_workspaces``), for the batch's calls
@@ -107,12 +108,13 @@ def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tupl
     references = np.zeros((1, 3, REFERENCE_FIELDS))
     references[0, 0] = reference
     boundaries = np.ascontiguousarray(states[:, None])
-    settled = np.ascontiguousarray(solutions[:, None])
-    outcomes = np.zeros((states.shape[0], 4), dtype=np.int64)
+    solved = np.ascontiguousarray(solutions[:, None])
+    size = states.shape[0]
+    outcomes = np.zeros((size, 4), dtype=np.int64)
     _batch_contact_run(boundaries, boundaries, references, flags, constants, contact, np.ascontiguousarray(torques),
-                       dt, 0, sliding, loads, friction, live, settled, np.zeros((states.shape[0], 1, 4), dtype=np.bool_),
-                       outcomes, False, workspaces)
-    states[live], solutions[live] = boundaries[live, 0], settled[live, 0]
+                       dt, 0, sliding, loads, friction, live, solved, np.zeros((size, 1, 4), dtype=np.bool_), outcomes,
+                       False, workspaces)
+    states[live], solutions[live] = boundaries[live, 0], solved[live, 0]
     return outcomes[:, 3]
 
 
