@@ -102,19 +102,12 @@ def batch_contact_settle(states: np.ndarray, reference: np.ndarray, active: tupl
     """Every live robot's coulomb boundary, robot by robot over the cores: ``states`` (velocities projected),
     ``sliding``, ``loads``, ``friction`` (N, 8) and ``solutions`` (N, 8, 8) change in place; returns each robot's
     error code (``CONTACT_ERRORS``). ``workspaces``: the robots' own (``contact_workspaces``), for the batch's calls
-    under one configuration (active modules, constants, dt). A run of one instant and no step
-    (``_batch_contact_run``): the settle is compiled once, in the run."""
-    flags, _ = module_flags(active)
+    under one configuration (active modules, constants, dt). A run of one instant and no step (``_runs``)."""
     references = np.zeros((1, 3, REFERENCE_FIELDS))
     references[0, 0] = reference
-    boundaries = np.ascontiguousarray(states[:, None])
-    solved = np.ascontiguousarray(solutions[:, None])
-    size = states.shape[0]
-    outcomes = np.zeros((size, 4), dtype=np.int64)
-    _batch_contact_run(boundaries, boundaries, references, flags, constants, contact, np.ascontiguousarray(torques),
-                       dt, 0, sliding, loads, friction, live, solved, np.zeros((size, 1, 4), dtype=np.bool_), outcomes,
-                       False, workspaces)
-    states[live], solutions[live] = boundaries[live, 0], solved[live, 0]
+    _, settled, run_solutions, _, outcomes = _runs(states, references, 0, False, active, constants, contact, torques,
+                                                   dt, sliding, loads, friction, live, solutions, workspaces)
+    states[live], solutions[live] = settled[live, 0], run_solutions[live, 0]
     return outcomes[:, 3]
 
 
@@ -122,18 +115,12 @@ def batch_contact_step(states: np.ndarray, references: np.ndarray, active: tuple
                        contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray, live: np.ndarray,
                        solutions: np.ndarray, workspaces: tuple) -> tuple[np.ndarray, np.ndarray]:
     """Every live robot's RK4 step from its settled boundary: the new states (the others' as they were) and which
-    are finite. ``workspaces`` as ``batch_contact_settle``'s. A run of one step from a settled boundary
-    (``_batch_contact_run``), which settles nothing: the contact state it is handed (zero loads and friction) only
-    passes its lift-off check."""
-    flags, _ = module_flags(active)
+    are finite. ``workspaces`` as ``batch_contact_settle``'s. A run of one step from a settled boundary (``_runs``),
+    which settles nothing: the contact state it is handed (zero loads and friction) only passes its lift-off check."""
     size = states.shape[0]
-    run_states = np.zeros((size, 2, states.shape[1]))
-    run_states[:, 0] = states
-    outcomes = np.zeros((size, 4), dtype=np.int64)
-    _batch_contact_run(run_states, np.zeros((size, 1, states.shape[1])), np.ascontiguousarray(references[None]),
-                       flags, constants, contact, np.ascontiguousarray(torques), dt, 1, sliding, np.zeros((size, 4)),
-                       np.zeros((size, 8)), live, np.ascontiguousarray(solutions[:, None]),
-                       np.zeros((size, 1, 4), dtype=np.bool_), outcomes, True, workspaces)
+    run_states, _, _, _, outcomes = _runs(states, references[None], 1, True, active, constants, contact, torques, dt,
+                                          sliding, np.zeros((size, 4)), np.zeros((size, 8)), live, solutions,
+                                          workspaces)
     out = np.where(live[:, None], run_states[:, 1], states)
     return out, ~live | (outcomes[:, 2] != DIVERGED)
 
@@ -147,6 +134,18 @@ def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[
     (``sliding``, ``loads``, ``friction``) updated in place. Returns the states (N, T + 1, 14), the settled states
     (N, T, 14), the solutions (N, T, 8, 8), the sliding wheels (N, T, 4) of each instant, and each robot's
     ``robot_contact_run`` outcome (N, 4). ``workspaces`` as ``batch_contact_settle``'s."""
+    return _runs(states, references, references.shape[0], True, active, constants, contact, torques, dt, sliding,
+                 loads, friction, live, solutions, workspaces)
+
+
+def _runs(states: np.ndarray, references: np.ndarray, steps: int, settled_first: bool, active: tuple[str, ...],
+          constants: np.ndarray, contact: np.ndarray, torques: np.ndarray, dt: float, sliding: np.ndarray,
+          loads: np.ndarray, friction: np.ndarray, live: np.ndarray, solutions: np.ndarray, workspaces: tuple
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``_batch_contact_run`` of the robots at ``states`` (N, 14) over T = len(references) instants, taking ``steps``
+    steps, from settled boundaries (their ``solutions``) if ``settled_first``: its states, settled states,
+    solutions, sliding wheels and outcomes (``batch_contact_run``'s). The one compiled run serves a batch's
+    boundaries, steps and held runs."""
     flags, _ = module_flags(active)
     size, instants = states.shape[0], references.shape[0]
     run_states = np.zeros((size, instants + 1, states.shape[1]))
@@ -157,6 +156,6 @@ def batch_contact_run(states: np.ndarray, references: np.ndarray, active: tuple[
     slid = np.zeros((size, instants, 4), dtype=np.bool_)
     outcomes = np.zeros((size, 4), dtype=np.int64)
     _batch_contact_run(run_states, settled, np.ascontiguousarray(references), flags, constants, contact,
-                       np.ascontiguousarray(torques), dt, instants, sliding, loads, friction, live, run_solutions,
-                       slid, outcomes, True, workspaces)
+                       np.ascontiguousarray(torques), dt, steps, sliding, loads, friction, live, run_solutions,
+                       slid, outcomes, settled_first, workspaces)
     return run_states, settled, run_solutions, slid, outcomes
